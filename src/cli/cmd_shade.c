@@ -1,0 +1,280 @@
+/* `cave shade`: CPU relighting of a baked PRT, the reference path the GPU
+ * renderer is checked against.  Writes per-vertex exit radiance as PLY, or a
+ * pinhole view (Embree primary rays, radiance interpolated from the hit
+ * triangle's vertices, the environment through the windows) as EXR or PNG. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/cli.h"
+#include "io/exr.h"
+#include "io/ply.h"
+#include "io/tonemap_simple.h"
+#include "prt/relight.h"
+#include "prt/scene_light.h"
+
+static void help(FILE *f) {
+  fprintf(f,
+          "usage: cave shade <scene.prt> LIGHT [--yaw DEG] [--pitch DEG] [--roll DEG]\n"
+          "                  [--sun-samples N] -o out.ply [--ascii]\n"
+          "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
+          "                  [--fov DEG] [--size WxH] [--exposure E] -o view.exr|view.png\n\n"
+          "LIGHT is one of\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S] [--no-sun]\n"
+          "                       lat-long HDR maps (blended); a bare name such as forest.exr\n"
+          "                       is looked up in blender-data's studio lights\n"
+          "  --env-constant R,G,B constant environment radiance\n"
+          "  --sky T,ELEV,AZIM    Preetham sky: turbidity 2..10, sun elevation and azimuth\n"
+          "                       (degrees, azimuth clockwise from straight ahead)\n\n"
+          "A sun found in a map (or the sky's sun) is split out of the SH lighting and\n"
+          "added as a directional light with ray-traced visibility through the windows.\n"
+          "The PLY holds float x y z and float red green blue = linear exit radiance.\n"
+          "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n");
+}
+
+typedef struct {
+  double eye[3], look[3], up[3], fov;
+  int w, h;
+} view_opts;
+
+/* Renders the view: radiance interpolated from vertex colours. */
+static void render_view(const cv_prt *p, const cv_tracer *tr, const cv_scene_light *sl,
+                        const float *rad, const view_opts *v, cv_image *img, uint64_t *escaped) {
+  double f[3], r[3], u[3];
+  for (int k = 0; k < 3; k++) f[k] = v->look[k] - v->eye[k];
+  double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+  for (int k = 0; k < 3; k++) f[k] /= fl;
+  r[0] = f[1] * v->up[2] - f[2] * v->up[1];
+  r[1] = f[2] * v->up[0] - f[0] * v->up[2];
+  r[2] = f[0] * v->up[1] - f[1] * v->up[0];
+  double rl = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+  for (int k = 0; k < 3; k++) r[k] /= rl;
+  u[0] = r[1] * f[2] - r[2] * f[1];
+  u[1] = r[2] * f[0] - r[0] * f[2];
+  u[2] = r[0] * f[1] - r[1] * f[0];
+  double th = tan(v->fov * M_PI / 360), aspect = (double)v->w / v->h;
+  const cv_rt *rt = cv_tracer_rt(tr);
+  uint64_t esc = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : esc)
+  for (int y = 0; y < v->h; y++) {
+    cv_rt_thread_init();
+    for (int x = 0; x < v->w; x++) {
+      double sx = (2 * (x + 0.5) / v->w - 1) * th * aspect, sy = (1 - 2 * (y + 0.5) / v->h) * th;
+      float d[3], o[3];
+      double dl = 0;
+      for (int k = 0; k < 3; k++) {
+        double dk = f[k] + sx * r[k] + sy * u[k];
+        d[k] = (float)dk;
+        dl += dk * dk;
+      }
+      for (int k = 0; k < 3; k++) {
+        d[k] /= (float)sqrt(dl);
+        o[k] = (float)v->eye[k];
+      }
+      float *px = cv_image_at(img, x, y);
+      cv_hit h;
+      if (cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) {
+        const uint32_t *t = p->tri + 3 * h.tri;
+        float w0 = 1 - h.u - h.v;
+        for (int c = 0; c < 3; c++)
+          px[c] = w0 * rad[3 * t[0] + c] + h.u * rad[3 * t[1] + c] + h.v * rad[3 * t[2] + c];
+      } else if (cv_rt_reaches_env(rt, o, d, 0)) {
+        cv_scene_light_background(sl, d, px);
+      } else {
+        px[0] = px[1] = px[2] = 0;
+        esc++;
+      }
+    }
+  }
+  *escaped = esc;
+}
+
+int cmd_shade(int argc, char **argv) {
+  const char *in = NULL, *out = NULL;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  int ascii = 0, sun_samples = 16, have_view = 0, have_look = 0;
+  double exposure = 0;
+  view_opts v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480};
+  const char *weights = NULL;
+  cv_err err;
+  cv_err_clear(&err);
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      help(stdout);
+      return 0;
+    } else if (!strcmp(a, "--ascii")) {
+      ascii = 1;
+    } else if (!strcmp(a, "--no-sun")) {
+      spec.extract_sun = 0;
+    } else if (!val) {
+      if (a[0] == '-') {
+        help(stderr);
+        return cli_fail("shade", 2, "option '%s' needs a value", a);
+      }
+      if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
+      in = a;
+    } else if (!strcmp(a, "-o")) {
+      out = argv[++i];
+    } else if (!strcmp(a, "--env")) {
+      char buf[8192];
+      snprintf(buf, sizeof buf, "%s", argv[++i]);
+      char *save = NULL;
+      spec.kind = CV_LIGHT_ENV;
+      spec.n_env = 0;
+      for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        if (spec.n_env == CV_MAX_ENV_MAPS) return cli_fail("shade", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
+        if (cv_resolve_env_path(tok, NULL, spec.env[spec.n_env], &err))
+          return cli_fail("shade", 1, "--env: %s", err.msg);
+        spec.n_env++;
+      }
+      for (int k = 0; k < spec.n_env; k++) spec.weight[k] = 1.0 / spec.n_env;
+    } else if (!strcmp(a, "--weights")) {
+      weights = argv[++i];
+    } else if (!strcmp(a, "--scale")) {
+      if (cli_parse_double(argv[++i], &spec.scale) || spec.scale < 0)
+        return cli_fail("shade", 2, "--scale: expected a non-negative number, got '%s'", val);
+    } else if (!strcmp(a, "--env-constant")) {
+      spec.kind = CV_LIGHT_CONSTANT;
+      if (cli_parse_vec(argv[++i], 3, spec.constant) || spec.constant[0] < 0 ||
+          spec.constant[1] < 0 || spec.constant[2] < 0)
+        return cli_fail("shade", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
+    } else if (!strcmp(a, "--sky")) {
+      double s[3];
+      spec.kind = CV_LIGHT_SKY;
+      if (cli_parse_vec(argv[++i], 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
+        return cli_fail("shade", 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
+      spec.turbidity = s[0];
+      spec.sun_elevation_deg = s[1];
+      spec.sun_azimuth_deg = s[2];
+    } else if (!strcmp(a, "--yaw") || !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
+      double d;
+      if (cli_parse_double(argv[++i], &d)) return cli_fail("shade", 2, "%s: expected degrees, got '%s'", a, val);
+      if (!strcmp(a, "--yaw")) spec.yaw_deg = d;
+      else if (!strcmp(a, "--pitch")) spec.pitch_deg = d;
+      else spec.roll_deg = d;
+    } else if (!strcmp(a, "--sun-samples")) {
+      if (cli_parse_int(argv[++i], 1, 4096, &sun_samples))
+        return cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
+    } else if (!strcmp(a, "--view")) {
+      if (cli_parse_vec(argv[++i], 3, v.eye)) return cli_fail("shade", 2, "--view: expected x,y,z, got '%s'", val);
+      have_view = 1;
+    } else if (!strcmp(a, "--look")) {
+      if (cli_parse_vec(argv[++i], 3, v.look)) return cli_fail("shade", 2, "--look: expected x,y,z, got '%s'", val);
+      have_look = 1;
+    } else if (!strcmp(a, "--up")) {
+      if (cli_parse_vec(argv[++i], 3, v.up)) return cli_fail("shade", 2, "--up: expected x,y,z, got '%s'", val);
+    } else if (!strcmp(a, "--fov")) {
+      if (cli_parse_double(argv[++i], &v.fov) || v.fov <= 1 || v.fov >= 179)
+        return cli_fail("shade", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
+    } else if (!strcmp(a, "--size")) {
+      if (sscanf(argv[++i], "%dx%d", &v.w, &v.h) != 2 || v.w < 1 || v.h < 1 || v.w > 16384 || v.h > 16384)
+        return cli_fail("shade", 2, "--size: expected WxH (1..16384), got '%s'", val);
+    } else if (!strcmp(a, "--exposure")) {
+      if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
+        return cli_fail("shade", 2, "--exposure: expected a positive number, got '%s'", val);
+    } else if (a[0] == '-') {
+      help(stderr);
+      return cli_fail("shade", 2, "unknown option '%s'", a);
+    } else {
+      if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
+      in = a;
+    }
+  }
+  if (!in || !out) {
+    help(stderr);
+    return cli_fail("shade", 2, "a .prt input and -o FILE are required");
+  }
+  if (spec.kind == CV_LIGHT_NONE)
+    return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
+  if (weights) {
+    if (spec.kind != CV_LIGHT_ENV) return cli_fail("shade", 2, "--weights needs --env");
+    double w[CV_MAX_ENV_MAPS];
+    if (cli_parse_vec(weights, spec.n_env, w))
+      return cli_fail("shade", 2, "--weights: expected %d comma-separated numbers, got '%s'", spec.n_env, weights);
+    double sum = 0;
+    for (int k = 0; k < spec.n_env; k++) {
+      if (w[k] < 0) return cli_fail("shade", 2, "--weights: negative weight %g", w[k]);
+      spec.weight[k] = w[k];
+      sum += w[k];
+    }
+    if (!(sum > 0)) return cli_fail("shade", 2, "--weights: the weights sum to 0");
+  }
+  if (have_view != have_look) return cli_fail("shade", 2, "--view and --look go together");
+  int is_view = have_view;
+  if (is_view && !cli_has_ext(out, ".exr") && !cli_has_ext(out, ".png"))
+    return cli_fail("shade", 2, "-o: a view is written as .exr or .png, got '%s'", out);
+  if (!is_view && !cli_has_ext(out, ".ply"))
+    return cli_fail("shade", 2, "-o: per-vertex output is a .ply (or add --view for an image), got '%s'", out);
+
+  int rc = 1;
+  cv_prt *p = NULL;
+  cv_mesh *m = NULL;
+  cv_tracer *tr = NULL;
+  cv_scene_light *sl = NULL;
+  float *rad = NULL;
+  cv_image *img = NULL;
+  if (cv_prt_read(in, &p, &err)) {
+    rc = cli_fail("shade", 1, "%s", err.msg);
+    goto done;
+  }
+  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err)) {
+    rc = cli_fail("shade", 1, "%s", err.msg);
+    goto done;
+  }
+  cv_scene_light_print(stdout, sl);
+  cv_lighting l = cv_scene_light_sh(sl);
+  if (cv_prt_to_mesh(p, &m) || cv_tracer_create(m, &tr, &err)) {
+    rc = cli_fail("shade", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
+    goto done;
+  }
+  rad = malloc(3 * p->nv * sizeof(float) + 1);
+  cv_relight_stats rs;
+  if (!rad || cv_prt_relight(p, &l, tr, sun_samples, rad, &rs)) {
+    rc = cli_fail("shade", 1, "relighting failed");
+    goto done;
+  }
+  printf("relit %zu vertices (%u bands); %llu channels clamped from negative (SH ringing), %llu non-finite\n",
+         p->nv, p->bands, (unsigned long long)rs.clamped_negative, (unsigned long long)rs.nonfinite);
+  if (!is_view) {
+    if (cv_ply_write_points(out, p->nv, p->pos, rad, p->tri, p->nt, !ascii, &err)) {
+      rc = cli_fail("shade", 1, "%s", err.msg);
+      goto done;
+    }
+  } else {
+    if (cv_image_create(v.w, v.h, 3, &img)) {
+      rc = cli_fail("shade", 1, "cannot allocate a %dx%d image", v.w, v.h);
+      goto done;
+    }
+    uint64_t escaped;
+    render_view(p, tr, sl, rad, &v, img, &escaped);
+    if (escaped)
+      printf("view: %llu pixels saw neither geometry nor a window (black)\n", (unsigned long long)escaped);
+    if (cli_has_ext(out, ".exr")) {
+      if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
+        rc = cli_fail("shade", 1, "%s", err.msg);
+        goto done;
+      }
+    } else {
+      cv_preview_stats ps;
+      if (cv_preview_write_png(out, img, exposure, &ps, &err)) {
+        rc = cli_fail("shade", 1, "%s", err.msg);
+        goto done;
+      }
+      printf("view: exposure %.4g (log-average luminance %.4g), %llu channels clamped\n",
+             ps.exposure, ps.log_avg_luminance, (unsigned long long)ps.clamped_channels);
+    }
+  }
+  printf("wrote %s\n", out);
+  rc = 0;
+done:
+  cv_image_destroy(img);
+  free(rad);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+  cv_scene_light_destroy(sl);
+  cv_prt_destroy(p);
+  return rc;
+}

@@ -1,0 +1,52 @@
+/* `cave`: the CAVE predictive-rendering service's one program, with
+ * git-style subcommands.  Each subcommand lives in its own cmd_*.c file and
+ * answers --help. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli/cli.h"
+
+#ifndef CAVE_VERSION
+#define CAVE_VERSION "0.1.0"
+#endif
+
+static const struct {
+  const char *name;
+  int (*fn)(int, char **);
+  const char *summary;
+} commands[] = {
+    {"cabin", cmd_cabin, "write the built-in parametric car cabin as OBJ + MTL"},
+    {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
+    {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
+};
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: cave <command> [options]   (cave <command> --help for details)\n\n"
+          "Predictive rendering of a car interior under HDR daylight for CAVE displays.\n\n"
+          "commands:\n");
+  for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+    fprintf(f, "  %-8s %s\n", commands[i].name, commands[i].summary);
+  fprintf(f, "\n  help     this text\n  version  print the version\n");
+}
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    usage(stderr);
+    return 2;
+  }
+  const char *cmd = argv[1];
+  if (!strcmp(cmd, "help") || !strcmp(cmd, "--help") || !strcmp(cmd, "-h")) {
+    usage(stdout);
+    return 0;
+  }
+  if (!strcmp(cmd, "version") || !strcmp(cmd, "--version")) {
+    printf("cave %s\n", CAVE_VERSION);
+    return 0;
+  }
+  for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+    if (!strcmp(cmd, commands[i].name)) return commands[i].fn(argc - 1, argv + 1);
+  fprintf(stderr, "cave: '%s' is not a command\n\n", cmd);
+  usage(stderr);
+  return 2;
+}

@@ -1,0 +1,412 @@
+/* PRT bake (see bake.h for the sampling scheme). */
+#include "prt/bake.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/hash.h"
+#include "core/progress.h"
+#include "core/sobol.h"
+#include "sh/sh.h"
+
+struct cv_tracer {
+  cv_mesh *m;
+  cv_rt *rt;
+  float *tri_n;        /* 3*nt unit geometric normals */
+  size_t *fan_off;     /* nv+1, CSR offsets into fan_tri/fan_cdf */
+  uint32_t *fan_tri;   /* triangle index << 2 | corner of v in it */
+  float *fan_cdf;      /* cumulative area fraction within the fan */
+};
+
+void cv_tracer_destroy(cv_tracer *tr) {
+  if (!tr) return;
+  cv_rt_destroy(tr->rt);
+  cv_mesh_destroy(tr->m);
+  free(tr->tri_n);
+  free(tr->fan_off);
+  free(tr->fan_tri);
+  free(tr->fan_cdf);
+  free(tr);
+}
+
+static int is_window(const cv_mesh *m, size_t t) {
+  return (m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) != 0;
+}
+
+int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err) {
+  *out = NULL;
+  cv_tracer *tr = calloc(1, sizeof *tr);
+  if (!tr) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  int st = cv_mesh_clone(m, &tr->m);
+  if (!st) st = cv_rt_create(m, &tr->rt, err);
+  if (st) {
+    cv_tracer_destroy(tr);
+    return st == CV_ERR_NOMEM ? cv_err_set(err, st, "out of memory") : st;
+  }
+  size_t nv = m->nv, nt = m->nt;
+  tr->tri_n = malloc(3 * nt * sizeof(float));
+  tr->fan_off = calloc(nv + 1, sizeof(size_t));
+  double *area = malloc(nt * sizeof(double));
+  if (!tr->tri_n || !tr->fan_off || !area) goto nomem;
+  size_t total = 0;
+  for (size_t t = 0; t < nt; t++) {
+    float n[3];
+    cv_mesh_tri_normal(m, t, n);
+    double l = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+    area[t] = 0.5 * l;
+    for (int k = 0; k < 3; k++) tr->tri_n[3 * t + k] = l > 0 ? (float)(n[k] / l) : 0.0f;
+    if (is_window(m, t) || l <= 0) continue;
+    for (int j = 0; j < 3; j++) tr->fan_off[m->tri[3 * t + j] + 1]++;
+    total += 3;
+  }
+  for (size_t v = 0; v < nv; v++) tr->fan_off[v + 1] += tr->fan_off[v];
+  tr->fan_tri = malloc((total + 1) * sizeof(uint32_t));
+  tr->fan_cdf = malloc((total + 1) * sizeof(float));
+  size_t *fill = malloc((nv + 1) * sizeof(size_t));
+  if (!tr->fan_tri || !tr->fan_cdf || !fill) {
+    free(fill);
+    goto nomem;
+  }
+  memcpy(fill, tr->fan_off, (nv + 1) * sizeof(size_t));
+  for (size_t t = 0; t < nt; t++) {
+    if (is_window(m, t) || area[t] <= 0) continue;
+    for (uint32_t j = 0; j < 3; j++) {
+      uint32_t v = m->tri[3 * t + j];
+      tr->fan_tri[fill[v]++] = (uint32_t)(t << 2) | j;
+    }
+  }
+  free(fill);
+  for (size_t v = 0; v < nv; v++) {
+    double sum = 0;
+    for (size_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) sum += area[tr->fan_tri[k] >> 2];
+    double acc = 0;
+    for (size_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) {
+      acc += area[tr->fan_tri[k] >> 2];
+      tr->fan_cdf[k] = (float)(acc / sum);
+    }
+    if (tr->fan_off[v + 1] > tr->fan_off[v]) tr->fan_cdf[tr->fan_off[v + 1] - 1] = 1.0f;
+  }
+  free(area);
+  *out = tr;
+  return CV_OK;
+nomem:
+  free(area);
+  cv_tracer_destroy(tr);
+  return cv_err_set(err, CV_ERR_NOMEM, "out of memory building vertex fans");
+}
+
+const cv_rt *cv_tracer_rt(const cv_tracer *tr) { return tr->rt; }
+
+size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
+
+int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
+  return (int)(tr->fan_off[v + 1] - tr->fan_off[v]);
+}
+
+/* Cosine-weighted direction about unit n from (u0, u1): Shirley-Chiu
+ * concentric disk (keeps the Sobol stratification), lifted to the hemisphere;
+ * orthonormal basis after Duff et al. 2017. */
+static void cosine_dir(const float n[3], float u0, float u1, float d[3]) {
+  float a = 2.0f * u0 - 1.0f, b = 2.0f * u1 - 1.0f, r, phi;
+  if (a == 0.0f && b == 0.0f) {
+    r = 0.0f;
+    phi = 0.0f;
+  } else if (fabsf(a) > fabsf(b)) {
+    r = a;
+    phi = (float)M_PI_4 * (b / a);
+  } else {
+    r = b;
+    phi = (float)M_PI_2 - (float)M_PI_4 * (a / b);
+  }
+  float x = r * cosf(phi), y = r * sinf(phi);
+  float z = sqrtf(fmaxf(0.0f, 1.0f - x * x - y * y));
+  float sign = copysignf(1.0f, n[2]);
+  float aa = -1.0f / (sign + n[2]), bb = n[0] * n[1] * aa;
+  float t[3] = {1.0f + sign * n[0] * n[0] * aa, sign * bb, -sign * n[0]};
+  float s[3] = {bb, sign + n[1] * n[1] * aa, -n[1]};
+  for (int k = 0; k < 3; k++) d[k] = x * t[k] + y * s[k] + z * n[k];
+  float l = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  for (int k = 0; k < 3; k++) d[k] /= l;
+}
+
+/* Picks fan triangle and point for sample u (5 dims); returns the triangle. */
+static uint32_t fan_point(const cv_tracer *tr, uint32_t v, const float *u, float p[3]) {
+  size_t lo = tr->fan_off[v], hi = tr->fan_off[v + 1] - 1;
+  while (lo < hi) { /* first entry with cdf > u4 */
+    size_t mid = (lo + hi) / 2;
+    if (tr->fan_cdf[mid] > u[4]) hi = mid;
+    else lo = mid + 1;
+  }
+  uint32_t t = tr->fan_tri[lo] >> 2, c = tr->fan_tri[lo] & 3u;
+  /* Barycentric of v with density 6 b (1 - b) (hat function times the
+   * uniform marginal 2 (1 - b)): inverse of the smoothstep CDF 3b^2 - 2b^3. */
+  float bv = 0.5f - sinf(asinf(1.0f - 2.0f * u[2]) / 3.0f);
+  float b1 = (1.0f - bv) * u[3], b2 = 1.0f - bv - b1;
+  const uint32_t *tv = tr->m->tri + 3 * t;
+  const float *P0 = tr->m->pos + 3 * tv[c], *P1 = tr->m->pos + 3 * tv[(c + 1) % 3],
+              *P2 = tr->m->pos + 3 * tv[(c + 2) % 3];
+  for (int k = 0; k < 3; k++) p[k] = bv * P0[k] + b1 * P1[k] + b2 * P2[k];
+  return t;
+}
+
+int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed, float org[3],
+                     float dir[3], uint32_t *tri) {
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return 0;
+  float u[5], p[3];
+  cv_sobol_owen_n(j, cv_hash_combine(seed, v), 5, u);
+  uint32_t t = fan_point(tr, v, u, p);
+  const float *n = tr->tri_n + 3 * t;
+  cosine_dir(n, u[0], u[1], dir);
+  cv_rt_offset_origin(p, n, org);
+  if (tri) *tri = t;
+  return 1;
+}
+
+/* Direct pass for one vertex: acc[i] = mean of y_i(d) V(d); alb = mean albedo. */
+static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                          double *acc, double alb[3]) {
+  int nc = bands * bands;
+  float y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  memset(acc, 0, (size_t)nc * sizeof(double));
+  alb[0] = alb[1] = alb[2] = 0;
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  for (int j = 0; j < rays; j++) {
+    float org[3], dir[3];
+    uint32_t t = 0;
+    cv_tracer_sample(tr, v, (uint32_t)j, seed, org, dir, &t);
+    const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
+    for (int k = 0; k < 3; k++) alb[k] += a[k];
+    if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
+    cv_sh_eval(bands, dir, y);
+    for (int i = 0; i < nc; i++) acc[i] += y[i];
+  }
+  for (int i = 0; i < nc; i++) acc[i] /= rays;
+  for (int k = 0; k < 3; k++) alb[k] /= rays;
+}
+
+/* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i]. */
+static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                          const float *prev, double *acc) {
+  int nc = bands * bands;
+  memset(acc, 0, 3 * (size_t)nc * sizeof(double));
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  for (int j = 0; j < rays; j++) {
+    float org[3], dir[3];
+    uint32_t t = 0;
+    cv_tracer_sample(tr, v, (uint32_t)j, seed, org, dir, &t);
+    cv_hit h;
+    if (!cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &h)) continue;
+    const uint32_t *tv = tr->m->tri + 3 * h.tri;
+    float w0 = 1.0f - h.u - h.v;
+    const float *q0 = prev + (size_t)tv[0] * 3 * nc, *q1 = prev + (size_t)tv[1] * 3 * nc,
+                *q2 = prev + (size_t)tv[2] * 3 * nc;
+    for (int i = 0; i < 3 * nc; i++) tmp[i] = w0 * q0[i] + h.u * q1[i] + h.v * q2[i];
+    const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
+    for (int c = 0; c < 3; c++)
+      for (int i = 0; i < nc; i++) acc[c * nc + i] += (double)a[c] * tmp[c * nc + i];
+  }
+  for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
+}
+
+int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const uint32_t *verts, size_t count, float *out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1) return CV_ERR_RANGE;
+  int nc = bands * bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3];
+#pragma omp for schedule(dynamic, 16)
+    for (size_t k = 0; k < count; k++) {
+      vertex_direct(tr, verts[k], bands, rays, seed, acc, alb);
+      for (int i = 0; i < nc; i++) out[k * nc + i] = (float)acc[i];
+    }
+  }
+  return CV_OK;
+}
+
+int cv_bake_params_validate(const cv_bake_params *p, cv_err *err) {
+  if (p->bands < 2 || p->bands > CV_PRT_MAX_BANDS)
+    return cv_err_set(err, CV_ERR_RANGE, "prt.bands = %d, expected 2..%d", p->bands,
+                      CV_PRT_MAX_BANDS);
+  if (p->rays < 1 || p->rays > (1 << 24))
+    return cv_err_set(err, CV_ERR_RANGE, "prt.rays = %d, expected 1..16777216", p->rays);
+  if (p->bounces < 0 || p->bounces > 16)
+    return cv_err_set(err, CV_ERR_RANGE, "prt.bounces = %d, expected 0..16", p->bounces);
+  return CV_OK;
+}
+
+uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
+  uint64_t h = cv_hash64_init();
+  uint32_t hdr[6] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
+                     (uint32_t)p->bounces, p->seed, 0};
+  h = cv_hash64_update(h, hdr, sizeof hdr);
+  uint64_t sz[3] = {m->nv, m->nt, m->nm};
+  h = cv_hash64_update(h, sz, sizeof sz);
+  h = cv_hash64_update(h, m->pos, 3 * m->nv * sizeof(float));
+  h = cv_hash64_update(h, m->tri, 3 * m->nt * sizeof(uint32_t));
+  h = cv_hash64_update(h, m->tri_mat, m->nt * sizeof(uint32_t));
+  for (size_t i = 0; i < m->nm; i++) {
+    h = cv_hash64_update(h, m->mats[i].name, strlen(m->mats[i].name));
+    h = cv_hash64_update(h, m->mats[i].albedo, sizeof m->mats[i].albedo);
+    h = cv_hash64_update(h, &m->mats[i].flags, sizeof m->mats[i].flags);
+  }
+  return h;
+}
+
+int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake_stats *stats,
+                cv_err *err) {
+  *out = NULL;
+  int st = cv_bake_params_validate(p, err);
+  if (st) return st;
+  cv_tracer *tr;
+  st = cv_tracer_create(m, &tr, err);
+  if (st) return st;
+  st = cv_prt_bake_tracer(tr, p, out, stats, err);
+  cv_tracer_destroy(tr);
+  return st;
+}
+
+/* Runs fn(v) for every vertex in blocks on OpenMP threads with a progress bar. */
+#define FOR_VERTICES(label, nv, quiet, BODY)                                   \
+  do {                                                                         \
+    cv_progress *prog_ = NULL;                                                 \
+    if (!(quiet)) cv_progress_create((label), (nv), &prog_);                   \
+    const size_t block_ = 64;                                                  \
+    _Pragma("omp parallel") {                                                  \
+      cv_rt_thread_init();                                                     \
+      double acc[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3];             \
+      (void)alb;                                                               \
+      _Pragma("omp for schedule(dynamic, 1)")                                  \
+      for (size_t b0 = 0; b0 < (nv); b0 += block_) {                           \
+        size_t b1 = b0 + block_ < (nv) ? b0 + block_ : (nv);                   \
+        for (size_t v = b0; v < b1; v++) { BODY }                             \
+        cv_progress_add(prog_, b1 - b0);                                       \
+      }                                                                        \
+    }                                                                          \
+    cv_progress_finish(prog_);                                                 \
+    cv_progress_destroy(prog_);                                                \
+  } while (0)
+
+int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
+                     int quiet, float *prev, float *ti, cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  if (bounces <= 0) return CV_OK;
+  float *cur = malloc(3 * nv * nc * sizeof(float) + 1);
+  if (!cur) return CV_ERR_NOMEM;
+  for (int pass = 1; pass <= bounces; pass++) {
+    char label[32];
+    snprintf(label, sizeof label, "bake bounce %d", pass);
+    double t0 = cv_now_seconds();
+    FOR_VERTICES(label, nv, quiet, {
+      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc);
+      for (int i = 0; i < 3 * nc; i++) {
+        cur[v * 3 * nc + i] = (float)acc[i];
+        ti[v * 3 * nc + i] += (float)acc[i];
+      }
+    });
+    memcpy(prev, cur, 3 * nv * nc * sizeof(float));
+    if (stats && pass <= 16) {
+      stats->seconds[pass] = cv_now_seconds() - t0;
+      stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
+      stats->total_rays += stats->rays[pass];
+    }
+  }
+  free(cur);
+  return CV_OK;
+}
+
+int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **out,
+                       cv_bake_stats *stats, cv_err *err) {
+  *out = NULL;
+  int st = cv_bake_params_validate(p, err);
+  if (st) return st;
+  const cv_mesh *m = tr->m;
+  cv_bake_stats local;
+  if (!stats) stats = &local;
+  memset(stats, 0, sizeof *stats);
+  cv_prt *prt;
+  st = cv_prt_alloc((uint32_t)p->bands, m->nv, m->nt, m->nm, p->bounces > 0, &prt);
+  if (st) return cv_err_set(err, st, "cannot allocate transfer for %zu vertices", m->nv);
+  memcpy(prt->pos, m->pos, 3 * m->nv * sizeof(float));
+  memcpy(prt->tri, m->tri, 3 * m->nt * sizeof(uint32_t));
+  memcpy(prt->tri_mat, m->tri_mat, m->nt * sizeof(uint32_t));
+  memcpy(prt->mats, m->mats, m->nm * sizeof(cv_material));
+  cv_mesh_vertex_normals(m, prt->nrm);
+  prt->meta.input_hash = cv_prt_input_hash(m, p);
+  prt->meta.rays = (uint32_t)p->rays;
+  prt->meta.bounces = (uint32_t)p->bounces;
+  prt->meta.seed = p->seed;
+
+  const size_t nv = m->nv;
+  const int nc = p->bands * p->bands;
+  for (size_t v = 0; v < nv; v++)
+    if (tr->fan_off[v + 1] == tr->fan_off[v]) stats->empty_fans++;
+  float *prev = NULL;
+  if (p->bounces > 0 && !(prev = malloc(3 * nv * nc * sizeof(float) + 1))) {
+    cv_prt_destroy(prt);
+    return cv_err_set(err, CV_ERR_NOMEM, "cannot allocate bounce buffers");
+  }
+  double t_all = cv_now_seconds();
+  FOR_VERTICES("bake direct", nv, p->quiet, {
+    vertex_direct(tr, (uint32_t)v, p->bands, p->rays, p->seed, acc, alb);
+    for (int i = 0; i < nc; i++) prt->td[v * nc + i] = (float)acc[i];
+    for (int k = 0; k < 3; k++) prt->albedo[3 * v + k] = (float)alb[k];
+    if (prev)
+      for (int c = 0; c < 3; c++)
+        for (int i = 0; i < nc; i++) prev[(v * 3 + c) * nc + i] = (float)(alb[c] * acc[i]);
+  });
+  stats->seconds[0] = cv_now_seconds() - t_all;
+  stats->rays[0] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)p->rays;
+  stats->total_rays = stats->rays[0];
+  if (prev) {
+    st = cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev, prt->ti,
+                          stats);
+    free(prev);
+    if (st) {
+      cv_prt_destroy(prt);
+      return cv_err_set(err, st, "out of memory propagating bounces");
+    }
+  }
+  stats->total_seconds = cv_now_seconds() - t_all;
+  prt->meta.bake_seconds = stats->total_seconds;
+  *out = prt;
+  return CV_OK;
+}
+
+int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
+                  uint32_t seed, float *out_rgb) {
+  if (samples < 1) return CV_ERR_RANGE;
+  double l = sqrt(sun_dir[0] * sun_dir[0] + sun_dir[1] * sun_dir[1] + sun_dir[2] * sun_dir[2]);
+  if (!(l > 0) || !isfinite(l)) return CV_ERR_INVALID;
+  const float s[3] = {(float)(sun_dir[0] / l), (float)(sun_dir[1] / l), (float)(sun_dir[2] / l)};
+  const size_t nv = tr->m->nv;
+  const uint32_t sseed = cv_hash_combine(seed, 0x5317u);
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 256)
+    for (size_t v = 0; v < nv; v++) {
+      if (tr->fan_off[v + 1] == tr->fan_off[v]) continue;
+      double acc[3] = {0, 0, 0};
+      for (int j = 0; j < samples; j++) {
+        float u[5], p[3], org[3];
+        cv_sobol_owen_n((uint32_t)j, cv_hash_combine(sseed, (uint32_t)v), 5, u);
+        uint32_t t = fan_point(tr, (uint32_t)v, u, p);
+        const float *n = tr->tri_n + 3 * t;
+        float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+        if (c <= 0) continue;
+        cv_rt_offset_origin(p, n, org);
+        if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
+        const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
+        for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
+      }
+      for (int k = 0; k < 3; k++) out_rgb[3 * v + k] += (float)(E[k] / M_PI * acc[k] / samples);
+    }
+  }
+  return CV_OK;
+}

@@ -1,0 +1,93 @@
+/* The PRT bake (Dmitriev et al. 2004, section 4.1, equation 6).
+ *
+ * Sampling: for vertex v and sample j, an Owen-scrambled Sobol point picks a
+ * triangle of v's fan (probability proportional to area) and a point p in it
+ * with density proportional to v's barycentric weight (the "hat" function of
+ * v), then a cosine-weighted direction about that triangle's normal.  This
+ * is the paper's section 4.1.1: rays start at stochastic points inside the
+ * triangles and each sample counts for a vertex by its distance weight, so a
+ * vertex slightly covered by an overlapping triangle does not go black.
+ * Sampling the hat density instead of weighting uniform points gives every
+ * vertex exactly `rays` rays and makes each vertex's result depend only on
+ * its own samples: deterministic for any thread count.
+ *
+ * Pass 0 (direct): V = 1 iff the ray leaves through a window (rt.h).
+ * Pass b >= 1: the ray's closest opaque hit q reads the bounce b-1 exit
+ * transfer interpolated from q's triangle vertices (RGB, albedo applied). */
+#ifndef CV_PRT_BAKE_H
+#define CV_PRT_BAKE_H
+
+#include <stdint.h>
+
+#include "mesh/mesh.h"
+#include "prt/prt.h"
+#include "rt/rt.h"
+
+typedef struct cv_bake_params {
+  int bands;      /* SH bands, 2..8 */
+  int rays;       /* rays per vertex per pass, >= 1 */
+  int bounces;    /* interreflection bounces, 0..16 */
+  uint32_t seed;
+  int quiet;      /* 1: no progress bar */
+} cv_bake_params;
+
+typedef struct cv_bake_stats {
+  double seconds[17];   /* per pass: 0 = direct, b = bounce b */
+  uint64_t rays[17];    /* rays traced per pass (direct counts 1 or 2 queries as 1 ray) */
+  double total_seconds;
+  uint64_t total_rays;
+  uint64_t empty_fans;  /* vertices with no opaque triangle (transfer 0) */
+} cv_bake_stats;
+
+/* Per-scene sampling context: the ray tracer plus each vertex's fan. */
+typedef struct cv_tracer cv_tracer;
+
+/* Builds the tracer from a mesh (copied).  *out owned by the caller. */
+int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err);
+void cv_tracer_destroy(cv_tracer *tr);
+const cv_rt *cv_tracer_rt(const cv_tracer *tr);
+/* Number of vertices of the tracer's mesh. */
+size_t cv_tracer_vertex_count(const cv_tracer *tr);
+/* Number of opaque triangles in vertex v's fan. */
+int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v);
+
+/* Sample j of vertex v under `seed`: ray origin (already offset), unit
+ * direction, the fan triangle it starts on.  Returns 0 when v has an empty fan. */
+int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
+                     float org[3], float dir[3], uint32_t *tri);
+
+/* Direct (visibility) transfer of the listed vertices: out[k*n*n + i].
+ * Used by the auto mode and the benchmark on vertex subsets. */
+int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const uint32_t *verts, size_t count, float *out);
+
+/* Full bake; *out owned by the caller.  meta.input_hash is set from
+ * cv_prt_input_hash.  Prints a progress bar to stderr unless p->quiet. */
+int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake_stats *stats,
+                cv_err *err);
+/* Same on an existing tracer (the mesh it was built from). */
+int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **out,
+                       cv_bake_stats *stats, cv_err *err);
+
+/* Interreflection passes from a given bounce-0 exit transfer prev
+ * ([v][c][i], RGB, albedo applied; overwritten with the last bounce) into ti
+ * (same layout, accumulated: ti += bounces 1..B).  The bake calls this after
+ * its direct pass; tests seed it with a known transfer (furnace). */
+int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
+                     int quiet, float *prev, float *ti, cv_bake_stats *stats);
+
+/* Fingerprint of everything a bake depends on: mesh geometry, materials,
+ * parameters and the format version. */
+uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p);
+
+/* Checks bake parameters; err names the offending field. */
+int cv_bake_params_validate(const cv_bake_params *p, cv_err *err);
+
+/* Direct sun light at every vertex with exact (ray-traced) visibility through
+ * the windows: out_rgb[3v+c] += E_c/pi * mean over `samples` fan points of
+ * albedo_c(t) * max(0, n_t.s) * V(p, s).  sun_dir points towards the sun in
+ * the car frame; E is the sun's RGB irradiance at normal incidence. */
+int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
+                  uint32_t seed, float *out_rgb);
+
+#endif

@@ -1,0 +1,69 @@
+/* Per-vertex precomputed radiance transfer (Sloan et al. 2002; Dmitriev et
+ * al. 2004, section 4.1) and its versioned file format (docs/prt-format.md).
+ *
+ * For each vertex x the bake stores
+ *   td(x)[i]    direct transfer, mono, albedo NOT applied:
+ *               (1/pi) * integral of y_i(w) V(x,w) max(n.w,0) dw,
+ *               V = 1 only where the ray leaves the car through a window;
+ *   ti(x)[c][i] interreflected transfer, RGB (bounces 1..B, albedos applied).
+ * Exit radiance under SH lighting l (RGB, l[i][c]):
+ *   L_c(x) = sum_i l_i,c * (albedo_c(x) * td_i(x) + ti_c,i(x)).
+ * Keeping the direct part separate lets a sun that was split out of the
+ * lighting (exact visibility) still light the interior through ti. */
+#ifndef CV_PRT_PRT_H
+#define CV_PRT_PRT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/status.h"
+#include "mesh/mesh.h"
+
+#define CV_PRT_VERSION 1
+#define CV_PRT_MAX_BANDS 8
+
+enum { CV_PRT_HAS_INDIRECT = 1u << 0 };
+
+typedef struct cv_prt_meta {
+  uint64_t input_hash;   /* fingerprint of the cleaned mesh and the bake settings */
+  uint32_t rays;         /* rays per vertex per pass */
+  uint32_t bounces;      /* interreflection bounces (0 = direct only) */
+  uint32_t seed;
+  float est_error;       /* estimated relative error (auto mode), or -1 */
+  double bake_seconds;
+} cv_prt_meta;
+
+typedef struct cv_prt {
+  uint32_t bands; /* SH bands n; n*n coefficients */
+  uint32_t flags; /* CV_PRT_* */
+  size_t nv, nt, nm;
+  float *pos;       /* 3*nv */
+  float *nrm;       /* 3*nv, unit, area-weighted */
+  float *albedo;    /* 3*nv, hat-weighted mean albedo of the vertex's fan */
+  uint32_t *tri;    /* 3*nt */
+  uint32_t *tri_mat;/* nt */
+  cv_material *mats;/* nm */
+  float *td;        /* nv * n*n */
+  float *ti;        /* nv * 3 * n*n ([v][c][i]), NULL without CV_PRT_HAS_INDIRECT */
+  cv_prt_meta meta;
+} cv_prt;
+
+/* Allocates a zeroed cv_prt with arrays for the given sizes; *out owned by
+ * the caller (cv_prt_destroy).  has_indirect selects whether ti exists. */
+int cv_prt_alloc(uint32_t bands, size_t nv, size_t nt, size_t nm, int has_indirect,
+                 cv_prt **out);
+void cv_prt_destroy(cv_prt *p);
+
+/* Writes the file (temp file + rename: never a partial file).  err names the path. */
+int cv_prt_write(const char *path, const cv_prt *p, cv_err *err);
+/* Reads and validates a file (magic, version, sizes, payload hash, finite
+ * values).  *out owned by the caller. */
+int cv_prt_read(const char *path, cv_prt **out, cv_err *err);
+/* Reads only the header's input hash (to skip re-baking an unchanged scene).
+ * Returns CV_ERR_NOT_FOUND if the file does not exist. */
+int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err);
+
+/* A view of the PRT's geometry as a cv_mesh (copies); *out owned by the caller. */
+int cv_prt_to_mesh(const cv_prt *p, cv_mesh **out);
+
+#endif

@@ -1,0 +1,60 @@
+/* CPU relighting (see relight.h). */
+#include "prt/relight.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "sh/sh.h"
+
+int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, int sun_samples,
+                   float *out_rgb, cv_relight_stats *stats) {
+  if ((uint32_t)l->bands < p->bands) return CV_ERR_RANGE;
+  const int nc = (int)(p->bands * p->bands);
+  /* Lighting as planar [c][i] in the PRT's band count. */
+  double L[3][CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], S[3][CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  for (int c = 0; c < 3; c++)
+    for (int i = 0; i < nc; i++) {
+      L[c][i] = l->sh[3 * i + c];
+      S[c][i] = 0;
+    }
+  if (l->has_sun) {
+    /* A directional light of irradiance E is E * delta(w - s); its SH
+     * projection is E * y_i(s).  Used only with the indirect transfer, which
+     * is smooth, so the truncation's ringing stays small there. */
+    double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    cv_sh_eval_d((int)p->bands, l->sun_dir, y);
+    for (int c = 0; c < 3; c++)
+      for (int i = 0; i < nc; i++) S[c][i] = l->sun_E[c] * y[i];
+  }
+  const size_t nv = p->nv;
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < nv; v++) {
+    const float *td = p->td + v * nc;
+    for (int c = 0; c < 3; c++) {
+      double d = 0, ind = 0;
+      for (int i = 0; i < nc; i++) d += L[c][i] * td[i];
+      d *= p->albedo[3 * v + c];
+      if (p->ti) {
+        const float *ti = p->ti + (v * 3 + c) * nc;
+        for (int i = 0; i < nc; i++) ind += (L[c][i] + S[c][i]) * ti[i];
+      }
+      out_rgb[3 * v + c] = (float)(d + ind);
+    }
+  }
+  if (l->has_sun && tr) {
+    int st = cv_sun_direct(tr, l->sun_dir, l->sun_E, sun_samples, p->meta.seed, out_rgb);
+    if (st) return st;
+  }
+  cv_relight_stats s = {0, 0};
+  for (size_t i = 0; i < 3 * nv; i++) {
+    if (!isfinite(out_rgb[i])) {
+      out_rgb[i] = 0;
+      s.nonfinite++;
+    } else if (out_rgb[i] < 0) {
+      out_rgb[i] = 0;
+      s.clamped_negative++;
+    }
+  }
+  if (stats) *stats = s;
+  return CV_OK;
+}

@@ -1,0 +1,185 @@
+/* Scene lighting in the car frame (see scene_light.h). */
+#include "prt/scene_light.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "light/envmap.h"
+#include "light/sky.h"
+#include "light/sun.h"
+#include "sh/sh.h"
+
+struct cv_scene_light {
+  cv_light_spec spec;
+  cv_lighting l;       /* car frame */
+  double R[9];         /* car-to-world rotation */
+  cv_envmap *world;    /* full map in the world frame (background), env only */
+  cv_sky *sky;         /* sky only */
+  double sun_world[3];
+  double sun_fraction; /* env: energy fraction of the extracted sun */
+  double sun_solid_angle;
+  int sun_pixels;
+};
+
+void cv_scene_light_destroy(cv_scene_light *sl) {
+  if (!sl) return;
+  cv_envmap_destroy(sl->world);
+  cv_sky_destroy(sl->sky);
+  free(sl);
+}
+
+/* Projects a world-frame map and rotates the coefficients into the car frame:
+ * f_car(d) = f_world(R d), i.e. f_world rotated by R^T. */
+static int project_to_car(const cv_envmap *env, int bands, const double R[9], cv_lighting *l) {
+  double world[3 * 64];
+  int st = cv_envmap_project_sh(env, bands, world);
+  if (st) return st;
+  double Rt[9];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) Rt[3 * i + j] = R[3 * j + i];
+  cv_sh_rotation *rot;
+  if ((st = cv_sh_rotation_create(bands, Rt, &rot))) return st;
+  cv_sh_rotate(rot, world, l->sh, 3);
+  cv_sh_rotation_destroy(rot);
+  l->bands = bands;
+  return CV_OK;
+}
+
+static void to_car(const double R[9], const double w[3], double c[3]) {
+  for (int i = 0; i < 3; i++) c[i] = R[i] * w[0] + R[3 + i] * w[1] + R[6 + i] * w[2];
+}
+
+int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **out, cv_err *err) {
+  *out = NULL;
+  if (bands < 2 || bands > 8) return cv_err_set(err, CV_ERR_RANGE, "lighting: bands %d, expected 2..8", bands);
+  cv_scene_light *sl = calloc(1, sizeof *sl);
+  if (!sl) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  sl->spec = *spec;
+  cv_car_rotation(spec->yaw_deg, spec->pitch_deg, spec->roll_deg, sl->R);
+  int st = CV_OK;
+  cv_envmap *maps[CV_MAX_ENV_MAPS] = {0}, *residual = NULL;
+  if (spec->kind == CV_LIGHT_ENV) {
+    for (int i = 0; i < spec->n_env && !st; i++) st = cv_envmap_load(spec->env[i], &maps[i], err);
+    if (st) goto done;
+    if (spec->n_env == 1 && spec->weight[0] == 1.0) {
+      sl->world = maps[0];
+      maps[0] = NULL;
+    } else {
+      st = cv_envmap_blend((const cv_envmap *const *)maps, spec->weight, spec->n_env,
+                           maps[0]->img->w, maps[0]->img->h, &sl->world, err);
+      if (st) goto done;
+    }
+    if (spec->scale != 1.0) {
+      size_t n = (size_t)sl->world->img->w * sl->world->img->h * 3;
+      for (size_t i = 0; i < n; i++) sl->world->img->px[i] *= (float)spec->scale;
+    }
+    const cv_envmap *proj = sl->world;
+    if (spec->extract_sun) {
+      cv_sun_params sp;
+      cv_sun_params_default(&sp);
+      cv_sun_info si;
+      if ((st = cv_sun_extract(sl->world, &sp, &si, &residual))) {
+        cv_err_set(err, st, "sun extraction failed on %s", spec->env[0]);
+        goto done;
+      }
+      if (si.found) {
+        sl->l.has_sun = 1;
+        memcpy(sl->sun_world, si.dir, sizeof si.dir);
+        memcpy(sl->l.sun_E, si.rgb, sizeof si.rgb);
+        sl->sun_fraction = si.energy_fraction;
+        sl->sun_solid_angle = si.solid_angle;
+        sl->sun_pixels = (int)si.pixels;
+        proj = residual;
+      }
+    }
+    if ((st = project_to_car(proj, bands, sl->R, &sl->l))) {
+      cv_err_set(err, st, "SH projection of %s failed", spec->env[0]);
+      goto done;
+    }
+  } else if (spec->kind == CV_LIGHT_SKY) {
+    double el = spec->sun_elevation_deg * M_PI / 180, az = spec->sun_azimuth_deg * M_PI / 180;
+    double sd[3] = {sin(az) * cos(el), sin(el), -cos(az) * cos(el)};
+    if ((st = cv_sky_create(spec->turbidity, sd, spec->ground_albedo, &sl->sky, err))) goto done;
+    cv_image *img;
+    long clamped = 0;
+    if ((st = cv_sky_to_latlong(sl->sky, 512, 256, &img, &clamped))) {
+      cv_err_set(err, st, "cannot tabulate the sky");
+      goto done;
+    }
+    st = cv_envmap_from_image(img, &residual, err);
+    cv_image_destroy(img);
+    if (st || (st = project_to_car(residual, bands, sl->R, &sl->l))) goto done;
+    double E[3], sa;
+    cv_sky_sun(sl->sky, sl->sun_world, E, &sa);
+    if (E[0] + E[1] + E[2] > 0) {
+      sl->l.has_sun = 1;
+      memcpy(sl->l.sun_E, E, sizeof E);
+      sl->sun_solid_angle = sa;
+    }
+  } else if (spec->kind == CV_LIGHT_CONSTANT) {
+    sl->l.bands = bands;
+    for (int c = 0; c < 3; c++) sl->l.sh[c] = spec->constant[c] * sqrt(4 * M_PI);
+  } else {
+    st = cv_err_set(err, CV_ERR_CONFIG, "no lighting given (--env, --env-constant or --sky)");
+    goto done;
+  }
+  if (sl->l.has_sun) to_car(sl->R, sl->sun_world, sl->l.sun_dir);
+done:
+  for (int i = 0; i < CV_MAX_ENV_MAPS; i++) cv_envmap_destroy(maps[i]);
+  cv_envmap_destroy(residual);
+  if (st) {
+    cv_scene_light_destroy(sl);
+    return st;
+  }
+  *out = sl;
+  return CV_OK;
+}
+
+cv_lighting cv_scene_light_sh(const cv_scene_light *sl) { return sl->l; }
+
+void cv_scene_light_background(const cv_scene_light *sl, const float d[3], float rgb[3]) {
+  double w[3];
+  for (int i = 0; i < 3; i++) w[i] = sl->R[3 * i] * d[0] + sl->R[3 * i + 1] * d[1] + sl->R[3 * i + 2] * d[2];
+  if (sl->world) {
+    float wf[3] = {(float)w[0], (float)w[1], (float)w[2]};
+    cv_envmap_lookup(sl->world, wf, rgb);
+  } else if (sl->sky) {
+    double r[3];
+    cv_sky_radiance(sl->sky, w, r);
+    for (int k = 0; k < 3; k++) rgb[k] = (float)r[k];
+  } else {
+    for (int k = 0; k < 3; k++) rgb[k] = (float)sl->spec.constant[k];
+  }
+}
+
+void cv_scene_light_print(FILE *f, const cv_scene_light *sl) {
+  const cv_light_spec *s = &sl->spec;
+  if (s->kind == CV_LIGHT_ENV) {
+    fprintf(f, "lighting: %d env map%s (%s", s->n_env, s->n_env > 1 ? "s" : "", s->env[0]);
+    for (int i = 1; i < s->n_env; i++) fprintf(f, ", %s", s->env[i]);
+    fprintf(f, "), scale %g, yaw %g pitch %g roll %g\n", s->scale, s->yaw_deg, s->pitch_deg,
+            s->roll_deg);
+  } else if (s->kind == CV_LIGHT_SKY) {
+    fprintf(f, "lighting: Preetham sky, turbidity %g, sun elevation %g azimuth %g deg\n",
+            s->turbidity, s->sun_elevation_deg, s->sun_azimuth_deg);
+  } else {
+    fprintf(f, "lighting: constant environment %g %g %g\n", s->constant[0], s->constant[1],
+            s->constant[2]);
+  }
+  if (sl->l.has_sun) {
+    double Y = 0.2126 * sl->l.sun_E[0] + 0.7152 * sl->l.sun_E[1] + 0.0722 * sl->l.sun_E[2];
+    fprintf(f,
+            "sun: found, direction (world) %.3f %.3f %.3f, irradiance %.4g (luminance units), "
+            "solid angle %.3g sr",
+            sl->sun_world[0], sl->sun_world[1], sl->sun_world[2], Y, sl->sun_solid_angle);
+    if (s->kind == CV_LIGHT_ENV)
+      fprintf(f, ", %.1f%% of the map's energy in %d pixels; split out of PRT", 100 * sl->sun_fraction,
+              sl->sun_pixels);
+    fputc('\n', f);
+  } else if (s->kind != CV_LIGHT_CONSTANT) {
+    fprintf(f, "sun: none (%s)\n", s->kind == CV_LIGHT_ENV && !s->extract_sun
+                                       ? "extraction off"
+                                       : "no compact region above the energy threshold");
+  }
+}

@@ -1,0 +1,191 @@
+/* Embree 3 wrapper (see rt.h).  The opaque and window triangles go into two
+ * scenes so that "blocked" and "crosses a window" are two cheap occlusion
+ * queries instead of an any-hit filter callback. */
+#include "rt/rt.h"
+
+#include <embree3/rtcore.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#if defined(__x86_64__) || defined(__i386__)
+#include <pmmintrin.h>
+#include <xmmintrin.h>
+#endif
+
+struct cv_rt {
+  RTCDevice dev;
+  RTCScene opaque;
+  RTCScene windows; /* NULL when the mesh has no window triangles */
+  uint32_t *prim_to_tri; /* opaque primitive index -> mesh triangle */
+};
+
+void cv_rt_thread_init(void) {
+#if defined(__x86_64__) || defined(__i386__)
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+#endif
+}
+
+/* Builds one committed scene from the triangles whose window flag equals
+ * `want_window`; writes the primitive -> triangle map when map != NULL. */
+static int build_scene(RTCDevice dev, const cv_mesh *m, int want_window, uint32_t *map,
+                       RTCScene *out, size_t *count) {
+  size_t n = 0;
+  for (size_t t = 0; t < m->nt; t++)
+    if (!!(m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) == want_window) n++;
+  *count = n;
+  *out = NULL;
+  if (n == 0) return CV_OK;
+  RTCScene sc = rtcNewScene(dev);
+  rtcSetSceneFlags(sc, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+  float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                      3 * sizeof(float), m->nv);
+  uint32_t *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                         3 * sizeof(uint32_t), n);
+  if (!vb || !ib) {
+    rtcReleaseGeometry(g);
+    rtcReleaseScene(sc);
+    return CV_ERR_BACKEND;
+  }
+  memcpy(vb, m->pos, m->nv * 3 * sizeof(float));
+  size_t k = 0;
+  for (size_t t = 0; t < m->nt; t++) {
+    if (!!(m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) != want_window) continue;
+    memcpy(ib + 3 * k, m->tri + 3 * t, 3 * sizeof(uint32_t));
+    if (map) map[k] = (uint32_t)t;
+    k++;
+  }
+  rtcCommitGeometry(g);
+  rtcAttachGeometry(sc, g);
+  rtcReleaseGeometry(g);
+  rtcCommitScene(sc);
+  *out = sc;
+  return rtcGetDeviceError(dev) == RTC_ERROR_NONE ? CV_OK : CV_ERR_BACKEND;
+}
+
+int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
+  *out = NULL;
+  int st = cv_mesh_validate(m, err);
+  if (st) return st;
+  cv_rt *rt = calloc(1, sizeof *rt);
+  if (!rt) return cv_err_set(err, CV_ERR_NOMEM, "out of memory building the ray tracer");
+  rt->dev = rtcNewDevice(NULL);
+  if (!rt->dev) {
+    free(rt);
+    return cv_err_set(err, CV_ERR_BACKEND, "Embree: cannot create a device (error %d)",
+                      (int)rtcGetDeviceError(NULL));
+  }
+  rt->prim_to_tri = malloc(m->nt * sizeof(uint32_t));
+  if (!rt->prim_to_tri) {
+    cv_rt_destroy(rt);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory building the ray tracer");
+  }
+  size_t nop = 0, nwin = 0;
+  st = build_scene(rt->dev, m, 0, rt->prim_to_tri, &rt->opaque, &nop);
+  if (!st) st = build_scene(rt->dev, m, 1, NULL, &rt->windows, &nwin);
+  if (st) {
+    cv_rt_destroy(rt);
+    return cv_err_set(err, st, "Embree: scene build failed (error %d)",
+                      (int)rtcGetDeviceError(NULL));
+  }
+  if (nop == 0) {
+    cv_rt_destroy(rt);
+    return cv_err_set(err, CV_ERR_EMPTY, "the mesh has no opaque triangles to trace");
+  }
+  *out = rt;
+  return CV_OK;
+}
+
+void cv_rt_destroy(cv_rt *rt) {
+  if (!rt) return;
+  if (rt->opaque) rtcReleaseScene(rt->opaque);
+  if (rt->windows) rtcReleaseScene(rt->windows);
+  if (rt->dev) rtcReleaseDevice(rt->dev);
+  free(rt->prim_to_tri);
+  free(rt);
+}
+
+int cv_rt_has_windows(const cv_rt *rt) { return rt->windows != NULL; }
+
+static inline void make_ray(struct RTCRay *r, const float o[3], const float d[3], float tnear,
+                            float tfar) {
+  r->org_x = o[0];
+  r->org_y = o[1];
+  r->org_z = o[2];
+  r->dir_x = d[0];
+  r->dir_y = d[1];
+  r->dir_z = d[2];
+  r->tnear = tnear;
+  r->tfar = tfar;
+  r->time = 0.0f;
+  r->mask = 0xFFFFFFFFu;
+  r->id = 0;
+  r->flags = 0;
+}
+
+int cv_rt_intersect(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
+                    float tfar, cv_hit *hit) {
+  struct RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  struct RTCRayHit rh;
+  make_ray(&rh.ray, org, dir, tnear, tfar);
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(rt->opaque, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
+  hit->tri = rt->prim_to_tri[rh.hit.primID];
+  hit->u = rh.hit.u;
+  hit->v = rh.hit.v;
+  hit->t = rh.ray.tfar;
+  hit->ng[0] = rh.hit.Ng_x;
+  hit->ng[1] = rh.hit.Ng_y;
+  hit->ng[2] = rh.hit.Ng_z;
+  return 1;
+}
+
+static int occluded(RTCScene sc, const float org[3], const float dir[3], float tnear,
+                    float tfar) {
+  struct RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  struct RTCRay r;
+  make_ray(&r, org, dir, tnear, tfar);
+  rtcOccluded1(sc, &ctx, &r);
+  return r.tfar < 0.0f; /* Embree sets tfar = -inf on a hit */
+}
+
+int cv_rt_occluded(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
+                   float tfar) {
+  return occluded(rt->opaque, org, dir, tnear, tfar);
+}
+
+int cv_rt_reaches_env(const cv_rt *rt, const float org[3], const float dir[3], float tnear) {
+  if (occluded(rt->opaque, org, dir, tnear, INFINITY)) return 0;
+  if (!rt->windows) return 1;
+  return occluded(rt->windows, org, dir, tnear, INFINITY);
+}
+
+/* Waechter & Binder 2019, "A Fast and Robust Method for Avoiding
+ * Self-Intersection", Ray Tracing Gems ch. 6: move the origin by a fixed number
+ * of float ULPs along the normal (robust at any scale), and by a small
+ * absolute amount near the origin where ULPs are tiny. */
+void cv_rt_offset_origin(const float p[3], const float ng[3], float out[3]) {
+  const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+  float l = sqrtf(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+  float n[3] = {0, 0, 0};
+  if (l > 0) {
+    n[0] = ng[0] / l;
+    n[1] = ng[1] / l;
+    n[2] = ng[2] / l;
+  }
+  for (int k = 0; k < 3; k++) {
+    int32_t of = (int32_t)(int_scale * n[k]);
+    int32_t bits;
+    memcpy(&bits, &p[k], sizeof bits);
+    bits += (p[k] < 0) ? -of : of;
+    float pi;
+    memcpy(&pi, &bits, sizeof pi);
+    out[k] = fabsf(p[k]) < origin ? p[k] + float_scale * n[k] : pi;
+  }
+}

@@ -1,0 +1,412 @@
+/* PRT bake and relighting against closed forms and an independent
+ * brute-force Monte Carlo estimate:
+ *  - unshadowed plane under constant and linear sky: albedo * L (0.5%);
+ *  - closed furnace box: the geometric series a(1 + a + ... + a^N) (1%);
+ *  - open box with a window on top, floor centre vs a path tracer written
+ *    here on top of Embree (2%);
+ *  - overlapping, duplicate and degenerate triangles;
+ *  - determinism across thread counts, the file format, sun direct light. */
+#include <math.h>
+#include <omp.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "prt/bake.h"
+#include "prt/prt.h"
+#include "prt/relight.h"
+#include "sh/sh.h"
+
+/* n x n grid of quads over a parallelogram o + s*e1 + t*e2 (s,t in [0,1]);
+ * winding makes the normal e1 x e2. */
+static void grid(cv_mesh *m, const float o[3], const float e1[3], const float e2[3], int n,
+                 uint32_t mat) {
+  uint32_t base = (uint32_t)m->nv;
+  for (int j = 0; j <= n; j++)
+    for (int i = 0; i <= n; i++) {
+      float s = (float)i / n, t = (float)j / n;
+      cv_mesh_add_vertex(m, o[0] + s * e1[0] + t * e2[0], o[1] + s * e1[1] + t * e2[1],
+                         o[2] + s * e1[2] + t * e2[2], NULL);
+    }
+  for (int j = 0; j < n; j++)
+    for (int i = 0; i < n; i++) {
+      uint32_t a = base + j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      cv_mesh_add_tri(m, a, b, d, mat);
+      cv_mesh_add_tri(m, a, d, c, mat);
+    }
+}
+
+/* Floor facing +Y: e1 = +Z, e2 = +X gives normal Z x X = +Y. */
+static cv_mesh *plane_mesh(int n, const float albedo[3]) {
+  cv_mesh *m;
+  cv_mesh_create(&m);
+  uint32_t mat;
+  cv_mesh_add_material(m, "floor", albedo, 0, &mat);
+  const float o[3] = {-1, 0, -1}, e1[3] = {0, 0, 2}, e2[3] = {2, 0, 0};
+  grid(m, o, e1, e2, n, mat);
+  return m;
+}
+
+/* Unit cube [0,1]^3 with inward normals; top face tagged as window if asked. */
+static cv_mesh *box_mesh(int n, float a, int top_window) {
+  cv_mesh *m;
+  cv_mesh_create(&m);
+  const float alb[3] = {a, a, a}, zero[3] = {0, 0, 0};
+  uint32_t wall, win;
+  cv_mesh_add_material(m, "wall", alb, 0, &wall);
+  cv_mesh_add_material(m, "window_top", zero, CV_MAT_WINDOW, &win);
+  const float X[3] = {1, 0, 0}, Y[3] = {0, 1, 0}, Z[3] = {0, 0, 1};
+  const float o0[3] = {0, 0, 0}, ox[3] = {1, 0, 0}, oy[3] = {0, 1, 0}, oz[3] = {0, 0, 1};
+  grid(m, o0, Z, X, n, wall);                    /* floor y=0, normal +Y */
+  grid(m, oy, X, Z, n, top_window ? win : wall); /* top y=1, normal -Y */
+  grid(m, o0, X, Y, n, wall);                    /* z=0, normal +Z */
+  grid(m, oz, Y, X, n, wall);                    /* z=1, normal -Z */
+  grid(m, o0, Y, Z, n, wall);                    /* x=0, normal +X */
+  grid(m, ox, Z, Y, n, wall);                    /* x=1, normal -X */
+  return m;
+}
+
+/* SH coefficients (3 bands) of L(d) = 1 + k*d.y by a fine midpoint quadrature
+ * in (cos theta, phi) using only the basis evaluation. */
+static void project_linear_sky(double k, cv_lighting *l) {
+  memset(l, 0, sizeof *l);
+  l->bands = 3;
+  const int nt = 400, np = 800;
+  double acc[9] = {0};
+  for (int a = 0; a < nt; a++)
+    for (int b = 0; b < np; b++) {
+      double ct = -1 + 2 * (a + 0.5) / nt, st = sqrt(1 - ct * ct), ph = 2 * M_PI * (b + .5) / np;
+      double d[3] = {st * cos(ph), ct, st * sin(ph)}, y[9];
+      cv_sh_eval_d(3, d, y);
+      double L = 1 + k * d[1], w = 4 * M_PI / ((double)nt * np);
+      for (int i = 0; i < 9; i++) acc[i] += L * y[i] * w;
+    }
+  for (int i = 0; i < 9; i++)
+    for (int c = 0; c < 3; c++) l->sh[3 * i + c] = acc[i];
+}
+
+static void constant_light(double L, int bands, cv_lighting *l) {
+  memset(l, 0, sizeof *l);
+  l->bands = bands;
+  for (int c = 0; c < 3; c++) l->sh[c] = L * sqrt(4 * M_PI);
+}
+
+static void test_unshadowed_plane(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.3f, 0.8f};
+  cv_mesh *m = plane_mesh(8, alb);
+  cv_bake_params p = {.bands = 3, .rays = 256, .bounces = 1, .seed = 7, .quiet = 1};
+  cv_prt *prt;
+  cv_err err;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_OK);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  cv_lighting l;
+  constant_light(2.0, 3, &l);
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  for (size_t v = 0; v < prt->nv; v++)
+    for (int c = 0; c < 3; c++)
+      assert_true(fabs(rad[3 * v + c] / (2.0 * alb[c]) - 1) < 0.005);
+  /* Linear sky: irradiance pi*(1 + k*2/3) on an up-facing plane. */
+  project_linear_sky(0.5, &l);
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  double worst = 0;
+  for (size_t v = 0; v < prt->nv; v++)
+    for (int c = 0; c < 3; c++) {
+      double e = fabs(rad[3 * v + c] / (alb[c] * (1 + 0.5 * 2.0 / 3.0)) - 1);
+      worst = e > worst ? e : worst;
+    }
+  printf("unshadowed plane, linear sky: worst relative error %.2e\n", worst);
+  assert_true(worst < 0.005);
+  /* Nothing to bounce off: the interreflected transfer is exactly zero. */
+  for (size_t i = 0; i < 3 * prt->nv * 9; i++) assert_true(prt->ti[i] == 0.0f);
+  free(rad);
+  cv_prt_destroy(prt);
+  cv_mesh_destroy(m);
+}
+
+static void test_furnace(void **state) {
+  (void)state;
+  const float a = 0.6f;
+  cv_mesh *m = box_mesh(4, a, 0);
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  const int bands = 2, nc = 4, B = 4;
+  float *prev = calloc(3 * m->nv * nc, sizeof(float)), *ti = calloc(3 * m->nv * nc, sizeof(float));
+  const double t0 = 1.0 / sqrt(4 * M_PI);
+  for (size_t v = 0; v < m->nv; v++)
+    for (int c = 0; c < 3; c++) prev[(v * 3 + c) * nc] = (float)(a * t0);
+  assert_int_equal(cv_prt_propagate(tr, bands, 128, 3, B, 1, prev, ti, NULL), CV_OK);
+  double series = 0, ak = 1;
+  for (int b = 1; b <= B; b++) series += (ak *= a);
+  double worst = 0;
+  for (size_t v = 0; v < m->nv; v++) {
+    double got = ti[(v * 3) * nc] / (a * t0);
+    double e = fabs(got / series - 1);
+    worst = e > worst ? e : worst;
+  }
+  printf("furnace, %d bounces, a = %.1f: series %.6f, worst vertex error %.2e\n", B, a, series,
+         worst);
+  assert_true(worst < 0.01);
+  free(prev);
+  free(ti);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
+/* xorshift64* for the independent reference */
+static double rnd(uint64_t *s) {
+  *s ^= *s >> 12;
+  *s ^= *s << 25;
+  *s ^= *s >> 27;
+  return (double)((*s * 0x2545F4914F6CDD1DULL) >> 11) * 0x1p-53;
+}
+
+static void cos_dir(const double n[3], uint64_t *s, float d[3]) {
+  double r1 = rnd(s), r2 = rnd(s), ph = 2 * M_PI * r1, st = sqrt(r2), ct = sqrt(1 - r2);
+  double t[3], b[3];
+  if (fabs(n[0]) > 0.5) {
+    t[0] = n[1]; t[1] = -n[0]; t[2] = 0;
+  } else {
+    t[0] = 0; t[1] = n[2]; t[2] = -n[1];
+  }
+  double l = sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+  for (int k = 0; k < 3; k++) t[k] /= l;
+  b[0] = n[1] * t[2] - n[2] * t[1];
+  b[1] = n[2] * t[0] - n[0] * t[2];
+  b[2] = n[0] * t[1] - n[1] * t[0];
+  for (int k = 0; k < 3; k++) d[k] = (float)(st * cos(ph) * t[k] + st * sin(ph) * b[k] + ct * n[k]);
+}
+
+/* Radiance leaving p (normal n) under a constant environment L = 1 with up
+ * to `depth` further bounces, albedo a everywhere. */
+static double path(const cv_rt *rt, const cv_mesh *m, const float p[3], const double n[3],
+                   int depth, double a, uint64_t *s) {
+  float d[3], o[3], nf[3] = {(float)n[0], (float)n[1], (float)n[2]};
+  cos_dir(n, s, d);
+  cv_rt_offset_origin(p, nf, o);
+  if (cv_rt_reaches_env(rt, o, d, 0)) return a;
+  if (depth == 0) return 0;
+  cv_hit h;
+  if (!cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) return 0;
+  float q[3];
+  double nq[3], l = sqrt(h.ng[0] * h.ng[0] + h.ng[1] * h.ng[1] + h.ng[2] * h.ng[2]);
+  for (int k = 0; k < 3; k++) {
+    q[k] = o[k] + h.t * d[k];
+    nq[k] = h.ng[k] / l;
+  }
+  (void)m;
+  return a * path(rt, m, q, nq, depth - 1, a, s);
+}
+
+static void test_open_box_vs_brute_force(void **state) {
+  (void)state;
+  const float a = 0.6f;
+  const int n = 16;
+  cv_mesh *m = box_mesh(n, a, 1);
+  cv_bake_params p = {.bands = 2, .rays = 1024, .bounces = 2, .seed = 11, .quiet = 1};
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake_tracer(tr, &p, &prt, NULL, NULL), CV_OK);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  cv_lighting l;
+  constant_light(1.0, 2, &l);
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  uint32_t centre = (uint32_t)((n / 2) * (n + 1) + n / 2); /* floor grid comes first */
+  assert_true(fabsf(m->pos[3 * centre] - 0.5f) < 1e-6f && m->pos[3 * centre + 1] == 0.0f);
+  uint64_t s = 0x9E3779B97F4A7C15ULL;
+  const int N = 200000;
+  double sum = 0, sum2 = 0;
+  const double up[3] = {0, 1, 0};
+  const float pc[3] = {0.5f, 0.0f, 0.5f};
+  cv_rt_thread_init();
+  for (int i = 0; i < N; i++) {
+    double x = path(cv_tracer_rt(tr), m, pc, up, 2, a, &s);
+    sum += x;
+    sum2 += x * x;
+  }
+  double ref = sum / N, se = sqrt((sum2 / N - ref * ref) / N);
+  double got = rad[3 * centre];
+  printf("open box floor centre: PRT %.5f, brute force %.5f +- %.5f (%.2f%%)\n", got, ref, se,
+         100 * (got / ref - 1));
+  assert_true(fabs(got / ref - 1) < 0.02);
+  free(rad);
+  cv_prt_destroy(prt);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
+/* Dmitriev 4.1.1: a vertex just covered by an overlapping plate.  Shooting
+ * from the vertex would see the plate right above it and go black; shooting
+ * from points in its fan leaves it about half lit. */
+static void test_overlap_no_leak(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.5f, 0.5f};
+  cv_mesh *m = plane_mesh(2, alb); /* vertices on a 3x3 grid, centre vertex 4 at (0,0,0) */
+  uint32_t plate = 0;
+  const float o[3] = {-3, 1e-4f, -3}, e1[3] = {0, 0, 6}, e2[3] = {3.01f, 0, 0};
+  grid(m, o, e1, e2, 1, plate); /* covers x < 0.01 just above the floor */
+  cv_bake_params p = {.bands = 2, .rays = 4096, .bounces = 0, .seed = 5, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
+  assert_true(prt->pos[3 * 4] == 0.0f && prt->pos[3 * 4 + 2] == 0.0f);
+  double frac = prt->td[4 * 4] * sqrt(4 * M_PI); /* 1 = unshadowed */
+  printf("slightly covered vertex: %.3f of unshadowed (vertex-origin rays: 0)\n", frac);
+  assert_true(frac > 0.45 && frac < 0.52);
+  cv_prt_destroy(prt);
+  cv_mesh_destroy(m);
+}
+
+static void test_duplicate_and_degenerate(void **state) {
+  (void)state;
+  const float alb[3] = {0.4f, 0.4f, 0.4f};
+  cv_mesh *m = plane_mesh(4, alb);
+  size_t nt = m->nt;
+  for (size_t t = 0; t < nt; t++) /* every triangle twice */
+    cv_mesh_add_tri(m, m->tri[3 * t], m->tri[3 * t + 1], m->tri[3 * t + 2], m->tri_mat[t]);
+  cv_mesh_add_tri(m, 0, 0, 1, 0);  /* collapsed */
+  cv_mesh_add_tri(m, 0, 1, 2, 0);  /* collinear: zero area */
+  cv_bake_params p = {.bands = 2, .rays = 256, .bounces = 1, .seed = 5, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  cv_lighting l;
+  constant_light(1.0, 2, &l);
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  for (size_t v = 0; v < prt->nv; v++) assert_true(fabs(rad[3 * v] / 0.4 - 1) < 0.005);
+  free(rad);
+  cv_prt_destroy(prt);
+  cv_mesh_destroy(m);
+}
+
+static void test_determinism_and_file(void **state) {
+  (void)state;
+  cv_mesh *m = box_mesh(3, 0.5f, 1);
+  cv_bake_params p = {.bands = 4, .rays = 64, .bounces = 2, .seed = 3, .quiet = 1};
+  cv_prt *a, *b, *c;
+  omp_set_num_threads(1);
+  assert_int_equal(cv_prt_bake(m, &p, &a, NULL, NULL), CV_OK);
+  omp_set_num_threads(3);
+  assert_int_equal(cv_prt_bake(m, &p, &b, NULL, NULL), CV_OK);
+  size_t nc = 16;
+  assert_memory_equal(a->td, b->td, a->nv * nc * sizeof(float));
+  assert_memory_equal(a->ti, b->ti, 3 * a->nv * nc * sizeof(float));
+  assert_true(a->meta.input_hash == b->meta.input_hash);
+  p.seed = 4;
+  assert_int_equal(cv_prt_bake(m, &p, &c, NULL, NULL), CV_OK);
+  assert_true(memcmp(a->td, c->td, a->nv * nc * sizeof(float)) != 0);
+  assert_true(a->meta.input_hash != c->meta.input_hash);
+
+  char path[512];
+  snprintf(path, sizeof path, "%s/roundtrip.prt", CV_TEST_TMP_DIR);
+  cv_err err;
+  assert_int_equal(cv_prt_write(path, a, &err), CV_OK);
+  cv_prt *r;
+  assert_int_equal(cv_prt_read(path, &r, &err), CV_OK);
+  assert_int_equal(r->bands, 4);
+  assert_memory_equal(r->td, a->td, a->nv * nc * sizeof(float));
+  assert_memory_equal(r->ti, a->ti, 3 * a->nv * nc * sizeof(float));
+  assert_memory_equal(r->mats, a->mats, a->nm * sizeof(cv_material));
+  uint64_t h;
+  assert_int_equal(cv_prt_read_input_hash(path, &h, &err), CV_OK);
+  assert_true(h == a->meta.input_hash);
+  cv_prt_destroy(r);
+
+  /* Truncated and corrupted files are rejected with the file name. */
+  FILE *f = fopen(path, "rb");
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  unsigned char *buf = malloc(size);
+  assert_int_equal(fread(buf, 1, size, f), (size_t)size);
+  fclose(f);
+  char bad[512];
+  snprintf(bad, sizeof bad, "%s/bad.prt", CV_TEST_TMP_DIR);
+  long cuts[3] = {10, 128, size - 7};
+  for (int k = 0; k < 3; k++) {
+    f = fopen(bad, "wb");
+    fwrite(buf, 1, cuts[k], f);
+    fclose(f);
+    assert_int_equal(cv_prt_read(bad, &r, &err), CV_ERR_FORMAT);
+    assert_non_null(strstr(err.msg, "bad.prt"));
+  }
+  buf[size / 2] ^= 0x40;
+  f = fopen(bad, "wb");
+  fwrite(buf, 1, size, f);
+  fclose(f);
+  assert_int_equal(cv_prt_read(bad, &r, &err), CV_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "corrupt"));
+  assert_int_equal(cv_prt_read_input_hash("/nonexistent/x.prt", &h, &err), CV_ERR_NOT_FOUND);
+  free(buf);
+  cv_prt_destroy(a);
+  cv_prt_destroy(b);
+  cv_prt_destroy(c);
+  cv_mesh_destroy(m);
+}
+
+static void test_sun_direct(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.25f, 1.0f};
+  cv_mesh *m = plane_mesh(2, alb);
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  cv_bake_params p = {.bands = 3, .rays = 64, .bounces = 0, .seed = 1, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake_tracer(tr, &p, &prt, NULL, NULL), CV_OK);
+  cv_lighting l;
+  constant_light(0.0, 3, &l);
+  l.has_sun = 1;
+  double el = 30 * M_PI / 180; /* cos(theta) = sin(30 deg) = 0.5 */
+  l.sun_dir[0] = cos(el);
+  l.sun_dir[1] = sin(el);
+  l.sun_E[0] = l.sun_E[1] = l.sun_E[2] = 1000;
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  assert_int_equal(cv_prt_relight(prt, &l, tr, 16, rad, NULL), CV_OK);
+  for (size_t v = 0; v < prt->nv; v++)
+    for (int c = 0; c < 3; c++)
+      assert_true(fabs(rad[3 * v + c] - alb[c] * 1000 * 0.5 / M_PI) < 1e-3 * 1000 * alb[c]);
+  /* Sun below the plane: nothing. */
+  l.sun_dir[1] = -0.5;
+  assert_int_equal(cv_prt_relight(prt, &l, tr, 16, rad, NULL), CV_OK);
+  for (size_t i = 0; i < 3 * prt->nv; i++) assert_true(rad[i] == 0.0f);
+  free(rad);
+  cv_prt_destroy(prt);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
+static void test_bad_params(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.5f, 0.5f};
+  cv_mesh *m = plane_mesh(1, alb);
+  cv_prt *prt;
+  cv_err err;
+  cv_bake_params p = {.bands = 9, .rays = 16, .bounces = 0, .seed = 1, .quiet = 1};
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_ERR_RANGE);
+  assert_non_null(strstr(err.msg, "prt.bands"));
+  p.bands = 3;
+  p.rays = 0;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_ERR_RANGE);
+  assert_non_null(strstr(err.msg, "prt.rays"));
+  cv_mesh_destroy(m);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_unshadowed_plane),
+      cmocka_unit_test(test_furnace),
+      cmocka_unit_test(test_open_box_vs_brute_force),
+      cmocka_unit_test(test_overlap_no_leak),
+      cmocka_unit_test(test_duplicate_and_degenerate),
+      cmocka_unit_test(test_determinism_and_file),
+      cmocka_unit_test(test_sun_direct),
+      cmocka_unit_test(test_bad_params),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
