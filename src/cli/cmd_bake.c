@@ -25,6 +25,8 @@ static void help(FILE *f) {
           "  --bounces N     interreflection bounces 0..16 (default 2)\n"
           "  --budget E      relative error budget for auto (default 0.05)\n"
           "  --seed S        sampling seed (same seed, same bytes)\n"
+          "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
+          "                  cover (1 = the paper's whole fan; default 0.5)\n"
           "  --tess N        built-in cabin subdivision (1..64)\n"
           "  --threads N     OpenMP threads (default: all cores)\n"
           "  --force         bake even if the output already matches the inputs\n"
@@ -36,6 +38,7 @@ int cmd_bake(int argc, char **argv) {
   const char *bands_s = NULL, *rays_s = NULL, *bounces_s = NULL, *seed_s = NULL,
              *budget_s = NULL, *tess_s = NULL;
   int force = 0, quiet = 0, threads = 0;
+  double spread = -1;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -53,6 +56,9 @@ int cmd_bake(int argc, char **argv) {
       rays_s = argv[++i];
     } else if (!strcmp(a, "--bounces") && v) {
       bounces_s = argv[++i];
+    } else if (!strcmp(a, "--spread") && v) {
+      if (cli_parse_double(argv[++i], &spread) || spread < 0 || spread > 1)
+        return cli_fail("bake", 2, "--spread: expected 0..1, got '%s'", v);
     } else if (!strcmp(a, "--seed") && v) {
       seed_s = argv[++i];
     } else if (!strcmp(a, "--budget") && v) {
@@ -130,13 +136,14 @@ int cmd_bake(int argc, char **argv) {
     goto done;
   }
   if (threads > 0) omp_set_num_threads(threads);
+  if (spread >= 0) cfg.spread = spread;
 
   if (cli_load_scene_mesh(&cfg, stdout, &m, &err)) {
     rc = cli_fail("bake", 1, "%s", err.msg);
     goto done;
   }
   cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
-                       .seed = cfg.seed, .quiet = quiet};
+                       .seed = cfg.seed, .spread = (float)cfg.spread, .quiet = quiet};
   float est_error = -1.0f;
   if (cfg.bands == 0 || cfg.rays == 0) {
     /* The auto pick depends only on the mesh, the lighting and the budget;
@@ -145,6 +152,7 @@ int cmd_bake(int argc, char **argv) {
       rc = cli_fail("bake", 1, "%s", err.msg);
       goto done;
     }
+    cv_tracer_set_spread(tr, bp.spread);
     cv_lighting lt, *lp = NULL;
     if (cfg.light.kind != CV_LIGHT_NONE) {
       if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
@@ -179,8 +187,9 @@ int cmd_bake(int argc, char **argv) {
     rc = cli_fail("bake", 1, "%s", err.msg);
     goto done;
   }
-  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, seed %u, %d threads\n", m->nv,
-         bp.bands, bp.rays, bp.bounces, bp.seed, omp_get_max_threads());
+  cv_tracer_set_spread(tr, bp.spread);
+  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, spread %g, seed %u, %d threads\n",
+         m->nv, bp.bands, bp.rays, bp.bounces, (double)bp.spread, bp.seed, omp_get_max_threads());
   fflush(stdout);
   cv_bake_stats bs;
   if (cv_prt_bake_tracer(tr, &bp, &prt, &bs, &err)) {

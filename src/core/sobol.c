@@ -76,3 +76,28 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed) {
   uint32_t i = owen(index, seed);
   return to_unit(owen(cv_sobol_u32(i, dim), cv_hash_combine(seed, (uint32_t)dim + 1u)));
 }
+
+void cv_sobol_tab_init(cv_sobol_tab *tab) {
+  for (int d = 0; d < CV_SOBOL_DIMS; d++)
+    for (int b = 0; b < 4; b++)
+      for (uint32_t v = 0; v < 256; v++) {
+        uint32_t x = 0;
+        for (int j = 0; j < 8; j++)
+          if (v & (1u << j)) x ^= dirnum[d][8 * b + j];
+        tab->t[d][b][v] = x;
+      }
+}
+
+void cv_sobol_dim_seeds(uint32_t seed, int ndims, uint32_t *dim_seeds) {
+  for (int d = 0; d < ndims; d++) dim_seeds[d] = cv_hash_combine(seed, (uint32_t)d + 1u);
+}
+
+void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
+                       const uint32_t *dim_seeds, int ndims, float *u) {
+  uint32_t i = owen(index, seed);
+  for (int d = 0; d < ndims; d++) {
+    const uint32_t(*t)[256] = tab->t[d];
+    uint32_t x = t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][(i >> 16) & 255u] ^ t[3][i >> 24];
+    u[d] = to_unit(owen(x, dim_seeds[d]));
+  }
+}

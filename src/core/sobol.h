@@ -24,6 +24,21 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed);
 /* Fills u[0..ndims) with the scrambled components of one sample (the index is
  * shuffled once, so all dimensions of a sample stay consistent). */
 void cv_sobol_owen_n(uint32_t index, uint32_t seed, int ndims, float *u);
+/* Byte tables for fast generation: entry [d][b][v] is the XOR of the
+ * direction numbers of dimension d selected by byte b of the index having
+ * value v, so a point component costs 4 lookups instead of up to 32 steps.
+ * 32 KiB; fill once with cv_sobol_tab_init and share read-only. */
+typedef struct cv_sobol_tab {
+  uint32_t t[CV_SOBOL_DIMS][4][256];
+} cv_sobol_tab;
+
+void cv_sobol_tab_init(cv_sobol_tab *tab);
+/* Per-dimension scramble seeds of a sequence (dim_seeds[ndims]). */
+void cv_sobol_dim_seeds(uint32_t seed, int ndims, uint32_t *dim_seeds);
+/* Same values as cv_sobol_owen_n(index, seed, ndims, u), using the tables
+ * and the seeds from cv_sobol_dim_seeds(seed, ...). */
+void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
+                       const uint32_t *dim_seeds, int ndims, float *u);
 /* 32-bit integer hash (for deriving per-vertex / per-pixel seeds). */
 uint32_t cv_hash_u32(uint32_t x);
 /* Combines a seed with a value, order-dependent. */

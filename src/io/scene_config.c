@@ -30,6 +30,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->rays = 1024;
   c->bounces = 2;
   c->seed = 1;
+  c->spread = 0.5;
   c->error_budget = 0.05;
   cv_light_spec_default(&c->light);
 }
@@ -226,7 +227,7 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
 }
 
 static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
-  static const char *const keys[] = {"bands", "rays", "bounces", "seed", "error_budget", NULL};
+  static const char *const keys[] = {"bands", "rays", "bounces", "seed", "spread", "error_budget", NULL};
   int st = only_keys(x, o, "prt", keys);
   if (st) return st;
   const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "bands");
@@ -247,6 +248,7 @@ static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   int seed = (int)c->seed;
   if ((st = get_int(x, o, "seed", "prt", 0, 2147483647, &seed))) return st;
   c->seed = (uint32_t)seed;
+  if ((st = get_num(x, o, "spread", "prt", 0.0, 1.0, &c->spread))) return st;
   return get_num(x, o, "error_budget", "prt", 1e-4, 1.0, &c->error_budget);
 }
 

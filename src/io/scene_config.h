@@ -54,6 +54,7 @@ typedef struct cv_scene_config {
   int rays;                 /* 0 = auto */
   int bounces;
   uint32_t seed;
+  double spread;            /* 0..1, fraction of each vertex's fan sampled */
   double error_budget;      /* relative, for auto */
   cv_light_spec light;      /* kind NONE when the config names no lighting */
 } cv_scene_config;

@@ -18,6 +18,8 @@ struct cv_tracer {
   size_t *fan_off;     /* nv+1, CSR offsets into fan_tri/fan_cdf */
   uint32_t *fan_tri;   /* triangle index << 2 | corner of v in it */
   float *fan_cdf;      /* cumulative area fraction within the fan */
+  cv_sobol_tab sobol;  /* shared read-only by all threads */
+  float spread;        /* fraction of the fan that ray origins cover */
 };
 
 void cv_tracer_destroy(cv_tracer *tr) {
@@ -46,6 +48,8 @@ int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err) {
     return st == CV_ERR_NOMEM ? cv_err_set(err, st, "out of memory") : st;
   }
   size_t nv = m->nv, nt = m->nt;
+  cv_sobol_tab_init(&tr->sobol);
+  tr->spread = CV_BAKE_DEFAULT_SPREAD;
   tr->tri_n = malloc(3 * nt * sizeof(float));
   tr->fan_off = calloc(nv + 1, sizeof(size_t));
   double *area = malloc(nt * sizeof(double));
@@ -99,6 +103,14 @@ nomem:
 
 const cv_rt *cv_tracer_rt(const cv_tracer *tr) { return tr->rt; }
 
+int cv_tracer_set_spread(cv_tracer *tr, float spread) {
+  if (!(spread >= 0.0f && spread <= 1.0f)) return CV_ERR_RANGE;
+  tr->spread = spread;
+  return CV_OK;
+}
+
+float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
+
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
 
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
@@ -126,12 +138,12 @@ static void cosine_dir(const float n[3], float u0, float u1, float d[3]) {
   float aa = -1.0f / (sign + n[2]), bb = n[0] * n[1] * aa;
   float t[3] = {1.0f + sign * n[0] * n[0] * aa, sign * bb, -sign * n[0]};
   float s[3] = {bb, sign + n[1] * n[1] * aa, -n[1]};
+  /* t, s, n orthonormal and x^2 + y^2 + z^2 = 1: d is unit to rounding. */
   for (int k = 0; k < 3; k++) d[k] = x * t[k] + y * s[k] + z * n[k];
-  float l = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  for (int k = 0; k < 3; k++) d[k] /= l;
 }
 
-/* Picks fan triangle and point for sample u (5 dims); returns the triangle. */
+/* Picks fan triangle and point for sample u (6 dims: u[2], u[3], u[5] place
+ * the point, u[4] picks the triangle); returns the triangle. */
 static uint32_t fan_point(const cv_tracer *tr, uint32_t v, const float *u, float p[3]) {
   size_t lo = tr->fan_off[v], hi = tr->fan_off[v + 1] - 1;
   while (lo < hi) { /* first entry with cdf > u4 */
@@ -140,26 +152,64 @@ static uint32_t fan_point(const cv_tracer *tr, uint32_t v, const float *u, float
     else lo = mid + 1;
   }
   uint32_t t = tr->fan_tri[lo] >> 2, c = tr->fan_tri[lo] & 3u;
-  /* Barycentric of v with density 6 b (1 - b) (hat function times the
-   * uniform marginal 2 (1 - b)): inverse of the smoothstep CDF 3b^2 - 2b^3. */
-  float bv = 0.5f - sinf(asinf(1.0f - 2.0f * u[2]) / 3.0f);
-  float b1 = (1.0f - bv) * u[3], b2 = 1.0f - bv - b1;
+  /* Point density proportional to v's barycentric b_v (the hat function):
+   * barycentrics ~ Dirichlet(2,1,1).  With three uniforms sorted
+   * s0 <= s1 <= s2, the spacings (s0, s1-s0, s2-s1, 1-s2) are
+   * Dirichlet(1,1,1,1); merging the first two gives (s1, s2-s1, 1-s2). */
+  float a = u[2], b = u[3], c2 = u[5], tmp;
+  if (a > b) { tmp = a; a = b; b = tmp; }
+  if (b > c2) { tmp = b; b = c2; c2 = tmp; }
+  if (a > b) { tmp = a; a = b; b = tmp; }
+  float bv = b, b1 = c2 - b, b2 = 1.0f - c2;
   const uint32_t *tv = tr->m->tri + 3 * t;
   const float *P0 = tr->m->pos + 3 * tv[c], *P1 = tr->m->pos + 3 * tv[(c + 1) % 3],
               *P2 = tr->m->pos + 3 * tv[(c + 2) % 3];
+  /* Shrink towards v by the spread (1 = the whole hat, as in the paper). */
+  const float lam = tr->spread;
+  bv = 1.0f - lam * (1.0f - bv);
+  b1 *= lam;
+  b2 *= lam;
   for (int k = 0; k < 3; k++) p[k] = bv * P0[k] + b1 * P1[k] + b2 * P2[k];
+  return t;
+}
+
+/* Per-vertex sequence state: two independently shuffled Owen-scrambled
+ * Sobol chunks ("padding", Burley 2020 section 4): a 2-D chunk for the
+ * direction and a 4-D chunk for the starting point (triangle choice and three
+ * barycentric uniforms).  Each chunk keeps the good low-dimensional
+ * stratification that one 6-D point would lose. */
+typedef struct {
+  uint32_t sa, d6[6];
+} vseq;
+
+static inline void vseq_init(vseq *q, uint32_t seed, uint32_t v) {
+  uint32_t vs = cv_hash_combine(seed, v);
+  q->sa = cv_hash_combine(vs, 0xD1u);
+  cv_sobol_dim_seeds(q->sa, 6, q->d6);
+}
+
+/* u[0..1] direction, u[2], u[3], u[5] barycentric uniforms, u[4] triangle. */
+static inline void vseq_sample(const cv_sobol_tab *tab, const vseq *q, uint32_t j, float u[6]) {
+  cv_sobol_owen_tab(tab, j, q->sa, q->d6, 6, u);
+}
+
+static inline uint32_t sample_ray(const cv_tracer *tr, uint32_t v, uint32_t j, const vseq *q,
+                                  float org[3], float dir[3]) {
+  float u[6], p[3];
+  vseq_sample(&tr->sobol, q, j, u);
+  uint32_t t = fan_point(tr, v, u, p);
+  const float *n = tr->tri_n + 3 * t;
+  cosine_dir(n, u[0], u[1], dir);
+  cv_rt_offset_origin(p, n, org);
   return t;
 }
 
 int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed, float org[3],
                      float dir[3], uint32_t *tri) {
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return 0;
-  float u[5], p[3];
-  cv_sobol_owen_n(j, cv_hash_combine(seed, v), 5, u);
-  uint32_t t = fan_point(tr, v, u, p);
-  const float *n = tr->tri_n + 3 * t;
-  cosine_dir(n, u[0], u[1], dir);
-  cv_rt_offset_origin(p, n, org);
+  vseq q;
+  vseq_init(&q, seed, v);
+  uint32_t t = sample_ray(tr, v, j, &q, org, dir);
   if (tri) *tri = t;
   return 1;
 }
@@ -172,10 +222,11 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   memset(acc, 0, (size_t)nc * sizeof(double));
   alb[0] = alb[1] = alb[2] = 0;
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  vseq q;
+  vseq_init(&q, seed, v);
   for (int j = 0; j < rays; j++) {
     float org[3], dir[3];
-    uint32_t t = 0;
-    cv_tracer_sample(tr, v, (uint32_t)j, seed, org, dir, &t);
+    uint32_t t = sample_ray(tr, v, (uint32_t)j, &q, org, dir);
     const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
     for (int k = 0; k < 3; k++) alb[k] += a[k];
     if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
@@ -193,10 +244,11 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
   float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  vseq q;
+  vseq_init(&q, seed, v);
   for (int j = 0; j < rays; j++) {
     float org[3], dir[3];
-    uint32_t t = 0;
-    cv_tracer_sample(tr, v, (uint32_t)j, seed, org, dir, &t);
+    uint32_t t = sample_ray(tr, v, (uint32_t)j, &q, org, dir);
     cv_hit h;
     if (!cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &h)) continue;
     const uint32_t *tv = tr->m->tri + 3 * h.tri;
@@ -234,6 +286,8 @@ int cv_bake_params_validate(const cv_bake_params *p, cv_err *err) {
                       CV_PRT_MAX_BANDS);
   if (p->rays < 1 || p->rays > (1 << 24))
     return cv_err_set(err, CV_ERR_RANGE, "prt.rays = %d, expected 1..16777216", p->rays);
+  if (!(p->spread >= 0.0f && p->spread <= 1.0f))
+    return cv_err_set(err, CV_ERR_RANGE, "prt.spread = %g, expected 0..1", (double)p->spread);
   if (p->bounces < 0 || p->bounces > 16)
     return cv_err_set(err, CV_ERR_RANGE, "prt.bounces = %d, expected 0..16", p->bounces);
   return CV_OK;
@@ -241,8 +295,10 @@ int cv_bake_params_validate(const cv_bake_params *p, cv_err *err) {
 
 uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint64_t h = cv_hash64_init();
+  uint32_t spread_bits;
+  memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   uint32_t hdr[6] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
-                     (uint32_t)p->bounces, p->seed, 0};
+                     (uint32_t)p->bounces, p->seed, spread_bits};
   h = cv_hash64_update(h, hdr, sizeof hdr);
   uint64_t sz[3] = {m->nv, m->nt, m->nm};
   h = cv_hash64_update(h, sz, sizeof sz);
@@ -265,6 +321,7 @@ int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake
   cv_tracer *tr;
   st = cv_tracer_create(m, &tr, err);
   if (st) return st;
+  cv_tracer_set_spread(tr, p->spread);
   st = cv_prt_bake_tracer(tr, p, out, stats, err);
   cv_tracer_destroy(tr);
   return st;
@@ -325,6 +382,9 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   *out = NULL;
   int st = cv_bake_params_validate(p, err);
   if (st) return st;
+  if (tr->spread != p->spread)
+    return cv_err_set(err, CV_ERR_INVALID, "bake spread %g differs from the tracer's %g",
+                      (double)p->spread, (double)tr->spread);
   const cv_mesh *m = tr->m;
   cv_bake_stats local;
   if (!stats) stats = &local;
@@ -341,6 +401,7 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   prt->meta.rays = (uint32_t)p->rays;
   prt->meta.bounces = (uint32_t)p->bounces;
   prt->meta.seed = p->seed;
+  prt->meta.spread = p->spread;
 
   const size_t nv = m->nv;
   const int nc = p->bands * p->bands;
@@ -393,9 +454,11 @@ int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3
     for (size_t v = 0; v < nv; v++) {
       if (tr->fan_off[v + 1] == tr->fan_off[v]) continue;
       double acc[3] = {0, 0, 0};
+      vseq q;
+      vseq_init(&q, sseed, (uint32_t)v);
       for (int j = 0; j < samples; j++) {
-        float u[5], p[3], org[3];
-        cv_sobol_owen_n((uint32_t)j, cv_hash_combine(sseed, (uint32_t)v), 5, u);
+        float u[6], p[3], org[3];
+        vseq_sample(&tr->sobol, &q, (uint32_t)j, u);
         uint32_t t = fan_point(tr, (uint32_t)v, u, p);
         const float *n = tr->tri_n + 3 * t;
         float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];

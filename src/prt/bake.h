@@ -23,11 +23,18 @@
 #include "prt/prt.h"
 #include "rt/rt.h"
 
+/* Default fraction of a vertex's fan over which ray origins are spread.
+ * 1 is the paper's whole hat; smaller values trade leak protection (still
+ * ample against overlaps much thinner than the fan) for lower variance:
+ * measured in docs/benchmarks.md. */
+#define CV_BAKE_DEFAULT_SPREAD 0.5f
+
 typedef struct cv_bake_params {
   int bands;      /* SH bands, 2..8 */
   int rays;       /* rays per vertex per pass, >= 1 */
   int bounces;    /* interreflection bounces, 0..16 */
   uint32_t seed;
+  float spread;   /* 0..1, see CV_BAKE_DEFAULT_SPREAD */
   int quiet;      /* 1: no progress bar */
 } cv_bake_params;
 
@@ -46,6 +53,10 @@ typedef struct cv_tracer cv_tracer;
 int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err);
 void cv_tracer_destroy(cv_tracer *tr);
 const cv_rt *cv_tracer_rt(const cv_tracer *tr);
+/* Sets / reads the spread of ray origins (default CV_BAKE_DEFAULT_SPREAD);
+ * CV_ERR_RANGE outside [0, 1].  Not thread-safe against concurrent bakes. */
+int cv_tracer_set_spread(cv_tracer *tr, float spread);
+float cv_tracer_spread(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */
 size_t cv_tracer_vertex_count(const cv_tracer *tr);
 /* Number of opaque triangles in vertex v's fan. */
@@ -61,7 +72,8 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out);
 
-/* Full bake; *out owned by the caller.  meta.input_hash is set from
+/* Full bake; *out owned by the caller.  With cv_prt_bake_tracer the
+ * tracer's spread must equal p->spread.  meta.input_hash is set from
  * cv_prt_input_hash.  Prints a progress bar to stderr unless p->quiet. */
 int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake_stats *stats,
                 cv_err *err);

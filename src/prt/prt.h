@@ -29,6 +29,7 @@ typedef struct cv_prt_meta {
   uint32_t rays;         /* rays per vertex per pass */
   uint32_t bounces;      /* interreflection bounces (0 = direct only) */
   uint32_t seed;
+  float spread;          /* fraction of each vertex's fan covered by ray origins */
   float est_error;       /* estimated relative error (auto mode), or -1 */
   double bake_seconds;
 } cv_prt_meta;

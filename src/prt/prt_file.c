@@ -21,7 +21,7 @@ typedef struct {
   uint64_t nv, nt, nm;
   uint64_t input_hash, payload_hash;
   uint32_t rays, bounces, seed;
-  float est_error;
+  float est_error, spread;
   double bake_seconds;
 } header;
 
@@ -112,6 +112,7 @@ int cv_prt_write(const char *path, const cv_prt *p, cv_err *err) {
   h.bounces = p->meta.bounces;
   h.seed = p->meta.seed;
   h.est_error = p->meta.est_error;
+  h.spread = p->meta.spread;
   h.bake_seconds = p->meta.bake_seconds;
   uint64_t ph = cv_hash64_init();
   for (int i = 0; i < nchunks; i++) ph = cv_hash64_update(ph, c[i].ptr, c[i].bytes);
@@ -200,6 +201,7 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
   p->meta.bounces = h.bounces;
   p->meta.seed = h.seed;
   p->meta.est_error = h.est_error;
+  p->meta.spread = h.spread;
   p->meta.bake_seconds = h.bake_seconds;
   chunk c[8];
   int nchunks = payload_chunks(p, c);

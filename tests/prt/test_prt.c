@@ -101,7 +101,7 @@ static void test_unshadowed_plane(void **state) {
   (void)state;
   const float alb[3] = {0.5f, 0.3f, 0.8f};
   cv_mesh *m = plane_mesh(8, alb);
-  cv_bake_params p = {.bands = 3, .rays = 256, .bounces = 1, .seed = 7, .quiet = 1};
+  cv_bake_params p = {.bands = 3, .rays = 256, .bounces = 1, .seed = 7, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_prt *prt;
   cv_err err;
   assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_OK);
@@ -209,7 +209,7 @@ static void test_open_box_vs_brute_force(void **state) {
   const float a = 0.6f;
   const int n = 16;
   cv_mesh *m = box_mesh(n, a, 1);
-  cv_bake_params p = {.bands = 2, .rays = 1024, .bounces = 2, .seed = 11, .quiet = 1};
+  cv_bake_params p = {.bands = 2, .rays = 1024, .bounces = 2, .seed = 11, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_tracer *tr;
   assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
   cv_prt *prt;
@@ -252,13 +252,24 @@ static void test_overlap_no_leak(void **state) {
   uint32_t plate = 0;
   const float o[3] = {-3, 1e-4f, -3}, e1[3] = {0, 0, 6}, e2[3] = {3.01f, 0, 0};
   grid(m, o, e1, e2, 1, plate); /* covers x < 0.01 just above the floor */
-  cv_bake_params p = {.bands = 2, .rays = 4096, .bounces = 0, .seed = 5, .quiet = 1};
+  cv_bake_params p = {.bands = 2, .rays = 4096, .bounces = 0, .seed = 5, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_prt *prt;
   assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
   assert_true(prt->pos[3 * 4] == 0.0f && prt->pos[3 * 4 + 2] == 0.0f);
   double frac = prt->td[4 * 4] * sqrt(4 * M_PI); /* 1 = unshadowed */
-  printf("slightly covered vertex: %.3f of unshadowed (vertex-origin rays: 0)\n", frac);
+  cv_prt_destroy(prt);
+  p.spread = 1.0f; /* the paper's whole hat */
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
+  double frac1 = prt->td[4 * 4] * sqrt(4 * M_PI);
+  cv_prt_destroy(prt);
+  p.spread = 0.0f; /* rays from the vertex itself: the leak the paper describes */
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
+  double frac0 = prt->td[4 * 4] * sqrt(4 * M_PI);
+  printf("slightly covered vertex, lit fraction: spread 0.5 %.3f, 1 %.3f, 0 (vertex) %.3f\n", frac,
+         frac1, frac0);
   assert_true(frac > 0.45 && frac < 0.52);
+  assert_true(frac1 > 0.46 && frac1 < 0.52);
+  assert_true(frac0 < 0.01);
   cv_prt_destroy(prt);
   cv_mesh_destroy(m);
 }
@@ -272,7 +283,7 @@ static void test_duplicate_and_degenerate(void **state) {
     cv_mesh_add_tri(m, m->tri[3 * t], m->tri[3 * t + 1], m->tri[3 * t + 2], m->tri_mat[t]);
   cv_mesh_add_tri(m, 0, 0, 1, 0);  /* collapsed */
   cv_mesh_add_tri(m, 0, 1, 2, 0);  /* collinear: zero area */
-  cv_bake_params p = {.bands = 2, .rays = 256, .bounces = 1, .seed = 5, .quiet = 1};
+  cv_bake_params p = {.bands = 2, .rays = 256, .bounces = 1, .seed = 5, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_prt *prt;
   assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
   float *rad = malloc(3 * prt->nv * sizeof(float));
@@ -288,7 +299,7 @@ static void test_duplicate_and_degenerate(void **state) {
 static void test_determinism_and_file(void **state) {
   (void)state;
   cv_mesh *m = box_mesh(3, 0.5f, 1);
-  cv_bake_params p = {.bands = 4, .rays = 64, .bounces = 2, .seed = 3, .quiet = 1};
+  cv_bake_params p = {.bands = 4, .rays = 64, .bounces = 2, .seed = 3, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_prt *a, *b, *c;
   omp_set_num_threads(1);
   assert_int_equal(cv_prt_bake(m, &p, &a, NULL, NULL), CV_OK);
@@ -356,7 +367,7 @@ static void test_sun_direct(void **state) {
   cv_mesh *m = plane_mesh(2, alb);
   cv_tracer *tr;
   assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
-  cv_bake_params p = {.bands = 3, .rays = 64, .bounces = 0, .seed = 1, .quiet = 1};
+  cv_bake_params p = {.bands = 3, .rays = 64, .bounces = 0, .seed = 1, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   cv_prt *prt;
   assert_int_equal(cv_prt_bake_tracer(tr, &p, &prt, NULL, NULL), CV_OK);
   cv_lighting l;
@@ -387,7 +398,7 @@ static void test_bad_params(void **state) {
   cv_mesh *m = plane_mesh(1, alb);
   cv_prt *prt;
   cv_err err;
-  cv_bake_params p = {.bands = 9, .rays = 16, .bounces = 0, .seed = 1, .quiet = 1};
+  cv_bake_params p = {.bands = 9, .rays = 16, .bounces = 0, .seed = 1, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
   assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_ERR_RANGE);
   assert_non_null(strstr(err.msg, "prt.bands"));
   p.bands = 3;

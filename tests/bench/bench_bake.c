@@ -1,0 +1,219 @@
+/* Benchmark of the PRT bake on the default cabin (speed against error).
+ *
+ *   bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]
+ *              [--csv FILE]
+ *
+ * 1. Throughput: the bake's direct and bounce passes on a vertex subset, next
+ *    to a bare Embree loop tracing the SAME rays (pre-generated, so the bare
+ *    loop pays only for rtcOccluded1 / rtcIntersect1), measured in this run.
+ * 2. The full bake (25 coefficients, R rays, B bounces) of the whole cabin.
+ * 3. Error: direct transfer of the subset for SH bands 2..6 and 256..4096
+ *    rays against a 16384-ray bake of the same vertices (mean over vertices
+ *    of |T - T_ref| / |T_ref|, L2 over the coefficients), and the relit
+ *    radiance under blender-data's forest.exr (sun split out, as the renderer
+ *    does), mean relative error over lit vertices.
+ * Prints markdown tables (docs/benchmarks.md). */
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/progress.h"
+#include "mesh/cabin.h"
+#include "mesh/clean.h"
+#include "prt/bake.h"
+#include "prt/scene_light.h"
+
+static double bare_loop(const cv_tracer *tr, const float *org, const float *dir, size_t n,
+                        int intersect, uint64_t *hits) {
+  const cv_rt *rt = cv_tracer_rt(tr);
+  uint64_t h = 0;
+  double t0 = cv_now_seconds();
+#pragma omp parallel reduction(+ : h)
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 4096)
+    for (size_t i = 0; i < n; i++) {
+      if (intersect) {
+        cv_hit hit;
+        h += (uint64_t)cv_rt_intersect(rt, org + 3 * i, dir + 3 * i, 0, INFINITY, &hit);
+      } else {
+        h += (uint64_t)cv_rt_reaches_env(rt, org + 3 * i, dir + 3 * i, 0);
+      }
+    }
+  }
+  *hits = h;
+  return cv_now_seconds() - t0;
+}
+
+int main(int argc, char **argv) {
+  int tess = 8, subset = 4000, bake_rays = 1024, bounces = 2, skip_full = 0;
+  for (int i = 1; i < argc; i++) {
+    if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--subset") && i + 1 < argc) subset = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--bake-rays") && i + 1 < argc) bake_rays = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--bounces") && i + 1 < argc) bounces = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--skip-full")) skip_full = 1;
+    else {
+      fprintf(stderr,
+              "usage: bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]\n");
+      return strcmp(argv[i], "--help") ? 2 : 0;
+    }
+  }
+  cv_cabin_params cp;
+  cv_cabin_default_params(&cp);
+  cp.tess = tess;
+  cv_mesh *m;
+  cv_err err;
+  if (cv_cabin_generate(&cp, &m, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  cv_clean_params clp;
+  cv_clean_default_params(&clp);
+  cv_clean_report rep;
+  cv_mesh_clean(m, &clp, &rep, &err);
+  printf("# PRT bake benchmark\n\ncabin tess %d: %zu triangles, %zu vertices; %d threads\n\n", tess,
+         m->nt, m->nv, omp_get_max_threads());
+  double t0 = cv_now_seconds();
+  cv_tracer *tr;
+  if (cv_tracer_create(m, &tr, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  printf("BVH build + fans: %.2f s\n\n", cv_now_seconds() - t0);
+
+  /* Subset: every k-th vertex with geometry. */
+  size_t nv = m->nv, ns = 0;
+  uint32_t *verts = malloc(nv * sizeof(uint32_t));
+  size_t step = nv / (size_t)subset > 0 ? nv / (size_t)subset : 1;
+  for (size_t v = 0; v < nv && ns < (size_t)subset; v += step)
+    if (cv_tracer_fan_size(tr, (uint32_t)v) > 0) verts[ns++] = (uint32_t)v;
+
+  /* 1. Throughput against the bare loop, same rays. */
+  const int R = bake_rays;
+  size_t nr = ns * (size_t)R;
+  float *org = malloc(3 * nr * sizeof(float)), *dir = malloc(3 * nr * sizeof(float));
+  for (size_t k = 0; k < ns; k++)
+    for (int j = 0; j < R; j++)
+      cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j), NULL);
+  uint64_t hits;
+  bare_loop(tr, org, dir, nr / 8, 0, &hits); /* warm up */
+  double t_bare_occ = bare_loop(tr, org, dir, nr, 0, &hits);
+  double esc = (double)hits / nr;
+  double t_bare_isect = bare_loop(tr, org, dir, nr, 1, &hits);
+  float *out = malloc(ns * 64 * sizeof(float));
+  t0 = cv_now_seconds();
+  cv_bake_direct_subset(tr, 5, R, 1, verts, ns, out);
+  double t_direct = cv_now_seconds() - t0;
+  printf("## Throughput, %zu vertices x %d rays = %.1f M rays (same rays in both)\n\n", ns, R, nr / 1e6);
+  printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
+  printf("| bare Embree occlusion (window rule: 1-2 rtcOccluded1 per ray, %.1f%% escape) | %.3f | %.2f | 1.00 |\n",
+         100 * esc, t_bare_occ, nr / t_bare_occ / 1e6);
+  printf("| bake direct pass (sampling + SH 25 + window rule) | %.3f | %.2f | %.2f |\n", t_direct,
+         nr / t_direct / 1e6, t_bare_occ / t_direct);
+  printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | - |\n\n", t_bare_isect,
+         nr / t_bare_isect / 1e6);
+  free(org);
+  free(dir);
+
+  /* 2. Full bake. */
+  if (!skip_full) {
+    cv_bake_params bp = {.bands = 5, .rays = R, .bounces = bounces, .seed = 1, .spread = cv_tracer_spread(tr), .quiet = 1};
+    cv_bake_stats bs;
+    cv_prt *prt;
+    if (cv_prt_bake_tracer(tr, &bp, &prt, &bs, &err)) {
+      fprintf(stderr, "%s\n", err.msg);
+      return 1;
+    }
+    printf("## Full bake: 25 coefficients, %d rays, %d bounces\n\n", R, bounces);
+    printf("| pass | seconds | M rays/s |\n|---|---|---|\n");
+    for (int b = 0; b <= bounces; b++)
+      printf("| %s %d | %.2f | %.2f |\n", b ? "bounce" : "direct", b, bs.seconds[b],
+             bs.rays[b] / bs.seconds[b] / 1e6);
+    printf("| total | %.2f | %.2f |\n\n", bs.total_seconds, bs.total_rays / bs.total_seconds / 1e6);
+    printf("bounce passes vs bare closest-hit loop: %.2f (bounce 1 rays/s over bare rays/s)\n\n",
+           (bs.rays[1] / bs.seconds[1]) / (nr / t_bare_isect));
+    cv_prt_destroy(prt);
+  }
+
+  /* 3. Error against a 16384-ray reference. */
+  const int NB = 6, NC = 36, REF = 16384;
+  float *ref = malloc(ns * NC * sizeof(float)), *cur = malloc(ns * NC * sizeof(float));
+  t0 = cv_now_seconds();
+  cv_bake_direct_subset(tr, NB, REF, 777, verts, ns, ref);
+  printf("reference: %zu vertices x %d rays in %.1f s\n\n", ns, REF, cv_now_seconds() - t0);
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_ENV;
+  spec.n_env = 1;
+  spec.weight[0] = 1;
+  int have_forest = cv_resolve_env_path("forest.exr", NULL, spec.env[0], &err) == CV_OK;
+  cv_scene_light *sl = NULL;
+  cv_lighting l;
+  if (have_forest && cv_scene_light_build(&spec, NB, &sl, &err) == CV_OK) l = cv_scene_light_sh(sl);
+  else have_forest = 0;
+  static const int rays[] = {256, 512, 1024, 2048, 4096};
+  printf("## Direct transfer error against %d rays (mean relative L2 per vertex)\n\n", REF);
+  printf("| rays | seconds | bands 2 | bands 3 | bands 4 | bands 5 | bands 6 | forest.exr radiance, 5 bands |\n");
+  printf("|---|---|---|---|---|---|---|---|\n");
+  for (size_t r = 0; r < sizeof rays / sizeof rays[0]; r++) {
+    t0 = cv_now_seconds();
+    cv_bake_direct_subset(tr, NB, rays[r], 1, verts, ns, cur);
+    double secs = cv_now_seconds() - t0;
+    printf("| %d | %.2f |", rays[r], secs);
+    for (int n = 2; n <= NB; n++) {
+      double sum = 0, ge2 = 0, gr2 = 0;
+      size_t cnt = 0;
+      for (size_t k = 0; k < ns; k++) {
+        double e2 = 0, r2 = 0;
+        for (int i = 0; i < n * n; i++) {
+          double d = cur[k * NC + i] - ref[k * NC + i];
+          e2 += d * d;
+          r2 += (double)ref[k * NC + i] * ref[k * NC + i];
+        }
+        ge2 += e2;
+        gr2 += r2;
+        if (r2 > 1e-12) {
+          sum += sqrt(e2 / r2);
+          cnt++;
+        }
+      }
+      printf(" %.2f%% / %.2f%% |", cnt ? 100 * sum / cnt : 0.0, gr2 > 0 ? 100 * sqrt(ge2 / gr2) : 0.0);
+    }
+    if (have_forest) {
+      double mean_ref = 0;
+      for (size_t k = 0; k < ns; k++) {
+        double s = 0;
+        for (int i = 0; i < 25; i++) s += l.sh[3 * i + 1] * ref[k * NC + i];
+        mean_ref += s / ns;
+      }
+      double sum = 0;
+      size_t cnt = 0;
+      for (size_t k = 0; k < ns; k++) {
+        double a = 0, b = 0;
+        for (int i = 0; i < 25; i++) {
+          a += l.sh[3 * i + 1] * cur[k * NC + i];
+          b += l.sh[3 * i + 1] * ref[k * NC + i];
+        }
+        if (b > 0.01 * mean_ref) { /* lit vertices */
+          sum += fabs(a - b) / b;
+          cnt++;
+        }
+      }
+      printf(" %.2f%% (%zu lit vertices) |", cnt ? 100 * sum / cnt : 0.0, cnt);
+    } else {
+      printf(" (forest.exr missing) |");
+    }
+    printf("\n");
+  }
+  cv_scene_light_destroy(sl);
+  free(ref);
+  free(cur);
+  free(out);
+  free(verts);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+  return 0;
+}
