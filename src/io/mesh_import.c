@@ -1,0 +1,332 @@
+/* Mesh import through assimp's C API (see mesh_import.h). */
+#include "io/mesh_import.h"
+
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void cv_import_opts_default(cv_import_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->default_albedo[0] = o->default_albedo[1] = o->default_albedo[2] = 0.5f;
+  o->scale = 1.0;
+}
+
+static int starts_with_ci(const char *s, const char *prefix) {
+  for (; *prefix; s++, prefix++)
+    if (tolower((unsigned char)*s) != tolower((unsigned char)*prefix)) return 0;
+  return 1;
+}
+
+static int ends_with_ci(const char *s, const char *suffix) {
+  size_t n = strlen(s), k = strlen(suffix);
+  return n >= k && starts_with_ci(s + n - k, suffix);
+}
+
+/* ---------------- OBJ pre-scan ---------------- */
+/* assimp reads garbage numbers as 0 and may skip or reject bad indices
+ * depending on the version; check the file ourselves so the user gets the
+ * line.  Pass 1 counts v/vt/vn (positive indices may point forward, as
+ * assimp allows); pass 2 checks numbers and indices (negative indices are
+ * relative to the elements defined so far). */
+typedef struct obj_counts {
+  long v, vt, vn;
+} obj_counts;
+
+static char *next_tok(char **s) {
+  char *p = *s;
+  while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
+  if (!*p) return NULL;
+  char *start = p;
+  while (*p && *p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') p++;
+  if (*p) *p++ = '\0';
+  *s = p;
+  return start;
+}
+
+static int check_index(const char *path, long line, const char *tok, const char *what, long n,
+                       cv_err *err) {
+  char *end;
+  errno = 0;
+  long i = strtol(tok, &end, 10);
+  if (end == tok || *end || errno)
+    return cv_err_set(err, CV_ERR_FORMAT, "%s:%ld: %s index '%s' is not an integer", path, line,
+                      what, tok);
+  if (i == 0 || i > n || i < -n)
+    return cv_err_set(err, CV_ERR_FORMAT, "%s:%ld: %s index %ld out of range (%ld defined)", path,
+                      line, what, i, n);
+  return CV_OK;
+}
+
+static int obj_scan(const char *path, FILE *f, cv_err *err) {
+  obj_counts tot = {0, 0, 0}, cur = {0, 0, 0};
+  long nf = 0, nl = 0, np = 0;
+  char *buf = NULL;
+  size_t cap = 0;
+  int st = CV_OK;
+  for (int pass = 0; pass < 2 && !st; pass++) {
+    rewind(f);
+    long line = 0;
+    while (!st && getline(&buf, &cap, f) >= 0) {
+      line++;
+      char *s = buf, *kw = next_tok(&s);
+      if (!kw || kw[0] == '#') continue;
+      int is_v = !strcmp(kw, "v"), is_vt = !strcmp(kw, "vt"), is_vn = !strcmp(kw, "vn");
+      if (is_v || is_vt || is_vn) {
+        if (pass == 0) {
+          tot.v += is_v, tot.vt += is_vt, tot.vn += is_vn;
+          continue;
+        }
+        int need = is_vt ? 1 : 3, n = 0;
+        for (char *t; (t = next_tok(&s)) != NULL; n++) {
+          char *end;
+          double x = strtod(t, &end);
+          if (end == t || *end || !isfinite(x)) {
+            st = cv_err_set(err, CV_ERR_FORMAT, "%s:%ld: '%s' expects finite numbers, got '%s'",
+                            path, line, kw, t);
+            break;
+          }
+        }
+        if (!st && n < need)
+          st = cv_err_set(err, CV_ERR_FORMAT, "%s:%ld: '%s' expects %d numbers, got %d", path,
+                          line, kw, need, n);
+        cur.v += is_v, cur.vt += is_vt, cur.vn += is_vn;
+      } else if (pass == 1 && (!strcmp(kw, "f") || !strcmp(kw, "l") || !strcmp(kw, "p"))) {
+        int n = 0;
+        nf += kw[0] == 'f', nl += kw[0] == 'l', np += kw[0] == 'p';
+        for (char *t; (t = next_tok(&s)) != NULL && !st; n++) {
+          /* v, v/vt, v//vn, v/vt/vn */
+          char *part[3] = {t, NULL, NULL};
+          char *sl = strchr(t, '/');
+          if (sl) {
+            *sl = '\0';
+            part[1] = sl + 1;
+            char *sl2 = strchr(part[1], '/');
+            if (sl2) {
+              *sl2 = '\0';
+              part[2] = sl2 + 1;
+            }
+          }
+          long lim[3] = {tot.v, tot.vt, tot.vn};
+          long rel[3] = {cur.v, cur.vt, cur.vn};
+          static const char *what[3] = {"vertex", "texture", "normal"};
+          for (int k = 0; k < 3 && !st; k++) {
+            if (!part[k] || (k > 0 && !*part[k])) continue;
+            /* negative indices count back from the elements seen so far */
+            long n_ok = part[k][0] == '-' ? rel[k] : lim[k];
+            st = check_index(path, line, part[k], what[k], n_ok, err);
+          }
+        }
+        if (!st && kw[0] == 'f' && n < 3)
+          st = cv_err_set(err, CV_ERR_FORMAT, "%s:%ld: face with %d vertices, expected >= 3",
+                          path, line, n);
+      }
+    }
+  }
+  free(buf);
+  /* assimp's own messages for these ("too small", "validation failed")
+   * would not say what is missing */
+  if (!st && nf == 0)
+    st = cv_err_set(err, CV_ERR_EMPTY, "%s: no faces (%ld vertices, %ld lines, %ld points)", path,
+                    tot.v, nl, np);
+  return st;
+}
+
+/* ---------------- materials ---------------- */
+static float clamp01(float x, size_t *nclamp) {
+  if (x >= 0.0f && x <= 1.0f) return x;
+  (*nclamp)++;
+  return x > 1.0f ? 1.0f : 0.0f; /* NaN and negatives -> 0 */
+}
+
+static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import_opts *o,
+                        uint8_t *ov_used, cv_import_stats *s) {
+  struct aiString name;
+  char nm[64] = "unnamed";
+  if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS) {
+    size_t n = name.length < sizeof nm - 1 ? name.length : sizeof nm - 1;
+    memcpy(nm, name.data, n);
+    nm[n] = '\0';
+  }
+  struct aiColor4D c;
+  float alb[3];
+  if (aiGetMaterialColor(am, AI_MATKEY_BASE_COLOR, &c) == aiReturn_SUCCESS ||
+      aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &c) == aiReturn_SUCCESS) {
+    alb[0] = c.r, alb[1] = c.g, alb[2] = c.b;
+  } else {
+    memcpy(alb, o->default_albedo, sizeof alb);
+    s->albedo_defaulted++;
+  }
+  uint32_t flags = 0;
+  if (starts_with_ci(nm, "window")) flags |= CV_MAT_WINDOW;
+  if (starts_with_ci(nm, "lcd")) flags |= CV_MAT_LCD;
+  for (size_t i = 0; i < o->n_overrides; i++) {
+    const cv_material_override *ov = &o->overrides[i];
+    if (strncmp(ov->name, nm, sizeof ov->name) != 0) continue;
+    if (ov->has_albedo) memcpy(alb, ov->albedo, sizeof alb);
+    if (ov->has_flags) flags = ov->flags;
+    if (!ov_used[i]) s->overrides_applied++;
+    ov_used[i] = 1;
+  }
+  for (int k = 0; k < 3; k++) alb[k] = clamp01(alb[k], &s->albedo_clamped);
+  return cv_mesh_add_material(m, nm, alb, flags, NULL);
+}
+
+/* ---------------- import ---------------- */
+int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err) {
+  return cv_mesh_import_ex(path, opts, out, NULL, err);
+}
+
+int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **out,
+                      cv_import_stats *stats, cv_err *err) {
+  if (!out) return cv_err_set(err, CV_ERR_INVALID, "mesh import: out is NULL");
+  *out = NULL;
+  if (!path) return cv_err_set(err, CV_ERR_INVALID, "mesh import: path is NULL");
+  cv_import_opts def;
+  if (!opts) {
+    cv_import_opts_default(&def);
+    opts = &def;
+  }
+  cv_import_stats local;
+  cv_import_stats *s = stats ? stats : &local;
+  memset(s, 0, sizeof *s);
+  if (!(isfinite(opts->scale) && opts->scale > 0))
+    return cv_err_set(err, CV_ERR_INVALID, "%s: import scale %g, expected a positive number",
+                      path, opts->scale);
+  if (opts->n_overrides && !opts->overrides)
+    return cv_err_set(err, CV_ERR_INVALID, "%s: %zu overrides but no array", path,
+                      opts->n_overrides);
+
+  FILE *f = fopen(path, "rb");
+  if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  int st = CV_OK;
+  if (ends_with_ci(path, ".obj")) st = obj_scan(path, f, err);
+  fclose(f);
+  if (st) return st;
+
+  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                         aiProcess_SortByPType | aiProcess_PreTransformVertices |
+                         aiProcess_ValidateDataStructure;
+  const struct aiScene *sc = aiImportFile(path, flags);
+  if (!sc) return cv_err_set(err, CV_ERR_FORMAT, "%s: assimp: %s", path, aiGetErrorString());
+
+  cv_mesh *m = NULL;
+  int32_t *matmap = NULL;
+  uint8_t *ov_used = NULL;
+  if (cv_mesh_create(&m)) {
+    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+    goto done;
+  }
+  matmap = malloc((sc->mNumMaterials + 1) * sizeof *matmap);
+  ov_used = calloc(opts->n_overrides + 1, 1);
+  if (!matmap || !ov_used) {
+    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+    goto done;
+  }
+  /* Pass 1: which materials are used by triangles, and the sizes. */
+  size_t nv = 0, nt = 0;
+  for (unsigned i = 0; i <= sc->mNumMaterials; i++) matmap[i] = -1;
+  s->meshes = sc->mNumMeshes;
+  for (unsigned i = 0; i < sc->mNumMeshes; i++) {
+    const struct aiMesh *am = sc->mMeshes[i];
+    size_t ntri = 0;
+    for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
+      unsigned k = am->mFaces[fi].mNumIndices;
+      if (k == 3)
+        ntri++;
+      else if (k == 1)
+        s->points_dropped++;
+      else if (k == 2)
+        s->lines_dropped++;
+      else {
+        st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u has %u indices after "
+                        "triangulation", path, i, fi, k);
+        goto done;
+      }
+    }
+    if (!ntri) continue;
+    if (am->mMaterialIndex >= sc->mNumMaterials) {
+      st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u refers to material %u of %u", path, i,
+                      am->mMaterialIndex, sc->mNumMaterials);
+      goto done;
+    }
+    matmap[am->mMaterialIndex] = 0;
+    nv += am->mNumVertices;
+    nt += ntri;
+  }
+  if (nt == 0) {
+    st = cv_err_set(err, CV_ERR_EMPTY, "%s: no triangles (%zu points and %zu lines dropped)",
+                    path, s->points_dropped, s->lines_dropped);
+    goto done;
+  }
+  if (nv >= UINT32_MAX || nt >= UINT32_MAX) {
+    st = cv_err_set(err, CV_ERR_RANGE, "%s: too large (%zu vertices, %zu triangles)", path, nv,
+                    nt);
+    goto done;
+  }
+  if (cv_mesh_reserve(m, nv, nt)) {
+    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+    goto done;
+  }
+  for (unsigned i = 0; i < sc->mNumMaterials; i++) {
+    if (matmap[i] < 0) continue;
+    matmap[i] = (int32_t)m->nm;
+    if (add_material(m, sc->mMaterials[i], opts, ov_used, s)) {
+      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+      goto done;
+    }
+  }
+  /* Pass 2: vertices and triangles, checked independently of assimp. */
+  for (unsigned i = 0; i < sc->mNumMeshes; i++) {
+    const struct aiMesh *am = sc->mMeshes[i];
+    int has_tri = 0;
+    for (unsigned fi = 0; fi < am->mNumFaces && !has_tri; fi++)
+      has_tri = am->mFaces[fi].mNumIndices == 3;
+    if (!has_tri) continue;
+    uint32_t base = (uint32_t)m->nv;
+    for (unsigned vi = 0; vi < am->mNumVertices; vi++) {
+      double p[3] = {am->mVertices[vi].x, am->mVertices[vi].y, am->mVertices[vi].z};
+      for (int k = 0; k < 3; k++) {
+        p[k] *= opts->scale;
+        if (!isfinite(p[k]) || fabs(p[k]) > 3.0e38) {
+          st = cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
+                          "coordinate", path, i, vi);
+          goto done;
+        }
+      }
+      cv_mesh_add_vertex(m, (float)p[0], (float)p[1], (float)p[2], NULL);
+    }
+    for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
+      const struct aiFace *fc = &am->mFaces[fi];
+      if (fc->mNumIndices != 3) continue;
+      for (int k = 0; k < 3; k++)
+        if (fc->mIndices[k] >= am->mNumVertices) {
+          st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u index %u out of range (%u "
+                          "vertices)", path, i, fi, fc->mIndices[k], am->mNumVertices);
+          goto done;
+        }
+      cv_mesh_add_tri(m, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2],
+                      (uint32_t)matmap[am->mMaterialIndex]);
+    }
+  }
+  s->triangles = m->nt;
+  for (size_t i = 0; i < opts->n_overrides; i++) s->overrides_unused += !ov_used[i];
+  st = cv_mesh_validate(m, err);
+  if (st) cv_err_prefix(err, "%s", path);
+done:
+  aiReleaseImport(sc);
+  free(matmap);
+  free(ov_used);
+  if (st) {
+    cv_mesh_destroy(m);
+    return st;
+  }
+  *out = m;
+  return CV_OK;
+}

@@ -1,0 +1,81 @@
+/* Mesh import through assimp's C API: OBJ (+MTL), PLY, glTF 2 (.gltf/.glb)
+ * and whatever else assimp 5.2 reads, into one cv_mesh in metres.
+ *
+ * Post-processing is fixed for predictability: Triangulate,
+ * JoinIdenticalVertices, SortByPType, PreTransformVertices (node transforms,
+ * e.g. glTF translations, are applied and the hierarchy flattened) and
+ * ValidateDataStructure.  Points and lines are dropped and counted.
+ *
+ * Materials: albedo = the base colour (AI_MATKEY_BASE_COLOR, "$clr.base",
+ * which assimp 5.2 fills from glTF's pbrMetallicRoughness.baseColorFactor)
+ * when present, else the diffuse colour (AI_MATKEY_COLOR_DIFFUSE, MTL Kd),
+ * else opts->default_albedo; each component is clamped to [0, 1] (NaN -> 0)
+ * and clamps are counted.  A material whose name starts with "window" gets
+ * CV_MAT_WINDOW, "lcd" gets CV_MAT_LCD (case-insensitive); opts->overrides
+ * then replace albedo and/or flags by exact material name.  Only materials
+ * used by some triangle are kept, in the file's material order.
+ *
+ * After import the result is checked independently of assimp (which is
+ * permissive): every index in range, every coordinate finite.  OBJ files are
+ * also pre-scanned line by line so that an out-of-range face index or an
+ * unparsable number is reported with its line instead of being silently
+ * dropped or read as 0. */
+#ifndef CV_IO_MESH_IMPORT_H
+#define CV_IO_MESH_IMPORT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/status.h"
+#include "mesh/mesh.h"
+
+/* Per-material override, e.g. filled from a scene config entry
+ * {"name": "glass", "albedo": [0,0,0], "flags": ["window"]}. */
+typedef struct cv_material_override {
+  char name[64];    /* exact (case-sensitive) material name as in the file */
+  int has_albedo;   /* nonzero: replace the albedo with `albedo` */
+  float albedo[3];  /* linear RGB; clamped to [0, 1] and counted like file values */
+  int has_flags;    /* nonzero: replace the flags (CV_MAT_*) with `flags` */
+  uint32_t flags;
+} cv_material_override;
+
+typedef struct cv_import_opts {
+  const cv_material_override *overrides; /* borrowed; n_overrides entries */
+  size_t n_overrides;
+  float default_albedo[3]; /* for materials with no colour (default 0.5 grey) */
+  double scale;            /* multiplies coordinates (file units -> metres), default 1 */
+} cv_import_opts;
+
+/* What the import did (everything that was dropped, clamped or defaulted). */
+typedef struct cv_import_stats {
+  size_t meshes;            /* assimp meshes read */
+  size_t triangles;         /* triangles kept */
+  size_t points_dropped;    /* point primitives */
+  size_t lines_dropped;     /* line primitives */
+  size_t albedo_clamped;    /* albedo components clamped into [0, 1] */
+  size_t albedo_defaulted;  /* materials without a colour */
+  size_t overrides_applied; /* overrides that matched a kept material */
+  size_t overrides_unused;  /* overrides whose name matched no kept material */
+} cv_import_stats;
+
+/* Defaults: no overrides, default albedo 0.5, scale 1. */
+void cv_import_opts_default(cv_import_opts *o);
+
+/* Imports the file at path into a new mesh *out (owned by the caller,
+ * cv_mesh_destroy; NULL on error).  opts may be NULL (defaults).
+ * Errors (err gets one line starting with the path):
+ *   CV_ERR_INVALID  NULL path/out, or a bad option (scale not finite/positive)
+ *   CV_ERR_IO       the file cannot be opened
+ *   CV_ERR_FORMAT   assimp failed (its aiGetErrorString() is included), an
+ *                   OBJ line is malformed (line number given), or an index is
+ *                   out of range
+ *   CV_ERR_NONFINITE a NaN/Inf coordinate
+ *   CV_ERR_EMPTY    the scene has no triangles (points/lines only, or nothing)
+ *   CV_ERR_NOMEM */
+int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err);
+
+/* As cv_mesh_import, and fills *stats (may be NULL). */
+int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **out,
+                      cv_import_stats *stats, cv_err *err);
+
+#endif
