@@ -46,7 +46,6 @@ int main(int argc, char **argv) {
   }
   for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
     if (!strcmp(cmd, commands[i].name)) return commands[i].fn(argc - 1, argv + 1);
-  fprintf(stderr, "cave: '%s' is not a command\n\n", cmd);
-  usage(stderr);
+  fprintf(stderr, "cave: '%s' is not a command (cave --help lists them)\n", cmd);
   return 2;
 }

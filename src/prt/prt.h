@@ -31,7 +31,8 @@ typedef struct cv_prt_meta {
   uint32_t seed;
   float spread;          /* fraction of each vertex's fan covered by ray origins */
   float est_error;       /* estimated relative error (auto mode), or -1 */
-  double bake_seconds;
+  double bake_seconds;   /* in memory only: the file holds no timing, so the same
+                            inputs and seed give the same bytes */
 } cv_prt_meta;
 
 typedef struct cv_prt {

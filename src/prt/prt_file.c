@@ -22,7 +22,6 @@ typedef struct {
   uint64_t input_hash, payload_hash;
   uint32_t rays, bounces, seed;
   float est_error, spread;
-  double bake_seconds;
 } header;
 
 int cv_prt_alloc(uint32_t bands, size_t nv, size_t nt, size_t nm, int has_indirect,
@@ -113,7 +112,6 @@ int cv_prt_write(const char *path, const cv_prt *p, cv_err *err) {
   h.seed = p->meta.seed;
   h.est_error = p->meta.est_error;
   h.spread = p->meta.spread;
-  h.bake_seconds = p->meta.bake_seconds;
   uint64_t ph = cv_hash64_init();
   for (int i = 0; i < nchunks; i++) ph = cv_hash64_update(ph, c[i].ptr, c[i].bytes);
   h.payload_hash = ph;
@@ -202,7 +200,6 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
   p->meta.seed = h.seed;
   p->meta.est_error = h.est_error;
   p->meta.spread = h.spread;
-  p->meta.bake_seconds = h.bake_seconds;
   chunk c[8];
   int nchunks = payload_chunks(p, c);
   uint64_t ph = cv_hash64_init();

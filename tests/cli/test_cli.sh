@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# End-to-end tests of `cave` (see CMakeLists.txt).  Usage:
+#   test_cli.sh CAVE MAKE_TEST_INPUTS WORKDIR SOURCE_ROOT
+set -u
+CAVE=$1 MK=$2 W=$3 ROOT=$4
+rm -rf "$W" && mkdir -p "$W" && cd "$W" || exit 1
+pass=0 fail=0
+ok() { echo "ok: $1"; pass=$((pass + 1)); }
+bad() { echo "FAIL: $1"; fail=$((fail + 1)); }
+
+# expect_error NAME PATTERN CMD...: a clean failure (exit 1 or 2, no signal),
+# whose last stderr line names PATTERN; input errors print exactly one line.
+expect_error() {
+  local name=$1 pat=$2
+  shift 2
+  "$@" >out.txt 2>err.txt
+  local rc=$?
+  if [ $rc -eq 0 ] || [ $rc -gt 2 ]; then
+    bad "$name: exit status $rc (expected 1 or 2)"; cat err.txt; return
+  fi
+  if ! tail -n 1 err.txt | grep -q -- "$pat"; then
+    bad "$name: last error line lacks '$pat'"; cat err.txt; return
+  fi
+  if [ $rc -eq 1 ] && [ "$(wc -l <err.txt)" -ne 1 ]; then
+    bad "$name: expected one error line, got $(wc -l <err.txt)"; cat err.txt; return
+  fi
+  ok "$name: $(tail -n 1 err.txt)"
+}
+
+expect_ok() {
+  local name=$1
+  shift
+  if "$@" >out.txt 2>err.txt; then ok "$name"; else bad "$name: exit $?"; cat err.txt out.txt; fi
+}
+
+# --- help on every command --------------------------------------------------
+for c in "" cabin bake shade; do
+  if $CAVE $c --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help $c"; else bad "help $c"; fi
+done
+expect_error "unknown command" "not a command" $CAVE frobnicate
+
+# --- cabin and a bake of the written OBJ (import round trip) -----------------
+expect_ok "cabin obj" $CAVE cabin --tess 1 -o cabin.obj
+[ -s cabin.obj ] && [ -s cabin.mtl ] && grep -q "newmtl window_windshield" cabin.mtl && ok "cabin mtl tags" || bad "cabin mtl"
+expect_ok "bake imported obj" $CAVE bake cabin.obj -o fromobj.prt --bands 2 --rays 16 --bounces 0 --quiet
+
+# --- determinism, thread counts, up-to-date ---------------------------------
+B=(--bands 3 --rays 32 --bounces 1 --seed 9 --quiet)
+expect_ok "bake t1" $CAVE bake default -o a.prt "${B[@]}" --threads 1
+expect_ok "bake t2" $CAVE bake default -o b.prt "${B[@]}" --threads 2
+cmp -s a.prt b.prt && ok "same bytes for 1 and 2 threads" || bad "bytes differ across thread counts"
+expect_ok "bake again" $CAVE bake default -o a.prt "${B[@]}"
+grep -q "up to date" out.txt && ok "unchanged scene not baked twice" || bad "re-baked an unchanged scene"
+expect_ok "bake other seed" $CAVE bake default -o c.prt --bands 3 --rays 32 --bounces 1 --seed 10 --quiet
+cmp -s a.prt c.prt && bad "different seed, same bytes" || ok "different seed, different bytes"
+
+# --- shade ------------------------------------------------------------------
+"$MK" . && ok "test inputs written" || bad "make_test_inputs"
+expect_ok "shade ply" $CAVE shade a.prt --env-constant 1,1,1 -o const.ply
+head -c 300 const.ply | grep -q "property float red" && ok "ply header" || bad "ply header"
+expect_ok "shade ascii ply" $CAVE shade a.prt --env good.exr -o env.ply --ascii
+awk 'f && NF>=6 {n++; for(i=1;i<=6;i++) if ($i !~ /^-?[0-9.e+-]+$/) badv=1} /end_header/{f=1} END{exit !(n>0 && !badv)}' env.ply \
+  && ok "ascii ply values finite" || bad "ascii ply values"
+expect_ok "shade view png" $CAVE shade a.prt --sky 3,30,20 --view -0.37,1.02,0.1 --look -0.3,0.85,-1 --size 64x40 -o v.png
+expect_ok "shade view exr" $CAVE shade a.prt --env good.exr --yaw 30 --view -0.37,1.02,0.1 --look -0.3,0.85,-1 --size 64x40 -o v.exr
+[ -s v.png ] && [ -s v.exr ] && ok "view files written" || bad "view files"
+
+# --- bad input --------------------------------------------------------------
+[ -s trunc.exr ] && [ -s nan.exr ] || bad "fixtures missing"
+expect_error "truncated EXR" "trunc.exr: [^e]" $CAVE shade a.prt --env trunc.exr -o x.ply
+expect_error "NaN in a map" "nan.exr.*NaN" $CAVE shade a.prt --env nan.exr -o x.ply
+expect_error "missing map" "nosuch.exr" $CAVE shade a.prt --env nosuch.exr -o x.ply
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n' >bad.obj
+expect_error "malformed OBJ" "bad.obj" $CAVE bake bad.obj -o x.prt --quiet
+printf 'v 0 0 0\nv 1 zz 0\nv 0 1 0\nf 1 2 3\n' >bad2.obj
+expect_error "garbage number in OBJ" "bad2.obj" $CAVE bake bad2.obj -o x.prt --quiet
+printf '{ "prt": { "rayz": 5 } }\n' >unknown.json
+expect_error "unknown JSON field" "prt.rayz" $CAVE bake unknown.json -o x.prt
+printf '{ "prt": { "rays": 5, } \n' >syntax.json
+expect_error "JSON syntax" "syntax.json" $CAVE bake syntax.json -o x.prt
+printf '{ "prt": { "bands": 12 } }\n' >range.json
+expect_error "JSON range" "prt.bands" $CAVE bake range.json -o x.prt
+printf '{ "materials": [ { "name": "no_such_material", "albedo": [0.5, 0.5, 0.5] } ] }\n' >mat.json
+expect_error "unknown material" "no_such_material" $CAVE bake mat.json -o x.prt --rays 4 --bands 2
+head -c 1000 a.prt >cut.prt
+expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
+expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
+expect_error "bad number" "--rays" $CAVE bake default -o x.prt --rays abc
+expect_error "no lighting" "no lighting" $CAVE shade a.prt -o x.ply
+[ ! -e x.prt ] && [ ! -e x.ply ] && ok "no output left behind by failures" || bad "a failed command left output"
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
