@@ -18,6 +18,7 @@
 
 #include <cmocka.h>
 
+#include "prt/auto.h"
 #include "prt/bake.h"
 #include "prt/prt.h"
 #include "prt/relight.h"
@@ -408,6 +409,57 @@ static void test_bad_params(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* CIE overcast sky (1 + 2 cos t)/3 on an up-facing plane: E = 7 pi / 9,
+ * so radiance = albedo * 7/9; 5 bands carry it to well under 1%. */
+static void test_cie_overcast(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.5f, 0.5f};
+  cv_mesh *m = plane_mesh(2, alb);
+  cv_bake_params p = {.bands = 5, .rays = 1024, .bounces = 0, .seed = 2, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, NULL), CV_OK);
+  cv_lighting l;
+  cv_lighting_cie_overcast(5, &l);
+  float rad[3 * 9];
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  for (int v = 0; v < 9; v++) {
+    double e = rad[3 * v] / (0.5 * 7.0 / 9.0) - 1;
+    assert_true(fabs(e) < 0.01);
+  }
+  cv_prt_destroy(prt);
+  cv_mesh_destroy(m);
+}
+
+/* auto: a loose budget is met cheaply, a tighter one needs more rays or
+ * bands, an impossible one is flagged and answered with the most accurate
+ * candidate; the reported error of a pick within budget is within it. */
+static void test_auto_select(void **state) {
+  (void)state;
+  cv_mesh *m = box_mesh(6, 0.5f, 1);
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  cv_auto_result loose, tight, impossible;
+  assert_int_equal(cv_prt_auto_select(tr, NULL, 0.3, 1, 0, 0, &loose), CV_OK);
+  assert_int_equal(cv_prt_auto_select(tr, NULL, 0.03, 1, 0, 0, &tight), CV_OK);
+  assert_int_equal(cv_prt_auto_select(tr, NULL, 1e-6, 1, 0, 0, &impossible), CV_OK);
+  printf("auto: budget 30%% -> %d bands %d rays (%.2f%%); 3%% -> %d bands %d rays (%.2f%%)\n",
+         loose.bands, loose.rays, 100 * loose.est_error, tight.bands, tight.rays,
+         100 * tight.est_error);
+  assert_true(loose.met_budget && loose.est_error <= 0.3);
+  assert_true(tight.met_budget && tight.est_error <= 0.03);
+  assert_true(tight.rays * (1 + 0.03 * tight.bands * tight.bands) >
+              loose.rays * (1 + 0.03 * loose.bands * loose.bands));
+  assert_false(impossible.met_budget);
+  for (int i = 0; i < impossible.n_cand; i++)
+    assert_true(impossible.est_error <= impossible.cand[i].error);
+  /* Pinned parameters are respected. */
+  cv_auto_result pinned;
+  assert_int_equal(cv_prt_auto_select(tr, NULL, 0.05, 1, 4, 0, &pinned), CV_OK);
+  assert_int_equal(pinned.bands, 4);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_unshadowed_plane),
@@ -418,6 +470,8 @@ int main(void) {
       cmocka_unit_test(test_determinism_and_file),
       cmocka_unit_test(test_sun_direct),
       cmocka_unit_test(test_bad_params),
+      cmocka_unit_test(test_cie_overcast),
+      cmocka_unit_test(test_auto_select),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
