@@ -16,6 +16,8 @@
  *   5. writer */
 #include "io/exr.h"
 
+#include "core/outfile.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -591,18 +593,13 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
                             path, x, y, write_channel_name(nc, k), isnan(v) ? "NaN" : "Inf");
       }
 
-  size_t plen = strlen(path);
-  char *tmp = malloc(plen + 16);
-  if (!tmp) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  snprintf(tmp, plen + 16, "%s.tmp.XXXXXX", path);
+  cv_outfile of;
+  int orc = cv_outfile_open(&of, path, 0, err);
+  if (orc != CV_OK) return orc;
+  const char *tmp = of.tmp;
   exr_stream s;
   memset(&s, 0, sizeof s);
-  s.fd = mkstemp(tmp);
-  if (s.fd < 0) {
-    int e = errno;
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: cannot create temporary file: %s", path, strerror(e));
-  }
+  s.fd = of.fd;
 
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = on_exr_error;
@@ -689,25 +686,12 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
     rc = cv_err_set(err, CV_ERR_BACKEND, "%s: cannot finish EXR: %s", path, exr_msg(&s, rv));
     goto fail;
   }
-  if (fsync(s.fd) != 0 || close(s.fd) != 0) {
-    s.fd = -1;
-    rc = cv_err_set(err, CV_ERR_IO, "%s: cannot flush: %s", path, strerror(errno));
-    goto fail;
-  }
-  s.fd = -1;
-  if (rename(tmp, path) != 0) {
-    rc = cv_err_set(err, CV_ERR_IO, "%s: cannot rename temporary file: %s", path, strerror(errno));
-    goto fail;
-  }
   for (int k = 0; k < nc; ++k) free(plane[k]);
-  free(tmp);
-  return CV_OK;
+  return cv_outfile_commit(&of, err);
 
 fail:
   if (ctxt) exr_finish(&ctxt);
-  if (s.fd >= 0) close(s.fd);
-  unlink(tmp);
+  cv_outfile_abort(&of);
   for (int k = 0; k < 4; ++k) free(plane[k]);
-  free(tmp);
   return rc;
 }

@@ -1,6 +1,8 @@
 /* PLY writer and reader for the point/triangle subset in ply.h. */
 #include "io/ply.h"
 
+#include "core/outfile.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -43,21 +45,10 @@ int cv_ply_write_points(const char *path, size_t n, const float *xyz, const floa
       if (tris[3 * t + k] >= n || tris[3 * t + k] > INT32_MAX)
         return cv_err_set(err, CV_ERR_RANGE, "%s: face %zu: vertex index %u >= %zu vertices", path, t,
                           tris[3 * t + k], n);
-  size_t plen = strlen(path);
-  char *tmp = malloc(plen + 16);
-  if (!tmp) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  snprintf(tmp, plen + 16, "%s.tmp.XXXXXX", path);
-  int fd = mkstemp(tmp);
-  FILE *f = fd >= 0 ? fdopen(fd, "wb") : NULL;
-  if (!f) {
-    int e = errno;
-    if (fd >= 0) {
-      close(fd);
-      unlink(tmp);
-    }
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: cannot create temporary file: %s", path, strerror(e));
-  }
+  cv_outfile of;
+  int rc = cv_outfile_open(&of, path, 1, err);
+  if (rc != CV_OK) return rc;
+  FILE *f = of.f;
   fprintf(f, "ply\nformat %s 1.0\ncomment written by cave (cv_ply_write_points)\n",
           binary ? "binary_little_endian" : "ascii");
   fprintf(f, "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n", n);
@@ -93,14 +84,7 @@ int cv_ply_write_points(const char *path, size_t n, const float *xyz, const floa
       fprintf(f, "3 %u %u %u\n", tris[3 * t], tris[3 * t + 1], tris[3 * t + 2]);
     }
   }
-  int rc = CV_OK;
-  if (fflush(f) != 0 || ferror(f)) rc = cv_err_set(err, CV_ERR_IO, "%s: write failed: %s", path, strerror(errno));
-  if (fclose(f) != 0 && rc == CV_OK) rc = cv_err_set(err, CV_ERR_IO, "%s: close failed", path);
-  if (rc == CV_OK && rename(tmp, path) != 0)
-    rc = cv_err_set(err, CV_ERR_IO, "%s: cannot rename temporary file: %s", path, strerror(errno));
-  if (rc != CV_OK) unlink(tmp);
-  free(tmp);
-  return rc;
+  return cv_outfile_commit(&of, err);
 }
 
 void cv_ply_points_destroy(cv_ply_points *p) {

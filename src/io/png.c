@@ -3,6 +3,8 @@
  * caller gets one line naming the file; nothing is printed. */
 #include "io/png.h"
 
+#include "core/outfile.h"
+
 #include <errno.h>
 #include <png.h>
 #include <setjmp.h>
@@ -60,33 +62,15 @@ int cv_png_write(const char *path, int w, int h, int channels, const uint8_t *px
     return cv_err_set(err, CV_ERR_INVALID, "cv_png_write: %s: empty image", path ? path : "(null)");
   if (channels != 1 && channels != 3 && channels != 4)
     return cv_err_set(err, CV_ERR_INVALID, "%s: %d channels; expected 1, 3 or 4", path, channels);
-  size_t plen = strlen(path);
-  char *tmp = malloc(plen + 16);
-  if (!tmp) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  snprintf(tmp, plen + 16, "%s.tmp.XXXXXX", path);
-  int fd = mkstemp(tmp);
-  if (fd < 0) {
-    int e = errno;
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: cannot create temporary file: %s", path, strerror(e));
+  cv_outfile of;
+  int rc = cv_outfile_open(&of, path, 1, err);
+  if (rc != CV_OK) return rc;
+  rc = png_write_file(of.f, path, w, h, channels, px, err);
+  if (rc != CV_OK) {
+    cv_outfile_abort(&of);
+    return rc;
   }
-  FILE *f = fdopen(fd, "wb");
-  if (!f) {
-    close(fd);
-    unlink(tmp);
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: cannot open temporary file", path);
-  }
-  int rc = png_write_file(f, path, w, h, channels, px, err);
-  if (fflush(f) != 0 || ferror(f)) {
-    if (rc == CV_OK) rc = cv_err_set(err, CV_ERR_IO, "%s: write failed: %s", path, strerror(errno));
-  }
-  if (fclose(f) != 0 && rc == CV_OK) rc = cv_err_set(err, CV_ERR_IO, "%s: close failed", path);
-  if (rc == CV_OK && rename(tmp, path) != 0)
-    rc = cv_err_set(err, CV_ERR_IO, "%s: cannot rename temporary file: %s", path, strerror(errno));
-  if (rc != CV_OK) unlink(tmp);
-  free(tmp);
-  return rc;
+  return cv_outfile_commit(&of, err);
 }
 
 int cv_png_read(const char *path, cv_image **out, cv_err *err) {

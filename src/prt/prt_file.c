@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "core/hash.h"
+#include "core/outfile.h"
 #include "prt/prt.h"
 
 static const char MAGIC[8] = {'C', 'A', 'V', 'E', 'P', 'R', 'T', '\0'};
@@ -116,31 +117,20 @@ int cv_prt_write(const char *path, const cv_prt *p, cv_err *err) {
   for (int i = 0; i < nchunks; i++) ph = cv_hash64_update(ph, c[i].ptr, c[i].bytes);
   h.payload_hash = ph;
 
-  size_t plen = strlen(path);
-  char *tmp = malloc(plen + 16);
-  if (!tmp) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  snprintf(tmp, plen + 16, "%s.tmp%ld", path, (long)getpid());
-  FILE *f = fopen(tmp, "wb");
-  if (!f) {
-    int e = errno;
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: cannot create: %s", path, strerror(e));
-  }
+  cv_outfile of;
+  int st = cv_outfile_open(&of, path, 1, err);
+  if (st) return st;
   unsigned char hb[HEADER_SIZE];
   memset(hb, 0, sizeof hb);
   memcpy(hb, &h, sizeof h);
-  int ok = fwrite(hb, 1, HEADER_SIZE, f) == HEADER_SIZE;
+  int ok = fwrite(hb, 1, HEADER_SIZE, of.f) == HEADER_SIZE;
   for (int i = 0; ok && i < nchunks; i++)
-    ok = c[i].bytes == 0 || fwrite(c[i].ptr, 1, c[i].bytes, f) == c[i].bytes;
-  ok = (fclose(f) == 0) && ok;
-  if (!ok || rename(tmp, path) != 0) {
-    int e = errno;
-    remove(tmp);
-    free(tmp);
-    return cv_err_set(err, CV_ERR_IO, "%s: write failed: %s", path, strerror(e));
+    ok = c[i].bytes == 0 || fwrite(c[i].ptr, 1, c[i].bytes, of.f) == c[i].bytes;
+  if (!ok) {
+    cv_outfile_abort(&of);
+    return cv_err_set(err, CV_ERR_IO, "%s: write failed: %s", path, strerror(errno));
   }
-  free(tmp);
-  return CV_OK;
+  return cv_outfile_commit(&of, err);
 }
 
 static int read_header(FILE *f, const char *path, header *h, cv_err *err) {
