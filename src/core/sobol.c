@@ -28,8 +28,7 @@ static inline uint32_t reverse_bits(uint32_t x) {
   x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
   x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
   x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
-  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
-  return (x >> 16) | (x << 16);
+  return __builtin_bswap32(x);
 }
 
 /* Burley 2020, listing 2: a hash whose low bits depend only on lower bits
@@ -84,7 +83,7 @@ void cv_sobol_tab_init(cv_sobol_tab *tab) {
         uint32_t x = 0;
         for (int j = 0; j < 8; j++)
           if (v & (1u << j)) x ^= dirnum[d][8 * b + j];
-        tab->t[d][b][v] = x;
+        tab->t[d][b][v] = reverse_bits(x); /* stored reversed: owen() starts there */
       }
 }
 
@@ -97,7 +96,8 @@ void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
   uint32_t i = owen(index, seed);
   for (int d = 0; d < ndims; d++) {
     const uint32_t(*t)[256] = tab->t[d];
-    uint32_t x = t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][(i >> 16) & 255u] ^ t[3][i >> 24];
-    u[d] = to_unit(owen(x, dim_seeds[d]));
+    /* bit-reversed Sobol component (reversal is linear over XOR) */
+    uint32_t xr = t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][(i >> 16) & 255u] ^ t[3][i >> 24];
+    u[d] = to_unit(reverse_bits(lk_permutation(xr, dim_seeds[d])));
   }
 }

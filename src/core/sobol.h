@@ -24,9 +24,11 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed);
 /* Fills u[0..ndims) with the scrambled components of one sample (the index is
  * shuffled once, so all dimensions of a sample stay consistent). */
 void cv_sobol_owen_n(uint32_t index, uint32_t seed, int ndims, float *u);
-/* Byte tables for fast generation: entry [d][b][v] is the XOR of the
- * direction numbers of dimension d selected by byte b of the index having
- * value v, so a point component costs 4 lookups instead of up to 32 steps.
+/* Byte tables for fast generation: entry [d][b][v] is the bit-reversed XOR
+ * of the direction numbers of dimension d selected by byte b of the index
+ * having value v, so a point component costs 4 lookups instead of up to 32
+ * steps, and the Owen scramble (which works on reversed bits) skips one
+ * reversal.
  * 32 KiB; fill once with cv_sobol_tab_init and share read-only. */
 typedef struct cv_sobol_tab {
   uint32_t t[CV_SOBOL_DIMS][4][256];
