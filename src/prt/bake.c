@@ -20,6 +20,19 @@ struct cv_tracer {
   float *fan_cdf;      /* cumulative area fraction within the fan */
   cv_sobol_tab sobol;  /* shared read-only by all threads */
   float spread;        /* fraction of the fan that ray origins cover */
+  /* Window importance sampling (direct pass): the window triangles grouped
+   * by material (one group per opening), by area within each group. */
+  size_t nwin;
+  uint32_t *win_tri;   /* mesh triangle indices, grouped */
+  float *win_cdf;      /* cumulative area fraction within the triangle's group */
+  double win_area;     /* total window area, m^2 */
+  int ngroup;
+  struct win_group {
+    size_t begin, end; /* range in win_tri */
+    double area, centroid[3], normal[3];
+  } *groups;
+  int *tri_group;      /* nt: group of a window triangle, -1 otherwise */
+  int window_mis;      /* 1: MIS of cosine and window sampling when nwin > 0 */
 };
 
 void cv_tracer_destroy(cv_tracer *tr) {
@@ -30,6 +43,10 @@ void cv_tracer_destroy(cv_tracer *tr) {
   free(tr->fan_off);
   free(tr->fan_tri);
   free(tr->fan_cdf);
+  free(tr->win_tri);
+  free(tr->win_cdf);
+  free(tr->groups);
+  free(tr->tri_group);
   free(tr);
 }
 
@@ -92,6 +109,45 @@ int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err) {
     }
     if (tr->fan_off[v + 1] > tr->fan_off[v]) tr->fan_cdf[tr->fan_off[v + 1] - 1] = 1.0f;
   }
+  /* Window triangles grouped by material, by area within each group. */
+  tr->window_mis = 1;
+  tr->win_tri = malloc((nt + 1) * sizeof(uint32_t));
+  tr->win_cdf = malloc((nt + 1) * sizeof(float));
+  tr->groups = calloc(m->nm + 1, sizeof *tr->groups);
+  tr->tri_group = malloc((nt + 1) * sizeof(int));
+  if (!tr->win_tri || !tr->win_cdf || !tr->groups || !tr->tri_group) goto nomem;
+  for (size_t t = 0; t < nt; t++) tr->tri_group[t] = -1;
+  for (size_t mi = 0; mi < m->nm; mi++) {
+    if (!(m->mats[mi].flags & CV_MAT_WINDOW)) continue;
+    struct win_group *g = &tr->groups[tr->ngroup];
+    memset(g, 0, sizeof *g);
+    g->begin = tr->nwin;
+    for (size_t t = 0; t < nt; t++) {
+      if (m->tri_mat[t] != mi || !(area[t] > 0)) continue;
+      const uint32_t *tv = m->tri + 3 * t;
+      for (int k = 0; k < 3; k++) {
+        double c = ((double)m->pos[3 * tv[0] + k] + m->pos[3 * tv[1] + k] + m->pos[3 * tv[2] + k]) / 3;
+        g->centroid[k] += area[t] * c;
+        g->normal[k] += area[t] * tr->tri_n[3 * t + k];
+      }
+      g->area += area[t];
+      tr->win_tri[tr->nwin] = (uint32_t)t;
+      tr->win_cdf[tr->nwin++] = (float)g->area;
+      tr->tri_group[t] = tr->ngroup;
+    }
+    g->end = tr->nwin;
+    if (g->end == g->begin) continue;
+    double nl = 0;
+    for (int k = 0; k < 3; k++) {
+      g->centroid[k] /= g->area;
+      nl += g->normal[k] * g->normal[k];
+    }
+    for (int k = 0; k < 3; k++) g->normal[k] = nl > 0 ? g->normal[k] / sqrt(nl) : 0;
+    for (size_t k = g->begin; k < g->end; k++) tr->win_cdf[k] = (float)(tr->win_cdf[k] / g->area);
+    tr->win_cdf[g->end - 1] = 1.0f;
+    tr->win_area += g->area;
+    tr->ngroup++;
+  }
   free(area);
   *out = tr;
   return CV_OK;
@@ -110,6 +166,9 @@ int cv_tracer_set_spread(cv_tracer *tr, float spread) {
 }
 
 float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
+
+void cv_tracer_set_window_sampling(cv_tracer *tr, int on) { tr->window_mis = !!on; }
+int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr->nwin > 0; }
 
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
 
@@ -179,24 +238,26 @@ static uint32_t fan_point(const cv_tracer *tr, uint32_t v, const float *u, float
  * barycentric uniforms).  Each chunk keeps the good low-dimensional
  * stratification that one 6-D point would lose. */
 typedef struct {
-  uint32_t sa, d6[6];
+  uint32_t sa, d[7];
 } vseq;
 
 static inline void vseq_init(vseq *q, uint32_t seed, uint32_t v) {
   uint32_t vs = cv_hash_combine(seed, v);
   q->sa = cv_hash_combine(vs, 0xD1u);
-  cv_sobol_dim_seeds(q->sa, 6, q->d6);
+  cv_sobol_dim_seeds(q->sa, 7, q->d);
 }
 
-/* u[0..1] direction, u[2], u[3], u[5] barycentric uniforms, u[4] triangle. */
-static inline void vseq_sample(const cv_sobol_tab *tab, const vseq *q, uint32_t j, float u[6]) {
-  cv_sobol_owen_tab(tab, j, q->sa, q->d6, 6, u);
+/* u[0..1] direction, u[2], u[3], u[5] barycentric uniforms, u[4] triangle,
+ * u[6] (when ndims = 7) the sampling strategy of the direct pass. */
+static inline void vseq_sample(const cv_sobol_tab *tab, const vseq *q, uint32_t j, int ndims,
+                               float *u) {
+  cv_sobol_owen_tab(tab, j, q->sa, q->d, ndims, u);
 }
 
 static inline uint32_t sample_ray(const cv_tracer *tr, uint32_t v, uint32_t j, const vseq *q,
                                   float org[3], float dir[3]) {
   float u[6], p[3];
-  vseq_sample(&tr->sobol, q, j, u);
+  vseq_sample(&tr->sobol, q, j, 6, u);
   uint32_t t = fan_point(tr, v, u, p);
   const float *n = tr->tri_n + 3 * t;
   cosine_dir(n, u[0], u[1], dir);
@@ -214,7 +275,67 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
   return 1;
 }
 
-/* Direct pass for one vertex: acc[i] = mean of y_i(d) V(d); alb = mean albedo. */
+/* Probability of picking the window strategy in the direct pass. */
+#define WINDOW_FRACTION 0.5f
+
+/* Per-vertex choice of an opening: probabilities proportional to a rough
+ * estimate of each opening's contribution seen from p with normal n
+ * (area x cosines / distance^2, as for many-light selection), plus a small
+ * floor so no opening that might be visible is starved.  Any choice is
+ * unbiased because the pdf below uses these same probabilities. */
+static int window_probs(const cv_tracer *tr, const float p[3], const float n[3], double *prob) {
+  double sum = 0;
+  for (int g = 0; g < tr->ngroup; g++) {
+    const struct win_group *G = &tr->groups[g];
+    double d[3], d2 = 0;
+    for (int k = 0; k < 3; k++) {
+      d[k] = G->centroid[k] - p[k];
+      d2 += d[k] * d[k];
+    }
+    double dl = sqrt(d2) + 1e-9;
+    double co = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / dl;
+    double cq = fabs(G->normal[0] * d[0] + G->normal[1] * d[1] + G->normal[2] * d[2]) / dl;
+    /* a large opening close by can be in front even when its centroid is not */
+    double reach = sqrt(G->area);
+    double front = co > 0 ? co : (dl < 2 * reach ? 0.25 : 0.0);
+    prob[g] = G->area * (front + 0.05) * (cq + 0.1) / (d2 + G->area);
+    sum += prob[g];
+  }
+  if (!(sum > 0)) return 0;
+  for (int g = 0; g < tr->ngroup; g++) prob[g] /= sum;
+  return 1;
+}
+
+/* Uniform point on opening g from (u0, u1): the triangle by area within the
+ * group, then u0 rescaled within its CDF bucket and the square-root mapping. */
+static void window_point(const cv_tracer *tr, int g, float u0, float u1, float q[3]) {
+  size_t lo = tr->groups[g].begin, hi = tr->groups[g].end - 1, first = lo;
+  while (lo < hi) {
+    size_t mid = (lo + hi) / 2;
+    if (tr->win_cdf[mid] > u0) hi = mid;
+    else lo = mid + 1;
+  }
+  float c0 = lo > first ? tr->win_cdf[lo - 1] : 0.0f, w = tr->win_cdf[lo] - c0;
+  float r = w > 0 ? (u0 - c0) / w : 0.5f;
+  r = r < 0 ? 0 : (r > 1 ? 1 : r);
+  const uint32_t *tv = tr->m->tri + 3 * tr->win_tri[lo];
+  const float *A = tr->m->pos + 3 * tv[0], *B = tr->m->pos + 3 * tv[1], *C = tr->m->pos + 3 * tv[2];
+  float su = sqrtf(r), b0 = 1.0f - su, b1 = u1 * su, b2 = 1.0f - b0 - b1;
+  for (int k = 0; k < 3; k++) q[k] = b0 * A[k] + b1 * B[k] + b2 * C[k];
+}
+
+/* Direct pass for one vertex: acc[i] estimates (1/pi) * integral of
+ * y_i(w) V(w) max(n.w, 0) dw; alb = mean albedo of the sampled triangles.
+ *
+ * Light reaches the interior only through the windows (V = 0 elsewhere), so
+ * with windows present each sample picks, by its 7th Sobol dimension, either
+ * a cosine-weighted direction or a direction towards a uniform point on an
+ * opening chosen with probability P_v(g) (window_probs), and is weighted by
+ * the one-sample balance heuristic (Veach 1997): f / (a p_win + (1-a) p_cos)
+ * with p_cos = cos / pi and p_win = P_v(g) d^2 / (|cos_q| A_g) from the
+ * window crossing at distance d on opening g.  A
+ * ray that leaves through a window crosses exactly one window triangle in a
+ * convex shell; a second crossing would re-enter the car and be blocked. */
 static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
                           double *acc, double alb[3]) {
   int nc = bands * bands;
@@ -224,14 +345,66 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
   vseq q;
   vseq_init(&q, seed, v);
+  int mis = tr->window_mis && tr->ngroup > 0;
+  const float a = WINDOW_FRACTION;
+  /* Opening probabilities from the vertex (position and normal of its fan). */
+  double prob[64], cdf[64];
+  if (mis) {
+    float vn[3] = {0, 0, 0};
+    for (size_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++)
+      for (int c = 0; c < 3; c++) vn[c] += tr->tri_n[3 * (tr->fan_tri[k] >> 2) + c];
+    mis = tr->ngroup <= 64 && window_probs(tr, tr->m->pos + 3 * v, vn, prob);
+    double acc_p = 0;
+    for (int g = 0; mis && g < tr->ngroup; g++) cdf[g] = (acc_p += prob[g]);
+  }
   for (int j = 0; j < rays; j++) {
-    float org[3], dir[3];
-    uint32_t t = sample_ray(tr, v, (uint32_t)j, &q, org, dir);
-    const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
-    for (int k = 0; k < 3; k++) alb[k] += a[k];
-    if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
+    float u[7], p[3], org[3], dir[3];
+    vseq_sample(&tr->sobol, &q, (uint32_t)j, mis ? 7 : 6, u);
+    uint32_t t = fan_point(tr, v, u, p);
+    const float *n = tr->tri_n + 3 * t;
+    const float *al = tr->m->mats[tr->m->tri_mat[t]].albedo;
+    for (int k = 0; k < 3; k++) alb[k] += al[k];
+    cv_rt_offset_origin(p, n, org);
+    if (!mis) {
+      cosine_dir(n, u[0], u[1], dir);
+      if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
+      cv_sh_eval(bands, dir, y);
+      for (int i = 0; i < nc; i++) acc[i] += y[i];
+      continue;
+    }
+    if (u[6] < a) {
+      float wq[3], l2 = 0, r0 = u[0];
+      int g = 0; /* opening by cdf, u0 rescaled within its bucket */
+      while (g < tr->ngroup - 1 && cdf[g] <= r0) g++;
+      double c0 = g ? cdf[g - 1] : 0.0, pw = cdf[g] - c0;
+      r0 = pw > 0 ? (float)((r0 - c0) / pw) : 0.5f;
+      if (r0 >= 1.0f) r0 = 0x1.fffffep-1f;
+      window_point(tr, g, r0, u[1], wq);
+      for (int k = 0; k < 3; k++) {
+        dir[k] = wq[k] - org[k];
+        l2 += dir[k] * dir[k];
+      }
+      if (!(l2 > 0)) continue;
+      float il = 1.0f / sqrtf(l2);
+      for (int k = 0; k < 3; k++) dir[k] *= il;
+    } else {
+      cosine_dir(n, u[0], u[1], dir);
+    }
+    float cos_o = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
+    if (cos_o <= 0.0f) continue;
+    cv_hit wh;
+    if (!cv_rt_window_hit(tr->rt, org, dir, 0.0f, &wh)) continue;
+    if (cv_rt_occluded(tr->rt, org, dir, 0.0f, INFINITY)) continue;
+    double nl = sqrt((double)wh.ng[0] * wh.ng[0] + (double)wh.ng[1] * wh.ng[1] +
+                     (double)wh.ng[2] * wh.ng[2]);
+    double cos_q = fabs((wh.ng[0] * dir[0] + wh.ng[1] * dir[1] + wh.ng[2] * dir[2]) / nl);
+    const struct win_group *G = &tr->groups[tr->tri_group[wh.tri]];
+    double p_win = cos_q > 0 ? prob[tr->tri_group[wh.tri]] * (double)wh.t * wh.t / (cos_q * G->area)
+                             : 0.0;
+    double p_cos = cos_o / M_PI;
+    double w = (cos_o / M_PI) / (a * p_win + (1 - a) * p_cos);
     cv_sh_eval(bands, dir, y);
-    for (int i = 0; i < nc; i++) acc[i] += y[i];
+    for (int i = 0; i < nc; i++) acc[i] += w * y[i];
   }
   for (int i = 0; i < nc; i++) acc[i] /= rays;
   for (int k = 0; k < 3; k++) alb[k] /= rays;
@@ -297,8 +470,10 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint64_t h = cv_hash64_init();
   uint32_t spread_bits;
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
-  uint32_t hdr[6] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
-                     (uint32_t)p->bounces, p->seed, spread_bits};
+  /* The estimator's identity: bump when the sampling changes results. */
+  const uint32_t estimator = p->cosine_only ? 1u : 2u;
+  uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
+                     (uint32_t)p->bounces, p->seed, spread_bits, estimator};
   h = cv_hash64_update(h, hdr, sizeof hdr);
   uint64_t sz[3] = {m->nv, m->nt, m->nm};
   h = cv_hash64_update(h, sz, sizeof sz);
@@ -322,6 +497,7 @@ int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake
   st = cv_tracer_create(m, &tr, err);
   if (st) return st;
   cv_tracer_set_spread(tr, p->spread);
+  cv_tracer_set_window_sampling(tr, !p->cosine_only);
   st = cv_prt_bake_tracer(tr, p, out, stats, err);
   cv_tracer_destroy(tr);
   return st;
@@ -385,6 +561,9 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   if (tr->spread != p->spread)
     return cv_err_set(err, CV_ERR_INVALID, "bake spread %g differs from the tracer's %g",
                       (double)p->spread, (double)tr->spread);
+  if (tr->window_mis == !!p->cosine_only)
+    return cv_err_set(err, CV_ERR_INVALID, "bake cosine_only %d differs from the tracer's window sampling",
+                      p->cosine_only);
   const cv_mesh *m = tr->m;
   cv_bake_stats local;
   if (!stats) stats = &local;
@@ -402,6 +581,7 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   prt->meta.bounces = (uint32_t)p->bounces;
   prt->meta.seed = p->seed;
   prt->meta.spread = p->spread;
+  if (!p->cosine_only && tr->nwin > 0) prt->flags |= CV_PRT_WINDOW_SAMPLING;
 
   const size_t nv = m->nv;
   const int nc = p->bands * p->bands;
@@ -458,7 +638,7 @@ int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3
       vseq_init(&q, sseed, (uint32_t)v);
       for (int j = 0; j < samples; j++) {
         float u[6], p[3], org[3];
-        vseq_sample(&tr->sobol, &q, (uint32_t)j, u);
+        vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
         uint32_t t = fan_point(tr, (uint32_t)v, u, p);
         const float *n = tr->tri_n + 3 * t;
         float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];

@@ -11,7 +11,9 @@
  * vertex exactly `rays` rays and makes each vertex's result depend only on
  * its own samples: deterministic for any thread count.
  *
- * Pass 0 (direct): V = 1 iff the ray leaves through a window (rt.h).
+ * Pass 0 (direct): V = 1 iff the ray leaves through a window (rt.h).  When
+ * the scene has windows, directions are drawn by multiple importance
+ * sampling of the cosine lobe and the window area (balance heuristic).
  * Pass b >= 1: the ray's closest opaque hit q reads the bounce b-1 exit
  * transfer interpolated from q's triangle vertices (RGB, albedo applied). */
 #ifndef CV_PRT_BAKE_H
@@ -35,6 +37,7 @@ typedef struct cv_bake_params {
   int bounces;    /* interreflection bounces, 0..16 */
   uint32_t seed;
   float spread;   /* 0..1, see CV_BAKE_DEFAULT_SPREAD */
+  int cosine_only;/* 1: direct pass without window importance sampling */
   int quiet;      /* 1: no progress bar */
 } cv_bake_params;
 
@@ -57,6 +60,10 @@ const cv_rt *cv_tracer_rt(const cv_tracer *tr);
  * CV_ERR_RANGE outside [0, 1].  Not thread-safe against concurrent bakes. */
 int cv_tracer_set_spread(cv_tracer *tr, float spread);
 float cv_tracer_spread(const cv_tracer *tr);
+/* Window importance sampling in the direct pass (default on; it applies
+ * only when the mesh has window triangles). */
+void cv_tracer_set_window_sampling(cv_tracer *tr, int on);
+int cv_tracer_window_sampling(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */
 size_t cv_tracer_vertex_count(const cv_tracer *tr);
 /* Number of opaque triangles in vertex v's fan. */

@@ -22,7 +22,10 @@
 #define CV_PRT_VERSION 1
 #define CV_PRT_MAX_BANDS 8
 
-enum { CV_PRT_HAS_INDIRECT = 1u << 0 };
+enum {
+  CV_PRT_HAS_INDIRECT = 1u << 0,    /* ti present */
+  CV_PRT_WINDOW_SAMPLING = 1u << 1, /* direct pass used window importance sampling */
+};
 
 typedef struct cv_prt_meta {
   uint64_t input_hash;   /* fingerprint of the cleaned mesh and the bake settings */

@@ -17,6 +17,7 @@ struct cv_rt {
   RTCScene opaque;
   RTCScene windows; /* NULL when the mesh has no window triangles */
   uint32_t *prim_to_tri; /* opaque primitive index -> mesh triangle */
+  uint32_t *win_to_tri;  /* window primitive index -> mesh triangle */
 };
 
 void cv_rt_thread_init(void) {
@@ -78,13 +79,14 @@ int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
                       (int)rtcGetDeviceError(NULL));
   }
   rt->prim_to_tri = malloc(m->nt * sizeof(uint32_t));
-  if (!rt->prim_to_tri) {
+  rt->win_to_tri = malloc(m->nt * sizeof(uint32_t));
+  if (!rt->prim_to_tri || !rt->win_to_tri) {
     cv_rt_destroy(rt);
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory building the ray tracer");
   }
   size_t nop = 0, nwin = 0;
   st = build_scene(rt->dev, m, 0, rt->prim_to_tri, &rt->opaque, &nop);
-  if (!st) st = build_scene(rt->dev, m, 1, NULL, &rt->windows, &nwin);
+  if (!st) st = build_scene(rt->dev, m, 1, rt->win_to_tri, &rt->windows, &nwin);
   if (st) {
     cv_rt_destroy(rt);
     return cv_err_set(err, st, "Embree: scene build failed (error %d)",
@@ -104,6 +106,7 @@ void cv_rt_destroy(cv_rt *rt) {
   if (rt->windows) rtcReleaseScene(rt->windows);
   if (rt->dev) rtcReleaseDevice(rt->dev);
   free(rt->prim_to_tri);
+  free(rt->win_to_tri);
   free(rt);
 }
 
@@ -125,17 +128,17 @@ static inline void make_ray(struct RTCRay *r, const float o[3], const float d[3]
   r->flags = 0;
 }
 
-int cv_rt_intersect(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
-                    float tfar, cv_hit *hit) {
+static int closest(RTCScene sc, const uint32_t *map, const float org[3], const float dir[3],
+                   float tnear, float tfar, cv_hit *hit) {
   struct RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   struct RTCRayHit rh;
   make_ray(&rh.ray, org, dir, tnear, tfar);
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(rt->opaque, &ctx, &rh);
+  rtcIntersect1(sc, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
-  hit->tri = rt->prim_to_tri[rh.hit.primID];
+  hit->tri = map[rh.hit.primID];
   hit->u = rh.hit.u;
   hit->v = rh.hit.v;
   hit->t = rh.ray.tfar;
@@ -143,6 +146,17 @@ int cv_rt_intersect(const cv_rt *rt, const float org[3], const float dir[3], flo
   hit->ng[1] = rh.hit.Ng_y;
   hit->ng[2] = rh.hit.Ng_z;
   return 1;
+}
+
+int cv_rt_intersect(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
+                    float tfar, cv_hit *hit) {
+  return closest(rt->opaque, rt->prim_to_tri, org, dir, tnear, tfar, hit);
+}
+
+int cv_rt_window_hit(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
+                     cv_hit *hit) {
+  if (!rt->windows) return 0;
+  return closest(rt->windows, rt->win_to_tri, org, dir, tnear, INFINITY, hit);
 }
 
 static int occluded(RTCScene sc, const float org[3], const float dir[3], float tnear,

@@ -45,6 +45,10 @@ int cv_rt_occluded(const cv_rt *rt, const float org[3], const float dir[3], floa
  * crossed (or, when the mesh has no windows at all, simply no opaque hit, so
  * that open test scenes without tagged openings work). */
 int cv_rt_reaches_env(const cv_rt *rt, const float org[3], const float dir[3], float tnear);
+/* Closest window triangle crossed in (tnear, inf): returns 1 and fills hit
+ * (hit->tri is the window triangle's index in the mesh), or 0. */
+int cv_rt_window_hit(const cv_rt *rt, const float org[3], const float dir[3], float tnear,
+                     cv_hit *hit);
 /* 1 when the mesh has window triangles. */
 int cv_rt_has_windows(const cv_rt *rt);
 
