@@ -15,16 +15,19 @@ static void help(FILE *f) {
   fprintf(f,
           "usage: cave bake <scene.json | mesh.obj|.ply|.gltf|.glb | default> -o scene.prt\n"
           "                 [--bands N|auto] [--rays N|auto] [--bounces N] [--seed S]\n"
-          "                 [--budget E] [--tess N] [--threads N] [--force] [--quiet]\n\n"
+          "                 [--budget E] [--spread F] [--cosine-only] [--tess N]\n"
+          "                 [--threads N] [--force] [--quiet]\n\n"
           "Precomputes per-vertex radiance transfer (Dmitriev et al. 2004, section 4.1):\n"
           "cosine-weighted Owen-scrambled Sobol rays from stochastic points in each vertex's\n"
-          "triangles; only rays that leave through a window see the sky; N bounces.\n"
+          "triangles; only rays that leave through a window see the sky (directions drawn\n"
+          "by MIS of the cosine lobe and the window openings); N bounces.\n"
           "'default' bakes the built-in cabin.  Options override the scene config.\n\n"
           "  --bands N|auto  SH bands 2..8 (N*N coefficients; config default 5)\n"
           "  --rays N|auto   rays per vertex per pass (default 1024)\n"
           "  --bounces N     interreflection bounces 0..16 (default 2)\n"
           "  --budget E      relative error budget for auto (default 0.05)\n"
           "  --seed S        sampling seed (same seed, same bytes)\n"
+          "  --cosine-only   direct pass without window importance sampling\n"
           "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
           "                  cover (1 = the paper's whole fan; default 0.5)\n"
           "  --tess N        built-in cabin subdivision (1..64)\n"
@@ -37,7 +40,7 @@ int cmd_bake(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   const char *bands_s = NULL, *rays_s = NULL, *bounces_s = NULL, *seed_s = NULL,
              *budget_s = NULL, *tess_s = NULL;
-  int force = 0, quiet = 0, threads = 0;
+  int force = 0, quiet = 0, threads = 0, cosine_only = -1;
   double spread = -1;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -48,6 +51,8 @@ int cmd_bake(int argc, char **argv) {
       force = 1;
     } else if (!strcmp(a, "--quiet")) {
       quiet = 1;
+    } else if (!strcmp(a, "--cosine-only")) {
+      cosine_only = 1;
     } else if (!strcmp(a, "-o") && v) {
       out = argv[++i];
     } else if (!strcmp(a, "--bands") && v) {
@@ -137,13 +142,15 @@ int cmd_bake(int argc, char **argv) {
   }
   if (threads > 0) omp_set_num_threads(threads);
   if (spread >= 0) cfg.spread = spread;
+  if (cosine_only >= 0) cfg.window_sampling = !cosine_only;
 
   if (cli_load_scene_mesh(&cfg, stdout, &m, &err)) {
     rc = cli_fail("bake", 1, "%s", err.msg);
     goto done;
   }
   cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
-                       .seed = cfg.seed, .spread = (float)cfg.spread, .quiet = quiet};
+                       .seed = cfg.seed, .spread = (float)cfg.spread,
+                       .cosine_only = !cfg.window_sampling, .quiet = quiet};
   float est_error = -1.0f;
   if (cfg.bands == 0 || cfg.rays == 0) {
     /* The auto pick depends only on the mesh, the lighting and the budget;
@@ -153,6 +160,7 @@ int cmd_bake(int argc, char **argv) {
       goto done;
     }
     cv_tracer_set_spread(tr, bp.spread);
+    cv_tracer_set_window_sampling(tr, !bp.cosine_only);
     cv_lighting lt, *lp = NULL;
     if (cfg.light.kind != CV_LIGHT_NONE) {
       if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
@@ -188,8 +196,11 @@ int cmd_bake(int argc, char **argv) {
     goto done;
   }
   cv_tracer_set_spread(tr, bp.spread);
-  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, spread %g, seed %u, %d threads\n",
-         m->nv, bp.bands, bp.rays, bp.bounces, (double)bp.spread, bp.seed, omp_get_max_threads());
+  cv_tracer_set_window_sampling(tr, !bp.cosine_only);
+  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, spread %g, seed %u, %s, %d threads\n",
+         m->nv, bp.bands, bp.rays, bp.bounces, (double)bp.spread, bp.seed,
+         cv_tracer_window_sampling(tr) ? "window importance sampling" : "cosine sampling",
+         omp_get_max_threads());
   fflush(stdout);
   cv_bake_stats bs;
   if (cv_prt_bake_tracer(tr, &bp, &prt, &bs, &err)) {

@@ -31,6 +31,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->bounces = 2;
   c->seed = 1;
   c->spread = 0.5;
+  c->window_sampling = 1;
   c->error_budget = 0.05;
   cv_light_spec_default(&c->light);
 }
@@ -227,7 +228,8 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
 }
 
 static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
-  static const char *const keys[] = {"bands", "rays", "bounces", "seed", "spread", "error_budget", NULL};
+  static const char *const keys[] = {"bands", "rays", "bounces", "seed", "spread", "window_sampling",
+                                     "error_budget", NULL};
   int st = only_keys(x, o, "prt", keys);
   if (st) return st;
   const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "bands");
@@ -249,6 +251,11 @@ static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   if ((st = get_int(x, o, "seed", "prt", 0, 2147483647, &seed))) return st;
   c->seed = (uint32_t)seed;
   if ((st = get_num(x, o, "spread", "prt", 0.0, 1.0, &c->spread))) return st;
+  const cJSON *ws = cJSON_GetObjectItemCaseSensitive(o, "window_sampling");
+  if (ws) {
+    if (!cJSON_IsBool(ws)) return fail(x, "prt.window_sampling", "expected true or false%s", "");
+    c->window_sampling = cJSON_IsTrue(ws);
+  }
   return get_num(x, o, "error_budget", "prt", 1e-4, 1.0, &c->error_budget);
 }
 

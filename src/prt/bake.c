@@ -275,8 +275,16 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
   return 1;
 }
 
-/* Probability of picking the window strategy in the direct pass. */
-#define WINDOW_FRACTION 0.5f
+/* Mixing of the two strategies in the direct pass: a pilot of PILOT_RAYS
+ * cosine rays (own seed, not part of the estimate, so the estimator stays
+ * unbiased) measures the fraction f of directions that leave through a
+ * window; the window strategy gets a = MAX_WINDOW_FRACTION * (1 - f / F_COS)
+ * (0 when f >= F_COS), i.e. full MIS where almost nothing escapes and plain
+ * cosine sampling where the sky is in plain view.  Measured on the cabin
+ * (docs/benchmarks.md). */
+#define PILOT_RAYS 32
+#define MAX_WINDOW_FRACTION 0.5f
+#define F_COS 0.3f
 
 /* Per-vertex choice of an opening: probabilities proportional to a rough
  * estimate of each opening's contribution seen from p with normal n
@@ -328,7 +336,8 @@ static void window_point(const cv_tracer *tr, int g, float u0, float u1, float q
  * y_i(w) V(w) max(n.w, 0) dw; alb = mean albedo of the sampled triangles.
  *
  * Light reaches the interior only through the windows (V = 0 elsewhere), so
- * with windows present each sample picks, by its 7th Sobol dimension, either
+ * with windows present (and a pilot saying little sky is in view, see
+ * MAX_WINDOW_FRACTION) each sample picks, by its 7th Sobol dimension, either
  * a cosine-weighted direction or a direction towards a uniform point on an
  * opening chosen with probability P_v(g) (window_probs), and is weighted by
  * the one-sample balance heuristic (Veach 1997): f / (a p_win + (1-a) p_cos)
@@ -346,7 +355,23 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   vseq q;
   vseq_init(&q, seed, v);
   int mis = tr->window_mis && tr->ngroup > 0;
-  const float a = WINDOW_FRACTION;
+  float a = MAX_WINDOW_FRACTION;
+  if (mis) {
+    vseq pq;
+    vseq_init(&pq, cv_hash_combine(seed, 0x9170u), v);
+    int esc = 0;
+    for (int j = 0; j < PILOT_RAYS; j++) {
+      float u[6], p[3], org[3], dir[3];
+      vseq_sample(&tr->sobol, &pq, (uint32_t)j, 6, u);
+      const float *n = tr->tri_n + 3 * fan_point(tr, v, u, p);
+      cv_rt_offset_origin(p, n, org);
+      cosine_dir(n, u[0], u[1], dir);
+      esc += cv_rt_reaches_env(tr->rt, org, dir, 0.0f);
+    }
+    float f = (float)esc / PILOT_RAYS;
+    a = f >= F_COS ? 0.0f : MAX_WINDOW_FRACTION * (1.0f - f / F_COS);
+    if (a <= 0.0f) mis = 0;
+  }
   /* Opening probabilities from the vertex (position and normal of its fan). */
   double prob[64], cdf[64];
   if (mis) {
@@ -392,9 +417,10 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     }
     float cos_o = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
     if (cos_o <= 0.0f) continue;
+    /* Most directions are blocked: test that first, then find the crossing. */
+    if (cv_rt_occluded(tr->rt, org, dir, 0.0f, INFINITY)) continue;
     cv_hit wh;
     if (!cv_rt_window_hit(tr->rt, org, dir, 0.0f, &wh)) continue;
-    if (cv_rt_occluded(tr->rt, org, dir, 0.0f, INFINITY)) continue;
     double nl = sqrt((double)wh.ng[0] * wh.ng[0] + (double)wh.ng[1] * wh.ng[1] +
                      (double)wh.ng[2] * wh.ng[2]);
     double cos_q = fabs((wh.ng[0] * dir[0] + wh.ng[1] * dir[1] + wh.ng[2] * dir[2]) / nl);
