@@ -54,6 +54,10 @@ grep -q "up to date" out.txt && ok "unchanged scene not baked twice" || bad "re-
 expect_ok "bake other seed" $CAVE bake default -o c.prt --bands 3 --rays 32 --bounces 1 --seed 10 --quiet
 cmp -s a.prt c.prt && bad "different seed, same bytes" || ok "different seed, different bytes"
 
+expect_ok "bake cosine-only" $CAVE bake default -o d.prt "${B[@]}" --cosine-only
+cmp -s a.prt d.prt && bad "--cosine-only changed nothing" || ok "--cosine-only is a different estimator"
+grep -q "cosine sampling" out.txt && ok "sampling mode reported" || bad "sampling mode not reported"
+
 # --- shade ------------------------------------------------------------------
 "$MK" . && ok "test inputs written" || bad "make_test_inputs"
 expect_ok "shade ply" $CAVE shade a.prt --env-constant 1,1,1 -o const.ply
