@@ -47,6 +47,31 @@ static double bare_loop(const cv_tracer *tr, const float *org, const float *dir,
   return cv_now_seconds() - t0;
 }
 
+/* Relative errors of cur against ref over the first nco of NC coefficients
+ * per vertex: mean of the per-vertex relative L2 (vertices with a non-zero
+ * reference) and the energy-weighted sqrt(sum |d|^2 / sum |ref|^2). */
+static void transfer_error(const float *cur, const float *ref, size_t ns, int NC, int nco,
+                           double *per_vertex, double *global) {
+  double sum = 0, ge2 = 0, gr2 = 0;
+  size_t cnt = 0;
+  for (size_t k = 0; k < ns; k++) {
+    double e2 = 0, r2 = 0;
+    for (int i = 0; i < nco; i++) {
+      double d = cur[k * NC + i] - ref[k * NC + i];
+      e2 += d * d;
+      r2 += (double)ref[k * NC + i] * ref[k * NC + i];
+    }
+    ge2 += e2;
+    gr2 += r2;
+    if (r2 > 1e-12) {
+      sum += sqrt(e2 / r2);
+      cnt++;
+    }
+  }
+  *per_vertex = cnt ? sum / cnt : 0.0;
+  *global = gr2 > 0 ? sqrt(ge2 / gr2) : 0.0;
+}
+
 static double median(double *v, int n) {
   for (int i = 1; i < n; i++)
     for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
@@ -196,24 +221,7 @@ int main(int argc, char **argv) {
       t0 = cv_now_seconds();
       cv_bake_direct_subset(tr, NB, rays[r], 1, verts, ns, cur);
       secs[mode] = cv_now_seconds() - t0;
-      double sum = 0, ge2 = 0, gr2 = 0;
-      size_t cnt = 0;
-      for (size_t k = 0; k < ns; k++) {
-        double e2 = 0, r2 = 0;
-        for (int i = 0; i < 25; i++) {
-          double d = cur[k * NC + i] - ref[k * NC + i];
-          e2 += d * d;
-          r2 += (double)ref[k * NC + i] * ref[k * NC + i];
-        }
-        ge2 += e2;
-        gr2 += r2;
-        if (r2 > 1e-12) {
-          sum += sqrt(e2 / r2);
-          cnt++;
-        }
-      }
-      pv[mode] = cnt ? sum / cnt : 0;
-      gl[mode] = gr2 > 0 ? sqrt(ge2 / gr2) : 0;
+      transfer_error(cur, ref, ns, NC, 25, &pv[mode], &gl[mode]);
     }
     printf("| %d | %.2f | %.2f%% / %.2f%% | %.2f | %.2f%% / %.2f%% |\n", rays[r], secs[0],
            100 * pv[0], 100 * gl[0], secs[1], 100 * pv[1], 100 * gl[1]);
@@ -235,26 +243,10 @@ int main(int argc, char **argv) {
     double secs = cv_now_seconds() - t0;
     printf("| %d | %.2f |", rays[r], secs);
     for (int n = 2; n <= NB; n++) {
-      double sum = 0, ge2 = 0, gr2 = 0;
-      size_t cnt = 0;
-      for (size_t k = 0; k < ns; k++) {
-        double e2 = 0, r2 = 0;
-        for (int i = 0; i < n * n; i++) {
-          double d = cur[k * NC + i] - ref[k * NC + i];
-          e2 += d * d;
-          r2 += (double)ref[k * NC + i] * ref[k * NC + i];
-        }
-        ge2 += e2;
-        gr2 += r2;
-        if (r2 > 1e-12) {
-          sum += sqrt(e2 / r2);
-          cnt++;
-        }
-      }
-      printf(" %.2f%% / %.2f%% |", cnt ? 100 * sum / cnt : 0.0, gr2 > 0 ? 100 * sqrt(ge2 / gr2) : 0.0);
-      if (csv)
-        fprintf(csv, "%d,%d,%.4f,%.6f,%.6f\n", rays[r], n, secs, cnt ? sum / cnt : 0.0,
-                gr2 > 0 ? sqrt(ge2 / gr2) : 0.0);
+      double pv, gl;
+      transfer_error(cur, ref, ns, NC, n * n, &pv, &gl);
+      printf(" %.2f%% / %.2f%% |", 100 * pv, 100 * gl);
+      if (csv) fprintf(csv, "%d,%d,%.4f,%.6f,%.6f\n", rays[r], n, secs, pv, gl);
     }
     if (have_forest) {
       double mean_ref = 0;
