@@ -152,6 +152,15 @@ int cmd_bake(int argc, char **argv) {
                        .seed = cfg.seed, .spread = (float)cfg.spread,
                        .cosine_only = !cfg.window_sampling, .quiet = quiet};
   float est_error = -1.0f;
+  if (cfg.light.kind != CV_LIGHT_NONE) {
+    /* The scene's lighting: reported here (sun found or not, its energy) and
+     * used by auto to judge SH truncation. */
+    if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
+      rc = cli_fail("bake", 1, "%s", err.msg);
+      goto done;
+    }
+    cv_scene_light_print(stdout, sl);
+  }
   if (cfg.bands == 0 || cfg.rays == 0) {
     /* The auto pick depends only on the mesh, the lighting and the budget;
      * the tracer is needed for it anyway, so build it first. */
@@ -162,11 +171,7 @@ int cmd_bake(int argc, char **argv) {
     cv_tracer_set_spread(tr, bp.spread);
     cv_tracer_set_window_sampling(tr, !bp.cosine_only);
     cv_lighting lt, *lp = NULL;
-    if (cfg.light.kind != CV_LIGHT_NONE) {
-      if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
-        rc = cli_fail("bake", 1, "%s", err.msg);
-        goto done;
-      }
+    if (sl) {
       lt = cv_scene_light_sh(sl);
       lp = &lt;
     }
@@ -211,7 +216,7 @@ int cmd_bake(int argc, char **argv) {
   for (int b = 0; b <= bp.bounces; b++)
     printf("  pass %d (%s): %.2f s, %.2f Mrays/s\n", b, b ? "bounce" : "direct", bs.seconds[b],
            bs.seconds[b] > 0 ? bs.rays[b] / bs.seconds[b] / 1e6 : 0.0);
-  printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices without surface\n",
+  printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices only on window openings (no transfer)\n",
          bs.total_seconds, (unsigned long long)bs.total_rays,
          bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,
          (unsigned long long)bs.empty_fans);
