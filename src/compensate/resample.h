@@ -1,0 +1,28 @@
+/* Between image resolution Q and patch resolution P (Bimber et al. 2006,
+ * section 3.4): box down-sampling, bilinear up-sampling at patch centres,
+ * and the paper's equation 7, which applies a correction solved on patches
+ * to a full-resolution image without showing the patch structure:
+ *     I_Q = I_Q0 - up(down(I_Q0) - I_P). */
+#ifndef CV_COMPENSATE_RESAMPLE_H
+#define CV_COMPENSATE_RESAMPLE_H
+
+#include <stdint.h>
+
+#include "core/image.h"
+
+/* Area-weighted mean of img (w x h, 3 channels, row 0 at the TOP) over an
+ * nu x nv patch grid whose row v = 0 is at the BOTTOM (the display
+ * convention); out: 3 * nu * nv, index (v * nu + u). */
+void cv_downsample_to_patches(const cv_image *img, int nu, int nv, double *out);
+
+/* Bilinear interpolation of patch values (centres at ((u+0.5)/nu, (v+0.5)/nv),
+ * clamped at the borders) at every pixel of out (w x h x 3, row 0 at top). */
+void cv_upsample_from_patches(const double *patches, int nu, int nv, cv_image *out);
+
+/* Equation 7 for one surface: I = I0 - up(down(I0) - IP), written into out
+ * (same size as I0), clamped to [0, 1]; returns the number of channel values
+ * clamped.  IP: patch-resolution solution (3 * nu * nv). */
+uint64_t cv_apply_patch_correction(const cv_image *I0, const double *IP, int nu, int nv,
+                                   cv_image *out);
+
+#endif
