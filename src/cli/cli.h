@@ -12,6 +12,7 @@
 int cmd_cabin(int argc, char **argv);
 int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
+int cmd_compensate(int argc, char **argv);
 
 /* Prints "cave <cmd>: message" to stderr and returns 2 (usage) or 1. */
 int cli_fail(const char *cmd, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));

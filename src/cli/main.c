@@ -18,6 +18,7 @@ static const struct {
     {"cabin", cmd_cabin, "write the built-in parametric car cabin as OBJ + MTL"},
     {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
     {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
+    {"compensate", cmd_compensate, "cancel the light that screens scatter onto each other"},
 };
 
 static void usage(FILE *f) {
@@ -26,7 +27,7 @@ static void usage(FILE *f) {
           "Predictive rendering of a car interior under HDR daylight for CAVE displays.\n\n"
           "commands:\n");
   for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-    fprintf(f, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
   fprintf(f, "\n  help     this text\n  version  print the version\n");
 }
 

@@ -56,14 +56,9 @@ void cv_upsample_from_patches(const double *patches, int nu, int nv, cv_image *o
   }
 }
 
-uint64_t cv_apply_patch_correction(const cv_image *I0, const double *IP, int nu, int nv,
-                                   cv_image *out) {
-  size_t np = (size_t)nu * nv;
-  double *diff = malloc(3 * np * sizeof(double));
-  if (!diff) return 0;
-  cv_downsample_to_patches(I0, nu, nv, diff);
-  for (size_t k = 0; k < 3 * np; k++) diff[k] -= IP[k];
-  cv_upsample_from_patches(diff, nu, nv, out);
+uint64_t cv_apply_patch_delta(const cv_image *I0, const double *delta, int nu, int nv,
+                              cv_image *out) {
+  cv_upsample_from_patches(delta, nu, nv, out);
   uint64_t clamped = 0;
   size_t n = (size_t)I0->w * I0->h * 3;
   for (size_t i = 0; i < n; i++) {
@@ -77,6 +72,17 @@ uint64_t cv_apply_patch_correction(const cv_image *I0, const double *IP, int nu,
     }
     out->px[i] = v;
   }
+  return clamped;
+}
+
+uint64_t cv_apply_patch_correction(const cv_image *I0, const double *IP, int nu, int nv,
+                                   cv_image *out) {
+  size_t np = (size_t)nu * nv;
+  double *diff = malloc(3 * np * sizeof(double));
+  if (!diff) return 0;
+  cv_downsample_to_patches(I0, nu, nv, diff);
+  for (size_t k = 0; k < 3 * np; k++) diff[k] -= IP[k];
+  uint64_t clamped = cv_apply_patch_delta(I0, diff, nu, nv, out);
   free(diff);
   return clamped;
 }

@@ -25,4 +25,10 @@ void cv_upsample_from_patches(const double *patches, int nu, int nv, cv_image *o
 uint64_t cv_apply_patch_correction(const cv_image *I0, const double *IP, int nu, int nv,
                                    cv_image *out);
 
+/* out = clamp(I0 - up(delta), 0, 1) for a patch-resolution delta (3 nu nv):
+ * equation 7 with delta = down(I0) - I_P computed once, e.g. from the
+ * average of a stereo pair and applied to both eyes.  Returns clamp count. */
+uint64_t cv_apply_patch_delta(const cv_image *I0, const double *delta, int nu, int nv,
+                              cv_image *out);
+
 #endif

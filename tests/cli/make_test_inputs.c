@@ -47,6 +47,20 @@ int main(int argc, char **argv) {
     fwrite(b, 1, n, g);
     fclose(g);
   }
+  /* Compensation inputs: a white wall, and white with a black band along the
+   * left edge (next to a corner when it is the right wall of an L). */
+  {
+    cv_image *w;
+    if (cv_image_create(96, 64, 3, &w)) return 1;
+    for (size_t i = 0; i < (size_t)96 * 64 * 3; i++) w->px[i] = 1.0f;
+    snprintf(path, sizeof path, "%s/white.exr", argv[1]);
+    if (cv_exr_write(path, w, 1, CV_EXR_ZIP, &err)) goto fail;
+    for (int y = 0; y < 64; y++)
+      for (int x = 0; x < 12; x++) cv_image_at(w, x, y)[0] = cv_image_at(w, x, y)[1] = cv_image_at(w, x, y)[2] = 0.0f;
+    snprintf(path, sizeof path, "%s/band.exr", argv[1]);
+    if (cv_exr_write(path, w, 1, CV_EXR_ZIP, &err)) goto fail;
+    cv_image_destroy(w);
+  }
   /* Truncated: the first 60% of the good file. */
   snprintf(path, sizeof path, "%s/good.exr", argv[1]);
   FILE *f = fopen(path, "rb");

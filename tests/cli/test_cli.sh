@@ -93,5 +93,37 @@ expect_error "bad number" "--rays" $CAVE bake default -o x.prt --rays abc
 expect_error "no lighting" "no lighting" $CAVE shade a.prt -o x.ply
 [ ! -e x.prt ] && [ ! -e x.ply ] && ok "no output left behind by failures" || bad "a failed command left output"
 
+# --- compensate --------------------------------------------------------------
+if $CAVE compensate --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help compensate"; else bad "help compensate"; fi
+wall() { # wall NAME PA PB PC REFL PATCHES
+  printf '{"name": "%s", "corners": [%s, %s, %s], "patches": %s, "reflectance": [%s, %s, %s]}' "$1" "$2" "$3" "$4" "$6" "$5" "$5" "$5"
+}
+L=$(wall left "[-1,0,0]" "[0,0,-1]" "[-1,1,0]" 0.8 "[12,8]")
+R=$(wall right "[0,0,-1]" "[1,0,0]" "[0,1,-1]" 0.8 "[12,8]")
+printf '{"surfaces": [%s, %s], "environment": [0, 0, 0], "projectors": "ideal"}\n' "$L" "$R" >two.json
+expect_ok "compensate two walls" $CAVE compensate --display two.json --image white.exr --image band.exr -o comp.exr --report
+[ -s comp_left.exr ] && [ -s comp_right.exr ] && ok "one EXR per surface" || bad "per-surface outputs"
+grep -q "luminance compensated" out.txt && grep -q "spectral radius" out.txt && ok "report printed" || bad "report"
+expect_ok "compensate exact" $CAVE compensate --display two.json --image white.exr --image white.exr --solver exact -o ex.exr --report
+expect_ok "compensate bounded stereo" $CAVE compensate --display two.json --image white.exr --image band.exr --right band.exr --right white.exr --solver bounded -o st.exr
+[ -s st_left_left.exr ] && [ -s st_right_right.exr ] && ok "stereo outputs per eye" || bad "stereo outputs"
+expect_ok "compensate jacobi" $CAVE compensate --display two.json --image white.exr --image white.exr --solver jacobi --levels 3 -o jc.exr
+printf '{"surfaces": [%s, %s], "projectors": "ideal"}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0.3]" 0.5 "[4,4]")" "$R" >skew.json
+expect_error "non-rectangular corners" "corners" $CAVE compensate --display skew.json --image white.exr --image white.exr -o x.exr
+printf '{"surfaces": [%s]}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0]" 1.5 "[4,4]")" >refl.json
+$CAVE compensate --display refl.json --image white.exr -o x.exr >out.txt 2>err.txt
+rc=$?
+if [ $rc -eq 1 ] && [ "$(grep -c 'reflectance\[[0-2]\]: 1.5 is outside' err.txt)" -ge 3 ] && tail -n 1 err.txt | grep -q "more problems"; then
+  ok "reflectance above 1: every problem listed"
+else
+  bad "reflectance above 1 (exit $rc)"; cat err.txt
+fi
+printf '{"surfaces": [%s]}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0]" 0.5 "[0,4]")" >zero.json
+expect_error "zero patches" "patches" $CAVE compensate --display zero.json --image white.exr -o x.exr
+expect_error "NaN in R" "nan.exr" $CAVE compensate --display two.json --image nan.exr --image white.exr -o x.exr
+expect_error "image count" "surfaces" $CAVE compensate --display two.json --image white.exr --image white.exr --image white.exr -o x.exr
+expect_error "missing display" "nodisplay.json" $CAVE compensate --display nodisplay.json --image white.exr -o x.exr
+[ ! -e x.exr ] && ok "no output left behind by compensate failures" || bad "compensate left output"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

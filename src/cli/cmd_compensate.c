@@ -1,0 +1,357 @@
+/* `cave compensate`: compensation of the light that concave screens scatter
+ * onto each other (Bimber et al. 2006).  Images are down-sampled to the
+ * display's patches, the wanted radiosity is what each image would show
+ * without scattering (T = F M R + E M), a solver finds the projector input I
+ * whose displayed radiosity B = D + K B matches T, and the correction is
+ * applied at full resolution by the paper's equation 7. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/cli.h"
+#include "compensate/display.h"
+#include "compensate/formfactor.h"
+#include "compensate/resample.h"
+#include "compensate/solve.h"
+#include "core/progress.h"
+#include "io/exr.h"
+
+#define MAX_IMAGES 64
+
+static void help(FILE *f) {
+  fprintf(f,
+          "usage: cave compensate --display FILE.json --image R.exr [--image ...]\n"
+          "                       [--right R.exr ...] [--solver auto|jacobi|exact|bounded]\n"
+          "                       [--levels H] [--time-ms T] [--threshold T] [--drop F]\n"
+          "                       [--half] -o I.exr [--report] [--quiet]\n\n"
+          "Computes projector images that cancel the light the screens scatter onto each\n"
+          "other, so that every surface shows what its image shows without scattering.\n\n"
+          "  --display FILE    display description (configs/displays/*.json)\n"
+          "  --image R.exr     one image per surface in surface order, or one atlas with\n"
+          "                    the surfaces side by side at equal widths\n"
+          "  --right R.exr     the right eye's images (stereo): one solve on (L + R) / 2,\n"
+          "                    its correction applied to both eyes\n"
+          "  --solver S        auto (exact unless it clips, else bounded; default), exact\n"
+          "                    (D = (I - K) R, clipped naively), jacobi (the paper's\n"
+          "                    iteration; refused when the spectral radius of K >= 0.5),\n"
+          "                    bounded (least displayed error with the projector in [0, 1])\n"
+          "  --levels H        jacobi scatter levels (default 2)\n"
+          "  --time-ms T       time slot for the iterative solvers (default: none)\n"
+          "  --threshold T     jacobi exit: no patch changes by more than T (default 1/255)\n"
+          "  --half            keep the form factors in half precision (3x faster products\n"
+          "                    on dense K, exact solve good to about 1e-4)\n"
+          "  --drop F          form-factor sparsification: share of each row's energy that\n"
+          "                    may be dropped (default 1e-3)\n"
+          "  -o I.exr          output: atlas in, atlas out; otherwise I_<surface>.exr per\n"
+          "                    surface (stereo: _left / _right)\n"
+          "  --report          displayed error, luminance compensated overall and within\n"
+          "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n");
+}
+
+/* Output path: base without ".exr" + suffix + ".exr". */
+static void out_path(const char *o, const char *suffix, char *buf, size_t n) {
+  size_t l = strlen(o);
+  if (l >= 4 && cli_has_ext(o, ".exr")) l -= 4;
+  snprintf(buf, n, "%.*s%s.exr", (int)l, o, suffix);
+}
+
+static double lum(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+typedef struct {
+  double rms, max, lum_all, lum_seam;
+} display_stats;
+
+/* Displayed radiosity for input I and its error against T. */
+static int judge(const cv_scatter_system *s, const float *I, const double *T, double *B,
+                 display_stats *st) {
+  int iters;
+  if (cv_scatter_physics(s, I, B, 1e-9, &iters)) return -1;
+  double e2 = 0, mx = 0;
+  for (size_t k = 0; k < 3 * s->n; k++) {
+    double d = fabs(B[k] - T[k]);
+    e2 += d * d;
+    mx = d > mx ? d : mx;
+  }
+  st->rms = sqrt(e2 / (3.0 * s->n));
+  st->max = mx;
+  return 0;
+}
+
+int cmd_compensate(int argc, char **argv) {
+  const char *display_path = NULL, *out = NULL;
+  const char *img_path[MAX_IMAGES], *right_path[MAX_IMAGES];
+  int n_img = 0, n_right = 0, report = 0, quiet = 0, half = 0;
+  cv_scatter_opts opts;
+  cv_scatter_opts_default(&opts);
+  double drop = -1;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      help(stdout);
+      return 0;
+    } else if (!strcmp(a, "--report")) {
+      report = 1;
+    } else if (!strcmp(a, "--quiet")) {
+      quiet = 1;
+    } else if (!strcmp(a, "--half")) {
+      half = 1;
+    } else if (!v) {
+      help(stderr);
+      return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
+    } else if (!strcmp(a, "--display")) {
+      display_path = argv[++i];
+    } else if (!strcmp(a, "-o")) {
+      out = argv[++i];
+    } else if (!strcmp(a, "--image") || !strcmp(a, "--right")) {
+      int *n = a[2] == 'i' ? &n_img : &n_right;
+      const char **list = a[2] == 'i' ? img_path : right_path;
+      if (*n == MAX_IMAGES) return cli_fail("compensate", 2, "%s: at most %d images", a, MAX_IMAGES);
+      list[(*n)++] = argv[++i];
+    } else if (!strcmp(a, "--solver")) {
+      const char *s = argv[++i];
+      if (!strcmp(s, "auto")) opts.solver = CV_SCATTER_AUTO;
+      else if (!strcmp(s, "exact")) opts.solver = CV_SCATTER_EXACT;
+      else if (!strcmp(s, "jacobi")) opts.solver = CV_SCATTER_JACOBI;
+      else if (!strcmp(s, "bounded")) opts.solver = CV_SCATTER_BOUNDED;
+      else return cli_fail("compensate", 2, "--solver: expected auto, exact, jacobi or bounded, got '%s'", s);
+    } else if (!strcmp(a, "--levels")) {
+      if (cli_parse_int(argv[++i], 1, 64, &opts.levels))
+        return cli_fail("compensate", 2, "--levels: expected 1..64, got '%s'", v);
+    } else if (!strcmp(a, "--time-ms")) {
+      if (cli_parse_double(argv[++i], &opts.time_ms) || opts.time_ms <= 0)
+        return cli_fail("compensate", 2, "--time-ms: expected a positive number, got '%s'", v);
+    } else if (!strcmp(a, "--threshold")) {
+      if (cli_parse_double(argv[++i], &opts.threshold) || opts.threshold <= 0)
+        return cli_fail("compensate", 2, "--threshold: expected a positive number, got '%s'", v);
+    } else if (!strcmp(a, "--drop")) {
+      if (cli_parse_double(argv[++i], &drop) || drop < 0 || drop >= 1)
+        return cli_fail("compensate", 2, "--drop: expected 0 <= F < 1, got '%s'", v);
+    } else {
+      help(stderr);
+      return cli_fail("compensate", 2, "unknown option '%s'", a);
+    }
+  }
+  if (!display_path || !out || n_img == 0) {
+    help(stderr);
+    return cli_fail("compensate", 2, "--display, at least one --image and -o are required");
+  }
+  if (n_right && n_right != n_img)
+    return cli_fail("compensate", 2, "--right: %d images for %d --image", n_right, n_img);
+  if (!cli_has_ext(out, ".exr")) return cli_fail("compensate", 2, "-o: expected an .exr path, got '%s'", out);
+
+  int rc = 1;
+  cv_err err;
+  cv_err_clear(&err);
+  cv_display *d = NULL;
+  cv_ffmatrix *F = NULL;
+  cv_scatter_workspace *ws = NULL;
+  cv_image *imgs[2][MAX_IMAGES] = {{0}};
+  double *R[2] = {NULL, NULL}, *T = NULL, *B = NULL, *delta = NULL;
+  float *I = NULL, *I0 = NULL, *Tf[2] = {NULL, NULL};
+  if (cv_display_load(display_path, &d, &err)) {
+    char buf[8192];
+    int np = 0;
+    cv_display_validate_all(display_path, buf, sizeof buf, &np);
+    if (np > 1) fputs(buf, stderr);
+    rc = cli_fail("compensate", 1, "%s", err.msg);
+    goto done;
+  }
+  const size_t ns = cv_display_surface_count(d), n = cv_display_patch_count(d);
+  const int atlas = n_img == 1 && ns > 1;
+  if (!atlas && (size_t)n_img != ns) {
+    rc = cli_fail("compensate", 2, "%s has %zu surfaces: give one --image per surface or one atlas, not %d",
+                  display_path, ns, n_img);
+    goto done;
+  }
+  const int eyes = n_right ? 2 : 1;
+  for (int e = 0; e < eyes; e++)
+    for (int k = 0; k < n_img; k++)
+      if (cv_exr_read(e ? right_path[k] : img_path[k], &imgs[e][k], &err)) {
+        rc = cli_fail("compensate", 1, "%s", err.msg);
+        goto done;
+      }
+  /* Per surface views into the inputs (atlas: equal-width columns). */
+  int w0 = imgs[0][0]->w, h0 = imgs[0][0]->h;
+  if (atlas && w0 % (int)ns) {
+    rc = cli_fail("compensate", 1, "%s: atlas width %d is not a multiple of %zu surfaces",
+                  img_path[0], w0, ns);
+    goto done;
+  }
+  for (int e = 0; e < eyes; e++) {
+    R[e] = calloc(3 * n, sizeof(double));
+    if (!R[e]) goto nomem;
+    for (size_t k = 0; k < ns; k++) {
+      const cv_display_surface *S = cv_display_surface_at(d, k);
+      cv_image *src = imgs[e][atlas ? 0 : k], *part = src;
+      if (atlas) { /* copy the column: the image type has no stride */
+        int cw = w0 / (int)ns;
+        if (cv_image_create(cw, h0, 3, &part)) goto nomem;
+        for (int y = 0; y < h0; y++)
+          memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
+      }
+      cv_downsample_to_patches(part, S->nu, S->nv, R[e] + 3 * S->offset);
+      if (atlas) cv_image_destroy(part);
+    }
+  }
+  /* Form factors and the system. */
+  cv_ff_params fp;
+  cv_ff_params_default(&fp);
+  fp.quiet = quiet;
+  if (drop >= 0) fp.drop_budget = drop;
+  cv_ff_report frep;
+  if (cv_formfactors_build(d, &fp, &F, &frep, &err)) {
+    rc = cli_fail("compensate", 1, "%s", err.msg);
+    goto done;
+  }
+  cv_scatter_system sys;
+  cv_display_scatter_system(d, F, &sys);
+  if (cv_scatter_workspace_create_ex(&sys, half ? CV_SCATTER_WS_HALF : 0, &ws, &err)) {
+    rc = cli_fail("compensate", 1, "%s", err.msg);
+    goto done;
+  }
+  /* Wanted radiosity: what the images show without scattering. */
+  for (int e = 0; e < eyes; e++) {
+    Tf[e] = malloc(3 * n * sizeof(float));
+    if (!Tf[e]) goto nomem;
+    for (size_t i = 0; i < n; i++)
+      for (int c = 0; c < 3; c++)
+        Tf[e][3 * i + c] = (float)(sys.proj[i] * sys.refl[3 * i + c] * R[e][3 * i + c] +
+                                   sys.env[3 * i + c] * sys.refl[3 * i + c]);
+  }
+  I = malloc(3 * n * sizeof(float));
+  I0 = malloc(3 * n * sizeof(float));
+  T = malloc(3 * n * sizeof(double));
+  B = malloc(3 * n * sizeof(double));
+  delta = malloc(3 * n * sizeof(double));
+  if (!I || !I0 || !T || !B || !delta) goto nomem;
+  cv_scatter_stats st;
+  int srt = eyes == 2 ? cv_scatter_solve_stereo(ws, Tf[0], Tf[1], &opts, I, &st, &err)
+                      : cv_scatter_solve(ws, Tf[0], &opts, I, &st, &err);
+  if (srt) {
+    rc = cli_fail("compensate", 1, "%s", err.msg);
+    goto done;
+  }
+  /* The (averaged) input and target at patch resolution. */
+  for (size_t k = 0; k < 3 * n; k++) {
+    double r = eyes == 2 ? 0.5 * (R[0][k] + R[1][k]) : R[0][k];
+    I0[k] = (float)r;
+    T[k] = eyes == 2 ? 0.5 * ((double)Tf[0][k] + Tf[1][k]) : Tf[0][k];
+    delta[k] = r - I[k];
+  }
+  /* Full resolution: equation 7 per surface and eye. */
+  uint64_t clamped = 0;
+  for (int e = 0; e < eyes; e++) {
+    cv_image *res = NULL;
+    if (atlas && cv_image_create(w0, h0, 3, &res)) goto nomem;
+    for (size_t k = 0; k < ns; k++) {
+      const cv_display_surface *S = cv_display_surface_at(d, k);
+      cv_image *src = imgs[e][atlas ? 0 : k], *part = src, *o;
+      int cw = atlas ? w0 / (int)ns : src->w;
+      if (atlas) {
+        if (cv_image_create(cw, h0, 3, &part)) goto nomem;
+        for (int y = 0; y < h0; y++)
+          memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
+      }
+      if (cv_image_create(part->w, part->h, 3, &o)) goto nomem;
+      clamped += cv_apply_patch_delta(part, delta + 3 * S->offset, S->nu, S->nv, o);
+      if (atlas) {
+        for (int y = 0; y < h0; y++)
+          memcpy(cv_image_at(res, (int)k * cw, y), cv_image_at(o, 0, y), 3 * cw * sizeof(float));
+        cv_image_destroy(part);
+      } else {
+        char path[1200], suffix[100];
+        snprintf(suffix, sizeof suffix, "%s%s%s", ns > 1 ? "_" : "", ns > 1 ? S->name : "",
+                 eyes == 2 ? (e ? "_right" : "_left") : "");
+        out_path(out, suffix, path, sizeof path);
+        if (cv_exr_write(path, o, 1, CV_EXR_ZIP, &err)) {
+          cv_image_destroy(o);
+          rc = cli_fail("compensate", 1, "%s", err.msg);
+          goto done;
+        }
+        if (!quiet) printf("wrote %s\n", path);
+      }
+      cv_image_destroy(o);
+    }
+    if (atlas) {
+      char path[1200];
+      out_path(out, eyes == 2 ? (e ? "_right" : "_left") : "", path, sizeof path);
+      int wst = cv_exr_write(path, res, 1, CV_EXR_ZIP, &err);
+      cv_image_destroy(res);
+      if (wst) {
+        rc = cli_fail("compensate", 1, "%s", err.msg);
+        goto done;
+      }
+      if (!quiet) printf("wrote %s\n", path);
+    }
+  }
+  if (!quiet)
+    printf("compensate: %zu patches, %zu form factors (%.2f%% of the energy dropped), solver %s, "
+           "%d iterations, %.2f ms; %llu pixel channels clamped by equation 7\n",
+           n, frep.nnz, 100 * frep.dropped_total, cv_scatter_solver_name(st.solver), st.iterations,
+           st.ms, (unsigned long long)clamped);
+  if (report) {
+    display_stats un, co;
+    double *Bu = malloc(3 * n * sizeof(double));
+    if (!Bu || judge(&sys, I0, T, Bu, &un) || judge(&sys, I, T, B, &co)) {
+      free(Bu);
+      rc = cli_fail("compensate", 1, "the display physics did not converge");
+      goto done;
+    }
+    /* Luminance compensated = (uncompensated - compensated) / uncompensated,
+     * area-weighted, over all patches and over those within 0.5 m of
+     * another surface (the seams). */
+    double all_u = 0, all_c = 0, seam_u = 0, seam_c = 0;
+    size_t seam_n = 0;
+    for (size_t i = 0; i < n; i++) {
+      const cv_patch *p = cv_display_patch(d, i);
+      double a = p->area, yu = a * lum(Bu + 3 * i), yc = a * lum(B + 3 * i);
+      all_u += yu;
+      all_c += yc;
+      int near = 0;
+      for (size_t j = 0; j < n && !near; j++) {
+        const cv_patch *q = cv_display_patch(d, j);
+        if (q->surface == p->surface) continue;
+        double dx = p->c[0] - q->c[0], dy = p->c[1] - q->c[1], dz = p->c[2] - q->c[2];
+        near = dx * dx + dy * dy + dz * dz < 0.25;
+      }
+      if (near) {
+        seam_u += yu;
+        seam_c += yc;
+        seam_n++;
+      }
+    }
+    free(Bu);
+    printf("report (radiosity units; wanted = what the images show without scattering):\n");
+    printf("  %-14s displayed RMS error %.5f, max %.5f\n", "uncompensated", un.rms, un.max);
+    printf("  %-14s displayed RMS error %.5f, max %.5f\n", "compensated", co.rms, co.max);
+    printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches)\n",
+           all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0,
+           seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n);
+    printf("  solver %s%s, %d iterations, %zu clipped patches (%zu channels), spectral radius %.4f, "
+           "%.2f ms\n",
+           cv_scatter_solver_name(st.solver), st.stereo ? " (stereo average)" : "", st.iterations,
+           st.clipped_patches, st.clipped_channels, st.rho, st.ms);
+    printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
+           frep.nnz, frep.nnz_full, 100 * frep.dropped_total, 100 * frep.dropped_max, frep.seconds);
+  }
+  rc = 0;
+  goto done;
+nomem:
+  rc = cli_fail("compensate", 1, "out of memory");
+done:
+  for (int e = 0; e < 2; e++) {
+    for (int k = 0; k < MAX_IMAGES; k++) cv_image_destroy(imgs[e][k]);
+    free(R[e]);
+    free(Tf[e]);
+  }
+  free(I);
+  free(I0);
+  free(T);
+  free(B);
+  free(delta);
+  cv_scatter_workspace_destroy(ws);
+  cv_ffmatrix_destroy(F);
+  cv_display_destroy(d);
+  return rc;
+}
