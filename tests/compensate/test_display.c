@@ -17,24 +17,11 @@
 
 #define PI 3.14159265358979323846
 
-/* configs/displays of the source tree, found from this file's path (CMake
- * compiles with absolute paths): <root>/tests/compensate/test_display.c. */
-static const char *config_dir(void) {
-  static char dir[1024];
-  if (!dir[0]) {
-    snprintf(dir, sizeof dir, "%s", __FILE__);
-    for (int k = 0; k < 3; k++) {
-      char *slash = strrchr(dir, '/');
-      if (slash) *slash = '\0';
-    }
-    strncat(dir, "/configs/displays", sizeof dir - strlen(dir) - 1);
-  }
-  return dir;
-}
-#define CONFIG_DIR config_dir()
+/* configs/displays of the source tree (CV_SOURCE_DIR comes from CMake). */
+#define CONFIG_DIR CV_SOURCE_DIR "/configs/displays"
 
 static cv_display *load(const char *name) {
-  char path[1024];
+  char path[2048];
   snprintf(path, sizeof path, "%s/%s", CONFIG_DIR, name);
   cv_display *d = NULL;
   cv_err err = {0};
@@ -338,7 +325,7 @@ static void test_validate_all(void **state) {
       " {\"name\": \"a\", \"corners\": [[0,0,0],[0,0,1],[0,1,0]], \"patches\": [2,2], "
       "\"reflectance\": [0.5,0.5,0.5], \"gloss\": 1}],\n"
       " \"environment\": [0, 0, -3]\n}";
-  char path[1024];
+  char path[2048];
   snprintf(path, sizeof path, "%s/bad_display.json", CV_TEST_TMP_DIR);
   FILE *f = fopen(path, "w");
   assert_non_null(f);
