@@ -190,7 +190,7 @@ int cmd_compensate(int argc, char **argv) {
         for (int y = 0; y < h0; y++)
           memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
       }
-      cv_downsample_to_patches(part, S->nu, S->nv, R[e] + 3 * S->offset);
+      if (cv_downsample_to_patches(part, S->nu, S->nv, S->edge_u, S->edge_v, R[e] + 3 * S->offset)) goto nomem;
       if (atlas) cv_image_destroy(part);
     }
   }
@@ -254,7 +254,8 @@ int cmd_compensate(int argc, char **argv) {
           memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
       }
       if (cv_image_create(part->w, part->h, 3, &o)) goto nomem;
-      clamped += cv_apply_patch_delta(part, delta + 3 * S->offset, S->nu, S->nv, o);
+      clamped += cv_apply_patch_delta(part, delta + 3 * S->offset, S->nu, S->nv, S->edge_u,
+                                      S->edge_v, o);
       if (atlas) {
         for (int y = 0; y < h0; y++)
           memcpy(cv_image_at(res, (int)k * cw, y), cv_image_at(o, 0, y), 3 * cw * sizeof(float));

@@ -222,13 +222,13 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     }
   }
   static const char *const plane_keys[] = {"name", "type", "corners", "patches", "reflectance",
-                                           "cosine_exponent", "normal_tilt_deg", NULL};
+                                           "cosine_exponent", "normal_tilt_deg", "refine", NULL};
   static const char *const cyl_keys[] = {"name", "type", "center", "radius", "angle_deg",
                                          "height", "patches", "reflectance",
-                                         "cosine_exponent", "normal_tilt_deg", NULL};
+                                         "cosine_exponent", "normal_tilt_deg", "refine", NULL};
   static const char *const dome_keys[] = {"name", "type", "center", "radius", "elevation_deg",
                                           "azimuth_deg", "patches", "reflectance",
-                                          "cosine_exponent", "normal_tilt_deg", NULL};
+                                          "cosine_exponent", "normal_tilt_deg", "refine", NULL};
   int before = x->count;
   only_keys(x, o,
             path, s->kind == CV_SURFACE_CYLINDER ? cyl_keys
@@ -283,6 +283,46 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     ok = 0;
   }
   if (!read_opt_num(x, o, path, "cosine_exponent", 0, 1, 1000, 0, &s->cosine_exponent)) ok = 0;
+  const cJSON *rf = cJSON_GetObjectItemCaseSensitive(o, "refine");
+  s->refine_strength = 3.0;
+  s->refine_width = 0.15;
+  if (rf) {
+    char rpath[200];
+    field_name(rpath, sizeof rpath, path, "refine");
+    static const char *const rkeys[] = {"seams", "strength", "width", NULL};
+    if (!cJSON_IsObject(rf)) {
+      problem(x, CV_ERR_CONFIG, rpath, "expected {\"seams\": \"auto\" | [edges], \"strength\", \"width\"}");
+      ok = 0;
+    } else {
+      only_keys(x, rf, rpath, rkeys);
+      s->refine = 1;
+      const cJSON *sm = cJSON_GetObjectItemCaseSensitive(rf, "seams");
+      char sf[220];
+      field_name(sf, sizeof sf, rpath, "seams");
+      if (!sm || (cJSON_IsString(sm) && !strcmp(sm->valuestring, "auto"))) {
+        s->refine_auto = 1;
+      } else if (cJSON_IsArray(sm)) {
+        const cJSON *e;
+        cJSON_ArrayForEach(e, sm) {
+          static const char *const names[4] = {"left", "right", "bottom", "top"};
+          int hit = -1;
+          for (int q = 0; q < 4; q++)
+            if (cJSON_IsString(e) && !strcmp(e->valuestring, names[q])) hit = q;
+          if (hit < 0) {
+            problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
+            ok = 0;
+          } else {
+            s->refine_edges |= 1u << hit;
+          }
+        }
+      } else {
+        problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
+        ok = 0;
+      }
+      if (!read_opt_num(x, rf, rpath, "strength", 0, 0, 100, 0, &s->refine_strength)) ok = 0;
+      if (!read_opt_num(x, rf, rpath, "width", 0.01, 0, 1, 0, &s->refine_width)) ok = 0;
+    }
+  }
   if (!read_opt_num(x, o, path, "normal_tilt_deg", -90, 1, 90, 1, &s->normal_tilt_deg)) ok = 0;
 
   if (s->kind == CV_SURFACE_PLANE) {
@@ -407,7 +447,95 @@ static double lobe_norm(double c, double tilt_deg) {
   return 1.0 / sum;
 }
 
+/* Boundaries t_0 = 0 < ... < t_n = 1 equidistributing the density
+ * 1 + A sum_e exp(-d_e(t) / w) over the selected ends (bit 0: t = 0,
+ * bit 1: t = 1), by inverting its tabulated integral. */
+static void graded_edges(int n, unsigned ends, double A, double w, double *t) {
+  enum { M = 8192 };
+  double cum[M + 1];
+  cum[0] = 0;
+  for (int i = 0; i < M; i++) {
+    double x = (i + 0.5) / M, rho = 1;
+    if (ends & 1u) rho += A * exp(-x / w);
+    if (ends & 2u) rho += A * exp(-(1 - x) / w);
+    cum[i + 1] = cum[i] + rho / M;
+  }
+  t[0] = 0;
+  t[n] = 1;
+  int i = 0;
+  for (int k = 1; k < n; k++) {
+    double target = cum[M] * k / n;
+    while (i < M && cum[i + 1] < target) i++;
+    double f = (target - cum[i]) / (cum[i + 1] - cum[i]);
+    t[k] = (i + f) / M;
+  }
+}
+
+/* Edges of surface k that touch another surface: points along the edge lie
+ * within 0.6 patch diagonals (of the other surface) of its patch corners. */
+static unsigned find_seams(const cv_display *d, size_t k) {
+  const cv_display_surface *s = &d->surfaces[k];
+  unsigned bits = 0;
+  for (int e = 0; e < 4; e++) {
+    int touching = 1;
+    for (int q = 1; q <= 5 && touching; q++) {
+      double t = q / 6.0, su = e == 0 ? 0 : e == 1 ? 1 : t, tv = e == 2 ? 0 : e == 3 ? 1 : t;
+      double p[3];
+      surface_point(s, su, tv, p);
+      int near = 0;
+      for (size_t o = 0; o < d->n_surfaces && !near; o++) {
+        if (o == k) continue;
+        const cv_display_surface *S = &d->surfaces[o];
+        for (size_t i = S->offset; i < S->offset + (size_t)S->nu * S->nv && !near; i++) {
+          const cv_patch *pt = &d->patches[i];
+          double diag[3], dd[3];
+          sub3(pt->q[2], pt->q[0], diag);
+          double tol = 0.6 * len3(diag);
+          for (int c = 0; c < 4 && !near; c++) {
+            sub3(p, pt->q[c], dd);
+            near = len3(dd) <= tol;
+          }
+        }
+      }
+      touching = near;
+    }
+    if (touching) bits |= 1u << e;
+  }
+  return bits;
+}
+
+static int build_patches_pass(cv_display *d);
+
 static int build_patches(cv_display *d) {
+  /* Pass 1 uniform; pass 2 regrades the surfaces that ask for it (their
+   * seams are found against the other surfaces' uniform patches). */
+  int any = 0;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    cv_display_surface *s = &d->surfaces[k];
+    s->edge_u = malloc((size_t)(s->nu + 1) * sizeof(double));
+    s->edge_v = malloc((size_t)(s->nv + 1) * sizeof(double));
+    if (!s->edge_u || !s->edge_v) return CV_ERR_NOMEM;
+    for (int i = 0; i <= s->nu; i++) s->edge_u[i] = (double)i / s->nu;
+    for (int i = 0; i <= s->nv; i++) s->edge_v[i] = (double)i / s->nv;
+    any |= s->refine;
+  }
+  int st = build_patches_pass(d);
+  if (st || !any) return st;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    cv_display_surface *s = &d->surfaces[k];
+    if (!s->refine) continue;
+    if (s->refine_auto) s->refine_edges = find_seams(d, k);
+    unsigned eu = (s->refine_edges & CV_EDGE_LEFT ? 1u : 0u) | (s->refine_edges & CV_EDGE_RIGHT ? 2u : 0u);
+    unsigned ev = (s->refine_edges & CV_EDGE_BOTTOM ? 1u : 0u) | (s->refine_edges & CV_EDGE_TOP ? 2u : 0u);
+    graded_edges(s->nu, eu, s->refine_strength, s->refine_width, s->edge_u);
+    graded_edges(s->nv, ev, s->refine_strength, s->refine_width, s->edge_v);
+  }
+  free(d->patches);
+  d->patches = NULL;
+  return build_patches_pass(d);
+}
+
+static int build_patches_pass(cv_display *d) {
   size_t total = 0;
   for (size_t k = 0; k < d->n_surfaces; k++) {
     d->surfaces[k].offset = total;
@@ -423,8 +551,8 @@ static int build_patches(cv_display *d) {
     for (int v = 0; v < s->nv; v++)
       for (int u = 0; u < s->nu; u++) {
         cv_patch *p = &d->patches[s->offset + (size_t)v * s->nu + u];
-        const double u0 = (double)u / s->nu, u1 = (double)(u + 1) / s->nu;
-        const double v0 = (double)v / s->nv, v1 = (double)(v + 1) / s->nv;
+        const double u0 = s->edge_u[u], u1 = s->edge_u[u + 1];
+        const double v0 = s->edge_v[v], v1 = s->edge_v[v + 1];
         surface_point(s, u0, v0, p->q[0]);
         surface_point(s, u1, v0, p->q[1]);
         surface_point(s, u1, v1, p->q[2]);
@@ -772,6 +900,10 @@ void cv_display_destroy(cv_display *d) {
   if (!d) return;
   for (size_t i = 0; i < d->n_projectors; i++) free(d->projectors[i].lights);
   free(d->projectors);
+  for (size_t k = 0; k < d->n_surfaces && d->surfaces; k++) {
+    free(d->surfaces[k].edge_u);
+    free(d->surfaces[k].edge_v);
+  }
   free(d->surfaces);
   free(d->patches);
   free(d->refl);

@@ -20,7 +20,13 @@
  *   SURFACE, planar ("type": "plane" is optional):
  *     {"name", "corners": [pa, pb, pc], "patches": [nu, nv], "reflectance": [r, g, b],
  *      "cosine_exponent": c (optional, > 0, default 1),
- *      "normal_tilt_deg": t (optional, |t| < 90, default 0)}
+ *      "normal_tilt_deg": t (optional, |t| < 90, default 0),
+ *      "refine": {"seams": "auto" | ["left", "right", "bottom", "top"],
+ *                 "strength": A (0..100, default 3), "width": w (0.01..1, default 0.15)}
+ *                 (optional: patches graded towards those edges with density
+ *                  1 + A exp(-d / w), d the distance to the edge as a fraction
+ *                  of the surface; "auto" picks the edges that touch another
+ *                  surface; the patch counts stay nu x nv)}
  *     pa, pb, pc: lower-left, lower-right and upper-left corner in metres AS
  *     SEEN BY THE VIEWER; pa->pb and pa->pc must be perpendicular (within
  *     0.01 degree).  The front (viewer) side is the side of
@@ -87,7 +93,21 @@ typedef struct cv_display_surface {
    * emission axis)^c d(omega): the lobe normalisation (= (c+1) / (2 pi)
    * without tilt; computed numerically with tilt). */
   double lobe_norm;
+  /* Patch boundaries in the surface parameters (nu + 1 and nv + 1 values
+   * from 0 to 1; owned by the display).  Uniform unless "refine" asks for
+   * patches graded towards seams (edges that touch another surface), where a
+   * correction solved on coarse patches and up-sampled errs most (Bimber et
+   * al. 2006, future work: adaptive subdivision). */
+  double *edge_u, *edge_v;
+  int refine;                 /* 1 when "refine" was given */
+  int refine_auto;            /* seams found automatically */
+  unsigned refine_edges;      /* CV_EDGE_* bits: graded towards these edges */
+  double refine_strength;     /* A: patches up to 1 + A times denser at a seam */
+  double refine_width;        /* w: decay length as a fraction of the surface */
 } cv_display_surface;
+
+/* Surface edges (u = 0 is "left", u = 1 "right", v = 0 "bottom", v = 1 "top"). */
+enum { CV_EDGE_LEFT = 1u, CV_EDGE_RIGHT = 2u, CV_EDGE_BOTTOM = 4u, CV_EDGE_TOP = 8u };
 
 typedef struct cv_patch {
   double q[4][3];  /* corners (u,v), (u+1,v), (u+1,v+1), (u,v+1): counter-

@@ -760,15 +760,19 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
         const upper_row *ur = &up[k];
         for (size_t e = 0; e < ur->cnt; e++) {
           size_t i = ur->col[e];
+          /* Row r gathers the light sender c puts on r per unit of r's area:
+           * G_rc = (A_c / A_r) F_{c->r} (sender c's own lobe), which is
+           * F_{r->c} for Lambertian patches by reciprocity. */
           if (ur->b[e] > 0) {
             fcol[fill[i]] = (uint32_t)k;
-            fval[fill[i]++] = ur->b[e];
+            fval[fill[i]++] = (float)(ur->b[e] * (d->patches[k].area / d->patches[i].area));
           }
         }
         for (size_t e = 0; e < ur->cnt; e++)
           if (ur->a[e] > 0) {
             fcol[fill[k]] = ur->col[e];
-            fval[fill[k]++] = ur->a[e];
+            fval[fill[k]++] =
+                (float)(ur->a[e] * (d->patches[ur->col[e]].area / d->patches[k].area));
           }
       }
       /* the upper entries of row k were appended after all its lower

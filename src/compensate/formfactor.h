@@ -110,8 +110,10 @@ double cv_ff_point_to_point(const cv_patch *sender, const cv_patch *receiver);
  * visibility (j == i gives 0). */
 double cv_ff_patch_pair(const cv_display *d, size_t j, size_t i);
 
-/* Builds the gather matrix of the display: row i (receiver) holds (j, F_ji)
- * for every sender j != i that survives sparsification, columns ascending.
+/* Builds the gather matrix of the display: row i (receiver) holds
+ * (j, G_ij = (A_j / A_i) F_ji) for every sender j != i that survives
+ * sparsification, columns ascending (F_ji as in cv_ff_patch_pair; G_ij =
+ * F_ij for Lambertian patches; see system.h).
  * *F_gather owned by the caller (cv_ffmatrix_destroy).  rep and p may be
  * NULL (p NULL = defaults).  Prints progress on stderr for large displays
  * unless p->quiet.  Errors: CV_ERR_INVALID (bad parameters), CV_ERR_NOMEM,

@@ -4,9 +4,14 @@
  *
  * P patches, 3 colour channels.  What a viewer sees (radiosity B) for
  * projector input I in [0, 1]:
- *     B = D + K B,   D_i = F_i M_i I_i + E_i M_i,   (K B)_i = M_i sum_j F_ji B_j
- * F_ji: patch-to-patch form factor from sender j to receiver i (fraction of
- * the light leaving j that arrives at i); F_i: projector-to-patch factor
+ *     B = D + K B,   D_i = F_i M_i I_i + E_i M_i,   (K B)_i = M_i sum_j G_ij B_j
+ * G_ij = (A_j / A_i) F_{j->i}: the light that sender j (with its own
+ * reflection lobe) puts on patch i, per unit of i's area, where F_{j->i} is
+ * the fraction of the light leaving j that arrives at i.  For Lambertian
+ * patches reciprocity (A_i F_{i->j} = A_j F_{j->i}) makes G_ij = F_{i->j}.
+ * The paper's "F_ji" (REFERENCES.md: K_ij = M_i F_ji) is the same number
+ * when patches have equal areas; graded patches need the area ratio.
+ * F_i: projector-to-patch factor
  * (1 for "ideal" projectors); M_i: reflectance (RGB); E_i: uncontrolled light
  * arriving at patch i (stray light and projector black level, RGB).
  * The exact compensation for a wanted image R is D = (I - K) R. */
@@ -16,8 +21,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* Sparse gather matrix in CSR form: row i (the receiver) lists senders j
- * with value F_ji.  Values are float (storage), sums are done in double. */
+/* Sparse gather matrix in CSR form: row i (the receiver) lists the patches j
+ * it sees with value G_ij = F_{i->j}.  Values are float (storage), sums are
+ * done in double. */
 typedef struct cv_ffmatrix {
   size_t n;          /* patches (rows and columns) */
   size_t nnz;

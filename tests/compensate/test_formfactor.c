@@ -290,7 +290,8 @@ static void test_reciprocity_unequal(void **state) {
   size_t checked = 0;
   for (size_t i = 0; i < d->n_patches; i++)
     for (size_t j = 0; j < d->n_patches; j++) {
-      double a = d->patches[i].area * entry(F, j, i), b = d->patches[j].area * entry(F, i, j);
+      /* the gather matrix holds G_ij = F_{i->j}: reciprocity A_i F_{i->j} = A_j F_{j->i} */
+      double a = d->patches[i].area * entry(F, i, j), b = d->patches[j].area * entry(F, j, i);
       if (a == 0 && b == 0) continue;
       worst = fmax(worst, fabs(a - b) / fmax(a, b));
       checked++;

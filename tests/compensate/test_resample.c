@@ -31,7 +31,7 @@ static void test_downsample(void **state) {
   cv_image *img = ramp(100, 60);
   const int nu = 7, nv = 5;
   double P[3 * 35];
-  cv_downsample_to_patches(img, nu, nv, P);
+  cv_downsample_to_patches(img, nu, nv, NULL, NULL, P);
   for (int v = 0; v < nv; v++)
     for (int u = 0; u < nu; u++) {
       const double *p = P + 3 * (v * nu + u);
@@ -57,7 +57,7 @@ static void test_upsample_linear(void **state) {
     }
   cv_image *out;
   cv_image_create(80, 60, 3, &out);
-  cv_upsample_from_patches(P, nu, nv, out);
+  cv_upsample_from_patches(P, nu, nv, NULL, NULL, out);
   for (int y = 5; y < 55; y++)
     for (int x = 5; x < 75; x++) {
       const float *p = cv_image_at(out, x, y);
@@ -77,11 +77,11 @@ static void test_equation7(void **state) {
   cv_image_create(64, 48, 3, &out);
   const int nu = 8, nv = 6;
   double P[3 * 48];
-  cv_downsample_to_patches(I0, nu, nv, P);
-  assert_int_equal(cv_apply_patch_correction(I0, P, nu, nv, out), 0);
+  cv_downsample_to_patches(I0, nu, nv, NULL, NULL, P);
+  assert_int_equal(cv_apply_patch_correction(I0, P, nu, nv, NULL, NULL, out), 0);
   for (size_t i = 0; i < (size_t)64 * 48 * 3; i++) assert_true(fabs(out->px[i] - I0->px[i]) < 1e-6);
   for (int k = 0; k < 3 * 48; k++) P[k] -= 0.1; /* the solve lowered every patch by 0.1 */
-  uint64_t clamped = cv_apply_patch_correction(I0, P, nu, nv, out);
+  uint64_t clamped = cv_apply_patch_correction(I0, P, nu, nv, NULL, NULL, out);
   size_t expect = 0;
   for (size_t i = 0; i < (size_t)64 * 48 * 3; i++) {
     double want = I0->px[i] - 0.1;
