@@ -326,9 +326,13 @@ int cmd_compensate(int argc, char **argv) {
     printf("report (radiosity units; wanted = what the images show without scattering):\n");
     printf("  %-14s displayed RMS error %.5f, max %.5f\n", "uncompensated", un.rms, un.max);
     printf("  %-14s displayed RMS error %.5f, max %.5f\n", "compensated", co.rms, co.max);
-    printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches)\n",
-           all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0,
-           seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n);
+    if (seam_n)
+      printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches)\n",
+             all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0,
+             seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n);
+    else
+      printf("  luminance compensated: %.2f%% overall (no seams: a single surface)\n",
+             all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0);
     printf("  solver %s%s, %d iterations, %zu clipped patches (%zu channels), spectral radius %.4f, "
            "%.2f ms\n",
            cv_scatter_solver_name(st.solver), st.stereo ? " (stereo average)" : "", st.iterations,
