@@ -7,6 +7,8 @@
  * once the description is free of problems. */
 #include "compensate/display.h"
 
+#include "compensate/vec3d.h"
+
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
@@ -55,25 +57,6 @@ static void problem(ctx *x, int status, const char *field, const char *fmt, ...)
   }
 }
 
-/* --- small vector helpers -------------------------------------------------- */
-
-static void sub3(const double a[3], const double b[3], double o[3]) {
-  o[0] = a[0] - b[0];
-  o[1] = a[1] - b[1];
-  o[2] = a[2] - b[2];
-}
-static double dot3(const double a[3], const double b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-static void cross3(const double a[3], const double b[3], double o[3]) {
-  double t0 = a[1] * b[2] - a[2] * b[1];
-  double t1 = a[2] * b[0] - a[0] * b[2];
-  double t2 = a[0] * b[1] - a[1] * b[0];
-  o[0] = t0;
-  o[1] = t1;
-  o[2] = t2;
-}
-static double len3(const double a[3]) { return sqrt(dot3(a, a)); }
 
 /* --- typed field readers: each reports its own problem and returns 0 on it */
 

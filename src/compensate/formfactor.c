@@ -2,6 +2,8 @@
  * for the method, the normalisations and the sparsification rule). */
 #include "compensate/formfactor.h"
 
+#include "compensate/vec3d.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -57,31 +59,6 @@ static const double GL_W[5][4] = {
     {0.5, 0.5},
     {5.0 / 18, 8.0 / 18, 5.0 / 18},
     {0.17392742256872693, 0.32607257743127307, 0.32607257743127307, 0.17392742256872693}};
-
-/* --- vectors ------------------------------------------------------------- */
-
-static inline void sub3(const double a[3], const double b[3], double o[3]) {
-  o[0] = a[0] - b[0];
-  o[1] = a[1] - b[1];
-  o[2] = a[2] - b[2];
-}
-static inline double dot3(const double a[3], const double b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-static inline void cross3(const double a[3], const double b[3], double o[3]) {
-  double t0 = a[1] * b[2] - a[2] * b[1];
-  double t1 = a[2] * b[0] - a[0] * b[2];
-  double t2 = a[0] * b[1] - a[1] * b[0];
-  o[0] = t0;
-  o[1] = t1;
-  o[2] = t2;
-}
-static inline double len3(const double a[3]) { return sqrt(dot3(a, a)); }
-static inline double dist3(const double a[3], const double b[3]) {
-  double d[3];
-  sub3(a, b, d);
-  return len3(d);
-}
 
 /* --- point to polygon ------------------------------------------------------ */
 

@@ -23,6 +23,8 @@
  * (float values), 5 ms (half values, the copy then fits the last-level cache). */
 #include "compensate/solve.h"
 
+#include "io/exr.h"
+
 #include <math.h>
 #include <omp.h>
 #include <stdint.h>
@@ -204,35 +206,6 @@ double cv_scatter_spectral_radius(const cv_scatter_system *s, int iters) {
 }
 
 /* ---- Workspace kernels --------------------------------------------------- */
-
-/* Half precision storage.  Round to nearest even; inputs are finite, >= 0
- * and at most 65504 after scaling. */
-static uint16_t float_to_half(float f) {
-  uint32_t x;
-  memcpy(&x, &f, sizeof x);
-  const uint32_t sign = (x >> 16) & 0x8000u, man = x & 0x7fffffu;
-  const int32_t ex = (int32_t)((x >> 23) & 0xffu) - 127 + 15;
-  if (ex >= 31) return (uint16_t)(sign | 0x7bffu); /* clamp to the largest finite */
-  if (ex <= 0) {                                    /* subnormal: h * 2^-24 */
-    if (ex < -10) return (uint16_t)sign;
-    const uint32_t mm = man | 0x800000u, shift = (uint32_t)(14 - ex);
-    uint32_t h = mm >> shift;
-    const uint32_t rem = mm & ((1u << shift) - 1), halfway = 1u << (shift - 1);
-    if (rem > halfway || (rem == halfway && (h & 1u))) h++;
-    return (uint16_t)(sign | h);
-  }
-  uint32_t h = ((uint32_t)ex << 10) | (man >> 13);
-  const uint32_t rem = man & 0x1fffu;
-  if (rem > 0x1000u || (rem == 0x1000u && (h & 1u))) h++; /* a carry bumps the exponent */
-  return (uint16_t)(sign | h);
-}
-
-static float half_to_float(uint16_t h) {
-  const int e = (h >> 10) & 0x1f, m = h & 0x3ff;
-  float v = e == 0 ? ldexpf((float)m, -24) : ldexpf((float)(m | 0x400), e - 25);
-  if (e == 31) v = m ? NAN : INFINITY;
-  return (h & 0x8000u) ? -v : v;
-}
 
 /* One row of the gather: acc[c] = sum over the row's runs of v * x_c. */
 static void row_float(const float *v, const uint32_t *run, size_t nrun, const double *xr,
@@ -626,10 +599,11 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
       return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory (half copies)");
     }
     for (size_t k = 0; k < nnz; k++) {
-      w->hval[k] = float_to_half(F->val[k] * scale);
-      w->hcval[k] = float_to_half(w->cval[k] * scale);
+      /* half storage: values are finite, >= 0 and at most 65504 after scaling */
+      w->hval[k] = cv_float_to_half(F->val[k] * scale);
+      w->hcval[k] = cv_float_to_half(w->cval[k] * scale);
     }
-    for (uint32_t h = 0; h < 65536; h++) w->h2f[h] = half_to_float((uint16_t)h);
+    for (uint32_t h = 0; h < 65536; h++) w->h2f[h] = cv_half_to_float((uint16_t)h);
     free(w->cval);
     w->cval = NULL;
     w->half = 1;
