@@ -281,9 +281,11 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
  * window; the window strategy gets a = MAX_WINDOW_FRACTION * (1 - f / F_COS)
  * (0 when f >= F_COS), i.e. full MIS where almost nothing escapes and plain
  * cosine sampling where the sky is in plain view.  Measured on the cabin
- * (docs/benchmarks.md). */
+ * (tess 2, 1024 rays, 25 coefficients, per-vertex mean / energy-weighted
+ * error): a = 0.5: 9.2% / 4.1%, 0.75: 7.7% / 4.1%, 0.9: 7.0% / 4.1%; 0.75
+ * keeps the balance-heuristic weight below 1 / (1 - a) = 4. */
 #define PILOT_RAYS 32
-#define MAX_WINDOW_FRACTION 0.5f
+#define MAX_WINDOW_FRACTION 0.75f
 #define F_COS 0.3f
 
 /* Per-vertex choice of an opening: probabilities proportional to a rough
