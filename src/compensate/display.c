@@ -8,6 +8,7 @@
 #include "compensate/display.h"
 
 #include "compensate/vec3d.h"
+#include "io/json_keys.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -107,16 +108,10 @@ static int read_vec(ctx *x, const cJSON *v, const char *field, int n, double lo,
 static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *const *allowed) {
   const cJSON *it;
   cJSON_ArrayForEach(it, obj) {
-    int ok = 0;
-    for (const char *const *a = allowed; *a; a++)
-      if (strcmp(it->string, *a) == 0) ok = 1;
-    if (!ok) {
-      char field[256], list[320] = "";
+    if (!cv_json_key_allowed(it->string, allowed)) {
+      char field[256], list[320];
       field_name(field, sizeof field, path, it->string);
-      for (const char *const *a = allowed; *a; a++) {
-        strncat(list, *a, sizeof list - strlen(list) - 3);
-        if (a[1]) strncat(list, ", ", sizeof list - strlen(list) - 1);
-      }
+      cv_json_key_list(allowed, list, sizeof list);
       problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
   }

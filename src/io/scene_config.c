@@ -1,6 +1,8 @@
 /* Scene configuration parser (see scene_config.h), on cJSON. */
 #include "io/scene_config.h"
 
+#include "io/json_keys.h"
+
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <libgen.h>
@@ -91,17 +93,10 @@ static int only_keys(ctx *x, const cJSON *obj, const char *path, const char *con
   if (!cJSON_IsObject(obj)) return fail(x, path, "expected an object%s", "");
   const cJSON *it;
   cJSON_ArrayForEach(it, obj) {
-    int ok = 0;
-    for (const char *const *a = allowed; *a; a++)
-      if (strcmp(it->string, *a) == 0) ok = 1;
-    if (!ok) {
-      char field[256];
+    if (!cv_json_key_allowed(it->string, allowed)) {
+      char field[256], list[200]; /* fits fail()'s 256-byte message */
       snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", it->string);
-      char list[256] = "";
-      for (const char *const *a = allowed; *a; a++) {
-        strncat(list, *a, sizeof list - strlen(list) - 3);
-        if (a[1]) strncat(list, ", ", sizeof list - strlen(list) - 1);
-      }
+      cv_json_key_list(allowed, list, sizeof list);
       return fail(x, field, "unknown field (expected one of: %s)", list);
     }
   }

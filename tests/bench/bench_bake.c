@@ -14,6 +14,8 @@
  *    does), mean relative error over lit vertices.
  * Prints markdown tables (docs/benchmarks.md). */
 #include <math.h>
+
+#include "bench_util.h"
 #include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -72,15 +74,6 @@ static void transfer_error(const float *cur, const float *ref, size_t ns, int NC
   *global = gr2 > 0 ? sqrt(ge2 / gr2) : 0.0;
 }
 
-static double median(double *v, int n) {
-  for (int i = 1; i < n; i++)
-    for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
-      double t = v[j];
-      v[j] = v[j - 1];
-      v[j - 1] = t;
-    }
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 int main(int argc, char **argv) {
   int tess = 8, subset = 4000, bake_rays = 1024, bounces = 2, skip_full = 0;
@@ -155,11 +148,11 @@ int main(int argc, char **argv) {
     mis_t[k] = cv_now_seconds() - t0;
     isect[k] = bare_loop(tr, org, dir, nr, 1, &hits);
   }
-  double t_mis = median(mis_t, REPS);
+  double t_mis = bench_median(mis_t, REPS);
   bare_loop(tr, org, dir, nr, 0, &hits);
   double esc = (double)hits / nr;
-  double t_bare_occ = median(occ, REPS), t_direct = median(direct, REPS),
-         t_bare_isect = median(isect, REPS);
+  double t_bare_occ = bench_median(occ, REPS), t_direct = bench_median(direct, REPS),
+         t_bare_isect = bench_median(isect, REPS);
   printf("## Throughput, %zu vertices x %d rays = %.1f M rays (same rays in both; median of %d "
          "alternating runs)\n\n", ns, R, nr / 1e6, REPS);
   printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");

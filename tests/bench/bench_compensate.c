@@ -11,6 +11,8 @@
  * gradient image (no clipping).  Stereo is one solve on the pair's average
  * (cv_scatter_solve_stereo), so it costs one solve plus an average. */
 #include <math.h>
+
+#include "bench_util.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -25,15 +27,6 @@ typedef struct {
   int levels;
 } run;
 
-static double median(double *v, int n) {
-  for (int i = 1; i < n; i++)
-    for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
-      double t = v[j];
-      v[j] = v[j - 1];
-      v[j - 1] = t;
-    }
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 static char *display_json(int cave, int np) {
   char *s = malloc(4096);
@@ -173,7 +166,7 @@ int main(int argc, char **argv) {
             errors(&sys, I, T, &rms, &mx);
             printf("| %s | %d | %s | %s | %s | %.0f | %d | %zu | %.5f | %.5f |\n",
                    cave ? "cave5" : "two-sided wall", sizes[si], half ? "half" : "float", name,
-                   band ? "band" : "smooth", 1.0 / median(t, k), st.iterations, st.clipped_patches, rms, mx);
+                   band ? "band" : "smooth", 1.0 / bench_median(t, k), st.iterations, st.clipped_patches, rms, mx);
             fflush(stdout);
           }
         cv_scatter_workspace_destroy(ws);
