@@ -24,7 +24,8 @@ static void help(FILE *f) {
           "usage: cave compensate --display FILE.json --image R.exr [--image ...]\n"
           "                       [--right R.exr ...] [--solver auto|jacobi|exact|bounded]\n"
           "                       [--levels H] [--time-ms T] [--threshold T] [--drop F]\n"
-          "                       [--half] -o I.exr [--report] [--quiet]\n\n"
+          "                       [--storage auto|float|half|low-rank] -o I.exr [--report]\n"
+          "                       [--quiet]\n\n"
           "Computes projector images that cancel the light the screens scatter onto each\n"
           "other, so that every surface shows what its image shows without scattering.\n\n"
           "  --display FILE    display description (configs/displays/*.json)\n"
@@ -39,8 +40,11 @@ static void help(FILE *f) {
           "  --levels H        jacobi scatter levels (default 2)\n"
           "  --time-ms T       time slot for the iterative solvers (default: none)\n"
           "  --threshold T     jacobi exit: no patch changes by more than T (default 1/255)\n"
-          "  --half            keep the form factors in half precision (3x faster products\n"
-          "                    on dense K, exact solve good to about 1e-4)\n"
+          "  --storage S       how K is kept for the products: low-rank (dense near-field and\n"
+          "                    low-rank far-field blocks of 8x8-patch tiles, each row within\n"
+          "                    1e-3 of its sum), half (half precision, good to about 1e-4),\n"
+          "                    float, or auto (default: low-rank where it takes at most half\n"
+          "                    the bytes, else float); --half = --storage half\n"
           "  --drop F          form-factor sparsification: share of each row's energy that\n"
           "                    may be dropped (default 1e-3)\n"
           "  -o I.exr          output: atlas in, atlas out; otherwise I_<surface>.exr per\n"
@@ -81,7 +85,7 @@ static int judge(const cv_scatter_system *s, const float *I, const double *T, do
 int cmd_compensate(int argc, char **argv) {
   const char *display_path = NULL, *out = NULL;
   const char *img_path[MAX_IMAGES], *right_path[MAX_IMAGES];
-  int n_img = 0, n_right = 0, report = 0, quiet = 0, half = 0;
+  int n_img = 0, n_right = 0, report = 0, quiet = 0, half = 0, compress = 1;
   cv_scatter_opts opts;
   cv_scatter_opts_default(&opts);
   double drop = -1;
@@ -96,6 +100,13 @@ int cmd_compensate(int argc, char **argv) {
       quiet = 1;
     } else if (!strcmp(a, "--half")) {
       half = 1;
+    } else if (!strcmp(a, "--storage") && v) {
+      i++;
+      if (!strcmp(v, "auto")) half = 0, compress = 1;
+      else if (!strcmp(v, "float")) half = 0, compress = 0;
+      else if (!strcmp(v, "half")) half = 1, compress = 0;
+      else if (!strcmp(v, "low-rank")) half = 0, compress = 2;
+      else return cli_fail("compensate", 2, "--storage: expected auto, float, half or low-rank, got '%s'", v);
     } else if (!v) {
       help(stderr);
       return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
@@ -206,10 +217,16 @@ int cmd_compensate(int argc, char **argv) {
   }
   cv_scatter_system sys;
   cv_display_scatter_system(d, F, &sys);
-  if (cv_scatter_workspace_create_ex(&sys, half ? CV_SCATTER_WS_HALF : 0, &ws, &err)) {
+  if (cv_scatter_workspace_create_ex(&sys, (half ? CV_SCATTER_WS_HALF : 0) | (compress ? CV_SCATTER_WS_COMPRESS : 0), &ws, &err)) {
     rc = cli_fail("compensate", 1, "%s", err.msg);
     goto done;
   }
+  cv_scatter_model model;
+  cv_scatter_workspace_get_model(ws, &model);
+  if (compress == 2 && strcmp(model.storage, "block low-rank"))
+    fprintf(stderr, "cave compensate: --storage low-rank: the compressed form (%.1f MB) does not pay "
+            "against %.1f MB plain; using %s\n", model.compressed_bytes / 1e6, model.source_bytes / 1e6,
+            model.storage);
   /* Wanted radiosity: what the images show without scattering. */
   for (int e = 0; e < eyes; e++) {
     Tf[e] = malloc(3 * n * sizeof(float));
@@ -337,6 +354,8 @@ int cmd_compensate(int argc, char **argv) {
            "%.2f ms\n",
            cv_scatter_solver_name(st.solver), st.stereo ? " (stereo average)" : "", st.iterations,
            st.clipped_patches, st.clipped_channels, st.rho, st.ms);
+    printf("  storage of K: %s, %.2f MB read per product (plain %.2f MB), product error <= %.2e x max|x|\n",
+           model.storage, model.bytes / 1e6, model.source_bytes / 1e6, model.error_bound);
     printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
            frep.nnz, frep.nnz_full, 100 * frep.dropped_total, 100 * frep.dropped_max, frep.seconds);
   }

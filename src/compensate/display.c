@@ -558,6 +558,22 @@ static int build_patches_pass(cv_display *d) {
         p->v = (uint32_t)v;
       }
   }
+  /* Tiles of the patch grid (compression clusters). */
+  free(d->cluster);
+  d->cluster = malloc((total ? total : 1) * sizeof *d->cluster);
+  if (!d->cluster) return CV_ERR_NOMEM;
+  size_t nc = 0;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    const cv_display_surface *s = &d->surfaces[k];
+    const int tu = (s->nu + CV_DISPLAY_TILE - 1) / CV_DISPLAY_TILE;
+    const int tv = (s->nv + CV_DISPLAY_TILE - 1) / CV_DISPLAY_TILE;
+    for (int v = 0; v < s->nv; v++)
+      for (int u = 0; u < s->nu; u++)
+        d->cluster[s->offset + (size_t)v * s->nu + u] =
+            (uint32_t)(nc + (size_t)(v / CV_DISPLAY_TILE) * (size_t)tu + (size_t)(u / CV_DISPLAY_TILE));
+    nc += (size_t)tu * (size_t)tv;
+  }
+  d->n_clusters = nc;
   return CV_OK;
 }
 
@@ -884,6 +900,7 @@ void cv_display_destroy(cv_display *d) {
   }
   free(d->surfaces);
   free(d->patches);
+  free(d->cluster);
   free(d->refl);
   free(d->proj);
   free(d->env);
@@ -913,4 +930,6 @@ void cv_display_scatter_system(const cv_display *d, const cv_ffmatrix *F, cv_sca
   out->refl = d->refl;
   out->proj = d->proj;
   out->env = d->env;
+  out->cluster = d->cluster;
+  out->n_clusters = d->n_clusters;
 }

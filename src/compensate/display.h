@@ -144,7 +144,14 @@ typedef struct cv_display {
   float *refl;                /* 3 n: M_i */
   float *proj;                /* n: F_i projector-to-patch factor (> 0) */
   float *env;                 /* 3 n: E_i */
+  /* n: tile of each patch (CV_DISPLAY_TILE x CV_DISPLAY_TILE patches of one
+   * surface's grid), the clusters of K's block compression (hmatrix.h). */
+  uint32_t *cluster;
+  size_t n_clusters;
 } cv_display;
+
+/* Edge of the square patch tiles that group patches for compression. */
+#define CV_DISPLAY_TILE 8
 
 /* Loads and validates a display description.  *out owned by the caller
  * (cv_display_destroy).  On failure returns CV_ERR_IO (unreadable),

@@ -23,6 +23,8 @@
  * (float values), 5 ms (half values, the copy then fits the last-level cache). */
 #include "compensate/solve.h"
 
+#include "compensate/hmatrix.h"
+
 #include "io/exr.h"
 
 #include <math.h>
@@ -61,6 +63,12 @@ struct cv_scatter_workspace {
   uint16_t *hval, *hcval;
   float *h2f;           /* 65536: half -> float table (portable kernels) */
   double inv_scale;
+  /* CV_SCATTER_WS_COMPRESS, when it paid: the block low-rank form of F that
+   * every product then uses; ek = max_i,c M_i sum_j |F_ji - F~_ji|. */
+  cv_hmatrix *hm;
+  cv_hmatrix_info hinfo;
+  double ek;
+  cv_scatter_model model;
 };
 
 const char *cv_scatter_solver_name(cv_scatter_solver s) {
@@ -298,6 +306,10 @@ __attribute__((target("avx2,fma,f16c"))) static void row_half_avx2(
 
 /* g_i = sum_j F_ji x_j for the three channels (no M_i). */
 static void ws_gather(cv_scatter_workspace *w, const double *x, double *g) {
+  if (w->hm) {
+    cv_hmatrix_gather(w->hm, x, g);
+    return;
+  }
   const size_t n = w->n;
   double *xr = w->xp, *xg = w->xp + n, *xb = w->xp + 2 * n;
   const float *val = w->s.F->val;
@@ -414,6 +426,7 @@ void cv_scatter_workspace_destroy(cv_scatter_workspace *w) {
   free(w->hval);
   free(w->hcval);
   free(w->h2f);
+  cv_hmatrix_destroy(w->hm);
   free(w);
 }
 
@@ -469,25 +482,12 @@ static int validate(const cv_scatter_system *s, cv_err *err) {
   return CV_OK;
 }
 
-int cv_scatter_workspace_create(const cv_scatter_system *s, cv_scatter_workspace **out,
-                                cv_err *err) {
-  return cv_scatter_workspace_create_ex(s, 0, out, err);
-}
-
-int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
-                                   cv_scatter_workspace **out, cv_err *err) {
-  if (!out) return cv_err_set(err, CV_ERR_INVALID, "scatter workspace: out is NULL");
-  *out = NULL;
-  int st = validate(s, err);
-  if (st) return st;
-  cv_scatter_workspace *w = calloc(1, sizeof *w);
-  if (!w) return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory");
-  const cv_ffmatrix *F = s->F;
-  const size_t n = s->n, n3 = 3 * n, nnz = F->nnz;
-  w->s = *s;
-  w->n = n;
-  w->nnz = nnz;
-
+/* The plain storage of F: runs of consecutive senders per row, a transposed
+ * copy for sparse updates, and (CV_SCATTER_WS_HALF) half-precision copies.
+ * On failure the caller destroys w. */
+static int build_plain(cv_scatter_workspace *w, unsigned flags, cv_err *err) {
+  const cv_ffmatrix *F = w->s.F;
+  const size_t n = w->n, nnz = w->nnz;
   /* Runs of consecutive senders in each row. */
   size_t nruns = 0;
   for (size_t k = 0, i = 0; i < n; i++)
@@ -501,25 +501,10 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
   w->crun_off = calloc(n + 1, sizeof *w->crun_off);
   size_t *cursor = malloc((n + 1) * sizeof *cursor);
   uint32_t *last = malloc((n + 1) * sizeof *last);
-  w->a = malloc(n3 * sizeof *w->a);
-  w->e = malloc(n3 * sizeof *w->e);
-  double **vecs[] = {&w->xp, &w->R, &w->B, &w->g, &w->U, &w->T, &w->T2, &w->D, &w->B_prev,
-                     &w->D_prev};
-  int ok = w->rrun_off && w->rrun && w->cval_off && w->cval && w->crun_off && cursor && last &&
-           w->a && w->e;
-  for (size_t v = 0; v < sizeof vecs / sizeof vecs[0]; v++) {
-    *vecs[v] = calloc(n3, sizeof **vecs[v]);
-    ok = ok && *vecs[v];
-  }
-  w->active = calloc(n, 1);
-  w->alist = malloc(n * sizeof *w->alist);
-  w->clip = calloc(n3, 1);
-  w->clip_prev = calloc(n3, 1);
-  ok = ok && w->active && w->alist && w->clip && w->clip_prev;
+  int ok = w->rrun_off && w->rrun && w->cval_off && w->cval && w->crun_off && cursor && last;
   if (!ok) {
     free(cursor);
     free(last);
-    cv_scatter_workspace_destroy(w);
     return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory (%zu nonzeros)", nnz);
   }
   nruns = 0;
@@ -551,14 +536,12 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
   if (!w->crun) {
     free(cursor);
     free(last);
-    cv_scatter_workspace_destroy(w);
     return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory");
   }
   size_t *rcur = malloc((n + 1) * sizeof *rcur);
   if (!rcur) {
     free(cursor);
     free(last);
-    cv_scatter_workspace_destroy(w);
     return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory");
   }
   for (size_t j = 0; j < n; j++) {
@@ -595,8 +578,7 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
     w->hcval = malloc((nnz + 1) * sizeof *w->hcval);
     w->h2f = malloc(65536 * sizeof *w->h2f);
     if (!w->hval || !w->hcval || !w->h2f) {
-      cv_scatter_workspace_destroy(w);
-      return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory (half copies)");
+        return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory (half copies)");
     }
     for (size_t k = 0; k < nnz; k++) {
       /* half storage: values are finite, >= 0 and at most 65504 after scaling */
@@ -612,6 +594,91 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
               __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c");
 #endif
   }
+
+  return CV_OK;
+}
+
+int cv_scatter_workspace_create(const cv_scatter_system *s, cv_scatter_workspace **out,
+                                cv_err *err) {
+  return cv_scatter_workspace_create_ex(s, 0, out, err);
+}
+
+int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
+                                   cv_scatter_workspace **out, cv_err *err) {
+  return cv_scatter_workspace_create_tol(s, flags, CV_SCATTER_COMPRESS_TOL, out, err);
+}
+
+int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, double tol,
+                                    cv_scatter_workspace **out, cv_err *err) {
+  if (!out) return cv_err_set(err, CV_ERR_INVALID, "scatter workspace: out is NULL");
+  *out = NULL;
+  int st = validate(s, err);
+  if (st) return st;
+  cv_scatter_workspace *w = calloc(1, sizeof *w);
+  if (!w) return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory");
+  const cv_ffmatrix *F = s->F;
+  const size_t n = s->n, n3 = 3 * n, nnz = F->nnz;
+  w->s = *s;
+  w->n = n;
+  w->nnz = nnz;
+
+  w->a = malloc(n3 * sizeof *w->a);
+  w->e = malloc(n3 * sizeof *w->e);
+  double **vecs[] = {&w->xp, &w->R, &w->B, &w->g, &w->U, &w->T, &w->T2, &w->D, &w->B_prev,
+                     &w->D_prev};
+  int ok = w->a && w->e;
+  for (size_t v = 0; v < sizeof vecs / sizeof vecs[0]; v++) {
+    *vecs[v] = calloc(n3, sizeof **vecs[v]);
+    ok = ok && *vecs[v];
+  }
+  w->active = calloc(n, 1);
+  w->alist = malloc(n * sizeof *w->alist);
+  w->clip = calloc(n3, 1);
+  w->clip_prev = calloc(n3, 1);
+  ok = ok && w->active && w->alist && w->clip && w->clip_prev;
+  if (!ok) {
+    cv_scatter_workspace_destroy(w);
+    return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory (%zu patches)", n);
+  }
+
+  /* Plain storage bytes (what compression competes against). */
+  w->model.storage = (flags & CV_SCATTER_WS_HALF) ? "half" : "float";
+  w->model.bytes = (double)nnz * ((flags & CV_SCATTER_WS_HALF) ? 2 : 4);
+  w->model.source_bytes = w->model.bytes;
+  if ((flags & CV_SCATTER_WS_COMPRESS) && s->cluster && s->n_clusters > 0 && nnz > 0) {
+    /* Block low-rank form, kept only when it takes at most half the bytes of
+     * the plain storage (else the products would not get faster). */
+    st = cv_hmatrix_build(F, s->cluster, s->n_clusters, tol, &w->hm, &w->hinfo, err);
+    if (st) {
+      cv_scatter_workspace_destroy(w);
+      return st;
+    }
+    const double hb = 4.0 * (double)w->hinfo.stored_values;
+    w->model.compress_tried = 1;
+    w->model.compressed_bytes = hb;
+    if (hb <= 0.5 * w->model.bytes) {
+      w->model.storage = "block low-rank";
+      w->model.bytes = hb;
+      const double *re = cv_hmatrix_row_error(w->hm);
+      double ek = 0;
+      for (size_t i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++)
+          if (re[i] * s->refl[3 * i + c] > ek) ek = re[i] * s->refl[3 * i + c];
+      w->ek = ek;
+    } else {
+      cv_hmatrix_destroy(w->hm);
+      w->hm = NULL;
+    }
+  }
+  if (!w->hm) {
+    st = build_plain(w, flags, err);
+    if (st) {
+      cv_scatter_workspace_destroy(w);
+      return st;
+    }
+  }
+  w->model.compress_info = w->hinfo;
+  w->model.error_bound = w->hm ? w->ek : (w->half ? ldexp(1.0, -11) : 0);
 
   /* a = F M, e = E M, ||K||_inf = max_i M_i sum_j F_ji. */
   double qinf = 0;
@@ -635,6 +702,12 @@ int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
 }
 
 double cv_scatter_workspace_rho(const cv_scatter_workspace *w) { return w ? w->rho : -1; }
+
+int cv_scatter_workspace_get_model(const cv_scatter_workspace *w, cv_scatter_model *out) {
+  if (!w || !out) return CV_ERR_INVALID;
+  *out = w->model;
+  return CV_OK;
+}
 double cv_scatter_workspace_norm_inf(const cv_scatter_workspace *w) { return w ? w->qinf : -1; }
 
 /* ---- Solvers -------------------------------------------------------------- */
@@ -686,7 +759,14 @@ static int solve_exact(cv_scatter_workspace *w, float *I, cv_scatter_stats *st) 
   st->iterations = 1;
   st->products = 1;
   st->exit = CV_SCATTER_EXIT_CONVERGED;
-  if (st->clipped_channels == 0) st->rms_error = st->max_error = 0;
+  if (w->hm) {
+    /* D errs by at most ek max|R|; through the physics B by 1 / (1 - q) that. */
+    double rmax = 0;
+    for (size_t p = 0; p < n3; p++) rmax = fabs(w->R[p]) > rmax ? fabs(w->R[p]) : rmax;
+    st->residual = w->ek * rmax / (w->qinf < 0.999 ? 1 - w->qinf : 1e-3);
+  }
+  /* Unclipped: R is displayed exactly (compressed: unknown within residual). */
+  if (st->clipped_channels == 0 && !w->hm) st->rms_error = st->max_error = 0;
   return CV_OK;
 }
 
@@ -833,7 +913,11 @@ static int solve_bounded(cv_scatter_workspace *w, const cv_scatter_opts *o, int 
     }
     st->iterations = it;
     /* Half storage: K_h = K + dK, |dK| <= 2^-11 K, adds ||dK B|| / (1 - q). */
-    st->residual = fac * maxd + (w->half ? fac * ldexp(bmax, -11) : 0);
+    st->residual = fac * maxd;
+    if (w->hm)
+      st->residual += w->ek * bmax / (1 - (w->qinf < 0.999 ? w->qinf : w->rho));
+    else if (w->half)
+      st->residual += fac * ldexp(bmax, -11);
     if (fac * maxd <= o->tol) {
       st->exit = CV_SCATTER_EXIT_CONVERGED;
       break;
@@ -844,6 +928,10 @@ static int solve_bounded(cv_scatter_workspace *w, const cv_scatter_opts *o, int 
       break;
     }
     /* g += F-gather of the change: from the changed senders when cheaper. */
+    if (w->hm) {
+      st->products += cv_hmatrix_gather_add_active(w->hm, w->active, U, g);
+      continue;
+    }
     size_t na = 0, cost = 0;
     for (size_t j = 0; j < n; j++)
       if (w->active[j]) {

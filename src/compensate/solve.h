@@ -144,6 +144,27 @@ typedef struct cv_scatter_workspace cv_scatter_workspace;
 #define CV_SCATTER_WS_HALF 1u
 /* Flag: portable (non-SIMD) kernels even where AVX2/F16C exist (for tests). */
 #define CV_SCATTER_WS_PORTABLE 2u
+/* Flag: compress F into dense near-field and low-rank far-field blocks
+ * (hmatrix.h) when the system has patch clusters (cv_display_scatter_system
+ * gives tiles of 8 x 8 patches) and the compressed form takes at most half the
+ * bytes; every product then errs by at most tol (default
+ * CV_SCATTER_COMPRESS_TOL) times each row's sum, which the solvers add to
+ * stats.residual.  Otherwise the flag is ignored (see the model). */
+#define CV_SCATTER_WS_COMPRESS 4u
+#define CV_SCATTER_COMPRESS_TOL 1e-3
+
+#include "compensate/hmatrix.h"
+
+/* Which storage of K the workspace picked, and what it costs. */
+typedef struct cv_scatter_model {
+  const char *storage;       /* "float", "half" or "block low-rank" */
+  double bytes;              /* bytes of matrix values a product reads */
+  double source_bytes;       /* the same for the plain (float or half) storage */
+  int compress_tried;        /* CV_SCATTER_WS_COMPRESS and clusters given */
+  double compressed_bytes;   /* what the compressed form took (also if rejected) */
+  cv_hmatrix_info compress_info;
+  double error_bound;        /* bound on |K~ x - K x| / max|x| of a product */
+} cv_scatter_model;
 
 /* Validates s and builds the workspace; *out owned by the caller (destroy).
  * Errors (err names the field and index): CV_ERR_INVALID (NULL, n == 0,
@@ -155,7 +176,12 @@ int cv_scatter_workspace_create(const cv_scatter_system *s,
 /* As cv_scatter_workspace_create, with flags (CV_SCATTER_WS_*, or-ed). */
 int cv_scatter_workspace_create_ex(const cv_scatter_system *s, unsigned flags,
                                    cv_scatter_workspace **out, cv_err *err);
+/* As create_ex with an explicit compression tolerance in (0, 0.5). */
+int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, double tol,
+                                    cv_scatter_workspace **out, cv_err *err);
 void cv_scatter_workspace_destroy(cv_scatter_workspace *w);
+/* The storage model the workspace picked.  CV_ERR_INVALID on NULL. */
+int cv_scatter_workspace_get_model(const cv_scatter_workspace *w, cv_scatter_model *out);
 
 /* The spectral radius estimate and ||K||_inf (max row sum over channels)
  * computed at creation. */

@@ -43,6 +43,11 @@ typedef struct cv_scatter_system {
   const float *refl;       /* 3n: M_i (r, g, b) in [0, 1] */
   const float *proj;       /* n: F_i projector-to-patch factor (> 0) */
   const float *env;        /* 3n: E_i (r, g, b) >= 0 */
+  /* Optional (NULL when unknown): groups of nearby patches, cluster[i] in
+   * [0, n_clusters), used only to compress K (hmatrix.h,
+   * CV_SCATTER_WS_COMPRESS). */
+  const uint32_t *cluster;
+  size_t n_clusters;
 } cv_scatter_system;
 
 /* y = K x for 3-channel vectors (x, y: 3n, interleaved per patch). */

@@ -79,15 +79,19 @@ static void errors(const cv_scatter_system *s, const float *I, const float *T, d
 }
 
 int main(int argc, char **argv) {
-  int sizes[8] = {16, 32, 64}, nsizes = 3, reps = 7;
+  int sizes[8] = {16, 32, 64}, nsizes = 3, reps = 7, storage_mask = 7;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--sizes") && i + 1 < argc) {
       nsizes = 0;
       for (char *t = strtok(argv[++i], ","); t && nsizes < 8; t = strtok(NULL, ",")) sizes[nsizes++] = atoi(t);
+    } else if (!strcmp(argv[i], "--storage") && i + 1 < argc) {
+      storage_mask = 0;
+      for (char *t = strtok(argv[++i], ","); t; t = strtok(NULL, ","))
+        storage_mask |= !strcmp(t, "float") ? 1 : !strcmp(t, "half") ? 2 : !strcmp(t, "low-rank") ? 4 : 0;
     } else if (!strcmp(argv[i], "--reps") && i + 1 < argc) {
       reps = atoi(argv[++i]);
     } else {
-      fprintf(stderr, "usage: bench_compensate [--sizes 16,32,64] [--reps N]\n");
+      fprintf(stderr, "usage: bench_compensate [--sizes 16,32,64] [--storage float,half,low-rank] [--reps N]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
@@ -124,11 +128,35 @@ int main(int argc, char **argv) {
       cv_display_scatter_system(d, F, &sys);
       size_t n = sys.n;
       float *T = malloc(3 * n * sizeof(float)), *I = malloc(3 * n * sizeof(float));
-      for (int half = 0; half < 2; half++) {
+      for (int mode = 0; mode < 3; mode++) {
+        if (!(storage_mask & (1 << mode))) continue;
+        static const char *mode_name[] = {"float", "half", "low-rank"};
+        static const unsigned mode_flags[] = {0, CV_SCATTER_WS_HALF, CV_SCATTER_WS_COMPRESS};
+        const char *storage = mode_name[mode];
         cv_scatter_workspace *ws;
-        if (cv_scatter_workspace_create_ex(&sys, half ? CV_SCATTER_WS_HALF : 0, &ws, &err)) {
+        double tb = cv_now_seconds();
+        if (cv_scatter_workspace_create_ex(&sys, mode_flags[mode], &ws, &err)) {
           fprintf(stderr, "%s\n", err.msg);
           return 1;
+        }
+        cv_scatter_model model;
+        cv_scatter_workspace_get_model(ws, &model);
+        fprintf(stderr, "  %s: picked %s, %.1f MB of values (plain %.1f MB), workspace %.2f s",
+                storage, model.storage, model.bytes / 1e6, model.source_bytes / 1e6,
+                cv_now_seconds() - tb);
+        if (model.compress_tried)
+          fprintf(stderr, "; %zu blocks: %zu low-rank (mean rank %.1f, max %d), %zu dense; "
+                  "max row error %.2e (%.2e of the row)", model.compress_info.n_blocks,
+                  model.compress_info.n_lowrank, model.compress_info.mean_rank,
+                  model.compress_info.max_rank, model.compress_info.n_dense,
+                  model.compress_info.max_row_error, model.compress_info.max_rel_row_error);
+        fprintf(stderr, "\n");
+        if (mode == 2 && strcmp(model.storage, "block low-rank")) {
+          printf("| %s | %d | low-rank | - | - | not picked: %.1f MB compressed against %.1f MB |  |  |  |  |\n",
+                 cave ? "cave5" : "two-sided wall", sizes[si], model.compressed_bytes / 1e6,
+                 model.source_bytes / 1e6);
+          cv_scatter_workspace_destroy(ws);
+          continue;
         }
         double rho = cv_scatter_workspace_rho(ws);
         run runs[10] = {{CV_SCATTER_EXACT, 0}, {CV_SCATTER_BOUNDED, 0}, {CV_SCATTER_AUTO, 0}};
@@ -159,13 +187,13 @@ int main(int argc, char **argv) {
             else snprintf(name, sizeof name, "%s", cv_scatter_solver_name(runs[r].s));
             if (!ok) {
               printf("| %s | %d | %s | %s | %s | refused: %s |  |  |  |  |\n", cave ? "cave5" : "two-sided wall",
-                     sizes[si], half ? "half" : "float", name, band ? "band" : "smooth", err.msg);
+                     sizes[si], storage, name, band ? "band" : "smooth", err.msg);
               continue;
             }
             double rms, mx;
             errors(&sys, I, T, &rms, &mx);
             printf("| %s | %d | %s | %s | %s | %.0f | %d | %zu | %.5f | %.5f |\n",
-                   cave ? "cave5" : "two-sided wall", sizes[si], half ? "half" : "float", name,
+                   cave ? "cave5" : "two-sided wall", sizes[si], storage, name,
                    band ? "band" : "smooth", 1.0 / bench_median(t, k), st.iterations, st.clipped_patches, rms, mx);
             fflush(stdout);
           }
