@@ -13,6 +13,7 @@
 #include "compensate/display.h"
 #include "compensate/formfactor.h"
 #include "compensate/resample.h"
+#include "compensate/seam.h"
 #include "compensate/solve.h"
 #include "core/progress.h"
 #include "io/exr.h"
@@ -25,7 +26,7 @@ static void help(FILE *f) {
           "                       [--right R.exr ...] [--solver auto|jacobi|exact|bounded]\n"
           "                       [--levels H] [--time-ms T] [--threshold T] [--drop F]\n"
           "                       [--storage auto|float|half|low-rank] -o I.exr [--report]\n"
-          "                       [--quiet]\n\n"
+          "                       [--seam-budget E|off] [--quiet]\n\n"
           "Computes projector images that cancel the light the screens scatter onto each\n"
           "other, so that every surface shows what its image shows without scattering.\n\n"
           "  --display FILE    display description (configs/displays/*.json)\n"
@@ -45,6 +46,11 @@ static void help(FILE *f) {
           "                    1e-3 of its sum), half (half precision, good to about 1e-4),\n"
           "                    float, or auto (default: low-rank where it takes at most half\n"
           "                    the bytes, else float); --half = --storage half\n"
+          "  --seam-budget E   RMS error of the up-sampled correction allowed within 0.5 m\n"
+          "                    of a seam, as estimated from the patch solution (default\n"
+          "                    0.01, about the Weber threshold); above it the patches are\n"
+          "                    graded towards the seams (up to 3 rounds) and solved again;\n"
+          "                    'off' keeps the display's patches\n"
           "  --drop F          form-factor sparsification: share of each row's energy that\n"
           "                    may be dropped (default 1e-3)\n"
           "  -o I.exr          output: atlas in, atlas out; otherwise I_<surface>.exr per\n"
@@ -88,7 +94,7 @@ int cmd_compensate(int argc, char **argv) {
   int n_img = 0, n_right = 0, report = 0, quiet = 0, half = 0, compress = 1;
   cv_scatter_opts opts;
   cv_scatter_opts_default(&opts);
-  double drop = -1;
+  double drop = -1, seam_budget = 0.01;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -100,6 +106,11 @@ int cmd_compensate(int argc, char **argv) {
       quiet = 1;
     } else if (!strcmp(a, "--half")) {
       half = 1;
+    } else if (!strcmp(a, "--seam-budget") && v) {
+      i++;
+      if (!strcmp(v, "off")) seam_budget = 0;
+      else if (cli_parse_double(v, &seam_budget) || !(seam_budget > 0 && seam_budget < 1))
+        return cli_fail("compensate", 2, "--seam-budget: expected 0 < E < 1 or off, got '%s'", v);
     } else if (!strcmp(a, "--storage") && v) {
       i++;
       if (!strcmp(v, "auto")) half = 0, compress = 1;
@@ -189,6 +200,13 @@ int cmd_compensate(int argc, char **argv) {
                   img_path[0], w0, ns);
     goto done;
   }
+  /* Seam refinement rounds: patches graded ever more strongly towards the
+   * seams while the estimated seam error exceeds the budget. */
+  static const double grading[] = {3, 8, 20};
+  int refine_round = 0;
+  cv_seam_estimate seam_est;
+  memset(&seam_est, 0, sizeof seam_est);
+refine_again:
   for (int e = 0; e < eyes; e++) {
     R[e] = calloc(3 * n, sizeof(double));
     if (!R[e]) goto nomem;
@@ -256,6 +274,41 @@ int cmd_compensate(int argc, char **argv) {
     T[k] = eyes == 2 ? 0.5 * ((double)Tf[0][k] + Tf[1][k]) : Tf[0][k];
     delta[k] = r - I[k];
   }
+  if (seam_budget > 0 && ns > 1) {
+    if (cv_seam_estimate_error(d, delta, 0.5, &seam_est)) goto nomem;
+    if (!quiet)
+      printf("seam error estimate of the up-sampled correction within 0.5 m of a seam: RMS %.4f, "
+             "max %.4f (budget %.4f RMS)%s\n", seam_est.seam_rms, seam_est.seam_max, seam_budget,
+             refine_round ? " after grading" : "");
+    int nr = 0;
+    if (seam_est.seam_rms > seam_budget && refine_round < 3) {
+      if (cv_display_refine_seams(d, grading[refine_round], 0.15, &nr)) goto nomem;
+      if (nr) {
+        if (!quiet)
+          printf("  over budget: patches graded towards the seams (strength %g, width 0.15), "
+                 "solving again\n", grading[refine_round]);
+        refine_round++;
+        for (int e = 0; e < 2; e++) {
+          free(R[e]);
+          free(Tf[e]);
+          R[e] = NULL;
+          Tf[e] = NULL;
+        }
+        free(I);
+        free(I0);
+        free(T);
+        free(B);
+        free(delta);
+        I = I0 = NULL;
+        T = B = delta = NULL;
+        cv_scatter_workspace_destroy(ws);
+        ws = NULL;
+        cv_ffmatrix_destroy(F);
+        F = NULL;
+        goto refine_again;
+      }
+    }
+  }
   /* Full resolution: equation 7 per surface and eye. */
   uint64_t clamped = 0;
   for (int e = 0; e < eyes; e++) {
@@ -319,13 +372,14 @@ int cmd_compensate(int argc, char **argv) {
     /* Luminance compensated = (uncompensated - compensated) / uncompensated,
      * area-weighted, over all patches and over those within 0.5 m of
      * another surface (the seams). */
-    double all_u = 0, all_c = 0, seam_u = 0, seam_c = 0;
+    double all_u = 0, all_c = 0, seam_u = 0, seam_c = 0, peak = 0;
     size_t seam_n = 0;
     for (size_t i = 0; i < n; i++) {
       const cv_patch *p = cv_display_patch(d, i);
       double a = p->area, yu = a * lum(Bu + 3 * i), yc = a * lum(B + 3 * i);
       all_u += yu;
       all_c += yc;
+      if (yu > 0 && (yu - yc) / yu > peak) peak = (yu - yc) / yu;
       int near = 0;
       for (size_t j = 0; j < n && !near; j++) {
         const cv_patch *q = cv_display_patch(d, j);
@@ -344,9 +398,10 @@ int cmd_compensate(int argc, char **argv) {
     printf("  %-14s displayed RMS error %.5f, max %.5f\n", "uncompensated", un.rms, un.max);
     printf("  %-14s displayed RMS error %.5f, max %.5f\n", "compensated", co.rms, co.max);
     if (seam_n)
-      printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches)\n",
+      printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches), "
+             "%.2f%% on the most compensated patch\n",
              all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0,
-             seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n);
+             seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n, 100 * peak);
     else
       printf("  luminance compensated: %.2f%% overall (no seams: a single surface)\n",
              all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0);
@@ -354,6 +409,9 @@ int cmd_compensate(int argc, char **argv) {
            "%.2f ms\n",
            cv_scatter_solver_name(st.solver), st.stereo ? " (stereo average)" : "", st.iterations,
            st.clipped_patches, st.clipped_channels, st.rho, st.ms);
+    if (seam_budget > 0 && ns > 1)
+      printf("  seam refinement: %s (estimated seam RMS %.4f, budget %.4f)\n",
+             refine_round ? "graded towards the seams" : "not needed", seam_est.seam_rms, seam_budget);
     printf("  storage of K: %s, %.2f MB read per product (plain %.2f MB), product error <= %.2e x max|x|\n",
            model.storage, model.bytes / 1e6, model.source_bytes / 1e6, model.error_bound);
     printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",

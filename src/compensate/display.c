@@ -933,3 +933,38 @@ void cv_display_scatter_system(const cv_display *d, const cv_ffmatrix *F, cv_sca
   out->cluster = d->cluster;
   out->n_clusters = d->n_clusters;
 }
+
+unsigned cv_display_seam_edges(const cv_display *d, size_t k) {
+  if (!d || k >= d->n_surfaces) return 0;
+  return find_seams(d, k);
+}
+
+int cv_display_refine_seams(cv_display *d, double strength, double width, int *n_regraded) {
+  if (n_regraded) *n_regraded = 0;
+  if (!d || !(strength > 0 && strength <= 100) || !(width >= 0.01 && width <= 1))
+    return CV_ERR_INVALID;
+  int nr = 0;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    cv_display_surface *s = &d->surfaces[k];
+    if (s->refine && !s->refine_auto) continue; /* explicit edges: the config decides */
+    s->refine = 1;
+    s->refine_auto = 1;
+    s->refine_strength = strength;
+    s->refine_width = width;
+    nr++;
+  }
+  if (!nr) return CV_OK;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    free(d->surfaces[k].edge_u);
+    free(d->surfaces[k].edge_v);
+    d->surfaces[k].edge_u = d->surfaces[k].edge_v = NULL;
+  }
+  free(d->patches);
+  d->patches = NULL;
+  if (build_patches(d)) return CV_ERR_NOMEM;
+  ctx x = {.file = d->source};
+  build_projector_factors(d, &x);
+  if (x.count) return x.first_status ? x.first_status : CV_ERR_NOMEM;
+  if (n_regraded) *n_regraded = nr;
+  return CV_OK;
+}

@@ -182,6 +182,18 @@ const cv_patch *cv_display_patch(const cv_display *d, size_t i);
 const cv_display_surface *cv_display_surface_at(const cv_display *d, size_t k);
 /* Index of the surface with this name, or -1. */
 int cv_display_find_surface(const cv_display *d, const char *name);
+
+/* Edges of surface k (CV_EDGE_* bits) that touch another surface (seams). */
+unsigned cv_display_seam_edges(const cv_display *d, size_t k);
+
+/* Grades the patches of every surface without explicit "refine" edges
+ * towards its seams (found automatically), density 1 + strength
+ * exp(-d / width) as for "refine": the patch counts stay, so per-patch
+ * arrays keep their size, but patches, projector factors and clusters are
+ * rebuilt: form factors and workspaces built before must be rebuilt.
+ * *n_regraded (may be NULL): surfaces regraded.  CV_ERR_INVALID (strength
+ * outside (0, 100], width outside [0.01, 1]), CV_ERR_NOMEM. */
+int cv_display_refine_seams(cv_display *d, double strength, double width, int *n_regraded);
 /* Patch index of (surface k, u, v). */
 size_t cv_display_patch_index(const cv_display *d, size_t k, int u, int v);
 

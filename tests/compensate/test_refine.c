@@ -16,6 +16,7 @@
 #include "compensate/display.h"
 #include "compensate/formfactor.h"
 #include "compensate/resample.h"
+#include "compensate/seam.h"
 #include "compensate/solve.h"
 
 #define W 192 /* pixels per wall side */
@@ -36,8 +37,11 @@ static cv_display *walls(int np, int refine) {
   return d;
 }
 
-/* Full-resolution projector images (both walls) for white input. */
-static void compensate(cv_display *d, cv_image *out[2]) {
+/* Full-resolution projector images (both walls) for white input; the
+ * patch correction delta (3n) is kept when want_delta is non-NULL. */
+static void compensate_delta(cv_display *d, cv_image *out[2], double **want_delta);
+static void compensate(cv_display *d, cv_image *out[2]) { compensate_delta(d, out, NULL); }
+static void compensate_delta(cv_display *d, cv_image *out[2], double **want_delta) {
   cv_ff_params fp;
   cv_ff_params_default(&fp);
   fp.quiet = 1;
@@ -69,6 +73,10 @@ static void compensate(cv_display *d, cv_image *out[2]) {
     free(IP);
   }
   cv_image_destroy(white);
+  if (want_delta) {
+    *want_delta = malloc(3 * n * sizeof(double));
+    for (size_t i = 0; i < 3 * n; i++) (*want_delta)[i] = 1.0 - I[i]; /* down(white) - I */
+  }
   free(T);
   free(I);
   cv_scatter_workspace_destroy(ws);
@@ -135,6 +143,71 @@ static void test_refinement_helps(void **state) {
   cv_display_destroy(grad);
 }
 
+/* Largest per-pixel difference within 0.5 m of the seam. */
+static double seam_max_diff(cv_image *a[2], cv_image *b[2]) {
+  double m = 0;
+  for (int k = 0; k < 2; k++)
+    for (int y = 0; y < W; y++)
+      for (int x = 0; x < W; x++) {
+        int near = k == 0 ? x >= 3 * W / 4 : x < W / 4;
+        double d = fabs(cv_image_at(a[k], x, y)[0] - cv_image_at(b[k], x, y)[0]);
+        if (near && d > m) m = d;
+      }
+  return m;
+}
+
+/* The estimate from the patch solution alone tracks the real error against
+ * a fine solve (within a factor of 3), drops with graded patches, and
+ * cv_display_refine_seams grades exactly as the JSON "refine": "auto". */
+static void test_seam_estimate(void **state) {
+  (void)state;
+  cv_display *fine = walls(48, 0), *uni = walls(12, 0), *grad = walls(12, 0), *json = walls(12, 1);
+  int nr = 0;
+  assert_int_equal(cv_display_refine_seams(grad, 4, 0.12, &nr), CV_OK);
+  assert_int_equal(nr, 2);
+  for (size_t k = 0; k < 2; k++)
+    for (int i = 0; i <= 12; i++) {
+      assert_true(fabs(cv_display_surface_at(grad, k)->edge_u[i] -
+                       cv_display_surface_at(json, k)->edge_u[i]) < 1e-12);
+      assert_true(fabs(cv_display_surface_at(grad, k)->edge_v[i] -
+                       cv_display_surface_at(json, k)->edge_v[i]) < 1e-12);
+    }
+  for (size_t i = 0; i < cv_display_patch_count(grad); i++)
+    assert_true(cv_display_patch(grad, i)->c[0] == cv_display_patch(json, i)->c[0]);
+  assert_int_equal(cv_display_refine_seams(grad, 0, 0.12, NULL), CV_ERR_INVALID);
+
+  cv_image *rf[2], *ru[2], *rg[2];
+  double *du, *dg;
+  compensate(fine, rf);
+  compensate_delta(uni, ru, &du);
+  compensate_delta(grad, rg, &dg);
+  cv_seam_estimate eu, eg;
+  assert_int_equal(cv_seam_estimate_error(uni, du, 0.5, &eu), CV_OK);
+  assert_int_equal(cv_seam_estimate_error(grad, dg, 0.5, &eg), CV_OK);
+  const double mu = seam_max_diff(ru, rf), mg = seam_max_diff(rg, rf);
+  printf("seam error within 0.5 m, estimated / measured against a 48 x 48 solve: uniform %.4f / "
+         "%.4f, graded %.4f / %.4f (elsewhere estimated %.4f / %.4f; %zu seam patches)\n",
+         eu.seam_max, mu, eg.seam_max, mg, eu.rest_max, eg.rest_max, eu.seam_patches);
+  /* walls 2.83 m wide: centres at 1/24 and 3/24 of the width lie within 0.5 m */
+  assert_true(eu.seam_patches == 2 * 12 * 2);
+  printf("  seam RMS estimate: uniform %.4f, graded %.4f\n", eu.seam_rms, eg.seam_rms);
+  assert_true(eu.seam_max > mu / 3 && eu.seam_max < 3 * mu);
+  assert_true(eg.seam_rms < 0.7 * eu.seam_rms);
+  assert_true(eg.seam_max < eu.seam_max);
+  assert_true(eu.rest_max < eu.seam_max);
+  free(du);
+  free(dg);
+  for (int k = 0; k < 2; k++) {
+    cv_image_destroy(rf[k]);
+    cv_image_destroy(ru[k]);
+    cv_image_destroy(rg[k]);
+  }
+  cv_display_destroy(fine);
+  cv_display_destroy(uni);
+  cv_display_destroy(grad);
+  cv_display_destroy(json);
+}
+
 /* Over graded cells, a linear image's patch means are the line at the cell
  * midpoints (area means of a linear function) and bilinear up-sampling
  * between the centres reproduces the line. */
@@ -166,6 +239,7 @@ int main(void) {
       cmocka_unit_test(test_seams_found),
       cmocka_unit_test(test_graded_resampling),
       cmocka_unit_test(test_refinement_helps),
+      cmocka_unit_test(test_seam_estimate),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
