@@ -1,0 +1,70 @@
+/* CAVE configuration: the projection walls (rectangles pa lower-left, pb
+ * lower-right, pc upper-left, seen from inside, so (pb-pa) x (pc-pa) points
+ * towards the viewer), their pixel resolution, the stereo and tone-mapping
+ * settings of the wall-eye renderer, the default tracked pose and the mapping
+ * of CAVE coordinates into the scene.  Loaded from JSON (configs/caves/).
+ *
+ * The module is independent of tonemap: the adaptation settings are plain
+ * doubles the renderer copies into cv_adapt_params / cv_drago.
+ *
+ * JSON format (every field but "walls" optional, unknown fields are errors):
+ *   { "description": "...",
+ *     "walls": [ {"name": "front", "pa": [x,y,z], "pb": [..], "pc": [..],
+ *                 "res": [w, h]}, ... ],               1..CV_CAVE_MAX_WALLS
+ *     "eye_separation": 0.064, "supersample": 1, "foveal_deg": 10,
+ *     "lum_res": 128, "drago_bias": 0.85, "drago_ldmax": 100,
+ *     "t0_cone": 0.080, "t0_rod": 0.150, "tau_cone": 110, "tau_rod": 400,
+ *     "head": [0, 1.2, 0], "gaze": [0, 0, -1], "scene_offset": [x, y, z],
+ *     "near": 0.05, "far": 50 }
+ * Validation lists every problem with its field path, e.g. "walls[2].pc". */
+#ifndef CV_VIEW_CAVE_H
+#define CV_VIEW_CAVE_H
+
+#include "core/status.h"
+
+#define CV_CAVE_MAX_WALLS 8
+#define CV_CAVE_MAX_RES 16384
+/* Corners count as rectangular when the angle between pb-pa and pc-pa is
+ * within this many radians of 90 degrees (0.057 deg: 1.7 mm over 3 m). */
+#define CV_CAVE_RIGHT_ANGLE_TOL 1e-3
+
+typedef struct cv_wall {
+  char name[32];            /* 1..31 characters, unique */
+  double pa[3], pb[3], pc[3]; /* lower-left, lower-right, upper-left, metres */
+  int res[2];               /* pixels w, h, each 1..16384 */
+} cv_wall;
+
+typedef struct cv_cave {
+  int n_walls;
+  cv_wall walls[CV_CAVE_MAX_WALLS];
+  double eye_separation;   /* metres, default 0.064, in [0, 0.2] */
+  int supersample;         /* 1 or 2, default 1 */
+  double foveal_deg;       /* full cone angle, degrees, default 10, in (0, 180) */
+  int lum_res;             /* luminance pass size, default 128, 1..4096 */
+  double drago_bias;       /* default 0.85, in (0, 1) */
+  double drago_ldmax;      /* cd/m2, default 100, > 0 */
+  double t0_cone, t0_rod;  /* Pattanaik neural time constants, s: 0.080, 0.150 */
+  double tau_cone, tau_rod; /* Pattanaik bleaching time constants, s: 110, 400 */
+  double head[3], gaze[3]; /* default tracked pose (CAVE coordinates); gaze unit */
+  double scene_offset[3];  /* scene point = cave point + scene_offset */
+  double near, far;        /* clip planes, metres, defaults 0.05, 50; 0 < near < far */
+} cv_cave;
+
+/* Fills c with the defaults and no walls (n_walls = 0). */
+void cv_cave_defaults(cv_cave *c);
+
+/* Reads and parses the JSON file at path into *out.  Errors: CV_ERR_IO
+ * (cannot read), CV_ERR_FORMAT (not JSON), CV_ERR_CONFIG / CV_ERR_RANGE /
+ * CV_ERR_NONFINITE (the first problem's code).  err->msg then holds every
+ * problem on one line: "file: field: problem; field: problem; ..." (truncated
+ * to fit with "... (N problems)").  *out is only written on success. */
+int cv_cave_load(const char *path, cv_cave *out, cv_err *err);
+
+/* As cv_cave_load on a JSON string; name_for_errors prefixes messages. */
+int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out, cv_err *err);
+
+/* CV_ERR_RANGE naming the wall when eye is on or behind any wall's plane
+ * (signed distance along the wall normal <= 1e-6 m), CV_OK otherwise. */
+int cv_cave_check_eye(const cv_cave *c, const double eye[3], cv_err *err);
+
+#endif

@@ -1,0 +1,284 @@
+/* Unit tests of the view module (src/view): the shipped CAVE configs load
+ * with their screens facing the head; bad configs give errors naming the
+ * field (all of them when there are several); Kooima's off-axis projection
+ * maps the screen corners to the NDC square for any eye in front, is
+ * symmetric for an eye on the screen's centre normal, and agrees along the
+ * edge two walls share; eye placement for stereo. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/status.h"
+#include "view/cave.h"
+#include "view/offaxis.h"
+
+#define CAVES CV_SOURCE_DIR "/configs/caves"
+
+static double urand(double lo, double hi) { return lo + (hi - lo) * rand() / (double)RAND_MAX; }
+
+static void must_contain(const char *msg, const char *part) {
+  if (!strstr(msg, part)) {
+    fprintf(stderr, "error message lacks '%s': %s\n", part, msg);
+    fail();
+  }
+}
+
+/* --- configs ----------------------------------------------------------------- */
+
+static void test_load_shipped(void **state) {
+  (void)state;
+  cv_cave c;
+  cv_err err = {0};
+  int st = cv_cave_load(CAVES "/cave5.json", &c, &err);
+  if (st) fprintf(stderr, "%s\n", err.msg);
+  assert_int_equal(st, CV_OK);
+  assert_int_equal(c.n_walls, 5);
+  const char *names[5] = {"front", "left", "right", "floor", "ceiling"};
+  for (int i = 0; i < 5; i++) {
+    assert_string_equal(c.walls[i].name, names[i]);
+    assert_int_equal(c.walls[i].res[0], 720);
+    assert_int_equal(c.walls[i].res[1], 720);
+    /* (pb-pa) x (pc-pa) points into the cube: towards its centre */
+    const cv_wall *w = &c.walls[i];
+    double e1[3], e2[3], n[3], to[3];
+    for (int k = 0; k < 3; k++) {
+      e1[k] = w->pb[k] - w->pa[k];
+      e2[k] = w->pc[k] - w->pa[k];
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    const double centre[3] = {0, 1.5, 0};
+    double pcen[3];
+    for (int k = 0; k < 3; k++) pcen[k] = w->pa[k] + 0.5 * (e1[k] + e2[k]);
+    for (int k = 0; k < 3; k++) to[k] = centre[k] - pcen[k];
+    double nl = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    assert_true(fabs(nl - 9.0) < 1e-12);
+    assert_true(fabs((n[0] * to[0] + n[1] * to[1] + n[2] * to[2]) / nl - 1.5) < 1e-12);
+  }
+  assert_true(fabs(c.eye_separation - 0.064) < 1e-15);
+  assert_int_equal(c.supersample, 1);
+  assert_int_equal(c.lum_res, 128);
+  assert_true(fabs(c.head[1] - 1.2) < 1e-15 && fabs(c.gaze[2] + 1) < 1e-15);
+  /* the head lands on the default cabin's driver eye */
+  const double driver[3] = {-0.37, 1.02, 0};
+  for (int k = 0; k < 3; k++) assert_true(fabs(c.head[k] + c.scene_offset[k] - driver[k]) < 1e-12);
+  assert_int_equal(cv_cave_check_eye(&c, c.head, &err), CV_OK);
+
+  st = cv_cave_load(CAVES "/two-sided-wall.json", &c, &err);
+  if (st) fprintf(stderr, "%s\n", err.msg);
+  assert_int_equal(st, CV_OK);
+  assert_int_equal(c.n_walls, 2);
+  assert_string_equal(c.walls[0].name, "front");
+  assert_string_equal(c.walls[1].name, "left");
+  /* defaults */
+  assert_true(fabs(c.near - 0.05) < 1e-15 && fabs(c.far - 50) < 1e-15);
+  assert_true(fabs(c.drago_bias - 0.85) < 1e-15 && fabs(c.drago_ldmax - 100) < 1e-15);
+  assert_true(fabs(c.t0_cone - 0.08) < 1e-15 && fabs(c.tau_rod - 400) < 1e-15);
+  assert_true(fabs(c.foveal_deg - 10) < 1e-15);
+}
+
+#define FRONT "{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], \"pc\": [-1.5, 3, -1.5], \"res\": [64, 64]}"
+#define LEFT "{\"name\": \"left\", \"pa\": [-1.5, 0, 1.5], \"pb\": [-1.5, 0, -1.5], \"pc\": [-1.5, 3, 1.5], \"res\": [64, 64]}"
+
+/* Parses text, expects failure and every part in the message. */
+static void expect_bad(const char *text, const char *const *parts, int n_parts) {
+  cv_cave c;
+  cv_err err = {0};
+  int st = cv_cave_parse(text, "bad.json", &c, &err);
+  printf("  %s\n", err.msg);
+  assert_true(st < 0);
+  assert_int_equal(err.status, st);
+  must_contain(err.msg, "bad.json: ");
+  for (int i = 0; i < n_parts; i++) must_contain(err.msg, parts[i]);
+}
+
+static void test_bad_configs(void **state) {
+  (void)state;
+  cv_cave c;
+  cv_err err = {0};
+  assert_int_equal(cv_cave_parse("{\"walls\": [" FRONT ", " LEFT "]}", "ok.json", &c, &err), CV_OK);
+
+  const char *skew[] = {"walls[1].pc", "rectangle"};
+  expect_bad("{\"walls\": [" FRONT ", {\"name\": \"s\", \"pa\": [-1.5, 0, 1.5], \"pb\": [-1.5, 0, -1.5], "
+             "\"pc\": [-1.5, 3, 1.4], \"res\": [8, 8]}]}",
+             skew, 2);
+  const char *behind[] = {"head", "\"front\""};
+  expect_bad("{\"walls\": [" FRONT "], \"head\": [0, 1.2, -2]}", behind, 2);
+  const char *dup[] = {"walls[1].name", "duplicate"};
+  expect_bad("{\"walls\": [" FRONT ", " FRONT "]}", dup, 2);
+  const char *missing[] = {"walls: missing"};
+  expect_bad("{\"head\": [0, 1, 0]}", missing, 1);
+  const char *res0[] = {"walls[0].res[0]"};
+  expect_bad("{\"walls\": [{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], "
+             "\"pc\": [-1.5, 3, -1.5], \"res\": [0, 64]}]}",
+             res0, 1);
+  const char *zero[] = {"walls[0].pb", "zero area"};
+  expect_bad("{\"walls\": [{\"name\": \"z\", \"pa\": [0, 0, -1], \"pb\": [0, 0, -1], "
+             "\"pc\": [0, 1, -1], \"res\": [4, 4]}]}",
+             zero, 2);
+  const char *unknown[] = {"walls[0].resolution", "unknown field", "eye_sep: unknown field"};
+  expect_bad("{\"walls\": [{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], "
+             "\"pc\": [-1.5, 3, -1.5], \"resolution\": [4, 4]}], \"eye_sep\": 0.06}",
+             unknown, 3);
+  const char *syntax[] = {"not valid JSON"};
+  expect_bad("{\"walls\": [", syntax, 1);
+  const char *misc[] = {"supersample", "far: expected far > near", "gaze", "lum_res"};
+  expect_bad("{\"walls\": [" FRONT "], \"supersample\": 3, \"near\": 1, \"far\": 0.5, "
+             "\"gaze\": [0, 0, 0], \"lum_res\": 1.5}",
+             misc, 4);
+  const char *nearneg[] = {"near: -1 is outside"};
+  expect_bad("{\"walls\": [" FRONT "], \"near\": -1}", nearneg, 1);
+
+  /* three problems at once, all listed */
+  const char *three[] = {"walls[0].pc", "walls[1].res[1]", "walls[2].name", "[3 problems]"};
+  expect_bad("{\"walls\": [{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], "
+             "\"pc\": [-1.4, 3, -1.5], \"res\": [8, 8]}, "
+             "{\"name\": \"b\", \"pa\": [-1.5, 0, 1.5], \"pb\": [-1.5, 0, -1.5], \"pc\": [-1.5, 3, 1.5], "
+             "\"res\": [8, 20000]}, " FRONT "]}",
+             three, 4);
+  /* many problems: the line stays one line, ends with the count */
+  char big[8192] = "{\"walls\": [";
+  for (int i = 0; i < 8; i++)
+    strcat(big, i ? ", {\"name\": \"\", \"res\": [0, 0]}" : "{\"name\": \"\", \"res\": [0, 0]}");
+  strcat(big, "]}");
+  int st = cv_cave_parse(big, "big.json", &c, &err);
+  assert_true(st < 0);
+  assert_null(strchr(err.msg, '\n'));
+  must_contain(err.msg, "problems]");
+  printf("  (%zu chars) ...%s\n", strlen(err.msg), err.msg + strlen(err.msg) - 40);
+
+  /* a missing file names it */
+  st = cv_cave_load(CAVES "/nosuch.json", &c, &err);
+  assert_int_equal(st, CV_ERR_IO);
+  must_contain(err.msg, "nosuch.json");
+
+  /* an eye behind a screen, checked at run time */
+  assert_int_equal(cv_cave_load(CAVES "/cave5.json", &c, &err), CV_OK);
+  const double out_front[3] = {0, 1.5, -1.6}, on_floor[3] = {0, 0, 0}, inside[3] = {1.4, 2.9, 1.4};
+  assert_int_equal(cv_cave_check_eye(&c, out_front, &err), CV_ERR_RANGE);
+  must_contain(err.msg, "\"front\"");
+  assert_int_equal(cv_cave_check_eye(&c, on_floor, &err), CV_ERR_RANGE);
+  must_contain(err.msg, "\"floor\"");
+  assert_int_equal(cv_cave_check_eye(&c, inside, &err), CV_OK);
+}
+
+/* --- Kooima ------------------------------------------------------------------ */
+
+static const double PA[3] = {-1.5, 0, -1.5}, PB[3] = {1.5, 0, -1.5}, PC[3] = {-1.5, 3, -1.5};
+
+static void test_corners_to_ndc(void **state) {
+  (void)state;
+  srand(5);
+  double worst = 0, worst_f = 0;
+  for (int i = 0; i < 100; i++) {
+    double pe[3] = {urand(-1.45, 1.45), urand(0.05, 2.95), urand(-1.45, 1.45)};
+    cv_offaxis o;
+    assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 0.05, 50, &o), CV_OK);
+    double pd[3];
+    for (int k = 0; k < 3; k++) pd[k] = PB[k] + PC[k] - PA[k];
+    const double *corner[4] = {PA, PB, PC, pd};
+    const double want[4][2] = {{-1, -1}, {1, -1}, {-1, 1}, {1, 1}};
+    double mf[16];
+    for (int k = 0; k < 16; k++) mf[k] = o.viewproj[k];
+    for (int j = 0; j < 4; j++) {
+      double ndc[3], ndcf[3];
+      assert_true(cv_offaxis_project(o.viewproj_d, corner[j], ndc) > 0);
+      cv_offaxis_project(mf, corner[j], ndcf);
+      for (int a = 0; a < 2; a++) {
+        worst = fmax(worst, fabs(ndc[a] - want[j][a]));
+        worst_f = fmax(worst_f, fabs(ndcf[a] - want[j][a]));
+      }
+      assert_true(ndc[2] > -1 && ndc[2] < 1);
+    }
+  }
+  printf("corners -> NDC, 100 random eyes: max error %.2g (double), %.2g (float matrices)\n", worst,
+         worst_f);
+  assert_true(worst < 1e-6);
+  assert_true(worst_f < 1e-4);
+}
+
+static void test_symmetric_and_errors(void **state) {
+  (void)state;
+  const double pe[3] = {0, 1.5, 0.7};
+  cv_offaxis o;
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 0.1, 20, &o), CV_OK);
+  assert_true(fabs(o.l + o.r) < 1e-12 && fabs(o.b + o.t) < 1e-12);
+  assert_true(o.r > 0 && o.t > 0);
+  /* l = -1.5 n / d with d = 2.2 */
+  assert_true(fabs(o.r - 1.5 * 0.1 / 2.2) < 1e-12);
+  assert_true(fabs(o.vn[2] - 1) < 1e-15 && fabs(o.vr[0] - 1) < 1e-15 && fabs(o.vu[1] - 1) < 1e-15);
+  /* on the normal, the view is the plain look-at: view matrix = translation */
+  assert_true(fabs(o.view[14] + 0.7) < 1e-7 && fabs(o.view[13] + 1.5) < 1e-7);
+  /* errors */
+  const double on[3] = {0.3, 1.0, -1.5}, behind[3] = {0, 1.5, -2};
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, on, 0.1, 20, &o), CV_ERR_INVALID);
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, behind, 0.1, 20, &o), CV_ERR_INVALID);
+  const double skew[3] = {-1.4, 3, -1.5};
+  assert_int_equal(cv_offaxis_compute(PA, PB, skew, pe, 0.1, 20, &o), CV_ERR_INVALID);
+  assert_int_equal(cv_offaxis_compute(PA, PA, PC, pe, 0.1, 20, &o), CV_ERR_INVALID);
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 0.0, 20, &o), CV_ERR_INVALID);
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 1.0, 0.5, &o), CV_ERR_INVALID);
+  const double nan3[3] = {NAN, 0, 0};
+  assert_int_equal(cv_offaxis_compute(PA, PB, PC, nan3, 0.1, 20, &o), CV_ERR_INVALID);
+}
+
+static void test_shared_edge(void **state) {
+  (void)state;
+  /* front and left walls of cave5 share the edge x = -1.5, z = -1.5: the
+   * front wall's left border and the left wall's right border */
+  const double LA[3] = {-1.5, 0, 1.5}, LB[3] = {-1.5, 0, -1.5}, LC[3] = {-1.5, 3, 1.5};
+  srand(9);
+  double worst = 0;
+  for (int i = 0; i < 100; i++) {
+    double pe[3] = {urand(-1.4, 1.4), urand(0.1, 2.9), urand(-1.4, 1.4)};
+    cv_offaxis f, l;
+    assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 0.05, 50, &f), CV_OK);
+    assert_int_equal(cv_offaxis_compute(LA, LB, LC, pe, 0.05, 50, &l), CV_OK);
+    double p[3] = {-1.5, urand(0, 3), -1.5}, nf[3], nl[3];
+    assert_true(cv_offaxis_project(f.viewproj_d, p, nf) > 0);
+    assert_true(cv_offaxis_project(l.viewproj_d, p, nl) > 0);
+    worst = fmax(worst, fmax(fabs(nf[0] + 1), fabs(nl[0] - 1)));
+    /* same height fraction on both walls: y = (p.y / 3) * 2 - 1 */
+    worst = fmax(worst, fmax(fabs(nf[1] - (p[1] / 1.5 - 1)), fabs(nl[1] - (p[1] / 1.5 - 1))));
+  }
+  printf("shared front/left edge: max NDC error %.2g\n", worst);
+  assert_true(worst < 1e-6);
+}
+
+static void test_head_eyes(void **state) {
+  (void)state;
+  const double head[3] = {0, 1.2, 0}, g[3] = {0, 0, -1};
+  double l[3], r[3];
+  cv_head_eyes(head, g, 0.064, l, r);
+  assert_true(fabs(l[0] + 0.032) < 1e-15 && fabs(r[0] - 0.032) < 1e-15);
+  assert_true(fabs(l[1] - 1.2) < 1e-15 && fabs(r[2]) < 1e-15);
+  /* looking left (-X): the right eye is towards -Z... (gaze x up = (0,0,-1)) */
+  const double gl[3] = {-2, 0, 0};
+  cv_head_eyes(head, gl, 0.064, l, r);
+  assert_true(fabs(r[2] + 0.032) < 1e-15 && fabs(l[2] - 0.032) < 1e-15);
+  /* tilted gaze: still unit separation, horizontal */
+  const double gt[3] = {0.3, -0.8, -1};
+  cv_head_eyes(head, gt, 0.064, l, r);
+  double d = sqrt(pow(r[0] - l[0], 2) + pow(r[1] - l[1], 2) + pow(r[2] - l[2], 2));
+  assert_true(fabs(d - 0.064) < 1e-12 && fabs(r[1] - l[1]) < 1e-15);
+  /* vertical gaze falls back to +X */
+  const double gv[3] = {0, -1, 0};
+  cv_head_eyes(head, gv, 0.064, l, r);
+  assert_true(fabs(r[0] - 0.032) < 1e-15 && isfinite(l[0]));
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_load_shipped),     cmocka_unit_test(test_bad_configs),
+      cmocka_unit_test(test_corners_to_ndc),   cmocka_unit_test(test_symmetric_and_errors),
+      cmocka_unit_test(test_shared_edge),      cmocka_unit_test(test_head_eyes),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
