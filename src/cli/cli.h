@@ -13,6 +13,11 @@ int cmd_cabin(int argc, char **argv);
 int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
 int cmd_compensate(int argc, char **argv);
+int cmd_lcd(int argc, char **argv);
+int cmd_render(int argc, char **argv);
+int cmd_tonemap(int argc, char **argv);
+/* The MPI service; implemented in cluster/run.c (the only code with MPI). */
+int cmd_run(int argc, char **argv);
 
 /* Prints "cave <cmd>: message" to stderr and returns 2 (usage) or 1. */
 int cli_fail(const char *cmd, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));

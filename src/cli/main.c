@@ -19,6 +19,12 @@ static const struct {
     {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
     {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
     {"compensate", cmd_compensate, "cancel the light that screens scatter onto each other"},
+    {"lcd", cmd_lcd, "what the driver sees on the LCD panel: BRDF final gather, progressive"},
+    {"render", cmd_render, "render every wall-eye of a CAVE on the GPU with shared adaptation"},
+    {"tonemap", cmd_tonemap, "Drago tone mapping of an HDR image (EXR or PNG out)"},
+#ifdef CAVE_HAVE_CLUSTER
+    {"run", cmd_run, "the CAVE render service under mpirun (master, wall-eyes, LCD gather)"},
+#endif
 };
 
 static void usage(FILE *f) {

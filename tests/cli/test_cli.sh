@@ -140,5 +140,65 @@ awk -v a="$h1" -v b="$h2" 'BEGIN { exit !(b >= 6 && b <= 12 && b - a >= 0.3 && b
   && ok "paper's figures: $h2% compensated overall (paper ~9%), +$(awk -v a="$h1" -v b="$h2" 'BEGIN{printf "%.2f", b-a}') from level 2 (paper ~1%)" \
   || bad "paper's figures: level 1 $h1%, level 2 $h2%"
 
+# --- tonemap -----------------------------------------------------------------
+if $CAVE tonemap --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help tonemap"; else bad "help tonemap"; fi
+expect_ok "tonemap exr" $CAVE tonemap good.exr -o tm.exr
+grep -q "lwa .*lmax .*invalid 0 pixels" out.txt && ok "tonemap reports lwa, lmax, invalid" || { bad "tonemap report"; cat out.txt; }
+expect_ok "tonemap png" $CAVE tonemap good.exr -o tm.png --bias 0.7 --lwa 0.5 --lmax 2
+grep -q "lwa 0.5 cd/m2 (given)" out.txt && ok "tonemap --lwa used" || { bad "tonemap --lwa"; cat out.txt; }
+[ -s tm.exr ] && [ -s tm.png ] && head -c 8 tm.png | grep -q PNG && ok "tonemap files written" || bad "tonemap files"
+expect_error "tonemap missing file" "nosuch.exr" $CAVE tonemap nosuch.exr -o y.exr
+expect_error "tonemap NaN" "nan.exr.*NaN" $CAVE tonemap nan.exr -o y.exr
+expect_error "tonemap bad bias" "--bias" $CAVE tonemap good.exr -o y.exr --bias 1.5
+expect_error "tonemap bad output" "-o" $CAVE tonemap good.exr -o y.tif
+[ ! -e y.exr ] && [ ! -e y.tif ] && ok "no output left behind by tonemap failures" || bad "tonemap left output"
+
+# --- render (EGL/GL: llvmpipe without a GPU) -----------------------------------
+if $CAVE render --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help render"; else bad "help render"; fi
+CAVE5=$ROOT/configs/caves/cave5.json
+expect_ok "render cave5" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 24 --lum-res 16 --frames 2 --dt 0.05 --cull-back -o rnd
+n=$(ls rnd | grep -cE '^(front|left|right|floor|ceiling)_[LR]\.exr$'); m=$(ls rnd | grep -cE '^(front|left|right|floor|ceiling)_[LR]\.png$')
+[ "$n" -eq 10 ] && [ "$m" -eq 10 ] && [ -s rnd/montage_L.png ] && ok "render: 10 EXR + 10 PNG + montage" || bad "render outputs ($n EXR, $m PNG)"
+grep -q "^frame 1 .*adapted Lwa" out.txt && ok "render: adaptation state printed per frame" || bad "render: no adaptation lines"
+expect_ok "render supersampled, all frames" $CAVE render "$ROOT/configs/caves/two-sided-wall.json" --scene a.prt --env-constant 1,1,1 --size 16 --supersample 2 --frames 2 --all-frames -o rnd2
+[ -s rnd2/front_R_f0001.png ] && [ -s rnd2/montage_L_f0000.png ] && ok "render: per-frame outputs" || bad "render: per-frame outputs"
+printf '{ "walls": [ {"name": "a", "pa": [0,0,-1], "pb": [1,0,-1], "pc": [0,1,-1], "res": [8,8]}, {"name": "a", "pa": [0,0,-1], "pb": [1,0,-1], "pc": [0,1,-1], "res": [8,8]} ] }\n' >dupcave.json
+expect_error "render: bad CAVE config" "dupcave.json" $CAVE render dupcave.json --scene a.prt --sky 3,35,30 -o x
+expect_error "render: eye behind a screen" "front" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --head 0,1.2,-2 -o x
+expect_error "render: missing scene" "none.prt" $CAVE render "$CAVE5" --scene none.prt --sky 3,35,30 -o x
+expect_error "render: no lighting" "no lighting" $CAVE render "$CAVE5" --scene a.prt -o x
+[ ! -e x ] && ok "render: no output folder left by failures" || bad "render: a failure left output"
+
+# --- lcd ---------------------------------------------------------------------
+if $CAVE lcd --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help lcd"; else bad "help lcd"; fi
+EYE=(--eye -0.37,1.02,0)
+expect_ok "lcd tiny run" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --size 40x30 --spp 4 --rounds 2 -o lcd.exr --png
+[ -s lcd.exr ] && [ -s lcd.png ] && grep -q '"samples_per_texel": 8' lcd.exr.json \
+  && ok "lcd: EXR, PNG and sidecar (8 samples per texel)" || bad "lcd outputs"
+grep -q "estimated relative RMS error" out.txt && ok "lcd: error estimate printed" || bad "lcd: no error estimate"
+expect_ok "lcd 1 thread" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 1 -o l1.exr
+expect_ok "lcd 2 threads" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 2 -o l2.exr
+cmp -s l1.exr l2.exr && ok "lcd: same bytes for 1 and 2 threads" || bad "lcd: bytes differ across thread counts"
+printf '{ "lcd": { "resolution": [32, 24], "spp": 2, "brdf_fraction": 1 } }\n' >lcdcfg.json
+expect_ok "lcd config" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --lcd-config lcdcfg.json -o lc.exr
+grep -q '"width": 32, "height": 24' lc.exr.json && ok "lcd: config read" || bad "lcd: config not applied"
+printf '{ "lcd": { "spp": 2, "rezolution": [32, 24] } }\n' >lcdbad.json
+expect_error "lcd: unknown config field" "lcd.rezolution" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --lcd-config lcdbad.json -o y.exr
+# a 2 x 2 x 2 grey table (theta 0/90, phi 0/180) whose entry 3 is NaN
+printf 'CAVEBRDF\x01\x00\x00\x00\x02\x00\x00\x00\x02\x00\x00\x00\x01\x00\x00\x00' >nan.brdf
+printf '\x00\x00\x80\x3e%.0s' 1 2 3 >>nan.brdf
+printf '\x00\x00\xc0\x7f' >>nan.brdf
+printf '\x00\x00\x80\x3e%.0s' 1 2 3 4 >>nan.brdf
+expect_error "lcd: NaN in a BRDF" "nan.brdf: entry theta_o=0 theta_i=90 phi_d=180 deg channel R is NaN" \
+  $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --brdf nan.brdf -o y.exr
+head -c 30 nan.brdf >cut.brdf
+expect_error "lcd: truncated BRDF" "cut.brdf: truncated" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --brdf cut.brdf -o y.exr
+printf 'not a brdf at all\n' >junk.brdf
+expect_error "lcd: not a BRDF" "junk.brdf: neither" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --brdf junk.brdf -o y.exr
+expect_error "lcd: missing BRDF" "nosuch.brdf" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --brdf nosuch.brdf -o y.exr
+expect_error "lcd: no eye" "--eye" $CAVE lcd a.prt --env-constant 1,1,1 -o y.exr
+expect_error "lcd: no lighting" "no lighting" $CAVE lcd a.prt "${EYE[@]}" -o y.exr
+[ ! -e y.exr ] && [ ! -e y.exr.json ] && ok "lcd: no output left by failures" || bad "lcd: a failure left output"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

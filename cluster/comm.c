@@ -1,0 +1,148 @@
+/* MPI behind the message layer of comm.h. */
+#include "comm.h"
+
+#include <mpi.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct pending_send {
+  MPI_Request req;
+  void *copy;
+} pending_send;
+
+/* Sends in flight (owned copies).  One process, one thread calls MPI. */
+static pending_send *g_sends;
+static size_t g_nsends, g_capsends;
+
+struct cv_mailbox {
+  int src, tag;
+  size_t cap;
+  uint8_t *buf;
+  MPI_Request req;
+  int posted;
+};
+
+int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
+  int provided = 0;
+  if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) return -1;
+  MPI_Comm_rank(MPI_COMM_WORLD, rank);
+  MPI_Comm_size(MPI_COMM_WORLD, size);
+  return 0;
+}
+
+void cv_comm_finalize(void) {
+  cv_comm_flush(2.0);
+  for (size_t i = 0; i < g_nsends; i++) {
+    MPI_Cancel(&g_sends[i].req);
+    MPI_Request_free(&g_sends[i].req);
+    free(g_sends[i].copy);
+  }
+  free(g_sends);
+  g_sends = NULL;
+  g_nsends = g_capsends = 0;
+  MPI_Finalize();
+}
+
+double cv_comm_time(void) { return MPI_Wtime(); }
+
+void cv_comm_abort(int code, const char *msg) {
+  if (msg) {
+    fprintf(stderr, "%s\n", msg);
+    fflush(stderr);
+  }
+  MPI_Abort(MPI_COMM_WORLD, code);
+}
+
+int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
+  if (n > (size_t)INT32_MAX) return -1;
+  if (g_nsends == g_capsends) {
+    size_t nc = g_capsends ? 2 * g_capsends : 64;
+    pending_send *p = realloc(g_sends, nc * sizeof *p);
+    if (!p) return -1;
+    g_sends = p;
+    g_capsends = nc;
+  }
+  void *copy = malloc(n ? n : 1);
+  if (!copy) return -1;
+  if (n) memcpy(copy, buf, n);
+  pending_send *ps = &g_sends[g_nsends];
+  if (MPI_Isend(copy, (int)n, MPI_BYTE, dest, tag, MPI_COMM_WORLD, &ps->req) != MPI_SUCCESS) {
+    free(copy);
+    return -1;
+  }
+  ps->copy = copy;
+  g_nsends++;
+  return 0;
+}
+
+int cv_comm_progress(void) {
+  size_t k = 0;
+  for (size_t i = 0; i < g_nsends; i++) {
+    int done = 0;
+    MPI_Test(&g_sends[i].req, &done, MPI_STATUS_IGNORE);
+    if (done)
+      free(g_sends[i].copy);
+    else
+      g_sends[k++] = g_sends[i];
+  }
+  g_nsends = k;
+  return (int)k;
+}
+
+void cv_comm_flush(double timeout_s) {
+  const double t0 = MPI_Wtime();
+  while (cv_comm_progress() > 0 && MPI_Wtime() - t0 < timeout_s) {
+  }
+}
+
+static int mailbox_post(cv_mailbox *m) {
+  if (m->posted) return 0;
+  if (MPI_Irecv(m->buf, (int)m->cap, MPI_BYTE, m->src < 0 ? MPI_ANY_SOURCE : m->src, m->tag,
+                MPI_COMM_WORLD, &m->req) != MPI_SUCCESS)
+    return -1;
+  m->posted = 1;
+  return 0;
+}
+
+cv_mailbox *cv_mailbox_open(int src, int tag, size_t cap) {
+  if (cap > (size_t)INT32_MAX) return NULL;
+  cv_mailbox *m = calloc(1, sizeof *m);
+  if (!m) return NULL;
+  m->src = src;
+  m->tag = tag;
+  m->cap = cap;
+  m->buf = malloc(cap ? cap : 1);
+  if (!m->buf || mailbox_post(m)) {
+    free(m->buf);
+    free(m);
+    return NULL;
+  }
+  return m;
+}
+
+long cv_mailbox_take(cv_mailbox *m, const uint8_t **data, int *from) {
+  if (!m->posted && mailbox_post(m)) return -1;
+  int flag = 0;
+  MPI_Status st;
+  MPI_Test(&m->req, &flag, &st);
+  if (!flag) return -1;
+  m->posted = 0;
+  int count = 0;
+  MPI_Get_count(&st, MPI_BYTE, &count);
+  if (data) *data = m->buf;
+  if (from) *from = st.MPI_SOURCE;
+  return count;
+}
+
+void cv_mailbox_close(cv_mailbox *m) {
+  if (!m) return;
+  if (m->posted) {
+    MPI_Cancel(&m->req);
+    MPI_Wait(&m->req, MPI_STATUS_IGNORE);
+  }
+  free(m->buf);
+  free(m);
+}
+
+void cv_comm_barrier(void) { MPI_Barrier(MPI_COMM_WORLD); }

@@ -1,0 +1,63 @@
+/* The cluster's message layer.  comm.c is the only file that includes
+ * mpi.h: every MPI call of the service goes through these functions, so the
+ * roles read as "send this, poll that".
+ *
+ * Why point-to-point with polling instead of collectives: a frame must not
+ * wait for a late or stopped rank longer than the configured timeout
+ * (issue 6, faults).  MPI collectives (bcast trees, allreduce) stall every
+ * participant behind the slowest one, and Open MPI 4 has no fault tolerance.
+ * So the master sends the frame state to each rank (eager, small), and
+ * collects reports, patch images and LCD rounds from per-source mailboxes
+ * that it polls until a deadline; what is late is skipped and counted, and
+ * discarded when it arrives later (messages carry their frame number).
+ * The LCD sum is an integer (fixed-point) sum done by the master, so it is
+ * the same bits as MPI_Allreduce(MPI_SUM, MPI_INT64_T) would give, in any
+ * arrival order. */
+#ifndef CV_CLUSTER_COMM_H
+#define CV_CLUSTER_COMM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+enum {
+  CV_TAG_STATE = 1,   /* master -> all: packed cv_frame_state */
+  CV_TAG_REPORT = 2,  /* wall-eye -> master: packed cv_walleye_report */
+  CV_TAG_PATCH = 3,   /* wall-eye -> master: frame + patch image of its wall */
+  CV_TAG_CORR = 4,    /* master -> wall-eye: frame + patch correction of its wall */
+  CV_TAG_LCD = 5,     /* contributor -> master: LCD round (key, round, fixed point) */
+  CV_TAG_LCDIMG = 6,  /* master -> wall-eyes: current LCD image */
+  CV_TAG_READY = 7,   /* every rank -> master at start: set-up done or failed */
+  CV_TAG_IMAGE = 8    /* left-eye wall-eye -> master: display image of a written frame */
+};
+
+int cv_comm_init(int *argc, char ***argv, int *rank, int *size);
+void cv_comm_finalize(void);
+double cv_comm_time(void);
+/* Ends the whole job now (MPI_Abort) after printing msg on stderr. */
+void cv_comm_abort(int code, const char *msg);
+
+/* Sends a copy of buf (n bytes) to dest with tag; returns at once.  The copy
+ * is freed when MPI reports the send complete (cv_comm_progress).  0 on
+ * success, -1 out of memory or MPI error. */
+int cv_comm_send(const void *buf, size_t n, int dest, int tag);
+/* Completes finished sends, frees their copies; returns the number still
+ * pending.  Call it from every polling loop. */
+int cv_comm_progress(void);
+/* Waits up to timeout_s for pending sends (at exit). */
+void cv_comm_flush(double timeout_s);
+
+/* A mailbox: one posted receive of up to cap bytes from src (MPI rank, or
+ * -1 for any source) with tag, re-posted after each message is taken. */
+typedef struct cv_mailbox cv_mailbox;
+cv_mailbox *cv_mailbox_open(int src, int tag, size_t cap);
+/* If a message has arrived: returns its size (>= 0) and copies nothing:
+ * *data points into the mailbox (valid until the next take) and *from gets
+ * the sender.  Returns -1 when nothing has arrived.  The receive is
+ * re-posted by the next cv_mailbox_take call. */
+long cv_mailbox_take(cv_mailbox *m, const uint8_t **data, int *from);
+void cv_mailbox_close(cv_mailbox *m);
+
+/* MPI_Barrier (the optional swap lock). */
+void cv_comm_barrier(void);
+
+#endif

@@ -1,0 +1,73 @@
+/* Gather-only ranks (render farm): LCD final-gather rounds, nothing else.
+ * The MPI thread takes frame states (the newest wins), posts them to the
+ * worker thread and sends its finished rounds to the master.  A gather rank
+ * is never waited for: a slow or stopped one only contributes fewer rounds. */
+#include <stdio.h>
+#include <string.h>
+#include <time.h>
+
+#include "comm.h"
+#include "lcdwork.h"
+#include "service_internal.h"
+
+static int send_to_master(const uint8_t *buf, size_t len, void *user) {
+  (void)user;
+  return cv_comm_send(buf, len, 0, CV_TAG_LCD);
+}
+
+/* Reports set-up success ('O') or failure ('F' + message) to the master. */
+void cv_service_ready(int ok, const char *msg) {
+  char buf[512];
+  buf[0] = ok ? 'O' : 'F';
+  size_t n = 1;
+  if (!ok && msg) {
+    size_t l = strlen(msg);
+    if (l > sizeof buf - 2) l = sizeof buf - 2;
+    memcpy(buf + 1, msg, l);
+    n += l;
+  }
+  cv_comm_send(buf, n, 0, CV_TAG_READY);
+}
+
+int cv_gather_run(cv_service *s) {
+  cv_err err;
+  cv_err_clear(&err);
+  cv_prt *prt = NULL;
+  cv_lcd_worker *w = NULL;
+  const int index = cv_service_contributor(s, s->rank);
+  int st = cv_prt_read(s->o.scene_path, &prt, &err);
+  if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, &w, &err);
+  cv_service_ready(st == CV_OK, err.msg);
+  cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
+  double stop_since = 0;
+  int rc = st ? 1 : 0;
+  for (;;) {
+    const uint8_t *data;
+    long len;
+    int quit = 0, got = 0;
+    cv_frame_state fs;
+    while (mb && (len = cv_mailbox_take(mb, &data, NULL)) >= 0) {
+      if (cv_frame_state_unpack(data, (size_t)len, &fs, &err)) {
+        fprintf(stderr, "cave run: rank %d: %s (state dropped)\n", s->rank, err.msg);
+        continue;
+      }
+      if (fs.flags & CV_FS_QUIT) quit = 1;
+      got = 1;
+    }
+    if (quit) break;
+    if (got && w) cv_lcd_worker_post(w, &fs);
+    if (w) cv_lcd_worker_send_ready(w, send_to_master, NULL, NULL, NULL);
+    cv_comm_progress();
+    if (*s->stop) { /* wait for the master's quit, but not for ever */
+      if (stop_since == 0) stop_since = cv_service_now();
+      else if (cv_service_now() - stop_since > 5) break;
+    }
+    struct timespec ts = {0, 1000000};
+    nanosleep(&ts, NULL);
+  }
+  cv_lcd_worker_destroy(w);
+  cv_mailbox_close(mb);
+  cv_prt_destroy(prt);
+  cv_comm_flush(2);
+  return rc;
+}

@@ -1,0 +1,277 @@
+/* LCD final-gather contributor, shared by the gather-only ranks and the
+ * wall-eyes' idle threads: a worker thread that renders this contributor's
+ * rounds (round = index + k * contributors, k = 0, 1, ...) of the current
+ * key until the budget, and queues each finished round as a message for the
+ * owning (MPI) thread to send.  The owner posts frame states; the worker
+ * rebuilds the lighting when the light key changes and restarts its rounds
+ * when the LCD key (quantised eye, lighting) changes.  Everything a round
+ * depends on is a function of the key, so the master may add rounds from any
+ * contributor: the sum is the same integers for any rank count. */
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "lcd/brdf.h"
+#include "lcd/gather.h"
+#include "lcdwork.h"
+#include "prt/bake.h"
+#include "service_internal.h"
+
+typedef struct msg_node {
+  uint8_t *buf;
+  size_t len;
+  struct msg_node *next;
+} msg_node;
+
+struct cv_lcd_worker {
+  const cv_service *s;
+  const cv_prt *prt;
+  int index;
+  cv_mesh *mesh;
+  cv_tracer *tr;
+  cv_brdf *brdf;
+  cv_lcd_gather *g;
+  cv_lcd_params p;
+  /* state shared with the owner (mutex) */
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+  int have_state, quit;
+  cv_frame_state posted;
+  uint64_t posted_seq;
+  msg_node *head, *tail;
+  size_t queued;
+  uint64_t rounds_done;
+  double ms_total;
+  char error[640];
+  pthread_t th;
+  int started;
+};
+
+static int worker_init(cv_lcd_worker *w, cv_err *err) {
+  int st = cv_prt_to_mesh(w->prt, &w->mesh);
+  if (st) return cv_err_set(err, st, "LCD: cannot rebuild the scene mesh from %s", w->s->o.scene_path);
+  st = cv_tracer_create(w->mesh, &w->tr, err);
+  if (st) return st;
+  cv_lcd_panel panel;
+  st = cv_lcd_panel_from_mesh(w->mesh, &panel, err);
+  if (st) return st;
+  cv_antiglare_params ap;
+  cv_antiglare_default(&ap);
+  st = cv_brdf_antiglare(&ap, 91, 181, &w->brdf);
+  if (st) return cv_err_set(err, st, "LCD: cannot tabulate the anti-glare BRDF");
+  st = cv_lcd_gather_create(cv_tracer_rt(w->tr), w->mesh, &panel, w->brdf, &w->g, err);
+  if (st) return st;
+  cv_lcd_params_default(&w->p);
+  w->p.w = w->s->o.lcd_w;
+  w->p.h = w->s->o.lcd_h;
+  w->p.spp = w->s->o.lcd_spp;
+  w->p.seed = w->s->o.seed;
+  w->p.threads = 1;
+  return CV_OK;
+}
+
+static void *worker_main(void *arg) {
+  cv_lcd_worker *w = arg;
+  cv_rt_thread_init();
+  uint64_t seen_seq = 0, light_key = 0;
+  int have_light = 0, have_key = 0;
+  cv_lcd_light *ll = NULL;
+  cv_lcd_key key;
+  double clamp = 1;
+  uint32_t k = 0; /* next round of this contributor = index + k * count */
+  const uint32_t count = (uint32_t)w->s->n_contributors;
+  for (;;) {
+    cv_frame_state fs;
+    int fresh = 0;
+    pthread_mutex_lock(&w->mu);
+    for (;;) {
+      if (w->quit) break;
+      if (w->have_state && w->posted_seq != seen_seq) {
+        fs = w->posted;
+        seen_seq = w->posted_seq;
+        fresh = 1;
+        break;
+      }
+      /* work to do with the current key? */
+      if (have_key && (uint64_t)w->index + (uint64_t)k * count < (uint64_t)w->s->o.lcd_budget &&
+          w->queued < 4)
+        break;
+      pthread_cond_wait(&w->cv, &w->mu);
+    }
+    const int quit = w->quit;
+    pthread_mutex_unlock(&w->mu);
+    if (quit) break;
+    if (fresh) {
+      cv_err err;
+      if (!have_light || fs.light_key != light_key) {
+        cv_scene_light *sl = NULL;
+        cv_light_spec spec;
+        cv_drive_to_light_spec(w->s->drive, &fs.drive, &spec);
+        cv_lcd_light *nl = NULL;
+        int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, &err);
+        if (st == CV_OK) st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, 4, 256, &nl, &err);
+        cv_scene_light_destroy(sl);
+        if (st) {
+          pthread_mutex_lock(&w->mu);
+          snprintf(w->error, sizeof w->error, "LCD lighting: %s", err.msg);
+          pthread_mutex_unlock(&w->mu);
+          continue;
+        }
+        cv_lcd_light_destroy(ll);
+        ll = nl;
+        light_key = fs.light_key;
+        have_light = 1;
+        clamp = cv_lcd_default_clamp(ll, w->brdf);
+        have_key = 0;
+      }
+      float eye[3];
+      for (int a = 0; a < 3; a++) eye[a] = (float)(fs.head[a] + w->s->cave.scene_offset[a]);
+      const uint64_t setup = cv_lcd_setup_hash(w->g, &w->p, clamp, w->s->o.lcd_tolerance, 0);
+      cv_lcd_key nk;
+      if (cv_lcd_key_make(eye, w->s->o.lcd_tolerance, light_key, setup, &nk) != CV_OK) continue;
+      if (!have_key || !cv_lcd_key_equal(&nk, &key) ||
+          cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) {
+        if (cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) continue; /* not the master's */
+        key = nk;
+        have_key = 1;
+        k = 0;
+        cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
+      }
+      continue;
+    }
+    if (!have_key) continue;
+    const uint32_t round = (uint32_t)w->index + k * count;
+    if (round >= (uint32_t)w->s->o.lcd_budget) continue;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    cv_lcd_accum *acc = NULL;
+    if (cv_lcd_accum_create(w->p.w, w->p.h, clamp, &acc) != CV_OK ||
+        cv_lcd_render_round(w->g, ll, &w->p, round, acc) != CV_OK) {
+      cv_lcd_accum_destroy(acc);
+      pthread_mutex_lock(&w->mu);
+      snprintf(w->error, sizeof w->error, "LCD round %u failed", round);
+      pthread_mutex_unlock(&w->mu);
+      k++;
+      continue;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    cv_lcd_msg h;
+    memset(&h, 0, sizeof h);
+    h.key = key;
+    h.round = round;
+    h.w = acc->w;
+    h.h = acc->h;
+    h.contributor = (uint32_t)w->index;
+    h.clamp = clamp;
+    h.n = acc->n;
+    msg_node *node = malloc(sizeof *node);
+    uint8_t *buf = malloc(sizeof h + acc->n * sizeof(int64_t));
+    if (node && buf) {
+      memcpy(buf, &h, sizeof h);
+      memcpy(buf + sizeof h, acc->data, acc->n * sizeof(int64_t));
+      node->buf = buf;
+      node->len = sizeof h + acc->n * sizeof(int64_t);
+      node->next = NULL;
+      pthread_mutex_lock(&w->mu);
+      if (w->tail) w->tail->next = node;
+      else w->head = node;
+      w->tail = node;
+      w->queued++;
+      w->rounds_done++;
+      w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
+      pthread_mutex_unlock(&w->mu);
+    } else {
+      free(node);
+      free(buf);
+    }
+    cv_lcd_accum_destroy(acc);
+    k++;
+  }
+  cv_lcd_light_destroy(ll);
+  return NULL;
+}
+
+int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, cv_lcd_worker **out,
+                         cv_err *err) {
+  *out = NULL;
+  cv_lcd_worker *w = calloc(1, sizeof *w);
+  if (!w) return cv_err_set(err, CV_ERR_NOMEM, "LCD worker: out of memory");
+  w->s = s;
+  w->prt = prt;
+  w->index = index;
+  pthread_mutex_init(&w->mu, NULL);
+  pthread_cond_init(&w->cv, NULL);
+  int st = worker_init(w, err);
+  if (st) {
+    cv_lcd_worker_destroy(w);
+    return st;
+  }
+  if (pthread_create(&w->th, NULL, worker_main, w)) {
+    cv_lcd_worker_destroy(w);
+    return cv_err_set(err, CV_ERR_NOMEM, "LCD worker: cannot start a thread");
+  }
+  w->started = 1;
+  *out = w;
+  return CV_OK;
+}
+
+void cv_lcd_worker_post(cv_lcd_worker *w, const cv_frame_state *fs) {
+  pthread_mutex_lock(&w->mu);
+  w->posted = *fs;
+  w->have_state = 1;
+  w->posted_seq++;
+  pthread_cond_signal(&w->cv);
+  pthread_mutex_unlock(&w->mu);
+}
+
+int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size_t, void *),
+                             void *user, uint64_t *rounds_done, double *ms_total) {
+  int n = 0;
+  for (;;) {
+    pthread_mutex_lock(&w->mu);
+    msg_node *node = w->head;
+    if (node) {
+      w->head = node->next;
+      if (!w->head) w->tail = NULL;
+      w->queued--;
+      pthread_cond_signal(&w->cv);
+    }
+    if (rounds_done) *rounds_done = w->rounds_done;
+    if (ms_total) *ms_total = w->ms_total;
+    pthread_mutex_unlock(&w->mu);
+    if (!node) break;
+    send(node->buf, node->len, user);
+    free(node->buf);
+    free(node);
+    n++;
+  }
+  return n;
+}
+
+const char *cv_lcd_worker_error(cv_lcd_worker *w) { return w->error[0] ? w->error : NULL; }
+
+void cv_lcd_worker_destroy(cv_lcd_worker *w) {
+  if (!w) return;
+  if (w->started) {
+    pthread_mutex_lock(&w->mu);
+    w->quit = 1;
+    pthread_cond_signal(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+    pthread_join(w->th, NULL);
+  }
+  while (w->head) {
+    msg_node *n = w->head;
+    w->head = n->next;
+    free(n->buf);
+    free(n);
+  }
+  cv_lcd_gather_destroy(w->g);
+  cv_brdf_destroy(w->brdf);
+  cv_tracer_destroy(w->tr);
+  cv_mesh_destroy(w->mesh);
+  pthread_mutex_destroy(&w->mu);
+  pthread_cond_destroy(&w->cv);
+  free(w);
+}

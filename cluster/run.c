@@ -1,0 +1,383 @@
+/* `cave run`: the cluster render service's entry point.  Every rank parses
+ * the same command line and configuration; the checks are deterministic, so
+ * all ranks agree on whether to start without exchanging a message, and
+ * rank 0 alone prints the problems (every one of them).  Then each rank
+ * takes its role (service.h). */
+#include <errno.h>
+#include <stdarg.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cli/cli.h"
+#include "comm.h"
+#include "prt/prt.h"
+#include "service.h"
+#include "service_internal.h"
+
+static volatile sig_atomic_t g_stop;
+
+static void on_signal(int sig) {
+  (void)sig;
+  g_stop = 1;
+}
+
+static const char *k_builtin_drive =
+    "{\"description\": \"built-in: the car stands still under blender-data's forest map\","
+    " \"loop\": true, \"maps\": [\"forest.exr\"],"
+    " \"keyframes\": [{\"t\": 0, \"yaw\": 0, \"weights\": [1]}, {\"t\": 1, \"yaw\": 0}]}";
+
+static void help(FILE *f) {
+  fprintf(f,
+          "usage: mpirun -np N cave run <cave.json> --scene scene.prt [options]\n"
+          "       cave run --check --ranks N <cave.json> --scene scene.prt [options]\n\n"
+          "The CAVE render service: rank 0 is the master (drive, head tracker, adaptation,\n"
+          "LCD sums, scattering compensation, metrics), ranks 1..2W render the W walls'\n"
+          "left and right eyes, further ranks only path-trace the dashboard LCD.\n\n"
+          "options:\n"
+          "  --scene FILE.prt     baked scene (cave bake); required\n"
+          "  --drive FILE.json    scripted drive (configs/drives/); default: the car stands\n"
+          "                       still under blender-data's forest map\n"
+          "  --head-path FILE     recorded head path (t x y z gx gy gz per line)\n"
+          "  --dtrack PORT        live ART DTrack ASCII head tracking on this UDP port\n"
+          "  --dtrack-host ADDR   bind address (default 127.0.0.1)\n"
+          "  --dtrack-body ID     the head's body id (default 1)\n"
+          "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
+          "  --dt S               simulated seconds per frame (default 1/30)\n"
+          "  --size N             N x N pixels per wall-eye (default: the config's)\n"
+          "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
+          "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
+          "  --barrier            per-frame barrier (swap lock)\n"
+          "  --display FILE.json  compensation display (default: generated from the walls)\n"
+          "  --patches P          patches per wall side of the generated display (default 24)\n"
+          "  --reflectance R      screen reflectance of the generated display (default 0.8)\n"
+          "  --no-compensation    no scattering compensation\n"
+          "  --lcd-size WxH       LCD texels (default 400x300)\n"
+          "  --lcd-spp N          samples per texel per round (default 40)\n"
+          "  --lcd-budget R       rounds per camera/lighting key (default 64)\n"
+          "  --lcd-tolerance M    camera-key quantisation, metres (default 0.02)\n"
+          "  --lcd-content FILE   panel content image (default: built-in test pattern)\n"
+          "  --lcd-luminance L    panel white in cd/m2 (default 500)\n"
+          "  --no-lcd             no LCD final gather\n"
+          "  --no-idle-lcd        wall-eyes do not contribute LCD rounds\n"
+          "  --lcd-wait           after the frames, wait until the LCD budget is summed\n"
+          "  --seed N             sample sequence seed (default 1)\n"
+          "  --metrics FILE       JSON lines (default OUT/metrics.jsonl)\n"
+          "  -o DIR               output folder (default out/run)\n"
+          "  --quiet              no per-frame lines\n"
+          "  --check              check the configuration for --ranks N and print the\n"
+          "                       rank layout, without MPI\n\n"
+          "Under Open MPI as root add --allow-run-as-root; more ranks than cores need\n"
+          "--oversubscribe.  SIGINT/SIGTERM to rank 0 (or mpirun) end the run after the\n"
+          "current frame with every file whole.\n");
+}
+
+/* Problems, one per line, collected for rank 0 to print. */
+typedef struct problems {
+  char buf[8192];
+  size_t len;
+  int n;
+} problems;
+
+static void problem(problems *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void problem(problems *p, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  if (p->len + 2 < sizeof p->buf) {
+    int w = vsnprintf(p->buf + p->len, sizeof p->buf - p->len - 1, fmt, ap);
+    if (w > 0) p->len += (size_t)w < sizeof p->buf - p->len - 1 ? (size_t)w : sizeof p->buf - p->len - 2;
+    p->buf[p->len++] = '\n';
+    p->buf[p->len] = 0;
+  }
+  va_end(ap);
+  p->n++;
+}
+
+static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, problems *pb) {
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    double d;
+    int n;
+#define NEED()                                                     \
+  do {                                                             \
+    if (!v) {                                                      \
+      problem(pb, "%s: expected a value", a);                      \
+      return -1;                                                   \
+    }                                                              \
+    i++;                                                           \
+  } while (0)
+#define PATH(field) snprintf(o->field, sizeof o->field, "%s", v)
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      return 1;
+    } else if (!strcmp(a, "--check")) {
+      *check = 1;
+    } else if (!strcmp(a, "--barrier")) {
+      o->barrier = 1;
+    } else if (!strcmp(a, "--quiet")) {
+      o->quiet = 1;
+    } else if (!strcmp(a, "--no-compensation")) {
+      o->compensate = 0;
+    } else if (!strcmp(a, "--no-lcd")) {
+      o->lcd = 0;
+    } else if (!strcmp(a, "--no-idle-lcd")) {
+      o->lcd_idle = 0;
+    } else if (!strcmp(a, "--lcd-wait")) {
+      o->lcd_wait = 1;
+    } else if (!strcmp(a, "--scene")) {
+      NEED();
+      PATH(scene_path);
+    } else if (!strcmp(a, "--drive")) {
+      NEED();
+      PATH(drive_path);
+    } else if (!strcmp(a, "--head-path")) {
+      NEED();
+      PATH(head_path);
+    } else if (!strcmp(a, "--display")) {
+      NEED();
+      PATH(display_path);
+    } else if (!strcmp(a, "--metrics")) {
+      NEED();
+      PATH(metrics_path);
+    } else if (!strcmp(a, "--lcd-content")) {
+      NEED();
+      PATH(lcd_content);
+    } else if (!strcmp(a, "-o")) {
+      NEED();
+      PATH(out_dir);
+    } else if (!strcmp(a, "--dtrack-host")) {
+      NEED();
+      snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
+    } else if (!strcmp(a, "--dtrack")) {
+      NEED();
+      if (cli_parse_int(v, 1, 65535, &o->dtrack_port)) problem(pb, "--dtrack: expected a UDP port 1..65535, got '%s'", v);
+    } else if (!strcmp(a, "--dtrack-body")) {
+      NEED();
+      if (cli_parse_int(v, 0, 1000000, &o->dtrack_body)) problem(pb, "--dtrack-body: expected an id >= 0, got '%s'", v);
+    } else if (!strcmp(a, "--frames")) {
+      NEED();
+      if (cli_parse_int(v, 0, 100000000, &o->frames)) problem(pb, "--frames: expected N >= 0, got '%s'", v);
+    } else if (!strcmp(a, "--ranks")) {
+      NEED();
+      if (cli_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
+    } else if (!strcmp(a, "--dt")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
+      else o->dt = d;
+    } else if (!strcmp(a, "--size")) {
+      NEED();
+      if (cli_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
+    } else if (!strcmp(a, "--write-every")) {
+      NEED();
+      if (cli_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);
+    } else if (!strcmp(a, "--timeout-ms")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
+      else o->timeout_ms = d;
+    } else if (!strcmp(a, "--patches")) {
+      NEED();
+      if (cli_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
+    } else if (!strcmp(a, "--reflectance")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--reflectance: expected 0..1, got '%s'", v);
+      else o->reflectance = d;
+    } else if (!strcmp(a, "--lcd-size")) {
+      NEED();
+      int w = 0, h = 0;
+      char extra;
+      if (sscanf(v, "%dx%d%c", &w, &h, &extra) != 2 || w < 1 || h < 1 || w > 4096 || h > 4096)
+        problem(pb, "--lcd-size: expected WxH (1..4096), got '%s'", v);
+      else o->lcd_w = w, o->lcd_h = h;
+    } else if (!strcmp(a, "--lcd-spp")) {
+      NEED();
+      if (cli_parse_int(v, 1, 65536, &o->lcd_spp)) problem(pb, "--lcd-spp: expected 1..65536, got '%s'", v);
+    } else if (!strcmp(a, "--lcd-budget")) {
+      NEED();
+      if (cli_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
+    } else if (!strcmp(a, "--lcd-tolerance")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 1e-4 && d <= 1)) problem(pb, "--lcd-tolerance: expected 1e-4..1 m, got '%s'", v);
+      else o->lcd_tolerance = d;
+    } else if (!strcmp(a, "--lcd-luminance")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1e6)) problem(pb, "--lcd-luminance: expected 0..1e6 cd/m2, got '%s'", v);
+      else o->lcd_luminance = d;
+    } else if (!strcmp(a, "--seed")) {
+      NEED();
+      if (cli_parse_int(v, 0, 2147483647, &n)) problem(pb, "--seed: expected 0..2^31-1, got '%s'", v);
+      else o->seed = (uint32_t)n;
+    } else if (a[0] == '-') {
+      problem(pb, "unknown option '%s' (cave run --help lists them)", a);
+    } else if (!o->cave_path[0]) {
+      snprintf(o->cave_path, sizeof o->cave_path, "%s", a);
+    } else {
+      problem(pb, "unexpected argument '%s'", a);
+    }
+#undef NEED
+#undef PATH
+  }
+  return 0;
+}
+
+static int file_readable(const char *p) {
+  FILE *f = fopen(p, "rb");
+  if (!f) return 0;
+  fclose(f);
+  return 1;
+}
+
+/* Every check that can be made before anything starts; fills s. */
+static void check_all(cv_service *s, int size, problems *pb) {
+  cv_run_opts *o = &s->o;
+  cv_err err;
+  if (!o->cave_path[0]) {
+    problem(pb, "no CAVE configuration given (cave run <cave.json> ...)");
+  } else if (cv_cave_load(o->cave_path, &s->cave, &err)) {
+    problem(pb, "%s", err.msg);
+  } else {
+    s->n_walls = s->cave.n_walls;
+    s->n_walleyes = 2 * s->n_walls;
+    for (int a = 0; a < s->n_walls; a++)
+      for (int b = a + 1; b < s->n_walls; b++) {
+        const cv_wall *A = &s->cave.walls[a], *B = &s->cave.walls[b];
+        if (!memcmp(A->pa, B->pa, sizeof A->pa) && !memcmp(A->pb, B->pb, sizeof A->pb) &&
+            !memcmp(A->pc, B->pc, sizeof A->pc))
+          problem(pb, "%s: walls[%d] ('%s') and walls[%d] ('%s') are the same screen", o->cave_path, a,
+                  A->name, b, B->name);
+      }
+    if (cv_cave_check_eye(&s->cave, s->cave.head, &err)) problem(pb, "%s: head: %s", o->cave_path, err.msg);
+    const int need = 1 + s->n_walleyes;
+    if (size < need)
+      problem(pb, "%d ranks: %s has %d walls, so the service needs at least 1 + 2 x %d = %d ranks "
+              "(master + one per wall-eye); extra ranks path-trace the LCD", size, o->cave_path,
+              s->n_walls, s->n_walls, need);
+    else
+      s->n_gather = size - need;
+  }
+  if (!o->scene_path[0]) {
+    problem(pb, "--scene: a baked scene (.prt) is required (cave bake makes one)");
+  } else if (!file_readable(o->scene_path)) {
+    problem(pb, "--scene: %s: cannot open: %s", o->scene_path, strerror(errno));
+  } else {
+    uint64_t h;
+    if (cv_prt_read_input_hash(o->scene_path, &h, &err)) problem(pb, "--scene: %s", err.msg);
+  }
+  if (o->drive_path[0]) {
+    char buf[4096];
+    int np = 0;
+    if (cv_drive_validate_all(o->drive_path, buf, sizeof buf, &np) != CV_OK) {
+      char *line = strtok(buf, "\n");
+      for (; line; line = strtok(NULL, "\n")) problem(pb, "--drive: %s", line);
+    } else if (cv_drive_load(o->drive_path, &s->drive, &err)) {
+      problem(pb, "--drive: %s", err.msg);
+    }
+  } else if (cv_drive_parse(k_builtin_drive, "(built-in drive)", NULL, &s->drive, &err)) {
+    problem(pb, "built-in drive: %s (is blender-data installed?)", err.msg);
+  }
+  if (o->head_path[0]) {
+    cv_head_path *hp;
+    if (cv_head_path_load(o->head_path, &hp, &err)) problem(pb, "--head-path: %s", err.msg);
+    else cv_head_path_destroy(hp);
+  }
+  if (o->head_path[0] && o->dtrack_port > 0)
+    problem(pb, "--head-path and --dtrack: give one head source");
+  if (o->display_path[0] && !o->compensate)
+    problem(pb, "--display and --no-compensation contradict each other");
+  if (o->lcd_content[0] && !file_readable(o->lcd_content))
+    problem(pb, "--lcd-content: %s: cannot open: %s", o->lcd_content, strerror(errno));
+  if (s->n_walls > 0 && o->compensate) {
+    cv_display *d;
+    if (cv_service_display(s, &d, &err)) problem(pb, "--display: %s", err.msg);
+    else cv_display_destroy(d);
+  }
+  if (!o->out_dir[0]) snprintf(o->out_dir, sizeof o->out_dir, "out/run");
+}
+
+static int mkdirs(const char *path) {
+  char tmp[CV_PATHLEN];
+  snprintf(tmp, sizeof tmp, "%s", path);
+  for (char *p = tmp + 1; *p; p++)
+    if (*p == '/') {
+      *p = 0;
+      if (mkdir(tmp, 0777) && errno != EEXIST) return -1;
+      *p = '/';
+    }
+  if (mkdir(tmp, 0777) && errno != EEXIST) return -1;
+  return 0;
+}
+
+int cmd_run(int argc, char **argv) {
+  cv_service s;
+  memset(&s, 0, sizeof s);
+  cv_run_opts_default(&s.o);
+  s.stop = &g_stop;
+  problems pb;
+  memset(&pb, 0, sizeof pb);
+  int check = 0, ranks = 0;
+  int h = parse(argc, argv, &s.o, &check, &ranks, &pb);
+  if (h == 1) {
+    help(stdout);
+    return 0;
+  }
+  if (check) {
+    if (ranks < 1) problem(&pb, "--check needs --ranks N");
+    check_all(&s, ranks, &pb);
+    if (pb.n) {
+      fputs(pb.buf, stderr);
+      fprintf(stderr, "cave run: %d problem%s, not started\n", pb.n, pb.n > 1 ? "s" : "");
+      cv_drive_destroy(s.drive);
+      return 2;
+    }
+    printf("cave run: %d ranks: rank 0 master", ranks);
+    for (int w = 0; w < s.n_walls; w++)
+      printf(", ranks %d-%d %s (left, right)", 1 + 2 * w, 2 + 2 * w, s.cave.walls[w].name);
+    if (s.n_gather) printf(", ranks %d-%d gather-only", 1 + s.n_walleyes, ranks - 1);
+    printf("\n");
+    cv_drive_destroy(s.drive);
+    return 0;
+  }
+  if (cv_comm_init(&argc, &argv, &s.rank, &s.size)) {
+    fprintf(stderr, "cave run: MPI_Init failed\n");
+    return 1;
+  }
+  check_all(&s, s.size, &pb);
+  if (!pb.n && mkdirs(s.o.out_dir)) problem(&pb, "-o: %s: cannot create: %s", s.o.out_dir, strerror(errno));
+  if (pb.n) {
+    if (s.rank == 0) {
+      fputs(pb.buf, stderr);
+      fprintf(stderr, "cave run: %d problem%s, not started\n", pb.n, pb.n > 1 ? "s" : "");
+    }
+    cv_drive_destroy(s.drive);
+    cv_comm_finalize();
+    return 2;
+  }
+  {
+    /* Each rank's pid, for operators (and the fault tests: SIGSTOP a rank). */
+    char pd[CV_PATHLEN + 32], pf[CV_PATHLEN + 64];
+    snprintf(pd, sizeof pd, "%s/pids", s.o.out_dir);
+    if (!mkdirs(pd)) {
+      snprintf(pf, sizeof pf, "%s/rank%d.pid", pd, s.rank);
+      FILE *f = fopen(pf, "w");
+      if (f) {
+        fprintf(f, "%ld\n", (long)getpid());
+        fclose(f);
+      }
+    }
+  }
+  s.n_contributors = s.o.lcd ? (s.o.lcd_idle ? s.n_walleyes : 0) + s.n_gather : 0;
+  if (s.o.lcd && s.n_contributors == 0) s.o.lcd = 0; /* nobody to path-trace the LCD */
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  int rc;
+  if (s.rank == 0) rc = cv_master_run(&s);
+  else if (s.rank <= s.n_walleyes) rc = cv_walleye_run(&s);
+  else rc = cv_gather_run(&s);
+  cv_drive_destroy(s.drive);
+  cv_comm_finalize();
+  return rc;
+}

@@ -1,0 +1,86 @@
+/* The cluster render service (`mpirun -np N cave run ...`): options, the
+ * rank layout and the three roles (issue 6; ../shared/DESIGN.md "The system
+ * in one picture").
+ *   rank 0            master: scene state, tracker, adaptation, LCD sums,
+ *                     compensation solve, metrics;
+ *   ranks 1 .. 2W     wall-eyes: rank 1 + 2w + e renders wall w, eye e
+ *                     (0 left, 1 right); an idle thread does LCD rounds;
+ *   ranks > 2W        gather-only: LCD final-gather rounds.
+ * No MPI here: roles talk through comm.h. */
+#ifndef CV_CLUSTER_SERVICE_H
+#define CV_CLUSTER_SERVICE_H
+
+#include <signal.h>
+#include <stdint.h>
+
+#include "core/status.h"
+#include "io/scene_config.h"
+#include "prt/prt.h"
+#include "service/drive.h"
+#include "service/framestate.h"
+#include "service/tracker.h"
+#include "view/cave.h"
+
+#define CV_PATHLEN 1024
+
+typedef struct cv_run_opts {
+  char cave_path[CV_PATHLEN];
+  char scene_path[CV_PATHLEN];   /* baked .prt */
+  char drive_path[CV_PATHLEN];   /* "" = built-in: the drive configs/drives/default.json */
+  char head_path[CV_PATHLEN];    /* recorded head path; "" = the CAVE's default pose */
+  char out_dir[CV_PATHLEN];
+  char display_path[CV_PATHLEN]; /* compensation display; "" = generated from the walls */
+  char metrics_path[CV_PATHLEN]; /* "" = <out>/metrics.jsonl */
+  char lcd_content[CV_PATHLEN];  /* "" = built-in test pattern */
+  int dtrack_port;               /* > 0: live DTrack on this UDP port */
+  char dtrack_host[64];          /* bind address, default 127.0.0.1 */
+  int dtrack_body;               /* body id of the head, default 1 */
+  int frames;                    /* frames to render (0 = until SIGINT/SIGTERM) */
+  double dt;                     /* simulated seconds per frame (default 1/30) */
+  int size;                      /* > 0: pixels per wall-eye side, overrides the config */
+  int write_every;               /* write images every k-th frame (default 10; 0 = last only) */
+  double timeout_ms;             /* wait for late contributions at most this long (default 2000) */
+  double startup_timeout_s;      /* ranks must be ready within this (default 300) */
+  int barrier;                   /* per-frame MPI barrier (swap lock) */
+  int compensate;                /* 1: scattering compensation (default) */
+  int patches;                   /* patches per wall side for the generated display (default 24) */
+  double reflectance;            /* screens of the generated display (default 0.8) */
+  int lcd;                       /* 1: LCD final gather (default) */
+  int lcd_w, lcd_h, lcd_spp;     /* 400 x 300, 40 */
+  int lcd_budget;                /* rounds per key before a texel is final (default 64) */
+  double lcd_tolerance;          /* camera-key quantisation, metres (default 0.02) */
+  double lcd_luminance;          /* panel white, cd/m2 (default 500) */
+  int lcd_idle;                  /* 1: wall-eye idle threads contribute rounds (default 1) */
+  int lcd_wait;                  /* 1: after the frames, wait until the LCD budget is summed */
+  uint32_t seed;
+  int quiet;
+} cv_run_opts;
+
+void cv_run_opts_default(cv_run_opts *o);
+
+/* What every rank knows after set-up (identical on all ranks). */
+typedef struct cv_service {
+  cv_run_opts o;
+  int rank, size;
+  int n_walls, n_walleyes, n_gather;
+  int n_contributors;  /* LCD: wall-eye idle threads (if on) + gather ranks */
+  cv_cave cave;
+  cv_drive *drive;
+  volatile sig_atomic_t *stop; /* set by SIGINT / SIGTERM */
+} cv_service;
+
+/* Contributor index of a rank for LCD rounds (round = index + k * count), or
+ * -1 when the rank does not contribute. */
+int cv_service_contributor(const cv_service *s, int rank);
+
+/* Quantises a drive state the way the lighting key does (yaw/pitch/roll to
+ * 1 degree, weights to 1%, sky angles to 0.5 degree, turbidity to 0.1), so
+ * that every rank that sees the same key builds bit-identical lighting. */
+void cv_service_quantise_drive(cv_drive_state *s);
+uint64_t cv_service_light_key(const cv_drive_state *quantised);
+
+int cv_master_run(cv_service *s);
+int cv_walleye_run(cv_service *s);
+int cv_gather_run(cv_service *s);
+
+#endif

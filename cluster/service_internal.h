@@ -1,0 +1,58 @@
+/* Internal helpers shared by the roles of the cluster service. */
+#ifndef CV_CLUSTER_SERVICE_INTERNAL_H
+#define CV_CLUSTER_SERVICE_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "compensate/display.h"
+#include "lcd/accum.h"
+#include "prt/scene_light.h"
+#include "service.h"
+
+/* The compensation display (see display_gen.c); *out owned by the caller. */
+int cv_service_display(const cv_service *s, cv_display **out, cv_err *err);
+
+/* Lighting for a quantised drive state with `bands` SH bands. */
+int cv_service_build_lighting(const cv_service *s, const cv_drive_state *q, int bands,
+                              cv_scene_light **out, cv_err *err);
+
+/* LCD round message: this header (native byte order: the cluster is
+ * homogeneous), then n int64 values of the fixed-point buffer. */
+typedef struct cv_lcd_msg {
+  cv_lcd_key key;   /* eye_q, light_hash = the drive's light key, setup_hash */
+  uint32_t round;
+  int32_t w, h;
+  uint32_t contributor;
+  double clamp;
+  uint64_t n;
+} cv_lcd_msg;
+
+/* The LCD image message (master -> wall-eyes): header then 3 w h floats. */
+typedef struct cv_lcdimg_msg {
+  uint64_t lcd_key;
+  uint32_t rounds;
+  int32_t w, h;
+  uint32_t pad;
+} cv_lcdimg_msg;
+
+/* The master's LCD key of a frame: quantised eye and light key. */
+uint64_t cv_service_lcd_key(const int32_t eye_q[3], uint64_t light_key);
+
+/* Patch-image part of a wall-eye report: frame, then 3 n floats. */
+typedef struct cv_patch_msg {
+  uint32_t frame;
+  uint32_t n;  /* patches of the wall */
+} cv_patch_msg;
+
+/* Tells the master this rank's set-up succeeded or why it failed. */
+void cv_service_ready(int ok, const char *msg);
+
+/* Writes an image of display values in [0, 1] (clamped; c >= 3) as an
+ * 8-bit RGB PNG. */
+int cv_service_write_png01(const char *path, const cv_image *img, cv_err *err);
+
+/* Monotonic seconds. */
+double cv_service_now(void);
+
+#endif

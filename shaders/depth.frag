@@ -1,0 +1,3 @@
+// Depth-only passes (the frame's z pre-pass and the sun's shadow map): no
+// colour is written.
+void main() {}

@@ -1,0 +1,142 @@
+/* `cave tonemap`: Drago et al. 2003 adaptive logarithmic tone mapping of an
+ * HDR image, the CPU reference of the wall-eye renderer's display operator.
+ * Without --lwa the adaptation luminance is the log-average of the whole
+ * image (eps 1e-4 cd/m2), without --lmax its maximum luminance; pixel values
+ * are taken as cd/m2 (Rec.709 Y = 0.2126 R + 0.7152 G + 0.0722 B). */
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/cli.h"
+#include "io/exr.h"
+#include "io/png.h"
+#include "tonemap/drago.h"
+#include "tonemap/foveal.h"
+
+static void help(FILE *f) {
+  fprintf(f,
+          "usage: cave tonemap in.exr -o out.exr|out.png [--bias B] [--ldmax L] [--lwa L]\n"
+          "                    [--lmax L]\n\n"
+          "Drago et al. 2003 adaptive logarithmic tone mapping; pixel values in cd/m2.\n\n"
+          "  --bias B    Drago's bias, 0 < B < 1 (default 0.85)\n"
+          "  --ldmax L   display maximum luminance, cd/m2 (default 100)\n"
+          "  --lwa L     adaptation luminance, cd/m2 (default: log-average of the image,\n"
+          "              exp(mean(ln(Y + 1e-4))))\n"
+          "  --lmax L    maximum world luminance, cd/m2 (default: the image's maximum Y)\n"
+          "  -o FILE     .exr: display-linear values in [0, 1] (before the transfer curve);\n"
+          "              .png: 8-bit with Drago's Rec.709 transfer curve (gamma 2.2)\n\n"
+          "Prints one line: lwa, lmax, invalid (NaN/Inf/negative) pixels set to 0, and\n"
+          "saturated pixels (a channel above 1 after the colour ratio, clamped).\n"
+          "Input EXRs with NaN or Inf are refused by the reader; negative values are\n"
+          "clamped to 0 by the reader and counted.\n");
+}
+
+int cmd_tonemap(int argc, char **argv) {
+  const char *in = NULL, *out = NULL;
+  cv_drago d;
+  cv_drago_default(&d);
+  int have_lwa = 0, have_lmax = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      help(stdout);
+      return 0;
+    } else if (a[0] != '-') {
+      if (in) return cli_fail("tonemap", 2, "more than one input ('%s' and '%s')", in, a);
+      in = a;
+    } else if (!v) {
+      help(stderr);
+      return cli_fail("tonemap", 2, "unknown or incomplete option '%s'", a);
+    } else if (!strcmp(a, "-o")) {
+      out = argv[++i];
+    } else if (!strcmp(a, "--bias")) {
+      if (cli_parse_double(argv[++i], &d.bias) || !(d.bias > 0) || !(d.bias < 1))
+        return cli_fail("tonemap", 2, "--bias: expected 0 < B < 1, got '%s'", v);
+    } else if (!strcmp(a, "--ldmax")) {
+      if (cli_parse_double(argv[++i], &d.ldmax) || !(d.ldmax > 0))
+        return cli_fail("tonemap", 2, "--ldmax: expected a positive number, got '%s'", v);
+    } else if (!strcmp(a, "--lwa")) {
+      if (cli_parse_double(argv[++i], &d.lwa) || !(d.lwa > 0))
+        return cli_fail("tonemap", 2, "--lwa: expected a positive number, got '%s'", v);
+      have_lwa = 1;
+    } else if (!strcmp(a, "--lmax")) {
+      if (cli_parse_double(argv[++i], &d.lwmax) || !(d.lwmax > 0))
+        return cli_fail("tonemap", 2, "--lmax: expected a positive number, got '%s'", v);
+      have_lmax = 1;
+    } else {
+      help(stderr);
+      return cli_fail("tonemap", 2, "unknown option '%s'", a);
+    }
+  }
+  if (!in || !out) {
+    help(stderr);
+    return cli_fail("tonemap", 2, "an input image and -o are required");
+  }
+  int png = cli_has_ext(out, ".png");
+  if (!png && !cli_has_ext(out, ".exr"))
+    return cli_fail("tonemap", 2, "-o: expected an .exr or .png path, got '%s'", out);
+
+  cv_err err;
+  cv_err_clear(&err);
+  cv_image *img = NULL, *res = NULL;
+  uint8_t *px8 = NULL;
+  int rc = 1;
+  cv_exr_read_info info;
+  memset(&info, 0, sizeof info);
+  if (cv_exr_read_ex(in, &img, &info, &err)) {
+    cli_fail("tonemap", 1, "%s", err.msg);
+    goto done;
+  }
+  /* Global statistics, weight 1 per pixel; an image without a valid pixel
+   * keeps lwa at the eps floor (cv_drago_prepare's sanitising). */
+  cv_lumstats st;
+  memset(&st, 0, sizeof st);
+  cv_lumstats_image(img, &st);
+  double lwa = CV_LUM_EPS;
+  cv_lumstats_lwa(&st, &lwa);
+  if (!have_lwa) d.lwa = lwa;
+  if (!have_lmax) d.lwmax = st.max_l;
+  if (cv_image_create(img->w, img->h, img->c, &res)) {
+    cli_fail("tonemap", 1, "out of memory");
+    goto done;
+  }
+  uint64_t n_invalid = 0, n_sat = 0;
+  if (cv_drago_image_counts(img, &d, png, res, &n_invalid, &n_sat)) {
+    cli_fail("tonemap", 1, "%s: cannot tone-map this image", in);
+    goto done;
+  }
+  if (png) {
+    size_t n = (size_t)res->w * (size_t)res->h * (size_t)res->c;
+    px8 = malloc(n);
+    if (!px8) {
+      cli_fail("tonemap", 1, "out of memory");
+      goto done;
+    }
+    for (size_t i = 0; i < n; i++) {
+      double e = res->px[i];
+      px8[i] = (uint8_t)lrint((e > 1.0 ? 1.0 : (e > 0.0 ? e : 0.0)) * 255.0);
+    }
+    if (cv_png_write(out, res->w, res->h, res->c, px8, &err)) {
+      cli_fail("tonemap", 1, "%s", err.msg);
+      goto done;
+    }
+  } else if (cv_exr_write(out, res, 0, CV_EXR_ZIP, &err)) {
+    cli_fail("tonemap", 1, "%s", err.msg);
+    goto done;
+  }
+  cv_drago_consts k;
+  cv_drago_prepare(&d, &k);
+  printf("tonemap: %s -> %s: lwa %.6g cd/m2%s, lmax %.6g cd/m2%s, invalid %" PRIu64
+         " pixels (negative values clamped on read: %" PRIu64 "), saturated %" PRIu64
+         " pixels, bias %g, ldmax %g\n",
+         in, out, (double)k.lwa, have_lwa ? " (given)" : "", (double)k.lwa * k.lwmax_a,
+         have_lmax ? " (given)" : "", n_invalid, info.negative_clamped, n_sat, d.bias, d.ldmax);
+  rc = 0;
+done:
+  free(px8);
+  cv_image_destroy(res);
+  cv_image_destroy(img);
+  return rc;
+}

@@ -1,0 +1,159 @@
+/* Final gather on the dashboard LCD panel (Dmitriev et al. 2004, section
+ * 4.3): for each texel of the panel, the eye ray from the tracked head
+ * position gives the view direction; reflected rays are drawn by the
+ * tabulated BRDF (brdf_sample.h) and traced ONE bounce: a ray leaving
+ * through a window reads the environment (car frame), any other hit reads
+ * the PRT exit radiance interpolated from the hit triangle's vertices.  The
+ * sun is a directional light evaluated on the panel itself (next-event
+ * estimation: one shadow ray per texel and round, from the round's first
+ * sample position, its term added to every sample of the round), so it is
+ * removed from the environment the rays read.  The PRT radiance read at
+ * interior hits already holds the sun's direct light with ray-traced
+ * visibility (cv_prt_relight with a tracer), computed once per lighting
+ * state.
+ *
+ * Estimator of texel radiance (one-sample MIS, Veach 1997 sec. 9.2.4):
+ *   L = f(w_i, w_o) cos(theta_i) L_in(w_i) / (c p_brdf(w_i) + (1 - c) cos(theta_i)/pi)
+ *       + f(s, w_o) cos(theta_s) E_sun V(s)
+ * with c = brdf_fraction the probability of drawing w_i from the table.
+ * c = 1 is pure BRDF sampling, c = 0 pure cosine sampling.
+ *
+ * Determinism: sample j of round r of texel (x, y) uses index r*spp + j of
+ * an Owen-scrambled Sobol sequence seeded by (seed, texel); its value
+ * depends on nothing else, and values are summed in fixed point
+ * (accum.h), so rounds may be rendered by any contributor in any order.
+ * The view direction is taken at the texel centre (the eye moves less than
+ * 0.05 degrees across a 0.5 mm texel seen from 0.6 m); sample positions are
+ * jittered over the texel.
+ *
+ * Nothing here prints; nothing here includes MPI. */
+#ifndef CV_LCD_GATHER_H
+#define CV_LCD_GATHER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/image.h"
+#include "core/sobol.h"
+#include "io/scene_config.h"
+#include "lcd/accum.h"
+#include "lcd/brdf_sample.h"
+#include "light/envmap.h"
+#include "mesh/mesh.h"
+#include "prt/bake.h"
+#include "prt/scene_light.h"
+#include "rt/rt.h"
+
+/* The panel rectangle: centre, unit axes u (width, towards +X for the
+ * cabin), v (height, up) and normal = u x v (towards the occupants). */
+typedef struct cv_lcd_panel {
+  float center[3], u[3], v[3], normal[3];
+  float size[2]; /* metres along u, v */
+} cv_lcd_panel;
+
+/* The panel frame from the mesh's CV_MAT_LCD triangles: normal = their
+ * area-weighted normal, u = normalize(+Y x normal) (or +X when the panel
+ * faces straight up or down), v = normal x u, the rectangle = their bounds
+ * in (u, v), centred on the plane through their area-weighted centroid.
+ * Errors: CV_ERR_NOT_FOUND (no LCD triangle), CV_ERR_INVALID (degenerate). */
+int cv_lcd_panel_from_mesh(const cv_mesh *m, cv_lcd_panel *out, cv_err *err);
+
+/* The lighting state the gather reads, in the car frame. */
+typedef struct cv_lcd_light {
+  cv_envmap *env;     /* background radiance (sun removed when it is a separate light); owned */
+  int has_sun;
+  float sun_dir[3];   /* unit, towards the sun */
+  float sun_E[3];     /* RGB irradiance at normal incidence */
+  float *vrad;        /* 3*nv exit radiance per vertex; owned */
+  size_t nv;
+  double max_radiance;/* largest env or vertex radiance channel */
+  uint64_t vrad_fixed;/* vertex radiance channels that were NaN/Inf or negative, set to 0 */
+  uint64_t hash;      /* FNV-1a of env, sun and vrad: the lighting-state key */
+  char sun_source[64];/* "sky", "extracted from the environment", "none", ... */
+} cv_lcd_light;
+
+/* From explicit data (copied): env_car is the car-frame background, vrad
+ * 3*nv values (NULL: all zero).  NaN/Inf or negative vrad values are set
+ * to 0 and counted (vrad_fixed).
+ * Errors: CV_ERR_INVALID, CV_ERR_NONFINITE (sun), CV_ERR_NOMEM. */
+int cv_lcd_light_create(const cv_envmap *env_car, const float *vrad, size_t nv, int has_sun,
+                        const double sun_dir[3], const double sun_E[3], cv_lcd_light **out);
+
+/* From a scene's lighting: the background is tabulated in the car frame at
+ * env_w x env_w/2 from cv_scene_light_background.  For environment maps
+ * with a sun split out (spec->kind == CV_LIGHT_ENV, extract_sun) the sun is
+ * still in that background: it is extracted again from the table
+ * (light/sun.h) so that the table and the directional sun add up to the
+ * background exactly; when the table shows no sun, none is used.  For the
+ * sky the background has no sun disc and the sky's sun is used as is.  The
+ * per-vertex radiance comes from cv_prt_relight(p, tr, sun_samples) (sun
+ * direct with ray-traced visibility when tr is non-NULL).  *out owned by the
+ * caller.  Errors: CV_ERR_INVALID, CV_ERR_NOMEM, relight errors. */
+int cv_lcd_light_from_scene(const cv_scene_light *sl, const cv_light_spec *spec, const cv_prt *p,
+                            const cv_tracer *tr, int sun_samples, int env_w, cv_lcd_light **out,
+                            cv_err *err);
+void cv_lcd_light_destroy(cv_lcd_light *l);
+
+typedef struct cv_lcd_gather cv_lcd_gather;
+
+/* The immutable part: ray tracer (borrowed: built from m, must outlive the
+ * gather), the mesh's triangles (copied), the panel frame, the BRDF
+ * (borrowed) and its sampling tables (built here, ~13 MB).  *out owned by
+ * the caller.  Errors: CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
+                         const cv_brdf *brdf, cv_lcd_gather **out, cv_err *err);
+void cv_lcd_gather_destroy(cv_lcd_gather *g);
+const cv_brdf_sampler *cv_lcd_gather_sampler(const cv_lcd_gather *g);
+const cv_lcd_panel *cv_lcd_gather_panel(const cv_lcd_gather *g);
+
+typedef struct cv_lcd_params {
+  int w, h;              /* texels of the whole panel (default 400 x 300) */
+  int x0, y0;            /* the accumulation buffer holds the tile of acc->w x acc->h
+                            texels starting here (default 0, 0 with a w x h buffer);
+                            a tile's texels equal the whole panel's bit for bit */
+  int spp;               /* samples per texel per round (default 40) */
+  float eye[3];          /* eye position, car frame (from cv_lcd_key_eye) */
+  double brdf_fraction;  /* c in [0, 1]: 1 BRDF, 0 cosine, between MIS (default 0.9) */
+  uint32_t seed;         /* sequence seed (default 1) */
+  int sun;               /* 1: sun next-event estimation (default 1) */
+  int threads;           /* OpenMP threads, 0 = OpenMP's default */
+  /* Benchmark hook: when non-NULL, the gather ray of sample j of round 0's
+   * buffer texel (x, y) is stored at ray_log[6*((y*acc->w + x)*spp + j)]
+   * (origin, direction); holds 6*acc->w*acc->h*spp floats. */
+  float *ray_log;
+} cv_lcd_params;
+
+void cv_lcd_params_default(cv_lcd_params *p);
+
+/* Default clamp of sample values for a lighting state and BRDF: 1e4 x the
+ * largest radiance the rays can read, and at least 10 x the largest sun
+ * term f_max E_sun (deterministic, never a firefly); 1 for a black scene. */
+double cv_lcd_default_clamp(const cv_lcd_light *l, const cv_brdf *b);
+
+/* Fingerprint of what the samples depend on besides eye and lighting. */
+uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, double clamp,
+                           double tolerance, uint64_t scene_hash);
+
+/* Renders round `round` (samples round*spp .. round*spp + spp - 1 of every
+ * texel of the tile p->x0, p->y0, acc->w x acc->h) and ADDS it to acc (its
+ * clamp and unit apply).  A pure function of (g, l, p, round, tile): any
+ * split of rounds over calls, threads or processes sums to the same
+ * integers.  Errors: CV_ERR_INVALID (sizes, tile outside the panel,
+ * spp < 1, light for another mesh, brdf_fraction outside [0, 1]),
+ * CV_ERR_RANGE (the buffer would exceed CV_LCD_MAX_SPP or the sample index
+ * 2^32). */
+int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
+                        uint32_t round, cv_lcd_accum *acc);
+
+/* --- panel content ------------------------------------------------------ */
+
+/* The panel's emitted radiance: w x h x 3 linear RGB such that content
+ * white (1, 1, 1) has luminance `luminance` cd/m^2.  From an image file
+ * (.png: sRGB decoded; .exr: linear, scaled so that its maximum luminance
+ * maps to `luminance`), box-filtered to w x h; or the built-in test pattern
+ * (path NULL or ""): a dark screen (0.2% black level) with white text-like
+ * bars and a coloured gauge.  Errors name the file. */
+int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_image **out,
+                        cv_err *err);
+
+#endif

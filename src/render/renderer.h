@@ -1,0 +1,181 @@
+/* The wall-eye renderer: headless OpenGL (EGL, desktop GL 3.3 core) drawing
+ * a baked PRT scene through one wall's off-axis projection, with the
+ * three-pass frame of Dmitriev et al. 2004, section 4.2:
+ *   (a) a low-resolution luminance pass whose pixels feed the adaptation
+ *       statistics (cv_renderer_luminance),
+ *   (b) a depth-only pass at full resolution, then
+ *   (c) PRT shading with glDepthFunc(GL_EQUAL) and depth writes off, so only
+ *       visible pixels pay for shading and tone mapping (cv_renderer_shade),
+ * Drago tone mapping + Rec.709 transfer in the fragment shader from the same
+ * cv_drago_consts as the CPU operator, optional 2x supersampling, and a
+ * linear HDR output.
+ *
+ * Relighting (exit radiance = lighting SH . transfer, as cv_prt_relight) runs
+ * on the GPU once per cv_renderer_set_lighting, by transform feedback into a
+ * vertex buffer that every later pass of every view reads (per vertex, like
+ * the CPU, so the image is the CPU's vertex radiance interpolated); the
+ * transfer vectors live in a GL buffer object read as a texture buffer (25
+ * coefficients x 4 channels do not fit in the 16 vertex attributes GL
+ * guarantees).  A sun (cv_lighting.has_sun) adds its direct light per pixel
+ * with a 2048^2 shadow map (bilinear PCF); its indirect light goes through
+ * the interreflected transfer as in relight.c.  Windows (CV_MAT_WINDOW) are
+ * not drawn: the background (a lat-long HDR image,
+ * cv_renderer_set_background) shows wherever no opaque triangle covers a
+ * pixel.  Negative and non-finite vertex radiance is set to 0 and counted
+ * (cv_render_light_stats); pixels are not counted on the GPU.
+ *
+ * Speed: triangles are sorted along a Morton curve and drawn in chunks of
+ * 1024 whose bounds are culled against each view's frustum; vertices are
+ * renumbered in order of first use (compact index ranges per draw);
+ * optionally back faces are culled (closed meshes only).  Timings per pass
+ * (glFinish-bracketed) come back in cv_frame_timing.
+
+ * Coordinates: the projection (cv_offaxis) is in CAVE coordinates; the scene
+ * is drawn at scene point = CAVE point + scene_offset (no rotation).
+ *
+ * EGL: EGL_PLATFORM_SURFACELESS_MESA (Mesa, llvmpipe without a GPU), falling
+ * back to EGL_EXT_platform_device (NVIDIA and other vendor drivers), then
+ * the default display.  GL entry points come from glvnd's libOpenGL with
+ * GL_GLEXT_PROTOTYPES (it exports every core function up to 4.6).
+ * A renderer owns its context and makes it current on each call: use one
+ * renderer per thread. */
+#ifndef CV_RENDER_RENDERER_H
+#define CV_RENDER_RENDERER_H
+
+#include <stdint.h>
+
+#include "core/image.h"
+#include "core/status.h"
+#include "prt/prt.h"
+#include "prt/relight.h"
+#include "prt/scene_light.h"
+#include "tonemap/drago.h"
+#include "view/offaxis.h"
+
+typedef struct cv_render_opts {
+  int half_transfer; /* 1: transfer stored as half floats (RGBA16F), half the bytes */
+  int shadow_res;    /* sun shadow map size in texels (default 2048) */
+  int timing;        /* 1: bracket passes with glFinish and fill cv_frame_timing (default 1) */
+  int display_float; /* 1: tone-mapped target RGBA32F (exact values); 0: RGBA8, what a
+                        display gets, quantised to k/255 (default) */
+  int cull_frustum;  /* 1: skip chunks of 1024 triangles outside the view (default 1) */
+  int cull_back;     /* 1: cull back faces (only for closed, consistently wound meshes
+                        such as the cabin; the CPU reference sees both sides) (default 0) */
+  int debug_clear;   /* 1: clear colour targets to -1 before shading (tests find holes) */
+  int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests) */
+} cv_render_opts;
+
+/* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
+ * target, frustum culling on, back-face culling off, no debug. */
+void cv_render_default_opts(cv_render_opts *o);
+
+/* One wall-eye view. */
+typedef struct cv_render_view {
+  cv_offaxis proj;        /* the wall's off-axis projection for this eye (CAVE frame) */
+  double scene_offset[3]; /* scene point = CAVE point + scene_offset */
+  int w, h;               /* output pixels */
+  int supersample;        /* 1, or 2: shade at 2w x 2h and box-filter down */
+} cv_render_view;
+
+/* Milliseconds per pass, wall clock between glFinish calls (opts.timing).
+ * Each call sets the fields of the passes it ran and leaves the others. */
+typedef struct cv_frame_timing {
+  double relight_ms;    /* set_lighting: transform-feedback relight (+ clamp count) */
+  double shadow_ms;     /* set_lighting: sun shadow map */
+  double lum_ms;        /* luminance pass, draw only */
+  double lum_read_ms;   /* luminance read-back */
+  double depth_ms;      /* depth-only pass (incl. depth clear) */
+  double shade_ms;      /* PRT shading pass, geometry only */
+  double background_ms; /* background (environment) fill */
+  double resolve_ms;    /* supersampling 2x2 box filter */
+  double read_ms;       /* read-back of the shaded image(s) */
+  double unlit_ms;      /* unlit reference pass (cv_renderer_unlit) */
+} cv_frame_timing;
+
+/* Relighting counts of the last cv_renderer_set_lighting. */
+typedef struct cv_render_light_stats {
+  uint64_t clamped; /* vertex channels negative (SH ringing) or non-finite, set to 0 */
+} cv_render_light_stats;
+
+typedef struct cv_renderer cv_renderer;
+
+/* Starts EGL + GL, uploads the PRT's opaque triangles, positions and
+ * transfer (copied: prt may be freed afterwards), builds the programs.
+ * opts may be NULL (defaults).  *out owned by the caller (cv_renderer_destroy).
+ * Errors: CV_ERR_BACKEND with the EGL/GL failure ("no EGL display: ...",
+ * "cannot create a GL 3.3 core context", a shader log), CV_ERR_RANGE (mesh
+ * larger than the GL limits), CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_renderer **out,
+                       cv_err *err);
+/* Frees the GL objects and the context; accepts NULL. */
+void cv_renderer_destroy(cv_renderer *r);
+
+/* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
+const char *cv_renderer_gl_name(const cv_renderer *r);
+
+/* Sets the lighting: relights every vertex on the GPU (as cv_prt_relight
+ * without its ray-traced sun) and, with a sun, renders its shadow map.
+ * l->bands must be >= the PRT's bands.  stats (may be NULL) gets the clamp
+ * count; t (may be NULL) relight_ms and shadow_ms.
+ * Errors: CV_ERR_RANGE (bands), CV_ERR_NONFINITE (lighting), CV_ERR_BACKEND. */
+int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
+                             cv_frame_timing *t, cv_err *err);
+
+/* Sets the background seen through the windows: a lat-long RGB image
+ * (c >= 3, row 0 = zenith; docs/conventions.md), copied; NULL = black.
+ * Errors: CV_ERR_INVALID, CV_ERR_BACKEND. */
+int cv_renderer_set_background(cv_renderer *r, const cv_image *latlong, cv_err *err);
+
+/* The dashboard LCD as the driver sees it (the LCD final gather's image,
+ * issue 6): fragments within 3 mm of the panel rectangle (centre, axes u
+ * along its width and v along its height, normalised here, sizes in metres;
+ * scene frame) take their radiance from img (linear RGB, c >= 3, row 0 at
+ * the top = the +v edge, bilinear) instead of the PRT, in every pass.  The
+ * image is copied; NaN/Inf/negative texels become 0 and are counted
+ * (cv_renderer_panel_invalid).  img NULL turns the panel off.
+ * Errors: CV_ERR_INVALID, CV_ERR_RANGE (texture limit), CV_ERR_BACKEND. */
+int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3],
+                          const float v[3], const float size[2], const cv_image *img, cv_err *err);
+/* Texels of the last panel image that were not finite and >= 0. */
+uint64_t cv_renderer_panel_invalid(const cv_renderer *r);
+
+/* Samples sl's background radiance (cv_scene_light_background, sun
+ * included) at the texel centres of a w x w/2 lat-long image; *out owned by
+ * the caller.  Errors: CV_ERR_INVALID (w < 2), CV_ERR_NOMEM. */
+int cv_render_background_image(const cv_scene_light *sl, int w, cv_image **out);
+
+/* Pass (a): renders the view's luminance (Rec.709 Y, linear, same radiance
+ * as the shading pass, background included) at out->w x out->h (out: c = 1,
+ * any size, typically 128x128; row 0 at the top = the wall's pc edge) and
+ * reads it back.  Errors: CV_ERR_INVALID (bad view or image), CV_ERR_BACKEND. */
+int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out,
+                          cv_frame_timing *t, cv_err *err);
+
+/* Passes (b) and (c): depth pre-pass, then shading with depth EQUAL, then
+ * the background, the supersampling resolve and the read-back of
+ *   out_display (may be NULL): Drago display values per channel in [0, 1]
+ *                 with the constants dc, plus the Rec.709 transfer when
+ *                 `transfer` is non-zero (display-linear otherwise);
+ *   out_hdr (may be NULL): linear radiance.
+ * At least one output; each c = 3, v->w x v->h, row 0 at the top.  Both come
+ * from the same pass (two render targets).  dc may be NULL without
+ * out_display.  Errors: CV_ERR_INVALID, CV_ERR_BACKEND. */
+int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                      int transfer, cv_image *out_display, cv_image *out_hdr,
+                      cv_frame_timing *t, cv_err *err);
+
+/* The three passes in order: luminance into out_lum (may be NULL: skipped),
+ * then cv_renderer_shade.  For a single wall-eye; a CAVE computes dc from
+ * the luminance of all wall-eyes between the two halves. */
+int cv_renderer_frame(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                      int transfer, cv_image *out_display, cv_image *out_hdr, cv_image *out_lum,
+                      cv_frame_timing *t, cv_err *err);
+
+/* Benchmark reference: the depth pre-pass and then the same mesh with the
+ * same vertex format in a constant colour (depth EQUAL), at the view's size
+ * (times supersample), read back into out (may be NULL; c = 3, v->w x v->h,
+ * without supersampling only).  Fills depth_ms, unlit_ms, read_ms. */
+int cv_renderer_unlit(cv_renderer *r, const cv_render_view *v, cv_image *out,
+                      cv_frame_timing *t, cv_err *err);
+
+#endif

@@ -1,0 +1,241 @@
+/* Benchmark of the wall-eye renderer (src/render) on the default cabin at
+ * about 500K triangles (tessellation 8: 570,648 triangles, 293,264
+ * vertices, 5 bands), on whatever EGL gives (llvmpipe without a GPU).
+ *
+ * The bake only feeds raster timing, so it uses 2 rays per vertex and one
+ * bounce (the GPU data are the same size as a full bake's) and is cached in
+ * $TMPDIR/cave_bench_render_t8.prt.
+ *
+ * Per wall-eye of configs/caves/cave5.json (5 walls x 2 eyes, default head),
+ * at 720x720 and 1440x1440: the luminance pass (128x128, draw + read-back),
+ * the depth pre-pass, the PRT shading pass (depth EQUAL, Drago + Rec.709,
+ * the sun's shadow map), the background fill, the read-back, and, in the
+ * same run, an unlit pass of the same mesh and vertex format after the same
+ * depth pre-pass.  Per lighting change: the transform-feedback relight and
+ * the sun's shadow map.  Per frame: the adaptation statistics of all 10
+ * wall-eyes (foveal cone + Lwmax over the 128x128 luminance images).
+ * Medians over the frames; every pass is bracketed by glFinish.
+ *
+ * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
+ *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440]
+ * Back faces are culled by default (the cabin is closed and consistently
+ * wound; tests/render checks the image does not change). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "bench_util.h"
+#include "mesh/cabin.h"
+#include "prt/bake.h"
+#include "prt/scene_light.h"
+#include "render/renderer.h"
+#include "tonemap/drago.h"
+#include "tonemap/foveal.h"
+#include "view/cave.h"
+#include "view/offaxis.h"
+
+#define MAXF 64
+#define NV 16
+
+static double now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+static cv_prt *load_or_bake(void) {
+  const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
+  char path[1024];
+  snprintf(path, sizeof path, "%s/cave_bench_render_t8.prt", tmp);
+  cv_prt *p = NULL;
+  cv_err err;
+  if (cv_prt_read(path, &p, NULL) == CV_OK && p->nt > 500000) return p;
+  cv_prt_destroy(p);
+  p = NULL;
+  cv_cabin_params cp;
+  cv_cabin_default_params(&cp);
+  cp.tess = 8;
+  cv_mesh *m;
+  if (cv_cabin_generate(&cp, &m, &err)) {
+    fprintf(stderr, "cabin: %s\n", err.msg);
+    return NULL;
+  }
+  cv_bake_params bp = {.bands = 5, .rays = 2, .bounces = 1, .seed = 1,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  double t0 = now_ms();
+  if (cv_prt_bake(m, &bp, &p, NULL, &err)) {
+    fprintf(stderr, "bake: %s\n", err.msg);
+    cv_mesh_destroy(m);
+    return NULL;
+  }
+  cv_mesh_destroy(m);
+  fprintf(stderr, "baked %zu triangles in %.1f s (2 rays, 1 bounce), cached in %s\n", p->nt,
+          (now_ms() - t0) / 1e3, path);
+  cv_prt_write(path, p, NULL);
+  return p;
+}
+
+int main(int argc, char **argv) {
+  int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0;
+#ifdef CV_SOURCE_DIR
+  const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
+#else
+  const char *cave_path = "configs/caves/cave5.json"; /* run from the repository root */
+#endif
+  for (int i = 1; i < argc; i++) {
+    if (!strcmp(argv[i], "--half")) half = 1;
+    else if (!strcmp(argv[i], "--no-cull-back")) cull_back = 0;
+    else if (!strcmp(argv[i], "--no-frustum")) frustum = 0;
+    else if (!strcmp(argv[i], "--float-display")) dfloat = 1;
+    else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--cave") && i + 1 < argc) cave_path = argv[++i];
+    else frames = atoi(argv[i]);
+  }
+  if (frames < 1 || frames > MAXF) frames = 5;
+  cv_err err;
+  cv_cave cave;
+  if (cv_cave_load(cave_path, &cave, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  cv_prt *prt = load_or_bake();
+  if (!prt) return 1;
+  cv_render_opts ro;
+  cv_render_default_opts(&ro);
+  ro.half_transfer = half;
+  ro.cull_back = cull_back;
+  ro.cull_frustum = frustum;
+  ro.display_float = dfloat;
+  cv_renderer *r;
+  if (cv_renderer_create(prt, &ro, &r, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  cv_image *bg;
+  if (cv_scene_light_build(&spec, (int)prt->bands, &sl, &err) ||
+      cv_render_background_image(sl, 1024, &bg) || cv_renderer_set_background(r, bg, &err)) {
+    fprintf(stderr, "lighting: %s\n", err.msg);
+    return 1;
+  }
+  cv_lighting l = cv_scene_light_sh(sl);
+  const char *lp = getenv("LP_NUM_THREADS");
+  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)");
+  printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
+         "back faces %s, frustum culling %s, display target %s\n",
+         prt->nt, prt->nv, prt->bands, half ? "half" : "float",
+         (size_t)(prt->bands * prt->bands + 1) * (half ? 8 : 16), cull_back ? "culled" : "drawn",
+         frustum ? "on" : "off", dfloat ? "RGBA32F" : "RGBA8");
+
+  double relight[MAXF], shadow[MAXF];
+  for (int f = 0; f < frames; f++) {
+    cv_frame_timing t = {0};
+    if (cv_renderer_set_lighting(r, &l, NULL, &t, &err)) {
+      fprintf(stderr, "%s\n", err.msg);
+      return 1;
+    }
+    relight[f] = t.relight_ms, shadow[f] = t.shadow_ms;
+  }
+  double m_relight = bench_median(relight, frames), m_shadow = bench_median(shadow, frames);
+  printf("per lighting change: relight (transform feedback + clamp count) %.1f ms, sun shadow map "
+         "2048^2 %.1f ms\n\n",
+         m_relight, m_shadow);
+
+  double eyes[2][3];
+  cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
+  const int nviews = 2 * cave.n_walls;
+  cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = 1000, .lwmax = 2e4};
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  const int sizes[2] = {720, 1440};
+  cv_image *lum[NV];
+  for (int i = 0; i < nviews; i++) cv_image_create(cave.lum_res, cave.lum_res, 1, &lum[i]);
+  double stats_ms[MAXF];
+  printf("| size | wall-eye | lum 128^2 | lum read | depth | shade | background | read-back | total | unlit | shade/unlit |\n");
+  printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (int si = 0; si < 2; si++) {
+    const int S = sizes[si];
+    if (only && S != only) continue;
+    cv_image *disp, *un;
+    cv_image_create(S, S, 3, &disp);
+    cv_image_create(S, S, 3, &un);
+    /* [view][pass][frame] */
+    static double T[NV][9][MAXF];
+    for (int f = 0; f < frames; f++) {
+      for (int i = 0; i < nviews; i++) {
+        const cv_wall *w = &cave.walls[i / 2];
+        cv_render_view v;
+        memset(&v, 0, sizeof v);
+        cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &v.proj);
+        memcpy(v.scene_offset, cave.scene_offset, sizeof v.scene_offset);
+        v.w = v.h = S, v.supersample = 1;
+        cv_frame_timing t = {0}, tu = {0};
+        if (cv_renderer_luminance(r, &v, lum[i], &t, &err) ||
+            cv_renderer_shade(r, &v, &dc, 1, disp, NULL, &t, &err) ||
+            cv_renderer_unlit(r, &v, un, &tu, &err)) {
+          fprintf(stderr, "%s\n", err.msg);
+          return 1;
+        }
+        double vals[9] = {t.lum_ms, t.lum_read_ms, t.depth_ms, t.shade_ms, t.background_ms, t.read_ms,
+                          t.lum_ms + t.lum_read_ms + t.depth_ms + t.shade_ms + t.background_ms + t.read_ms,
+                          tu.unlit_ms, 0};
+        for (int k = 0; k < 9; k++) T[i][k][f] = vals[k];
+      }
+      if (si == 0) {
+        /* adaptation statistics of all wall-eyes, as cmd_render.c */
+        double t0 = now_ms();
+        const double ha = 0.5 * cave.foveal_deg * M_PI / 180;
+        cv_lumstats acc = {0};
+        double lwmax = 0;
+        for (int i = 0; i < nviews; i++) {
+          const cv_wall *w = &cave.walls[i / 2];
+          for (int k = 0; k < lum[i]->w * lum[i]->h; k++)
+            if (lum[i]->px[k] > lwmax && isfinite(lum[i]->px[k])) lwmax = lum[i]->px[k];
+          if (!cv_foveal_touches(w->pa, w->pb, w->pc, eyes[i % 2], cave.gaze, ha)) continue;
+          cv_lumstats s = {0};
+          cv_foveal_accumulate(lum[i]->px, lum[i]->w, lum[i]->h, w->pa, w->pb, w->pc, eyes[i % 2],
+                               cave.gaze, ha, &s);
+          cv_lumstats_merge(&acc, &s);
+        }
+        double g;
+        cv_lumstats_lwa(&acc, &g);
+        stats_ms[f] = now_ms() - t0;
+      }
+    }
+    double mean[9] = {0}, worst_total = 0, worst_ratio = 0;
+    for (int i = 0; i < nviews; i++) {
+      double m[9];
+      for (int k = 0; k < 8; k++) m[k] = bench_median(T[i][k], frames);
+      m[8] = m[3] / m[7];
+      printf("| %d | %s %s | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f |\n", S,
+             cave.walls[i / 2].name, i % 2 ? "R" : "L", m[0], m[1], m[2], m[3], m[4], m[5], m[6],
+             m[7], m[8]);
+      for (int k = 0; k < 9; k++) mean[k] += m[k] / nviews;
+      if (m[6] > worst_total) worst_total = m[6];
+      if (m[8] > worst_ratio) worst_ratio = m[8];
+    }
+    printf("| **%d** | **mean of %d** | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | **%.1f** | %.1f | **%.2f** |\n",
+           S, nviews, mean[0], mean[1], mean[2], mean[3], mean[4], mean[5], mean[6], mean[7],
+           mean[8]);
+    printf("| %d | worst wall-eye | | | | | | | %.1f | | %.2f |\n", S, worst_total, worst_ratio);
+    printf("| %d | + relight + shadow map (one rank per wall-eye) | | | | | | | %.1f | | |\n", S,
+           mean[6] + m_relight + m_shadow);
+    cv_image_destroy(disp);
+    cv_image_destroy(un);
+  }
+  printf("\nadaptation statistics, all %d wall-eyes (Lwmax + foveal cone on %dx%d luminance "
+         "images): median %.3f ms per frame\n",
+         nviews, cave.lum_res, cave.lum_res, bench_median(stats_ms, frames));
+  for (int i = 0; i < nviews; i++) cv_image_destroy(lum[i]);
+  cv_image_destroy(bg);
+  cv_scene_light_destroy(sl);
+  cv_renderer_destroy(r);
+  cv_prt_destroy(prt);
+  return 0;
+}

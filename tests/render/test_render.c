@@ -1,0 +1,674 @@
+/* Tests of the wall-eye renderer (src/render) on whatever EGL gives: Mesa's
+ * llvmpipe in CI.  If no EGL context can be made these tests FAIL (the
+ * group setup asserts), they never skip.
+ *
+ *  - GL frame vs an independent CPU reference: Embree primary rays through
+ *    the wall's pixel centres from the eye (corners taken directly from the
+ *    wall, not from cv_offaxis), radiance from cv_prt_relight interpolated at
+ *    the hit, the background through the windows: the reference of
+ *    `cave shade --view`, generalised to an off-axis screen.  Two poses (an
+ *    on-axis wall, an oblique side wall with an off-centre eye and a scene
+ *    offset), float and half-float transfer.
+ *  - the same with a sun: the GPU's shadow map per pixel against the CPU's
+ *    ray-traced, vertex-interpolated sun (statistical bounds).
+ *  - depth EQUAL shades every visible pixel: sentinel-cleared targets show
+ *    no hole, and the image equals a single-pass depth-LESS render.
+ *  - the shader's Drago (+ Rec.709) equals cv_drago_map / cv_drago_image
+ *    within 1e-5 on a log ramp of flat quads.
+ *  - the luminance pass equals Rec.709 Y of the HDR output at the same size,
+ *    and the log-average of a 4x downsampled full-size frame.
+ *  - 2x supersampling equals a 2x render box-filtered on the CPU.
+ *  - argument errors. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "mesh/cabin.h"
+#include "prt/bake.h"
+#include "prt/relight.h"
+#include "prt/scene_light.h"
+#include "render/renderer.h"
+#include "tonemap/drago.h"
+#include "view/offaxis.h"
+
+typedef struct fixture {
+  cv_prt *prt;
+  cv_tracer *tr;
+  cv_cabin_info info;
+  cv_renderer *r;
+} fixture;
+
+static fixture F;
+
+/* assert_int_equal on a status, printing the error line first. */
+#define OK(call)                                              \
+  do {                                                        \
+    int st_ = (call);                                         \
+    if (st_) printf("%s -> %d: %s\n", #call, st_, err.msg);   \
+    assert_int_equal(st_, CV_OK);                             \
+  } while (0)
+
+static int setup(void **state) {
+  (void)state;
+  cv_cabin_params cp;
+  cv_cabin_default_params(&cp);
+  cp.tess = 1;
+  cv_mesh *m = NULL;
+  cv_err err;
+  if (cv_cabin_generate_ex(&cp, &m, &F.info, &err)) return -1;
+  cv_bake_params bp = {.bands = 5, .rays = 16, .bounces = 1, .seed = 3,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  if (cv_prt_bake(m, &bp, &F.prt, NULL, &err)) return -1;
+  cv_mesh *pm = NULL;
+  if (cv_prt_to_mesh(F.prt, &pm) || cv_tracer_create(pm, &F.tr, &err)) return -1;
+  cv_mesh_destroy(pm);
+  cv_mesh_destroy(m);
+  /* EGL must work: a failure here fails every test (no skip). */
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1; /* exact display values for the comparisons */
+  if (cv_renderer_create(F.prt, &o, &F.r, &err)) {
+    fprintf(stderr, "cannot start the renderer: %s\n", err.msg);
+    return -1;
+  }
+  printf("GL: %s\n", cv_renderer_gl_name(F.r));
+  return 0;
+}
+
+static int teardown(void **state) {
+  (void)state;
+  cv_renderer_destroy(F.r);
+  cv_tracer_destroy(F.tr);
+  cv_prt_destroy(F.prt);
+  return 0;
+}
+
+/* A smooth coloured SH lighting without a sun. */
+static void test_lighting(cv_lighting *l) {
+  memset(l, 0, sizeof *l);
+  l->bands = 5;
+  const double base[3] = {1.0, 0.9, 0.8};
+  for (int c = 0; c < 3; c++) {
+    l->sh[c] = base[c] * sqrt(4 * M_PI);
+    l->sh[3 * 1 + c] = 0.6 + 0.1 * c; /* y: brighter above */
+    l->sh[3 * 2 + c] = -0.3;          /* z */
+    l->sh[3 * 3 + c] = 0.2 * c;       /* x */
+    l->sh[3 * 6 + c] = 0.15;
+  }
+}
+
+static const float BG[3] = {0.5f, 0.7f, 1.2f};
+
+static cv_image *const_bg(void) {
+  cv_image *bg;
+  assert_int_equal(cv_image_create(8, 4, 3, &bg), CV_OK);
+  for (int i = 0; i < 32; i++)
+    for (int c = 0; c < 3; c++) bg->px[3 * i + c] = BG[c];
+  return bg;
+}
+
+typedef struct pose {
+  double pa[3], pb[3], pc[3], eye[3], offset[3];
+  int w, h;
+} pose;
+
+/* Pose 0: a 1.6 x 1.2 m wall 1 m ahead of the driver's eye (scene frame).
+ * Pose 1: the left wall of a 3 m CAVE, the eye off-centre, the CAVE mapped
+ * into the car by an offset. */
+static pose make_pose(int k) {
+  pose p;
+  memset(&p, 0, sizeof p);
+  const float *e = F.info.eye;
+  if (k == 0) {
+    double d[3][3] = {{-0.8, -0.6, -1}, {0.8, -0.6, -1}, {-0.8, 0.6, -1}};
+    for (int j = 0; j < 3; j++) {
+      p.pa[j] = e[j] + d[0][j];
+      p.pb[j] = e[j] + d[1][j];
+      p.pc[j] = e[j] + d[2][j];
+      p.eye[j] = e[j];
+    }
+    p.w = 240, p.h = 180;
+  } else {
+    double pa[3] = {-1.5, 0, 1.5}, pb[3] = {-1.5, 0, -1.5}, pc[3] = {-1.5, 3, 1.5};
+    double head[3] = {0.25, 1.3, -0.2};
+    memcpy(p.pa, pa, sizeof pa);
+    memcpy(p.pb, pb, sizeof pb);
+    memcpy(p.pc, pc, sizeof pc);
+    memcpy(p.eye, head, sizeof head);
+    for (int j = 0; j < 3; j++) p.offset[j] = e[j] - (j == 1 ? 1.25 : 0.0);
+    p.w = p.h = 200;
+  }
+  return p;
+}
+
+static cv_render_view make_view(const pose *p, int ss) {
+  cv_render_view v;
+  memset(&v, 0, sizeof v);
+  assert_int_equal(cv_offaxis_compute(p->pa, p->pb, p->pc, p->eye, 0.02, 20, &v.proj), CV_OK);
+  memcpy(v.scene_offset, p->offset, sizeof p->offset);
+  v.w = p->w, v.h = p->h, v.supersample = ss;
+  return v;
+}
+
+/* CPU reference: rays from the eye through the pixel centres of the wall
+ * (scene frame = CAVE + offset), radiance interpolated from the vertices. */
+static void cpu_view(const pose *p, const float *rad, cv_image *img, const cv_scene_light *sl,
+                     unsigned char *geom) {
+  const cv_rt *rt = cv_tracer_rt(F.tr);
+  for (int y = 0; y < p->h; y++) {
+    cv_rt_thread_init();
+    for (int x = 0; x < p->w; x++) {
+      double fx = (x + 0.5) / p->w, fy = 1 - (y + 0.5) / p->h;
+      float o[3], d[3];
+      double dl = 0;
+      for (int j = 0; j < 3; j++) {
+        double q = p->pa[j] + fx * (p->pb[j] - p->pa[j]) + fy * (p->pc[j] - p->pa[j]);
+        d[j] = (float)(q - p->eye[j]);
+        dl += (double)d[j] * d[j];
+        o[j] = (float)(p->eye[j] + p->offset[j]);
+      }
+      for (int j = 0; j < 3; j++) d[j] = (float)(d[j] / sqrt(dl));
+      float *px = cv_image_at(img, x, y);
+      cv_hit h;
+      if (cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) {
+        const uint32_t *t = F.prt->tri + 3 * h.tri;
+        float w0 = 1 - h.u - h.v;
+        for (int c = 0; c < 3; c++)
+          px[c] = w0 * rad[3 * t[0] + c] + h.u * rad[3 * t[1] + c] + h.v * rad[3 * t[2] + c];
+        if (geom) geom[y * p->w + x] = 1;
+      } else if (sl) {
+        cv_scene_light_background(sl, d, px);
+      } else {
+        for (int c = 0; c < 3; c++) px[c] = BG[c];
+      }
+    }
+  }
+}
+
+static double lum(const float *px) { return 0.2126 * px[0] + 0.7152 * px[1] + 0.0722 * px[2]; }
+
+typedef struct cmp_stats {
+  double frac_bad, max_rel_good, mean_rel, median_rel;
+} cmp_stats;
+
+static int cmp_dbl(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Per pixel: relative difference of luminance-weighted RGB,
+ * max_c |g - c| / (max_c c + floor). */
+static cmp_stats compare(const cv_image *gpu, const cv_image *cpu, double tol, double floor) {
+  cmp_stats s = {0, 0, 0, 0};
+  size_t n = (size_t)gpu->w * gpu->h, bad = 0;
+  double *rel = malloc(n * sizeof *rel);
+  for (size_t i = 0; i < n; i++) {
+    double dmax = 0, ref = 0;
+    for (int c = 0; c < 3; c++) {
+      double g = gpu->px[3 * i + c], r = cpu->px[3 * i + c];
+      dmax = fmax(dmax, fabs(g - r));
+      ref = fmax(ref, fabs(r));
+    }
+    rel[i] = dmax / (ref + floor);
+    s.mean_rel += rel[i] / n;
+    if (rel[i] > tol) bad++;
+    else s.max_rel_good = fmax(s.max_rel_good, rel[i]);
+  }
+  qsort(rel, n, sizeof *rel, cmp_dbl);
+  s.median_rel = rel[n / 2];
+  s.frac_bad = (double)bad / n;
+  free(rel);
+  return s;
+}
+
+/* GL frame vs CPU: per-pixel tolerance 1e-3 relative (float transfer; 4e-3
+ * with half floats), at most 2% of pixels beyond it (silhouettes and
+ * triangle edges where the two rasterisers pick different triangles). */
+static void gl_vs_cpu(int half, int cull) {
+  cv_renderer *r = F.r;
+  cv_err err;
+  if (half || cull) {
+    cv_render_opts o;
+    cv_render_default_opts(&o);
+    o.half_transfer = half;
+    o.cull_back = cull;
+    OK(cv_renderer_create(F.prt, &o, &r, &err));
+  }
+  cv_lighting l;
+  test_lighting(&l);
+  cv_render_light_stats ls;
+  OK(cv_renderer_set_lighting(r, &l, &ls, NULL, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(r, bg, &err));
+  float *rad = malloc(3 * F.prt->nv * sizeof *rad);
+  cv_relight_stats rs;
+  assert_int_equal(cv_prt_relight(F.prt, &l, NULL, 0, rad, &rs), CV_OK);
+  /* The GPU counts clamped and non-finite channels together. */
+  printf("clamped channels: GPU %llu, CPU %llu\n", (unsigned long long)ls.clamped,
+         (unsigned long long)(rs.clamped_negative + rs.nonfinite));
+  if (!half) assert_true(ls.clamped <= rs.clamped_negative + rs.nonfinite + 3);
+  const double tol = half ? 4e-3 : 1e-3;
+  for (int k = 0; k < 2; k++) {
+    pose p = make_pose(k);
+    cv_render_view v = make_view(&p, 1);
+    cv_image *g, *c;
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &g), CV_OK);
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &c), CV_OK);
+    int st = cv_renderer_shade(r, &v, NULL, 0, NULL, g, NULL, &err);
+    if (st) printf("%s\n", err.msg);
+    assert_int_equal(st, CV_OK);
+    cpu_view(&p, rad, c, NULL, NULL);
+    cmp_stats s = compare(g, c, tol, 1e-3);
+    printf("pose %d (%s transfer%s): %.3f%% pixels beyond %.0e, max %.2e among the rest, median "
+           "%.2e, mean %.2e\n",
+           k, half ? "half" : "float", cull ? ", back faces culled" : "", 100 * s.frac_bad, tol, s.max_rel_good, s.median_rel,
+           s.mean_rel);
+    assert_true(s.frac_bad < 0.02);
+    assert_true(s.median_rel < tol / 10);
+    cv_image_destroy(g);
+    cv_image_destroy(c);
+  }
+  free(rad);
+  cv_image_destroy(bg);
+  if (half || cull) cv_renderer_destroy(r);
+}
+
+static void test_gl_matches_cpu(void **state) {
+  (void)state;
+  gl_vs_cpu(0, 0);
+}
+
+/* The cabin is closed and consistently wound: culling back faces (the
+ * benchmark's setting) changes nothing visible. */
+static void test_gl_matches_cpu_culled(void **state) {
+  (void)state;
+  gl_vs_cpu(0, 1);
+}
+
+static void test_gl_matches_cpu_half(void **state) {
+  (void)state;
+  gl_vs_cpu(1, 0);
+}
+
+/* With a sun: per-pixel shadow map (GPU) vs per-vertex ray-traced sun
+ * interpolated (CPU, 64 fan samples per vertex) differ at shadow edges by
+ * construction, so the bounds are statistical, over the pixels that see
+ * geometry: mean luminance within 5% overall and over the sunlit pixels
+ * (CPU sun term > 10% of the pixel), median pixel within 2%.  The sun comes
+ * from ahead-right, 35 degrees up, through the windscreen. */
+static void test_gl_sun(void **state) {
+  (void)state;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3;
+  spec.sun_elevation_deg = 35;
+  spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  cv_err err;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_lighting l = cv_scene_light_sh(sl);
+  assert_true(l.has_sun);
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  cv_image *bg;
+  assert_int_equal(cv_render_background_image(sl, 512, &bg), CV_OK);
+  OK(cv_renderer_set_background(F.r, bg, &err));
+  float *rad = malloc(3 * F.prt->nv * sizeof *rad), *rad0 = malloc(3 * F.prt->nv * sizeof *rad);
+  assert_int_equal(cv_prt_relight(F.prt, &l, F.tr, 64, rad, NULL), CV_OK);
+  assert_int_equal(cv_prt_relight(F.prt, &l, NULL, 0, rad0, NULL), CV_OK); /* without direct sun */
+  pose p = make_pose(0);
+  cv_render_view v = make_view(&p, 1);
+  const int n = p.w * p.h;
+  cv_image *g, *c, *c0;
+  unsigned char *geom = calloc(n, 1);
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &g), CV_OK);
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &c), CV_OK);
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &c0), CV_OK);
+  OK(cv_renderer_shade(F.r, &v, NULL, 0, NULL, g, NULL, &err));
+  cpu_view(&p, rad, c, sl, geom);
+  cpu_view(&p, rad0, c0, sl, NULL);
+  double yg = 0, yc = 0, sg = 0, sc = 0, *rel = malloc(n * sizeof *rel);
+  int ngeom = 0, nsun = 0;
+  for (int i = 0; i < n; i++) {
+    if (!geom[i]) continue;
+    double a = lum(g->px + 3 * i), b = lum(c->px + 3 * i), b0 = lum(c0->px + 3 * i);
+    yg += a, yc += b;
+    rel[ngeom++] = fabs(a - b) / (b + 1e-6);
+    if (b - b0 > 0.1 * b) sg += a, sc += b, nsun++;
+  }
+  qsort(rel, ngeom, sizeof *rel, cmp_dbl);
+  printf("sun: %d geometry pixels, %d sunlit; mean luminance GPU/CPU - 1: %.2f%% overall, %.2f%% "
+         "sunlit; median pixel %.2e, 90th percentile %.2e\n",
+         ngeom, nsun, 100 * (yg / yc - 1), 100 * (sg / sc - 1), rel[ngeom / 2],
+         rel[(int)(0.9 * ngeom)]);
+  assert_true(ngeom > n / 4 && nsun > n / 50);
+  assert_true(fabs(yg / yc - 1) < 0.05);
+  assert_true(fabs(sg / sc - 1) < 0.05);
+  assert_true(rel[ngeom / 2] < 0.02);
+  free(rel);
+  free(geom);
+  cv_image_destroy(g);
+  cv_image_destroy(c);
+  cv_image_destroy(c0);
+  cv_image_destroy(bg);
+  free(rad);
+  free(rad0);
+  cv_scene_light_destroy(sl);
+}
+
+/* Depth EQUAL after the z pre-pass leaves no hole: with the targets cleared
+ * to -1 first, no pixel keeps -1, and the image equals a single-pass
+ * depth-LESS render except where coplanar triangles tie (<= 0.1%). */
+static void test_no_holes(void **state) {
+  (void)state;
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.debug_clear = 1;
+  cv_renderer *eq, *less;
+  cv_err err;
+  OK(cv_renderer_create(F.prt, &o, &eq, &err));
+  o.depth_less = 1;
+  OK(cv_renderer_create(F.prt, &o, &less, &err));
+  cv_lighting l;
+  test_lighting(&l);
+  cv_image *bg = const_bg();
+  cv_renderer *rs[2] = {eq, less};
+  for (int i = 0; i < 2; i++) {
+    OK(cv_renderer_set_lighting(rs[i], &l, NULL, NULL, &err));
+    OK(cv_renderer_set_background(rs[i], bg, &err));
+  }
+  for (int k = 0; k < 2; k++) {
+    pose p = make_pose(k);
+    p.w *= 2, p.h *= 2;
+    cv_render_view v = make_view(&p, 1);
+    cv_image *a, *b;
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &a), CV_OK);
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &b), CV_OK);
+    OK(cv_renderer_shade(eq, &v, NULL, 0, NULL, a, NULL, &err));
+    OK(cv_renderer_shade(less, &v, NULL, 0, NULL, b, NULL, &err));
+    size_t holes = 0, differ = 0, n = (size_t)p.w * p.h;
+    for (size_t i = 0; i < n; i++) {
+      if (a->px[3 * i] == -1.0f || b->px[3 * i] == -1.0f) holes++;
+      if (memcmp(a->px + 3 * i, b->px + 3 * i, 3 * sizeof(float))) differ++;
+    }
+    printf("pose %d %dx%d: %zu holes, %zu pixels (%.4f%%) differ from depth LESS\n", k, p.w, p.h,
+           holes, differ, 100.0 * differ / n);
+    assert_int_equal(holes, 0);
+    assert_true(differ <= n / 1000);
+    cv_image_destroy(a);
+    cv_image_destroy(b);
+  }
+  cv_image_destroy(bg);
+  cv_renderer_destroy(eq);
+  cv_renderer_destroy(less);
+}
+
+/* A ramp of flat quads, each with its own 4 vertices and one radiance value
+ * (bands 2, lighting l_0 = tint, td_0 = value, albedo 1, no interreflection,
+ * so the relit radiance is value * tint exactly). */
+#define RAMP_N 16
+static cv_prt *ramp_prt(double *values) {
+  cv_prt *p;
+  const size_t nq = RAMP_N * RAMP_N;
+  assert_int_equal(cv_prt_alloc(2, 4 * nq, 2 * nq, 1, 0, &p), CV_OK);
+  snprintf(p->mats[0].name, sizeof p->mats[0].name, "ramp");
+  for (int c = 0; c < 3; c++) p->mats[0].albedo[c] = 1;
+  for (size_t q = 0; q < nq; q++) {
+    int qx = (int)(q % RAMP_N), qy = (int)(q / RAMP_N);
+    /* 0 first, then log-spaced 1e-4 .. 1e5 cd/m2 */
+    values[q] = q == 0 ? 0.0 : pow(10.0, -4 + 9.0 * (double)(q - 1) / (nq - 2));
+    for (int k = 0; k < 4; k++) {
+      size_t v = 4 * q + k;
+      p->pos[3 * v] = (float)(-1 + 2.0 * (qx + (k & 1)) / RAMP_N);
+      p->pos[3 * v + 1] = (float)(-1 + 2.0 * (qy + (k >> 1)) / RAMP_N);
+      p->pos[3 * v + 2] = -1;
+      p->nrm[3 * v + 2] = 1;
+      for (int c = 0; c < 3; c++) p->albedo[3 * v + c] = 1;
+      p->td[4 * v] = (float)values[q];
+    }
+    uint32_t b = (uint32_t)(4 * q);
+    uint32_t t[6] = {b, b + 1, b + 3, b, b + 3, b + 2};
+    memcpy(p->tri + 6 * q, t, sizeof t);
+  }
+  return p;
+}
+
+static void test_drago_ramp(void **state) {
+  (void)state;
+  double values[RAMP_N * RAMP_N];
+  cv_prt *p = ramp_prt(values);
+  cv_renderer *r, *r8;
+  cv_err err;
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1;
+  OK(cv_renderer_create(p, &o, &r, &err));
+  OK(cv_renderer_create(p, NULL, &r8, &err)); /* default 8-bit display target */
+  const int res = RAMP_N * 8;
+  pose ps = {.pa = {-1, -1, -1}, .pb = {1, -1, -1}, .pc = {-1, 1, -1}, .eye = {0.1, -0.2, 0.5},
+             .w = res, .h = res};
+  cv_render_view v;
+  memset(&v, 0, sizeof v);
+  assert_int_equal(cv_offaxis_compute(ps.pa, ps.pb, ps.pc, ps.eye, 0.1, 10, &v.proj), CV_OK);
+  v.w = v.h = res, v.supersample = 1;
+  const double tints[2][3] = {{1, 1, 1}, {1.0, 0.45, 0.2}};
+  const double lw[2][2] = {{1, 100}, {0.37, 5e3}}; /* (lwa, lwmax) */
+  double worst[2] = {0, 0}, worst8 = 0;
+  cv_image *disp, *hdr, *cpu_in, *cpu_out, *disp8;
+  assert_int_equal(cv_image_create(res, res, 3, &disp8), CV_OK);
+  assert_int_equal(cv_image_create(res, res, 3, &disp), CV_OK);
+  assert_int_equal(cv_image_create(res, res, 3, &hdr), CV_OK);
+  assert_int_equal(cv_image_create(RAMP_N * RAMP_N, 1, 3, &cpu_in), CV_OK);
+  assert_int_equal(cv_image_create(RAMP_N * RAMP_N, 1, 3, &cpu_out), CV_OK);
+  for (int ti = 0; ti < 2; ti++) {
+    cv_lighting l;
+    memset(&l, 0, sizeof l);
+    l.bands = 2;
+    for (int c = 0; c < 3; c++) l.sh[c] = tints[ti][c];
+    OK(cv_renderer_set_lighting(r, &l, NULL, NULL, &err));
+    OK(cv_renderer_set_lighting(r8, &l, NULL, NULL, &err));
+    for (int li = 0; li < 2; li++) {
+      cv_drago d;
+      cv_drago_default(&d);
+      d.lwa = lw[li][0];
+      d.lwmax = lw[li][1];
+      cv_drago_consts dc;
+      cv_drago_prepare(&d, &dc);
+      for (int tr = 0; tr < 2; tr++) {
+        OK(cv_renderer_shade(r, &v, &dc, tr, disp, hdr, NULL, &err));
+        OK(cv_renderer_shade(r8, &v, &dc, tr, disp8, NULL, NULL, &err));
+        for (int q = 0; q < RAMP_N * RAMP_N; q++)
+          for (int c = 0; c < 3; c++) cpu_in->px[3 * q + c] = (float)(values[q] * tints[ti][c]);
+        assert_int_equal(cv_drago_image(cpu_in, &d, tr, cpu_out, NULL), CV_OK);
+        for (int q = 0; q < RAMP_N * RAMP_N; q++) {
+          /* pixel at the quad's centre; rows flip (row 0 = top = +y) */
+          int x = (q % RAMP_N) * 8 + 4, y = res - 1 - ((q / RAMP_N) * 8 + 4);
+          const float *g = cv_image_at(disp, x, y), *h = cv_image_at(hdr, x, y),
+                      *g8 = cv_image_at(disp8, x, y);
+          for (int c = 0; c < 3; c++) {
+            double want = cpu_out->px[3 * q + c], e = fabs(g[c] - want);
+            if (ti == 0 && !tr)
+              assert_true(fabs(cv_drago_map(&dc, values[q]) - want) < 1e-6); /* map = image, grey */
+            worst[tr] = fmax(worst[tr], e);
+            if (e > 1e-5)
+              printf("value %g tint %d lwa %g ch %d transfer %d: GPU %.8f CPU %.8f\n", values[q], ti,
+                     d.lwa, c, tr, g[c], want);
+            assert_true(e <= 1e-5);
+            /* 8-bit target: the nearest k/255 (GL rounds; 1e-5 slack for ties) */
+            double e8 = fabs(g8[c] - want) * 255;
+            worst8 = fmax(worst8, e8);
+            assert_true(e8 <= 0.5 + 255e-5);
+            double hv = values[q] * tints[ti][c];
+            assert_true(fabs(h[c] - hv) <= 1e-6 * hv + 1e-30);
+          }
+        }
+      }
+    }
+  }
+  printf("Drago ramp (%d values 0, 1e-4..1e5, 2 tints, 2 adaptations): max |GPU - CPU| %.2e "
+         "display-linear, %.2e with Rec.709 transfer\n",
+         RAMP_N * RAMP_N, worst[0], worst[1]);
+  printf("8-bit display target: max |GPU - CPU| %.3f / 255\n", worst8);
+  cv_image_destroy(disp8);
+  cv_renderer_destroy(r8);
+  cv_image_destroy(disp);
+  cv_image_destroy(hdr);
+  cv_image_destroy(cpu_in);
+  cv_image_destroy(cpu_out);
+  cv_renderer_destroy(r);
+  cv_prt_destroy(p);
+}
+
+/* The luminance pass: (1) at the HDR frame's size it equals Y of the HDR
+ * output within 1e-6 relative per pixel; (2) at 128x128 its log-average
+ * (eps 1e-4) and mean are within 1% of a 512x512 HDR frame box-filtered
+ * 4x4, and its maximum does not exceed the full frame's. */
+static void test_luminance_pass(void **state) {
+  (void)state;
+  cv_lighting l;
+  test_lighting(&l);
+  cv_err err;
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(F.r, bg, &err));
+  pose p = make_pose(1);
+  p.w = p.h = 128;
+  cv_render_view v = make_view(&p, 1);
+  cv_image *lm, *hdr, *big;
+  assert_int_equal(cv_image_create(128, 128, 1, &lm), CV_OK);
+  assert_int_equal(cv_image_create(128, 128, 3, &hdr), CV_OK);
+  assert_int_equal(cv_image_create(512, 512, 3, &big), CV_OK);
+  OK(cv_renderer_luminance(F.r, &v, lm, NULL, &err));
+  OK(cv_renderer_shade(F.r, &v, NULL, 0, NULL, hdr, NULL, &err));
+  double worst = 0;
+  for (int i = 0; i < 128 * 128; i++) {
+    double y = lum(hdr->px + 3 * i);
+    worst = fmax(worst, fabs(lm->px[i] - y) / (y + 1e-6));
+  }
+  printf("luminance pass vs Y(HDR) at 128x128: max relative difference %.2e\n", worst);
+  assert_true(worst < 1e-6);
+  v.w = v.h = 512;
+  OK(cv_renderer_shade(F.r, &v, NULL, 0, NULL, big, NULL, &err));
+  double la = 0, lb = 0, ma = 0, mb = 0, maxa = 0, maxb = 0;
+  for (int y = 0; y < 128; y++)
+    for (int x = 0; x < 128; x++) {
+      double s = 0;
+      for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) {
+          double yy = lum(cv_image_at(big, 4 * x + i, 4 * y + j));
+          s += yy / 16;
+          maxb = fmax(maxb, yy);
+        }
+      double a = lm->px[y * 128 + x];
+      la += log(a + 1e-4), lb += log(s + 1e-4), ma += a, mb += s;
+      maxa = fmax(maxa, a);
+    }
+  double n = 128.0 * 128.0;
+  double ga = exp(la / n), gb = exp(lb / n);
+  printf("128x128 luminance pass vs 512x512 HDR box-filtered: log-average %.5g vs %.5g (%.3f%%), "
+         "mean %.5g vs %.5g (%.3f%%), max %.5g vs %.5g\n",
+         ga, gb, 100 * (ga / gb - 1), ma / n, mb / n, 100 * (ma / mb - 1), maxa, maxb);
+  assert_true(fabs(ga / gb - 1) < 0.01);
+  assert_true(fabs(ma / mb - 1) < 0.01);
+  assert_true(maxa <= maxb * (1 + 1e-6));
+  cv_image_destroy(lm);
+  cv_image_destroy(hdr);
+  cv_image_destroy(big);
+  cv_image_destroy(bg);
+}
+
+/* 2x supersampling equals a 2x-size render box-filtered on the CPU (1e-6),
+ * for the HDR and the tone-mapped outputs. */
+static void test_supersample(void **state) {
+  (void)state;
+  cv_lighting l;
+  test_lighting(&l);
+  cv_err err;
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  pose p = make_pose(0);
+  p.w = 96, p.h = 72;
+  cv_render_view v = make_view(&p, 2);
+  cv_drago d;
+  cv_drago_default(&d);
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  cv_image *ss_d, *ss_h, *big_d, *big_h;
+  assert_int_equal(cv_image_create(96, 72, 3, &ss_d), CV_OK);
+  assert_int_equal(cv_image_create(96, 72, 3, &ss_h), CV_OK);
+  assert_int_equal(cv_image_create(192, 144, 3, &big_d), CV_OK);
+  assert_int_equal(cv_image_create(192, 144, 3, &big_h), CV_OK);
+  OK(cv_renderer_shade(F.r, &v, &dc, 1, ss_d, ss_h, NULL, &err));
+  v.w = 192, v.h = 144, v.supersample = 1;
+  OK(cv_renderer_shade(F.r, &v, &dc, 1, big_d, big_h, NULL, &err));
+  double worst = 0;
+  for (int y = 0; y < 72; y++)
+    for (int x = 0; x < 96; x++)
+      for (int c = 0; c < 3; c++) {
+        const cv_image *pairs[2][2] = {{ss_d, big_d}, {ss_h, big_h}};
+        for (int k = 0; k < 2; k++) {
+          double s = 0;
+          for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 2; i++) s += cv_image_at(pairs[k][1], 2 * x + i, 2 * y + j)[c];
+          double want = s / 4, got = cv_image_at(pairs[k][0], x, y)[c];
+          worst = fmax(worst, fabs(got - want) / (fabs(want) + 1e-3));
+        }
+      }
+  printf("2x supersampling vs CPU box filter of a 2x render: max relative difference %.2e\n", worst);
+  assert_true(worst < 1e-6);
+  cv_image_destroy(ss_d);
+  cv_image_destroy(ss_h);
+  cv_image_destroy(big_d);
+  cv_image_destroy(big_h);
+}
+
+static void test_errors(void **state) {
+  (void)state;
+  cv_err err;
+  cv_lighting l;
+  test_lighting(&l);
+  l.bands = 3; /* the scene has 5 */
+  assert_int_equal(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err), CV_ERR_RANGE);
+  assert_non_null(strstr(err.msg, "bands"));
+  test_lighting(&l);
+  l.sh[4] = NAN;
+  assert_int_equal(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err), CV_ERR_NONFINITE);
+  test_lighting(&l);
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  pose p = make_pose(0);
+  cv_render_view v = make_view(&p, 3);
+  cv_image *img;
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &img), CV_OK);
+  assert_int_equal(cv_renderer_shade(F.r, &v, NULL, 0, NULL, img, NULL, &err), CV_ERR_INVALID);
+  assert_non_null(strstr(err.msg, "supersample"));
+  v.supersample = 1;
+  assert_int_equal(cv_renderer_shade(F.r, &v, NULL, 0, img, NULL, NULL, &err), CV_ERR_INVALID);
+  v.w += 1;
+  assert_int_equal(cv_renderer_shade(F.r, &v, NULL, 0, NULL, img, NULL, &err), CV_ERR_INVALID);
+  cv_image_destroy(img);
+  cv_renderer *r;
+  OK(cv_renderer_create(F.prt, NULL, &r, &err));
+  cv_image *lm;
+  assert_int_equal(cv_image_create(16, 16, 1, &lm), CV_OK);
+  assert_int_equal(cv_renderer_luminance(r, &v, lm, NULL, &err), CV_ERR_INVALID); /* no lighting */
+  assert_non_null(strstr(err.msg, "lighting"));
+  cv_image_destroy(lm);
+  cv_renderer_destroy(r);
+  cv_renderer_destroy(NULL);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_luminance_pass),
+      cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
+  };
+  return cmocka_run_group_tests(tests, setup, teardown);
+}
