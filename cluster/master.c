@@ -773,10 +773,12 @@ int cv_master_run(cv_service *s) {
   if (cv_frame_state_pack(&fs, buf) == CV_OK)
     for (int r = 1; r < s->size; r++) cv_comm_send(buf, sizeof buf, r, CV_TAG_STATE);
   lcd_drain(m);
-  lcd_publish(m, 1);
+  if (!*s->stop) lcd_publish(m, 1);
   if (m->lcd_mb) lcd_write(m, "lcd");
-  /* the last written frame's images are on their way */
-  for (const double t0 = cv_service_now(); cv_service_now() - t0 < s->o.timeout_ms * 1e-3;) {
+  /* the last written frame's images are on their way (not waited for when
+   * interrupted: mpirun follows its SIGTERM with SIGKILL) */
+  for (const double t0 = cv_service_now();
+       !*s->stop && cv_service_now() - t0 < s->o.timeout_ms * 1e-3;) {
     montage_drain(m);
     cv_comm_progress();
     if (!m->mont_have && m->montages > 0 && f > 0 &&

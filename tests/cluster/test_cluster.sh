@@ -121,5 +121,22 @@ else
   bad "service did not start: $(tail -3 stoperr.txt)"; kill $job 2>/dev/null; wait $job
 fi
 
+# --- SIGTERM to mpirun (forwarded to every rank; mpirun's SIGKILL follows
+# after odls_base_sigkill_timeout, raised here as the docs advise) -----------
+export OMPI_MCA_odls_base_sigkill_timeout=20
+"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o term \
+  >term.txt 2>termerr.txt &
+mpid=$!
+for i in $(seq 1 300); do [ -s term/metrics.jsonl ] && break; sleep 0.5; done
+sleep 2
+kill -TERM "$mpid"
+wait "$mpid"; rc=$?
+alive() { for f in term/pids/*.pid; do
+  st=$(awk '/^State:/ {print $2}' "/proc/$(cat "$f")/status" 2>/dev/null); [ -n "$st" ] && [ "$st" != Z ] && echo x; done | wc -l; }
+for i in $(seq 1 20); do left=$(alive); [ "$left" -eq 0 ] && break; sleep 0.5; done
+tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] && [ -s term/lcd.exr ] \
+  && ok "SIGTERM to mpirun: every rank ended, summary and LCD image written (mpirun status $rc)" \
+  || bad "SIGTERM to mpirun: rc $rc, $left ranks left, $(tail -c 200 term/metrics.jsonl)"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
