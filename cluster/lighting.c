@@ -123,3 +123,37 @@ int cv_service_write_png01(const char *path, const cv_image *img, cv_err *err) {
   free(px);
   return st;
 }
+
+int cv_service_lightmix(const cv_service *s, int bands, cv_lightmix **out, cv_err *err) {
+  *out = NULL;
+  const int n = cv_drive_n_maps(s->drive);
+  if (n <= 0) return CV_OK; /* sky drive */
+  const char *paths[CV_MAX_ENV_MAPS];
+  for (int i = 0; i < n; i++) paths[i] = cv_drive_map_path(s->drive, i);
+  cv_drive_state st0;
+  cv_drive_eval(s->drive, 0, &st0);
+  cv_light_spec spec;
+  cv_drive_to_light_spec(s->drive, &st0, &spec);
+  return cv_lightmix_create(paths, n, spec.scale > 0 ? spec.scale : 1.0, bands, out, err);
+}
+
+int cv_service_lighting(const cv_service *s, const cv_lightmix *mix, const cv_drive_state *q,
+                        int bands, cv_lighting *l, int bg_width, cv_image **bg, cv_err *err) {
+  if (bg) *bg = NULL;
+  if (mix) {
+    int st = cv_lightmix_lighting(mix, q->weights, q->yaw_deg, q->pitch_deg, q->roll_deg, l);
+    if (st) return cv_err_set(err, st, "lighting: bad blend weights");
+    if (bg && (st = cv_lightmix_background(mix, q->weights, q->yaw_deg, q->pitch_deg, q->roll_deg,
+                                           bg_width, bg)))
+      return cv_err_set(err, st, "lighting: background table");
+    return CV_OK;
+  }
+  cv_scene_light *sl;
+  int st = cv_service_build_lighting(s, q, bands, &sl, err);
+  if (st) return st;
+  *l = cv_scene_light_sh(sl);
+  if (bg && (st = cv_render_background_image(sl, bg_width, bg)))
+    st = cv_err_set(err, st, "lighting: background table");
+  cv_scene_light_destroy(sl);
+  return st;
+}

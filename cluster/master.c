@@ -58,6 +58,7 @@ typedef struct master {
   uint64_t light_key;
   int have_light;
   cv_lighting lighting;
+  cv_lightmix *mix;       /* map drives: per-frame lighting from preprocessed maps */
   /* compensation */
   cv_display *disp;
   cv_ffmatrix *F;
@@ -106,6 +107,7 @@ static size_t walleye_msg_cap(const master *m, int wall) {
 
 static void master_free(master *m) {
   cv_head_path_destroy(m->path);
+  cv_lightmix_destroy(m->mix);
   cv_dtrack_receiver_close(m->dtr);
   cv_scatter_workspace_destroy(m->ws);
   cv_ffmatrix_destroy(m->F);
@@ -286,6 +288,8 @@ static int master_setup(master *m, cv_err *err) {
   if (st) return st;
   m->bands = (int)prt->bands;
   cv_prt_destroy(prt);
+  st = cv_service_lightmix(s, m->bands, &m->mix, err);
+  if (st) return st;
   if (s->o.head_path[0]) {
     st = cv_head_path_load(s->o.head_path, &m->path, err);
     if (st) return st;
@@ -535,10 +539,9 @@ int cv_master_run(cv_service *s) {
     cv_service_quantise_drive(&fs.drive);
     const uint64_t lk = cv_service_light_key(&fs.drive);
     if (!m->have_light || lk != m->light_key) {
-      cv_scene_light *sl;
-      if (cv_service_build_lighting(s, &fs.drive, m->bands, &sl, &err) == CV_OK) {
-        m->lighting = cv_scene_light_sh(sl);
-        cv_scene_light_destroy(sl);
+      cv_lighting nl;
+      if (cv_service_lighting(s, m->mix, &fs.drive, m->bands, &nl, 0, NULL, &err) == CV_OK) {
+        m->lighting = nl;
         m->light_key = lk;
         m->have_light = 1;
         fs.flags |= CV_FS_NEW_LIGHT;

@@ -7,15 +7,27 @@
 
 #include "compensate/display.h"
 #include "lcd/accum.h"
+#include "prt/lightmix.h"
 #include "prt/scene_light.h"
+#include "render/renderer.h"
 #include "service.h"
 
 /* The compensation display (see display_gen.c); *out owned by the caller. */
 int cv_service_display(const cv_service *s, cv_display **out, cv_err *err);
 
-/* Lighting for a quantised drive state with `bands` SH bands. */
+/* Lighting for a quantised drive state with `bands` SH bands (the full
+ * path: loads the maps; used for sky drives and the LCD). */
 int cv_service_build_lighting(const cv_service *s, const cv_drive_state *q, int bands,
                               cv_scene_light **out, cv_err *err);
+
+/* The per-frame path for map drives (prt/lightmix.h); *out NULL for a sky
+ * drive.  Owned by the caller. */
+int cv_service_lightmix(const cv_service *s, int bands, struct cv_lightmix **out, cv_err *err);
+/* Lighting and background table (width w) for a quantised drive state,
+ * through mix when non-NULL, else cv_service_build_lighting.  bg may be
+ * NULL (not wanted). */
+int cv_service_lighting(const cv_service *s, const struct cv_lightmix *mix, const cv_drive_state *q,
+                        int bands, cv_lighting *l, int bg_width, cv_image **bg, cv_err *err);
 
 /* LCD round message: this header (native byte order: the cluster is
  * homogeneous), then n int64 values of the fixed-point buffer. */

@@ -50,10 +50,12 @@ typedef struct walleye {
   uint64_t late_corr;
   int have_panel;
   cv_lcd_panel panel;
+  cv_lightmix *mix;
 } walleye;
 
 static void walleye_free(walleye *we) {
   cv_lcd_worker_destroy(we->lw);
+  cv_lightmix_destroy(we->mix);
   cv_renderer_destroy(we->r);
   cv_prt_destroy(we->prt);
   cv_display_destroy(we->disp);
@@ -79,6 +81,8 @@ static int walleye_setup(walleye *we, cv_err *err) {
   cv_render_default_opts(&ro);
   ro.timing = 1;
   st = cv_renderer_create(we->prt, &ro, &we->r, err);
+  if (st) return st;
+  st = cv_service_lightmix(s, (int)we->prt->bands, &we->mix, err);
   if (st) return st;
   if (cv_image_create(we->w, we->h, 3, &we->disp_img) || cv_image_create(we->w, we->h, 3, &we->hdr) ||
       cv_image_create(we->w, we->h, 3, &we->out) ||
@@ -248,18 +252,17 @@ int cv_walleye_run(cv_service *s) {
       l.has_sun = fs.has_sun;
       memcpy(l.sun_dir, fs.sun_dir, sizeof l.sun_dir);
       memcpy(l.sun_E, fs.sun_E, sizeof l.sun_E);
-      cv_scene_light *sl = NULL;
       cv_image *bg = NULL;
+      cv_lighting unused;
       if (cv_renderer_set_lighting(we->r, &l, NULL, &tm, &err) ||
-          cv_service_build_lighting(s, &fs.drive, fs.bands, &sl, &err) ||
-          cv_render_background_image(sl, 512, &bg) || cv_renderer_set_background(we->r, bg, &err)) {
+          cv_service_lighting(s, we->mix, &fs.drive, fs.bands, &unused, 512, &bg, &err) ||
+          cv_renderer_set_background(we->r, bg, &err)) {
         fprintf(stderr, "cave run: rank %d: lighting: %s\n", s->rank, err.msg);
       } else {
         we->light_key = fs.light_key;
         we->have_light = 1;
       }
       cv_image_destroy(bg);
-      cv_scene_light_destroy(sl);
     }
     /* This eye's off-axis view. */
     double eyes[2][3];
