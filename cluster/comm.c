@@ -9,11 +9,14 @@
 typedef struct pending_send {
   MPI_Request req;
   void *copy;
+  int *refs; /* shared copies (cv_comm_send_multi): free at 0; NULL = own copy */
 } pending_send;
 
 /* Sends in flight (owned copies).  One process, one thread calls MPI. */
 static pending_send *g_sends;
 static size_t g_nsends, g_capsends;
+
+static void release(pending_send *ps);
 
 struct cv_mailbox {
   int src, tag;
@@ -36,7 +39,7 @@ void cv_comm_finalize(void) {
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
     MPI_Request_free(&g_sends[i].req);
-    free(g_sends[i].copy);
+    release(&g_sends[i]);
   }
   free(g_sends);
   g_sends = NULL;
@@ -72,8 +75,55 @@ int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
     return -1;
   }
   ps->copy = copy;
+  ps->refs = NULL;
   g_nsends++;
   return 0;
+}
+
+int cv_comm_send_multi(const void *buf, size_t n, const int *dests, int ndest, int tag) {
+  if (ndest <= 0) return 0;
+  if (n > (size_t)INT32_MAX) return -1;
+  if (g_nsends + (size_t)ndest > g_capsends) {
+    size_t nc = g_capsends ? g_capsends : 64;
+    while (nc < g_nsends + (size_t)ndest) nc *= 2;
+    pending_send *p = realloc(g_sends, nc * sizeof *p);
+    if (!p) return -1;
+    g_sends = p;
+    g_capsends = nc;
+  }
+  void *copy = malloc(n ? n : 1);
+  int *refs = malloc(sizeof *refs);
+  if (!copy || !refs) {
+    free(copy);
+    free(refs);
+    return -1;
+  }
+  if (n) memcpy(copy, buf, n);
+  *refs = 0;
+  for (int i = 0; i < ndest; i++) {
+    pending_send *ps = &g_sends[g_nsends];
+    if (MPI_Isend(copy, (int)n, MPI_BYTE, dests[i], tag, MPI_COMM_WORLD, &ps->req) != MPI_SUCCESS)
+      continue;
+    ps->copy = copy;
+    ps->refs = refs;
+    (*refs)++;
+    g_nsends++;
+  }
+  if (*refs == 0) {
+    free(copy);
+    free(refs);
+    return -1;
+  }
+  return 0;
+}
+
+static void release(pending_send *ps) {
+  if (!ps->refs) {
+    free(ps->copy);
+  } else if (--*ps->refs == 0) {
+    free(ps->copy);
+    free(ps->refs);
+  }
 }
 
 int cv_comm_progress(void) {
@@ -82,7 +132,7 @@ int cv_comm_progress(void) {
     int done = 0;
     MPI_Test(&g_sends[i].req, &done, MPI_STATUS_IGNORE);
     if (done)
-      free(g_sends[i].copy);
+      release(&g_sends[i]);
     else
       g_sends[k++] = g_sends[i];
   }

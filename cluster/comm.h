@@ -40,6 +40,9 @@ void cv_comm_abort(int code, const char *msg);
  * is freed when MPI reports the send complete (cv_comm_progress).  0 on
  * success, -1 out of memory or MPI error. */
 int cv_comm_send(const void *buf, size_t n, int dest, int tag);
+/* Sends one copy of buf to each of the n ranks in dests (one buffer,
+ * freed after the last send completes).  0 on success. */
+int cv_comm_send_multi(const void *buf, size_t n, const int *dests, int ndest, int tag);
 /* Completes finished sends, frees their copies; returns the number still
  * pending.  Call it from every polling loop. */
 int cv_comm_progress(void);

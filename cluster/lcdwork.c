@@ -7,7 +7,9 @@
  * when the LCD key (quantised eye, lighting) changes.  Everything a round
  * depends on is a function of the key, so the master may add rounds from any
  * contributor: the sum is the same integers for any rank count. */
+#define _GNU_SOURCE 1 /* SCHED_IDLE */
 #include <pthread.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -72,30 +74,27 @@ static int worker_init(cv_lcd_worker *w, cv_err *err) {
   return CV_OK;
 }
 
-static double now_s(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static void *worker_main(void *arg) {
   cv_lcd_worker *w = arg;
   cv_rt_thread_init();
+  /* An idle thread, as the paper's idle CPUs: it runs when the render
+   * threads of this machine do not need the cores (SCHED_IDLE, Linux). */
+  struct sched_param sp = {.sched_priority = 0};
+  pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
   uint64_t seen_seq = 0, light_key = 0;
   int have_light = 0, have_key = 0;
-  uint64_t pending_key = 0;
   cv_lcd_light *ll = NULL;
   cv_lcd_key key;
   double clamp = 1;
   uint32_t k = 0; /* next round of this contributor = index + k * count */
   const uint32_t count = (uint32_t)w->s->n_contributors;
-  /* A new lighting is built only once it has stood for STABLE_S (no newer
-   * state with another light key meanwhile): while the car turns every
-   * frame, rebuilding (maps, relight, background table) per frame would only
-   * take the CPU from the wall-eyes, and no round could finish anyway. */
-  const double STABLE_S = 0.3;
-  int pending = 0;
-  double pending_since = 0;
+  /* A new lighting is built only once it has stood for STEADY frames in a
+   * row: while the car turns every frame, rebuilding (maps, relight,
+   * background table) per frame would only take the CPU from the wall-eyes,
+   * and no round of a key could be summed before the key changes. */
+  const int STEADY = 3;
+  uint64_t last_posted_key = 0;
+  int same = 0;
   cv_frame_state fs;
   memset(&fs, 0, sizeof fs);
   for (;;) {
@@ -109,42 +108,27 @@ static void *worker_main(void *arg) {
         fresh = 1;
         break;
       }
-      if (pending && now_s() - pending_since >= STABLE_S) {
-        fresh = 1; /* the pending lighting has stood long enough */
-        break;
-      }
+
       /* work to do with the current key? */
       if (have_key && (uint64_t)w->index + (uint64_t)k * count < (uint64_t)w->s->o.lcd_budget &&
           w->queued < 4)
         break;
-      if (pending) {
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts);
-        ts.tv_nsec += 50000000;
-        if (ts.tv_nsec >= 1000000000) {
-          ts.tv_sec++;
-          ts.tv_nsec -= 1000000000;
-        }
-        pthread_cond_timedwait(&w->cv, &w->mu, &ts);
-      } else {
-        pthread_cond_wait(&w->cv, &w->mu);
-      }
+      pthread_cond_wait(&w->cv, &w->mu);
     }
     const int quit = w->quit;
     pthread_mutex_unlock(&w->mu);
     if (quit) break;
     if (fresh) {
       cv_err err;
+      if (fs.light_key == last_posted_key) {
+        same++;
+      } else {
+        last_posted_key = fs.light_key;
+        same = 1;
+      }
       if (!have_light || fs.light_key != light_key) {
-        if (!pending || fs.light_key != pending_key) {
-          pending = 1;
-          pending_key = fs.light_key;
-          pending_since = now_s();
-          have_key = 0; /* the old key is over: no rounds for it */
-          continue;
-        }
-        if (now_s() - pending_since < STABLE_S) continue;
-        pending = 0;
+        have_key = 0; /* the old key is over: no rounds for it */
+        if (same < STEADY) continue;
         cv_scene_light *sl = NULL;
         cv_light_spec spec;
         cv_drive_to_light_spec(w->s->drive, &fs.drive, &spec);

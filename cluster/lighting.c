@@ -24,6 +24,7 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->compensate = 1;
   o->patches = 24;
   o->reflectance = 0.8;
+  o->compensation_ms = 20;
   o->lcd = 1;
   o->lcd_w = 400;
   o->lcd_h = 300;

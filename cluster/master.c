@@ -210,21 +210,23 @@ static void lcd_drain(master *m) {
       m->lcd_rejected++;
       continue;
     }
-    cv_lcd_accum *tmp;
-    if (cv_lcd_accum_create(h.w, h.h, h.clamp, &tmp) != CV_OK || tmp->n != h.n) {
-      cv_lcd_accum_destroy(tmp);
+    if (h.n != cv_lcd_accum_words(h.w, h.h) || !(h.clamp > 0) || !isfinite(h.clamp)) {
       m->lcd_rejected++;
       continue;
     }
-    memcpy(tmp->data, data + sizeof h, h.n * sizeof(int64_t)); /* also aligns the values */
+    /* A view of the message (the values start 64 bytes into a malloc'ed
+     * buffer: 8-byte aligned); the sum adds in place, the first round of a
+     * key is copied. */
+    cv_lcd_accum view = {.w = h.w, .h = h.h, .clamp = h.clamp,
+                         .unit = cv_lcd_unit_for_clamp(h.clamp), .n = h.n,
+                         .data = (int64_t *)(void *)(uintptr_t)(data + sizeof h)};
     int restarted = 0;
-    if (cv_lcd_progress_submit(&m->prog, &h.key, tmp, &restarted) == CV_OK) {
+    if (cv_lcd_progress_submit(&m->prog, &h.key, &view, &restarted) == CV_OK) {
       m->seen[h.round] = 1;
       m->lcd_rounds++;
     } else {
       m->lcd_rejected++;
     }
-    cv_lcd_accum_destroy(tmp);
     (void)from;
   }
 }
@@ -244,7 +246,9 @@ static void lcd_publish(master *m, int force) {
     cv_lcdimg_msg h = {.lcd_key = m->lcd_key, .rounds = m->lcd_rounds, .w = img->w, .h = img->h};
     memcpy(buf, &h, sizeof h);
     memcpy(buf + sizeof h, img->px, npx * sizeof(float));
-    for (int r = 1; r <= m->s->n_walleyes; r++) cv_comm_send(buf, n, r, CV_TAG_LCDIMG);
+    int dests[2 * CV_CAVE_MAX_WALLS];
+    for (int r = 1; r <= m->s->n_walleyes; r++) dests[r - 1] = r;
+    cv_comm_send_multi(buf, n, dests, m->s->n_walleyes, CV_TAG_LCDIMG);
     free(buf);
   }
   cv_image_destroy(img);
@@ -433,6 +437,8 @@ static void compensate_frame(master *m, uint32_t frame) {
     }
   cv_scatter_opts o;
   cv_scatter_opts_default(&o);
+  o.warm_start = 1;                   /* from the previous frame's clipped patches */
+  o.time_ms = m->s->o.compensation_ms; /* the paper's time slot: best so far when it runs out */
   cv_err err;
   m->comp_ok = cv_scatter_solve(m->ws, m->T, &o, m->I, &m->cst, &err) == CV_OK;
   if (!m->comp_ok) {
@@ -527,13 +533,19 @@ int cv_master_run(cv_service *s) {
            s->size, s->n_walleyes, s->n_walls, s->n_gather, s->n_contributors);
   const double run_t0 = cv_service_now();
   uint32_t f;
-  for (f = 0; nframes <= 0 || f < (uint32_t)nframes; f++) {
+  for (f = 0;; f++) {
     if (*s->stop) break;
+    /* After the drive's frames, --lcd-wait holds the time (the head and the
+     * lighting stand still, as while the driver reads the panel) and goes on
+     * rendering until the LCD image has its budget. */
+    const int holding = nframes > 0 && f >= (uint32_t)nframes;
+    if (holding && !(m->lcd_mb && s->o.lcd_wait && m->lcd_rounds < (uint32_t)s->o.lcd_budget))
+      break;
     const double tf0 = cv_service_now();
     memset(&fs, 0, sizeof fs);
     fs.frame = f;
-    fs.dt = s->o.dt;
-    fs.time = f * s->o.dt;
+    fs.dt = holding ? 0 : s->o.dt;
+    fs.time = (holding ? (uint32_t)nframes - 1 : f) * s->o.dt;
     /* Drive and lighting. */
     cv_drive_eval(s->drive, fs.time, &fs.drive);
     cv_service_quantise_drive(&fs.drive);
@@ -571,7 +583,7 @@ int cv_master_run(cv_service *s) {
     memcpy(fs.head, m->pose.pos, sizeof fs.head);
     memcpy(fs.gaze, m->pose.gaze, sizeof fs.gaze);
     /* Adaptation from the previous frame's statistics. */
-    m->pending_dt += f ? s->o.dt : 0;
+    m->pending_dt += f ? fs.dt : 0;
     double lwa_f = 0;
     if (m->have_stats && cv_lumstats_lwa(&m->stats, &lwa_f) == 1) {
       if (!m->have_adapt) {
@@ -610,12 +622,20 @@ int cv_master_run(cv_service *s) {
       fs.lcd_rounds = m->lcd_rounds;
     }
     const int last = nframes > 0 && f + 1 == (uint32_t)nframes;
+    if (holding) fs.flags |= CV_FS_HOLD;
     if (last || (s->o.write_every > 0 && f % (uint32_t)s->o.write_every == 0)) fs.flags |= CV_FS_WRITE;
     if (cv_frame_state_pack(&fs, buf)) {
       fprintf(stderr, "cave run: master: frame %u state not finite, frame skipped\n", f);
       continue;
     }
-    for (int r = 1; r < s->size; r++) cv_comm_send(buf, sizeof buf, r, CV_TAG_STATE);
+    {
+      int *dests = malloc((size_t)s->size * sizeof *dests);
+      if (dests) {
+        for (int r = 1; r < s->size; r++) dests[r - 1] = r;
+        cv_comm_send_multi(buf, sizeof buf, dests, s->size - 1, CV_TAG_STATE);
+        free(dests);
+      }
+    }
     const double t_sent = cv_service_now();
     m->sent_hash = cv_hash64(buf, sizeof buf);
     m->state_mismatch = 0;
@@ -661,7 +681,9 @@ int cv_master_run(cv_service *s) {
     } else {
       m->have_stats = 0; /* empty foveal region or all late: keep the adaptation */
     }
+    const double tc0 = cv_service_now();
     if (m->disp) compensate_frame(m, f);
+    const double tc1 = cv_service_now();
     lcd_drain(m);
     lcd_publish(m, 0);
     const double tf1 = cv_service_now();
@@ -672,7 +694,9 @@ int cv_master_run(cv_service *s) {
     cv_metrics_uint(ml, "frame", f);
     cv_metrics_double(ml, "t", fs.time);
     cv_metrics_double(ml, "frame_ms", (tf1 - tf0) * 1e3);
-    const double overhead = ((t_sent - tf0) + (tf1 - t_wait)) * 1e3;
+    /* The master's own work (state, statistics, LCD sums), without waiting
+     * and without the compensation solve (reported apart). */
+    const double overhead = ((t_sent - tf0) + (tc0 - t_wait) + (tf1 - tc1)) * 1e3;
     cv_metrics_double(ml, "master_ms", overhead);
     cv_metrics_double(ml, "wait_ms", (t_wait - t_sent) * 1e3);
     cv_metrics_int(ml, "late_walleyes", late);
@@ -721,7 +745,10 @@ int cv_master_run(cv_service *s) {
       cv_metrics_string(ml, "solver", cv_scatter_solver_name(m->cst.solver));
       cv_metrics_double(ml, "residual", m->cst.residual);
       cv_metrics_uint(ml, "clipped_patches", m->cst.clipped_patches);
+      cv_metrics_int(ml, "iterations", m->cst.iterations);
+      cv_metrics_bool(ml, "time_slot_hit", m->cst.exit == CV_SCATTER_EXIT_TIME);
       cv_metrics_double(ml, "ms", m->cst.ms);
+      cv_metrics_double(ml, "frame_ms", (tc1 - tc0) * 1e3);
       cv_metrics_object_end(ml);
     }
     cv_metrics_object_begin(ml, "ranks");
@@ -755,20 +782,6 @@ int cv_master_run(cv_service *s) {
     fflush(stdout);
     if (s->o.barrier) cv_comm_barrier();
   }
-  /* --lcd-wait: the LCD image of the last key to its full budget (the
-   * contributors keep rendering it: their last state stands). */
-  if (m->lcd_mb && s->o.lcd_wait) {
-    const double t0 = cv_service_now();
-    while (m->lcd_rounds < (uint32_t)s->o.lcd_budget && !*s->stop &&
-           cv_service_now() - t0 < 3600) {
-      lcd_drain(m);
-      montage_drain(m);
-      cv_comm_progress();
-      struct timespec ts = {0, 1000000};
-      nanosleep(&ts, NULL);
-    }
-    if (!s->o.quiet) printf("LCD: %u of %d rounds summed\n", m->lcd_rounds, s->o.lcd_budget);
-  }
   /* Quit: tell every rank, then the last LCD image and the summary. */
   memset(&fs, 0, sizeof fs);
   fs.frame = f;
@@ -794,6 +807,7 @@ int cv_master_run(cv_service *s) {
   cv_metrics_begin(ml);
   cv_metrics_string(ml, "type", "summary");
   cv_metrics_uint(ml, "frames", m->nframes_done);
+  cv_metrics_uint(ml, "held_frames", nframes > 0 && f > (uint32_t)nframes ? f - (uint32_t)nframes : 0);
   cv_metrics_bool(ml, "interrupted", *s->stop != 0);
   cv_metrics_double(ml, "seconds", cv_service_now() - run_t0);
   const size_t nd = m->nframes_done < cap ? m->nframes_done : cap;

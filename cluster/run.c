@@ -54,6 +54,8 @@ static void help(FILE *f) {
           "  --display FILE.json  compensation display (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default 24)\n"
           "  --reflectance R      screen reflectance of the generated display (default 0.8)\n"
+          "  --compensation-ms T  time slot of the compensation solve per frame (default 20;\n"
+          "                       warm-started from the previous frame)\n"
           "  --no-compensation    no scattering compensation\n"
           "  --lcd-size WxH       LCD texels (default 400x300)\n"
           "  --lcd-spp N          samples per texel per round (default 40)\n"
@@ -183,6 +185,10 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       NEED();
       if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--reflectance: expected 0..1, got '%s'", v);
       else o->reflectance = d;
+    } else if (!strcmp(a, "--compensation-ms")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);
+      else o->compensation_ms = d;
     } else if (!strcmp(a, "--lcd-size")) {
       NEED();
       int w = 0, h = 0;

@@ -45,6 +45,7 @@ typedef struct cv_run_opts {
   int compensate;                /* 1: scattering compensation (default) */
   int patches;                   /* patches per wall side for the generated display (default 24) */
   double reflectance;            /* screens of the generated display (default 0.8) */
+  double compensation_ms;        /* time slot of the solve per frame (default 20) */
   int lcd;                       /* 1: LCD final gather (default) */
   int lcd_w, lcd_h, lcd_spp;     /* 400 x 300, 40 */
   int lcd_budget;                /* rounds per key before a texel is final (default 64) */

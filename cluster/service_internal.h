@@ -39,6 +39,7 @@ typedef struct cv_lcd_msg {
   double clamp;
   uint64_t n;
 } cv_lcd_msg;
+_Static_assert(sizeof(cv_lcd_msg) % 8 == 0, "LCD values must stay 8-byte aligned after the header");
 
 /* The LCD image message (master -> wall-eyes): header then 3 w h floats. */
 typedef struct cv_lcdimg_msg {
