@@ -781,6 +781,17 @@ int cv_master_run(cv_service *s) {
              (tf1 - tf0) * 1e3, overhead, fs.lwa, late, m->lcd_rounds);
     fflush(stdout);
     if (s->o.barrier) cv_comm_barrier();
+    if (holding) {
+      /* Held frames are paced to one a second: the LCD threads run only on
+       * cores the renderers leave idle (SCHED_IDLE). */
+      while (cv_service_now() - tf0 < 1.0 && !*s->stop &&
+             m->lcd_rounds < (uint32_t)s->o.lcd_budget) {
+        lcd_drain(m);
+        cv_comm_progress();
+        struct timespec ts = {0, 2000000};
+        nanosleep(&ts, NULL);
+      }
+    }
   }
   /* Quit: tell every rank, then the last LCD image and the summary. */
   memset(&fs, 0, sizeof fs);
