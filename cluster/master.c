@@ -781,11 +781,12 @@ int cv_master_run(cv_service *s) {
              (tf1 - tf0) * 1e3, overhead, fs.lwa, late, m->lcd_rounds);
     fflush(stdout);
     if (s->o.barrier) cv_comm_barrier();
-    if (holding) {
-      /* Held frames are paced to one a second: the LCD threads run only on
-       * cores the renderers leave idle (SCHED_IDLE). */
-      while (cv_service_now() - tf0 < 1.0 && !*s->stop &&
-             m->lcd_rounds < (uint32_t)s->o.lcd_budget) {
+    /* Pacing: held frames at one a second (the LCD threads run only on
+     * cores the renderers leave idle, SCHED_IDLE), others at --max-fps. */
+    const double period = holding ? 1.0 : (s->o.max_fps > 0 ? 1.0 / s->o.max_fps : 0);
+    if (period > 0) {
+      while (cv_service_now() - tf0 < period && !*s->stop &&
+             !(holding && m->lcd_rounds >= (uint32_t)s->o.lcd_budget)) {
         lcd_drain(m);
         cv_comm_progress();
         struct timespec ts = {0, 2000000};

@@ -27,7 +27,7 @@ static void on_signal(int sig) {
 
 static const char *k_builtin_drive =
     "{\"description\": \"built-in: the car stands still under blender-data's forest map\","
-    " \"loop\": true, \"maps\": [\"forest.exr\"],"
+    " \"loop\": true, \"maps\": [\"forest.exr\"], \"scale\": 10000,"
     " \"keyframes\": [{\"t\": 0, \"yaw\": 0, \"weights\": [1]}, {\"t\": 1, \"yaw\": 0}]}";
 
 static void help(FILE *f) {
@@ -48,6 +48,8 @@ static void help(FILE *f) {
           "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
           "  --dt S               simulated seconds per frame (default 1/30)\n"
           "  --size N             N x N pixels per wall-eye (default: the config's)\n"
+          "  --max-fps F          pace the frames to at most F per second (default: free;\n"
+          "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
           "  --barrier            per-frame barrier (swap lock)\n"
@@ -168,6 +170,10 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       NEED();
       if (cli_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
       else o->dt = d;
+    } else if (!strcmp(a, "--max-fps")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d > 0 && d <= 1000)) problem(pb, "--max-fps: expected 0 < F <= 1000, got '%s'", v);
+      else o->max_fps = d;
     } else if (!strcmp(a, "--size")) {
       NEED();
       if (cli_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);

@@ -37,6 +37,7 @@ typedef struct cv_run_opts {
   int dtrack_body;               /* body id of the head, default 1 */
   int frames;                    /* frames to render (0 = until SIGINT/SIGTERM) */
   double dt;                     /* simulated seconds per frame (default 1/30) */
+  double max_fps;                /* > 0: frames paced to at most this rate (default 0: free) */
   int size;                      /* > 0: pixels per wall-eye side, overrides the config */
   int write_every;               /* write images every k-th frame (default 10; 0 = last only) */
   double timeout_ms;             /* wait for late contributions at most this long (default 2000) */

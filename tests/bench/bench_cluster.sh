@@ -46,7 +46,7 @@ for g in 0 2 4; do
   out="$WORK/lcd$g"
   np=$((11 + g))
   "${MPI[@]}" -np "$np" "$CAVE" run "$CFG" --scene "$SCENE" --frames 0 --size 64 --write-every 0 \
-    --no-compensation --lcd-budget 400 --quiet -o "$out" >/dev/null 2>&1 &
+    --no-compensation --lcd-budget 400 --max-fps 2 --quiet -o "$out" >/dev/null 2>&1 &
   job=$!
   t0=$(date +%s.%N); t1=""
   for i in $(seq 1 600); do
@@ -57,8 +57,8 @@ except Exception: print(1)")
     if python3 -c "import sys; sys.exit(0 if float('$r') <= 0.01 else 1)"; then t1=$(date +%s.%N); break; fi
   done
   kill -TERM "$(cat "$out/pids/rank0.pid")"; wait $job || true
-  rounds=$(grep -o '"lcd_rounds": [0-9]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9]*$')
-  fin=$(grep -o '"lcd_rel_rms": [0-9.e-]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9.e-]*$')
+  rounds=$(grep -o '"lcd_rounds":[0-9]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9]*$')
+  fin=$(grep -o '"lcd_rel_rms":[0-9.e-]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9.e-]*$')
   dt=$( [ -n "$t1" ] && python3 -c "print(round($t1 - $t0, 1))" || echo "> 600")
   echo "| $g | $rounds | $dt | $fin |"
 done
