@@ -19,7 +19,7 @@ MPI=(mpirun --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS)
 if [ -z "$SCENE" ]; then
   SCENE="$WORK/cabin8.prt"
   if [ ! -s "$SCENE" ]; then
-    printf '{"cabin": {"tessellation": 8}, "bands": 5, "rays": 16, "bounces": 1}\n' > "$WORK/cabin8.json"
+    printf '{"mesh": {"source": "cabin", "tess": 8}, "prt": {"bands": 5, "rays": 16, "bounces": 1}}\n' > "$WORK/cabin8.json"
     "$CAVE" bake "$WORK/cabin8.json" -o "$SCENE" --quiet
   fi
 fi

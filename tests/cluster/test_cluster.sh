@@ -138,5 +138,18 @@ tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] &
   && ok "SIGTERM to mpirun: every rank ended, summary and LCD image written (mpirun status $rc)" \
   || bad "SIGTERM to mpirun: rc $rc, $left ranks left, $(tail -c 200 term/metrics.jsonl)"
 
+# --- a rank that dies: Open MPI 4 ends the job at once and names the rank ---
+"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o death \
+  >death.txt 2>deatherr.txt &
+mpid=$!
+for i in $(seq 1 300); do [ -s death/metrics.jsonl ] && break; sleep 0.5; done
+t0=$(date +%s)
+kill -9 "$(cat death/pids/rank5.pid)"
+wait "$mpid"; rc=$?
+dt=$(( $(date +%s) - t0 ))
+[ $rc -ne 0 ] && [ $dt -le 30 ] && grep -q "rank 5" deatherr.txt \
+  && ok "a killed rank ends the job in ${dt} s, naming it: $(grep -o 'process rank 5[^(]*' deatherr.txt | head -1)" \
+  || bad "killed rank: rc $rc after ${dt} s: $(grep -i rank deatherr.txt | tail -2)"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
