@@ -26,9 +26,23 @@
 #include "render/shaders.h"
 #include "sh/sh.h"
 
-enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16 };
+enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64 };
+#define NVARIANT 128
 enum { K_PRT = 0, K_BG = 1 };
-enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5 }; /* texture units */
+enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6 }; /* texture units */
+
+/* Drago table (common.glsl, cv_drago_table): Ld as a function of y = x / Lwmax'
+ * over [2^-126, 1), a piecewise cubic with one RGBA32F texel of
+ * coefficients per segment and a segment per 1/16 octave of y (picked by
+ * its float exponent and top 4 mantissa bits), rebuilt when the Drago
+ * constants change. */
+#define LUT_PER_OCT 16
+#define LUT_DRAGO_E0 1                      /* first biased exponent */
+#define LUT_DRAGO_SEGS (126 * LUT_PER_OCT)  /* 2^-126 .. 1 */
+/* Largest table error accepted (relative, with a floor of 1e-4 on Ld): the
+ * display values then stay within ~1e-6 of cv_drago_image.  Beyond it the
+ * shader computes the curve (DRAGO_EXACT). */
+#define LUT_TOL 2e-6
 
 struct cv_renderer {
   cv_egl egl;
@@ -46,10 +60,20 @@ struct cv_renderer {
   uint64_t panel_bad;
   float panel_c[3], panel_u[3], panel_v[3], panel_n[3], panel_half[2];
   GLuint prog_relight, prog_depth, prog_unlit, prog_down;
-  GLuint prog_var[2][32];
+  GLuint prog_var[2][NVARIANT];
+  /* the Drago table (LUT_*): texture buffer, the constants it was built
+   * for, whether it passed LUT_TOL, its measured error, its uniforms */
+  GLuint buf_tone, tex_tone;
+  cv_drago_consts tone_dc;
+  int tone_built, tone_ok;
+  double tone_err;
+  float lut_k, lut_tail;
   /* lighting */
   int lit, has_sun;
-  float sun_dir[3], sun_e[3], shadow_mat[16], shadow_bias;
+  /* the sun: E/pi, the scene -> shadow-map texel space matrix (prt.frag),
+   * its axis scales (D^2, -D_z), the sign of its determinant, the bias */
+  float sun_e[3], shadow_q[16], shadow_k[4], shadow_bias;
+  int shadow_detsign;
   GLuint fbo_shadow, tex_shadow;
   int shadow_res;
   /* targets */
@@ -70,7 +94,19 @@ struct cv_renderer {
   size_t nchunks;
   float *chunk_box;   /* 6 per chunk: lo xyz, hi xyz */
   uint32_t *run;      /* scratch: 2 per chunk (first triangle, count) */
+  /* The sun split (set_lighting with a sun): within each chunk the
+   * triangles facing the sun first (chunk_nf of them), then the others, in
+   * buf_idx_sun; the shading pass draws the second part without the sun's
+   * per-pixel code.  idx_cpu / pos_cpu: the uploaded triangles and positions. */
+  uint32_t *idx_cpu, *chunk_nf;
+  float *pos_cpu;
+  GLuint buf_idx_sun;
+  int sun_split;
+  GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
+  const void **md_off;
 };
+
+enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
 
 #define CHUNK 1024
 
@@ -79,6 +115,7 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->shadow_res = 2048;
   o->timing = 1;
   o->cull_frustum = 1;
+  o->sun_split = 1;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
@@ -89,10 +126,17 @@ static double now_ms(void) {
   return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
-/* Time stamp after the GL queue has drained (opts.timing), else 0. */
+/* Time stamp after the GL queue has drained (opts.timing), else 0: wall
+ * clock, or with opts.timing == 2 the CPU time of the whole process (every
+ * llvmpipe thread's work, insensitive to other load on the machine). */
 static double tick(const cv_renderer *r) {
   if (!r->o.timing) return 0;
   glFinish();
+  if (r->o.timing == 2) {
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  }
   return now_ms();
 }
 
@@ -106,7 +150,7 @@ static int gl_check(const char *where, cv_err *err) {
 static GLuint make_rb(GLenum fmt, int w, int h);
 static int fbo_complete(const char *what, int w, int h, cv_err *err);
 static void set_cull(const cv_renderer *r, int on);
-static size_t draw_mesh(cv_renderer *r, const float *mvp);
+static size_t draw_mesh(cv_renderer *r, const float *mvp, int part);
 
 /* ---------------------------------------------------------------- programs */
 
@@ -141,7 +185,8 @@ static void set_samplers(GLuint p) {
     const char *name;
     int unit;
   } tab[] = {{"u_transfer", U_TRANSFER}, {"u_shadow", U_SHADOW},
-             {"u_bg", U_BG}, {"u_src", U_SRC}, {"u_panel", U_PANEL}};
+             {"u_bg", U_BG}, {"u_src", U_SRC}, {"u_panel", U_PANEL},
+             {"u_tone", U_TONE}};
   glUseProgram(p);
   for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
     GLint loc = glGetUniformLocation(p, tab[i].name);
@@ -183,11 +228,13 @@ static int build(const char *vs_name, const char *fs_name, const char *defines, 
  * compiled on first use. */
 static int variant(cv_renderer *r, int kind, int flags, GLuint *out, cv_err *err) {
   if (!r->prog_var[kind][flags]) {
-    char defs[160];
-    snprintf(defs, sizeof defs, "%s%s%s%s%s", flags & F_SUN ? "#define SUN\n" : "",
+    char defs[320];
+    snprintf(defs, sizeof defs, "%s%s%s%s%s%s%s#define LUT_DRAGO_SEGS %d\n",
+             flags & F_SUN ? "#define SUN\n" : "",
              flags & F_TRANSFER ? "#define TRANSFER\n" : "",
              flags & F_DISP ? "#define OUT_DISPLAY\n" : "", flags & F_HDR ? "#define OUT_HDR\n" : "",
-             flags & F_LUM ? "#define OUT_LUM\n" : "");
+             flags & F_LUM ? "#define OUT_LUM\n" : "", flags & F_PANEL ? "#define PANEL\n" : "",
+             flags & F_EXACT ? "#define DRAGO_EXACT\n" : "", LUT_DRAGO_SEGS);
     int st = kind == K_PRT ? build("geom.vert", "prt.frag", defs, NULL, &r->prog_var[kind][flags], err)
                            : build("fullscreen.vert", "background.frag", defs, NULL,
                                    &r->prog_var[kind][flags], err);
@@ -255,7 +302,8 @@ static int invert4(const double m[16], double inv[16]) {
 
 /* Scene frame -> clip: the CAVE view-projection after the translation by
  * -scene_offset (scene point = CAVE point + offset), in double. */
-static int view_matrices(const cv_render_view *v, float mvp[16], float inv[16], float eye[3]) {
+static int view_matrices(const cv_render_view *v, float mvp[16], float inv[16], float eye[3],
+                         float *facing) {
   double m[16], mi[16];
   const double *a = v->proj.viewproj_d;
   for (int i = 0; i < 12; i++) m[i] = a[i];
@@ -267,6 +315,26 @@ static int view_matrices(const cv_render_view *v, float mvp[16], float inv[16], 
    * inverse * (0, 0, 1, 0) up to scale. */
   if (!(fabs(mi[11]) > 0)) return CV_ERR_INVALID;
   for (int j = 0; j < 3; j++) eye[j] = (float)(mi[8 + j] / mi[11]);
+  /* Orientation of the view (prt.frag, u_sigma): +1 when the cross product
+   * of the scene-frame steps along window x then y points towards the eye.
+   * For any plane it is the same sign (the steps are those of the eye's rays
+   * and n . ray ~ (dray/dx x dray/dy) . ray), so three points unprojected
+   * from NDC (0,0,0), (0.5,0,0), (0,0.5,0) give it. */
+  double P[3][3];
+  for (int k = 0; k < 3; k++) {
+    const double nx = k == 1 ? 0.5 : 0, ny = k == 2 ? 0.5 : 0;
+    double h[4];
+    for (int row = 0; row < 4; row++) h[row] = mi[row] * nx + mi[4 + row] * ny + mi[12 + row];
+    if (!(fabs(h[3]) > 0)) return CV_ERR_INVALID;
+    for (int j = 0; j < 3; j++) P[k][j] = h[j] / h[3];
+  }
+  double ax[3], ay[3], cr[3], dot = 0;
+  for (int j = 0; j < 3; j++) ax[j] = P[1][j] - P[0][j], ay[j] = P[2][j] - P[0][j];
+  cr[0] = ax[1] * ay[2] - ax[2] * ay[1];
+  cr[1] = ax[2] * ay[0] - ax[0] * ay[2];
+  cr[2] = ax[0] * ay[1] - ax[1] * ay[0];
+  for (int j = 0; j < 3; j++) dot += cr[j] * ((double)eye[j] - P[0][j]);
+  *facing = dot < 0 ? -1.0f : 1.0f;
   for (int i = 0; i < 16; i++) {
     if (!isfinite(m[i]) || !isfinite(mi[i])) return CV_ERR_INVALID;
     mvp[i] = (float)m[i];
@@ -448,7 +516,13 @@ static int upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * nt * sizeof *idx + 4), idx, GL_STATIC_DRAW);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
-  free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb);
+  free(tf), free(th), free(old_of), free(new_of), free(alb);
+  r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
+  r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
+  r->md_count = malloc(r->nchunks * sizeof *r->md_count + 4);
+  r->md_off = malloc(r->nchunks * sizeof *r->md_off + 8);
+  if (!r->chunk_nf || !r->md_count || !r->md_off)
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
   return gl_check("scene upload", err);
 }
 
@@ -501,8 +575,9 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
 void cv_renderer_destroy(cv_renderer *r) {
   if (!r) return;
   if (r->egl.dpy && cv_egl_make_current(&r->egl) == CV_OK) {
-    GLuint bufs[] = {r->buf_pos, r->buf_rad, r->buf_idx, r->buf_transfer, r->buf_alb};
-    glDeleteBuffers(5, bufs);
+    GLuint bufs[] = {r->buf_pos, r->buf_rad, r->buf_idx, r->buf_transfer, r->buf_alb,
+                     r->buf_idx_sun};
+    glDeleteBuffers(6, bufs);
     GLuint tex[] = {r->tex_transfer, r->tex_bg, r->tex_shadow, r->tex_disp, r->tex_hdr,
                     r->tex_panel};
     glDeleteTextures(6, tex);
@@ -518,10 +593,17 @@ void cv_renderer_destroy(cv_renderer *r) {
     glDeleteProgram(r->prog_unlit);
     glDeleteProgram(r->prog_down);
     for (int k = 0; k < 2; k++)
-      for (int f = 0; f < 32; f++) glDeleteProgram(r->prog_var[k][f]);
+      for (int f = 0; f < NVARIANT; f++) glDeleteProgram(r->prog_var[k][f]);
+    glDeleteBuffers(1, &r->buf_tone);
+    glDeleteTextures(1, &r->tex_tone);
   }
   cv_egl_close(&r->egl);
   free(r->chunk_box);
+  free(r->idx_cpu);
+  free(r->pos_cpu);
+  free(r->chunk_nf);
+  free(r->md_count);
+  free(r->md_off);
   free(r->run);
   free(r->rgba8);
   free(r);
@@ -530,9 +612,9 @@ void cv_renderer_destroy(cv_renderer *r) {
 /* ---------------------------------------------------------------- lighting */
 
 /* Orthographic sun view over the scene bounds: clip matrix for rendering
- * the shadow map and the [0,1]^3 lookup matrix. */
-static void sun_matrices(const cv_renderer *r, const double s[3], float clip[16], float look[16],
-                         float *texel) {
+ * the shadow map, and for the lookup (prt.frag) the texel-space matrix
+ * shadow_q, its axis scales shadow_k and the sign of its determinant. */
+static void sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel) {
   double up[3] = {0, 1, 0};
   if (fabs(s[1]) > 0.99) up[0] = 1, up[1] = 0;
   double x[3] = {up[1] * s[2] - up[2] * s[1], up[2] * s[0] - up[0] * s[2],
@@ -556,19 +638,32 @@ static void sun_matrices(const cv_renderer *r, const double s[3], float clip[16]
     double pad = 0.01 * (hi[a] - lo[a]) + 1e-3;
     lo[a] -= pad, hi[a] += pad;
   }
-  /* clip_a = 2 (axis_a . p - lo_a)/(hi_a - lo_a) - 1 */
+  /* clip_a = 2 (axis_a . p - lo_a)/(hi_a - lo_a) - 1; the lookup in texel
+   * space (prt.frag): x, y = [0,1] coordinate * res - 0.5 (texel centres at
+   * integers), z = the [0,1] depth.  Its linear part is A = D R, R the
+   * rotation with rows axis_a, D = diag(res sc_x/2, res sc_y/2, sc_z/2). */
+  const double res = r->o.shadow_res;
+  float *q = r->shadow_q;
   memset(clip, 0, 16 * sizeof *clip);
-  memset(look, 0, 16 * sizeof *look);
+  memset(q, 0, 16 * sizeof *q);
+  double D[3];
   for (int a = 0; a < 3; a++) {
-    double sc = 2.0 / (hi[a] - lo[a]);
+    double sc = 2.0 / (hi[a] - lo[a]), ts = a < 2 ? res : 1.0;
+    D[a] = 0.5 * sc * ts;
     for (int j = 0; j < 3; j++) {
       clip[4 * j + a] = (float)(sc * axis[a][j]);
-      look[4 * j + a] = (float)(0.5 * sc * axis[a][j]);
+      q[4 * j + a] = (float)(D[a] * axis[a][j]);
     }
     clip[12 + a] = (float)(-sc * lo[a] - 1);
-    look[12 + a] = (float)(0.5 * (-sc * lo[a] - 1) + 0.5);
+    q[12 + a] = (float)((0.5 * (-sc * lo[a] - 1) + 0.5) * ts - (a < 2 ? 0.5 : 0.0));
   }
-  clip[15] = look[15] = 1;
+  clip[15] = q[15] = 1;
+  for (int a = 0; a < 3; a++) r->shadow_k[a] = (float)(D[a] * D[a]);
+  r->shadow_k[3] = (float)-D[2];
+  const double det = axis[0][0] * (axis[1][1] * axis[2][2] - axis[1][2] * axis[2][1]) -
+                     axis[0][1] * (axis[1][0] * axis[2][2] - axis[1][2] * axis[2][0]) +
+                     axis[0][2] * (axis[1][0] * axis[2][1] - axis[1][1] * axis[2][0]);
+  r->shadow_detsign = det < 0 ? -1 : 1;
   double ext = fmax(hi[0] - lo[0], hi[1] - lo[1]);
   *texel = (float)(ext / r->o.shadow_res);
 }
@@ -581,14 +676,12 @@ static int render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
     glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, n, n, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
                  NULL);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
-    const float one[4] = {1, 1, 1, 1};
-    glTexParameterfv(GL_TEXTURE_2D, GL_TEXTURE_BORDER_COLOR, one);
+    /* read by texelFetch, compared and filtered in prt.frag */
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_NONE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
     glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, r->tex_shadow, 0);
     glDrawBuffer(GL_NONE);
@@ -598,7 +691,7 @@ static int render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
     r->shadow_res = n;
   }
   float clip[16], texel;
-  sun_matrices(r, s, clip, r->shadow_mat, &texel);
+  sun_matrices(r, s, clip, &texel);
   /* Against self-shadowing acne the lookup point moves 1.5 texels along the
    * triangle's normal (a slope-scaled polygon offset on top changed neither
    * the sun test's figures nor the time). */
@@ -612,8 +705,53 @@ static int render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   set_cull(r, 0);
   glUseProgram(r->prog_depth);
   uni_mat(r->prog_depth, "u_mvp", clip);
-  draw_mesh(r, NULL);
+  draw_mesh(r, NULL, DRAW_ALL);
   return gl_check("shadow map", err);
+}
+
+/* The sun split (see the struct): reorders each chunk of buf_idx into
+ * buf_idx_sun, the triangles whose winding normal (that of cv_sun_direct
+ * and prt.frag's n_t) has n . s > 0 first.  The others get no direct sun,
+ * so the shading pass draws them with the variant without it: on llvmpipe,
+ * which pays for every instruction of a shader on every pixel, the sun's
+ * normal, shadow-map fetches and filter are about half the shading pass.
+ * Same triangles, vertex order and positions: same depths (depth EQUAL). */
+static int sun_split(cv_renderer *r, const double s[3], cv_err *err) {
+  uint32_t *out = malloc(3 * r->nt * sizeof *out + 4);
+  unsigned char *facing = malloc(CHUNK);
+  if (!out || !facing) {
+    free(out), free(facing);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
+  }
+  for (size_t c = 0; c < r->nchunks; c++) {
+    const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
+    size_t nf = 0;
+    for (size_t t = first; t < end; t++) {
+      const uint32_t *v = r->idx_cpu + 3 * t;
+      const float *a = r->pos_cpu + 3 * v[0], *b = r->pos_cpu + 3 * v[1], *d = r->pos_cpu + 3 * v[2];
+      double e1[3], e2[3];
+      for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
+      const double ns = (e1[1] * e2[2] - e1[2] * e2[1]) * s[0] +
+                        (e1[2] * e2[0] - e1[0] * e2[2]) * s[1] +
+                        (e1[0] * e2[1] - e1[1] * e2[0]) * s[2];
+      facing[t - first] = ns > 0;
+      nf += ns > 0;
+    }
+    size_t kf = first, ko = first + nf;
+    for (size_t t = first; t < end; t++)
+      memcpy(out + 3 * (facing[t - first] ? kf++ : ko++), r->idx_cpu + 3 * t, 3 * sizeof *out);
+    r->chunk_nf[c] = (uint32_t)nf;
+  }
+  free(facing);
+  glBindVertexArray(0);
+  if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
+  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof *out + 4), out,
+               GL_STATIC_DRAW);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
+  free(out);
+  r->sun_split = 1;
+  return gl_check("sun split", err);
 }
 
 int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
@@ -684,10 +822,11 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   r->has_sun = sun;
   if (sun) {
     for (int c = 0; c < 3; c++) {
-      r->sun_dir[c] = (float)sd[c];
       r->sun_e[c] = (float)(l->sun_E[c] / M_PI);
     }
     if ((st = render_shadow(r, sd, err))) return st;
+    r->sun_split = 0;
+    if (r->o.sun_split && (st = sun_split(r, sd, err))) return st;
   }
   double t2 = tick(r);
   r->lit = 1;
@@ -778,6 +917,11 @@ int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3
 }
 
 uint64_t cv_renderer_panel_invalid(const cv_renderer *r) { return r ? r->panel_bad : 0; }
+
+int cv_renderer_tone_table(const cv_renderer *r, double *drago_err) {
+  if (drago_err) *drago_err = r && r->tone_built ? r->tone_err : NAN;
+  return r && r->tone_built && r->tone_ok;
+}
 
 int cv_render_background_image(const cv_scene_light *sl, int w, cv_image **out) {
   *out = NULL;
@@ -942,9 +1086,8 @@ static int check_view(const cv_renderer *r, const cv_render_view *v, cv_err *err
 /* Binds the textures and sets the uniforms a prt.frag / background.frag
  * variant reads. */
 static void bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const float inv[16],
-                         const float eye[3], const cv_drago_consts *dc) {
+                         float facing, const cv_drago_consts *dc) {
   glUseProgram(p);
-  uni_v3(p, "u_eye", eye);
   uni_mat(p, "u_mvp", mvp);
   uni_mat(p, "u_inv_mvp", inv);
   if (dc) {
@@ -954,9 +1097,11 @@ static void bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], co
     uni_f(p, "p_exp", dc->p_exp);
     uni_f(p, "ld_top", dc->ld_top);
   }
-  {
-    GLint loc = glGetUniformLocation(p, "u_panel_on");
-    if (loc >= 0) glUniform1i(loc, r->panel_on);
+  if (dc) {
+    uni_f(p, "u_lut_k", r->lut_k);
+    uni_f(p, "u_lut_tail", r->lut_tail);
+    glActiveTexture(GL_TEXTURE0 + U_TONE);
+    glBindTexture(GL_TEXTURE_BUFFER, r->tex_tone);
   }
   if (r->panel_on) {
     uni_v3(p, "u_panel_c", r->panel_c);
@@ -969,15 +1114,88 @@ static void bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], co
     glBindTexture(GL_TEXTURE_2D, r->tex_panel);
   }
   if (r->has_sun) {
-    uni_mat(p, "u_shadow_mat", r->shadow_mat);
-    uni_v3(p, "u_sun_dir", r->sun_dir);
+    uni_mat(p, "u_shadow_q", r->shadow_q);
+    GLint loc = glGetUniformLocation(p, "u_shadow_k");
+    if (loc >= 0) glUniform4fv(loc, 1, r->shadow_k);
+    loc = glGetUniformLocation(p, "u_shadow_res");
+    if (loc >= 0) glUniform1i(loc, r->shadow_res);
     uni_v3(p, "u_sun_e", r->sun_e);
     uni_f(p, "u_shadow_bias", r->shadow_bias);
+    uni_f(p, "u_sigma", facing * (float)r->shadow_detsign);
   }
   glActiveTexture(GL_TEXTURE0 + U_SHADOW);
   glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
   glActiveTexture(GL_TEXTURE0 + U_BG);
   glBindTexture(GL_TEXTURE_2D, r->tex_bg);
+}
+
+/* ------------------------------------------------------- tone tables */
+
+/* Drago's raw curve (cv_drago_map below Lwmax, before the clamp) at
+ * y = x / Lwmax', in double from the float constants as the CPU does. */
+static double drago_raw(const cv_drago_consts *c, double y) {
+  double x = y * (double)c->lwmax_a;
+  return (double)c->scale * log1p(x) / log(2.0 + 8.0 * pow(y, (double)c->p_exp));
+}
+
+/* Fills nseg texels (4 floats each) with the cubic through the curve at
+ * f = 0, 1/3, 2/3, 1 of each segment (arguments 2^(e0 + j/16 - 127) * (1 +
+ * (j%16 + f)/16)); continuous across segments.  Returns the largest error
+ * at f = 1/6, 1/2, 5/6 of the float cubic evaluated as the shader does,
+ * |p - curve| / max(|curve|, floor).  (Cubic interpolation error ~ h^4: a
+ * 1/16 octave keeps it near float rounding, ~1e-7.) */
+static double fit_table(double (*fn)(const cv_drago_consts *, double), const cv_drago_consts *c,
+                        int e0, int nseg, double floor, float *out) {
+  double worst = 0, prev = NAN;
+  for (int j = 0; j < nseg; j++) {
+    const int e = e0 + j / LUT_PER_OCT - 127, sub = j % LUT_PER_OCT;
+    double v[4];
+    for (int k = 0; k < 4; k++)
+      v[k] = k == 0 && !isnan(prev) ? prev : fn(c, ldexp(1.0 + (sub + k / 3.0) / LUT_PER_OCT, e));
+    prev = v[3];
+    /* monomial coefficients of the cubic through (0, 1/3, 2/3, 1) */
+    float *q = out + 4 * j;
+    q[0] = (float)v[0];
+    q[1] = (float)((-11 * v[0] + 18 * v[1] - 9 * v[2] + 2 * v[3]) / 2);
+    q[2] = (float)((18 * v[0] - 45 * v[1] + 36 * v[2] - 9 * v[3]) / 2);
+    q[3] = (float)((-9 * v[0] + 27 * v[1] - 27 * v[2] + 9 * v[3]) / 2);
+    for (int k = 1; k <= 5; k += 2) {
+      const float f = (float)(k / 6.0);
+      const float p = q[0] + f * (q[1] + f * (q[2] + f * q[3]));
+      const double want = fn(c, ldexp(1.0 + (sub + (double)f) / LUT_PER_OCT, e));
+      const double d = fabs(p - want) / fmax(fabs(want), floor);
+      if (!(d <= worst)) worst = d; /* NaN wins */
+    }
+  }
+  return worst;
+}
+
+/* Makes the Drago table match dc (rebuilt only when the constants change:
+ * 2016 segments, ~12K evaluations of the curve in double).  tone_ok says
+ * whether it met LUT_TOL (opts.tone_exact forces the shader's own math). */
+static void tone_table(cv_renderer *r, const cv_drago_consts *dc) {
+  if (r->tone_built && !memcmp(&r->tone_dc, dc, sizeof *dc)) return;
+  float *buf = malloc(4 * LUT_DRAGO_SEGS * sizeof *buf);
+  if (!buf) {
+    r->tone_ok = 0; /* the exact variant needs no table */
+    return;
+  }
+  r->tone_err = fit_table(drago_raw, dc, LUT_DRAGO_E0, LUT_DRAGO_SEGS, 1e-4, buf);
+  const double ylo = ldexp(1.0, -126);
+  r->lut_tail = (float)(drago_raw(dc, ylo) / ylo);
+  r->lut_k = (float)(1.0 / ((double)dc->lwa * (double)dc->lwmax_a));
+  r->tone_ok = !r->o.tone_exact && r->tone_err <= LUT_TOL && isfinite(r->lut_tail) &&
+               isfinite(r->lut_k);
+  if (!r->buf_tone) {
+    r->tex_tone = make_tbo(&r->buf_tone, GL_RGBA32F, buf, 4 * LUT_DRAGO_SEGS * sizeof *buf);
+  } else {
+    glBindBuffer(GL_TEXTURE_BUFFER, r->buf_tone);
+    glBufferSubData(GL_TEXTURE_BUFFER, 0, 4 * LUT_DRAGO_SEGS * sizeof *buf, buf);
+    glBindBuffer(GL_TEXTURE_BUFFER, 0);
+  }
+  free(buf);
+  r->tone_dc = *dc;
+  r->tone_built = 1;
 }
 
 /* 1 when the box (lo, hi) lies entirely outside one clip plane of mvp. */
@@ -997,15 +1215,25 @@ static int box_outside(const float mvp[16], const float *lo, const float *hi) {
 }
 
 /* Draws the opaque triangles whose chunk intersects the frustum of mvp
- * (all of them when mvp is NULL or culling is off), as runs of consecutive
- * chunks.  Every pass of a view submits the same runs in the same order,
- * which the depth-EQUAL pass relies on.  Returns the triangles submitted. */
-static size_t draw_mesh(cv_renderer *r, const float *mvp) {
+ * (all of them when mvp is NULL or culling is off): part DRAW_ALL as runs
+ * of consecutive chunks of buf_idx; DRAW_SUNLIT / DRAW_UNSUNLIT the
+ * sun-facing / other triangles of those chunks from buf_idx_sun (the sun
+ * split), in one glMultiDrawElements.  Every pass of a view submits the same
+ * triangles, which the depth-EQUAL pass relies on.  Returns the triangles
+ * submitted. */
+static size_t draw_mesh(cv_renderer *r, const float *mvp, int part) {
   size_t nrun = 0, ntri = 0;
   for (size_t c = 0; c < r->nchunks; c++) {
     if (mvp && r->o.cull_frustum && box_outside(mvp, r->chunk_box + 6 * c, r->chunk_box + 6 * c + 3))
       continue;
     uint32_t first = (uint32_t)(c * CHUNK), n = (uint32_t)((c + 1) * CHUNK > r->nt ? r->nt - c * CHUNK : CHUNK);
+    if (part == DRAW_SUNLIT) {
+      n = r->chunk_nf[c];
+    } else if (part == DRAW_UNSUNLIT) {
+      first += r->chunk_nf[c];
+      n -= r->chunk_nf[c];
+    }
+    if (!n) continue;
     if (nrun && r->run[2 * (nrun - 1)] + r->run[2 * (nrun - 1) + 1] == first) {
       r->run[2 * (nrun - 1) + 1] += n;
     } else {
@@ -1015,9 +1243,19 @@ static size_t draw_mesh(cv_renderer *r, const float *mvp) {
     ntri += n;
   }
   glBindVertexArray(r->vao_geom);
-  for (size_t i = 0; i < nrun; i++) {
-    glDrawElements(GL_TRIANGLES, (GLsizei)(3 * r->run[2 * i + 1]), GL_UNSIGNED_INT,
-                   (const void *)(uintptr_t)(3 * sizeof(uint32_t) * r->run[2 * i]));
+  if (part == DRAW_ALL) {
+    for (size_t i = 0; i < nrun; i++) {
+      glDrawElements(GL_TRIANGLES, (GLsizei)(3 * r->run[2 * i + 1]), GL_UNSIGNED_INT,
+                     (const void *)(uintptr_t)(3 * sizeof(uint32_t) * r->run[2 * i]));
+    }
+  } else if (nrun) {
+    for (size_t i = 0; i < nrun; i++) {
+      r->md_count[i] = (GLsizei)(3 * r->run[2 * i + 1]);
+      r->md_off[i] = (const void *)(uintptr_t)(3 * sizeof(uint32_t) * r->run[2 * i]);
+    }
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun); /* VAO state: restored below */
+    glMultiDrawElements(GL_TRIANGLES, r->md_count, GL_UNSIGNED_INT, r->md_off, (GLsizei)nrun);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx);
   }
   glBindVertexArray(0);
   return ntri;
@@ -1036,15 +1274,18 @@ int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out
   if (!out || out->c != 1 || out->w < 1 || out->h < 1 || out->w > r->max_rb || out->h > r->max_rb)
     return cv_err_set(err, CV_ERR_INVALID, "luminance image: expected 1 channel, 1..%d pixels",
                       (int)r->max_rb);
-  float mvp[16], inv[16], eye[3];
-  if (view_matrices(v, mvp, inv, eye)) return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
+  float mvp[16], inv[16], eye[3], facing;
+  if (view_matrices(v, mvp, inv, eye, &facing))
+    return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
   if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   gl_check("(before luminance)", NULL);
   set_cull(r, 1);
   double t0 = tick(r);
   if ((st = ensure_lum(r, out->w, out->h, err))) return st;
-  GLuint pg, pb;
-  if ((st = variant(r, K_PRT, F_LUM | (r->has_sun ? F_SUN : 0), &pg, err)) ||
+  GLuint pg, pb, pn = 0;
+  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
+  if ((st = variant(r, K_PRT, F_LUM | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
+      (split && (st = variant(r, K_PRT, F_LUM | panel, &pn, err))) ||
       (st = variant(r, K_BG, F_LUM, &pb, err)))
     return st;
   glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_lum);
@@ -1054,11 +1295,17 @@ int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
   glClear(GL_DEPTH_BUFFER_BIT);
-  bind_shading(r, pg, mvp, inv, eye, NULL);
-  draw_mesh(r, mvp);
+  bind_shading(r, pg, mvp, inv, facing, NULL);
+  if (split) {
+    draw_mesh(r, mvp, DRAW_SUNLIT);
+    bind_shading(r, pn, mvp, inv, facing, NULL);
+    draw_mesh(r, mvp, DRAW_UNSUNLIT);
+  } else {
+    draw_mesh(r, mvp, DRAW_ALL);
+  }
   glDepthMask(GL_FALSE);
   glDepthFunc(GL_LEQUAL);
-  bind_shading(r, pb, mvp, inv, eye, NULL);
+  bind_shading(r, pb, mvp, inv, facing, NULL);
   draw_fullscreen(r);
   double t1 = tick(r);
   glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_lum);
@@ -1085,7 +1332,7 @@ static void depth_pass(cv_renderer *r, const float mvp[16], int W, int H) {
   glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   glUseProgram(r->prog_depth);
   uni_mat(r->prog_depth, "u_mvp", mvp);
-  draw_mesh(r, mvp);
+  draw_mesh(r, mvp, DRAW_ALL);
   glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
 }
 
@@ -1109,17 +1356,24 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
     if (outs[k] && (outs[k]->c != 3 || outs[k]->w != v->w || outs[k]->h != v->h || !outs[k]->px))
       return cv_err_set(err, CV_ERR_INVALID, "shade: %s image must be %dx%d RGB",
                         k ? "HDR" : "display", v->w, v->h);
-  float mvp[16], inv[16], eye[3];
-  if (view_matrices(v, mvp, inv, eye)) return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
+  float mvp[16], inv[16], eye[3], facing;
+  if (view_matrices(v, mvp, inv, eye, &facing))
+    return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
   if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   gl_check("(before shade)", NULL);
   set_cull(r, 1);
   const int ss = v->supersample, W = v->w * ss, H = v->h * ss;
   int flags = (out_display ? F_DISP : 0) | (out_hdr ? F_HDR : 0) |
               (out_display && transfer ? F_TRANSFER : 0);
-  GLuint pg, pb;
+  if (out_display) {
+    tone_table(r, dc);
+    if (!r->tone_ok) flags |= F_EXACT;
+  }
+  GLuint pg, pb, pn = 0;
+  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
   if ((st = ensure_main(r, W, H, disp_fmt(r, 0, ss), err)) || (ss > 1 && (st = ensure_res(r, v->w, v->h, err))) ||
-      (st = variant(r, K_PRT, flags | (r->has_sun ? F_SUN : 0), &pg, err)) ||
+      (st = variant(r, K_PRT, flags | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
+      (split && (st = variant(r, K_PRT, flags | panel, &pn, err))) ||
       (st = variant(r, K_BG, flags, &pb, err)))
     return st;
   double t0 = tick(r);
@@ -1134,12 +1388,18 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
       if (outs[k]) glClearBufferfv(GL_COLOR, k, sentinel);
   }
   shading_depth_state(r);
-  bind_shading(r, pg, mvp, inv, eye, dc);
-  draw_mesh(r, mvp);
+  bind_shading(r, pg, mvp, inv, facing, dc);
+  if (split) {
+    draw_mesh(r, mvp, DRAW_SUNLIT);
+    bind_shading(r, pn, mvp, inv, facing, dc);
+    draw_mesh(r, mvp, DRAW_UNSUNLIT);
+  } else {
+    draw_mesh(r, mvp, DRAW_ALL);
+  }
   double t2 = tick(r);
   glDepthFunc(GL_LEQUAL);
   glDepthMask(GL_FALSE);
-  bind_shading(r, pb, mvp, inv, eye, dc);
+  bind_shading(r, pb, mvp, inv, facing, dc);
   draw_fullscreen(r);
   double t3 = tick(r);
   GLuint read_fbo = r->fbo_main;
@@ -1190,8 +1450,9 @@ int cv_renderer_unlit(cv_renderer *r, const cv_render_view *v, cv_image *out, cv
   if (out && (out->c != 3 || out->w != v->w || out->h != v->h || v->supersample != 1))
     return cv_err_set(err, CV_ERR_INVALID, "unlit: image must be %dx%d RGB, no supersampling", v->w,
                       v->h);
-  float mvp[16], inv[16], eye[3];
-  if (view_matrices(v, mvp, inv, eye)) return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
+  float mvp[16], inv[16], eye[3], facing;
+  if (view_matrices(v, mvp, inv, eye, &facing))
+    return cv_err_set(err, CV_ERR_INVALID, "view: singular projection");
   if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   gl_check("(before unlit)", NULL);
   set_cull(r, 1);
@@ -1204,7 +1465,7 @@ int cv_renderer_unlit(cv_renderer *r, const cv_render_view *v, cv_image *out, cv
   shading_depth_state(r);
   glUseProgram(r->prog_unlit);
   uni_mat(r->prog_unlit, "u_mvp", mvp);
-  draw_mesh(r, mvp);
+  draw_mesh(r, mvp, DRAW_ALL);
   double t2 = tick(r);
   if (out) {
     glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_main);

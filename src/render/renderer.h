@@ -17,8 +17,8 @@
  * transfer vectors live in a GL buffer object read as a texture buffer (25
  * coefficients x 4 channels do not fit in the 16 vertex attributes GL
  * guarantees).  A sun (cv_lighting.has_sun) adds its direct light per pixel
- * with a 2048^2 shadow map (bilinear PCF); its indirect light goes through
- * the interreflected transfer as in relight.c.  Windows (CV_MAT_WINDOW) are
+ * with a 2048^2 shadow map (bilinear PCF, in the shader); its indirect light
+ * goes through the interreflected transfer as in relight.c.  Windows (CV_MAT_WINDOW) are
  * not drawn: the background (a lat-long HDR image,
  * cv_renderer_set_background) shows wherever no opaque triangle covers a
  * pixel.  Negative and non-finite vertex radiance is set to 0 and counted
@@ -27,8 +27,14 @@
  * Speed: triangles are sorted along a Morton curve and drawn in chunks of
  * 1024 whose bounds are culled against each view's frustum; vertices are
  * renumbered in order of first use (compact index ranges per draw);
- * optionally back faces are culled (closed meshes only).  Timings per pass
- * (glFinish-bracketed) come back in cv_frame_timing.
+ * optionally back faces are culled (closed meshes only).  Per pixel the
+ * shaders avoid what llvmpipe (no GPU; it runs every instruction of a
+ * shader on every pixel, both sides of every branch) pays for: with a sun,
+ * the triangles facing away from it are drawn with the variant without the
+ * sun's code (opts.sun_split); Drago comes from a table and the transfer
+ * from a polynomial instead of log/pow (opts.tone_exact, shaders/common.glsl;
+ * the same numbers within ~3e-7); the LCD panel is a variant of its own.
+ * Timings per pass (glFinish-bracketed) come back in cv_frame_timing.
 
  * Coordinates: the projection (cv_offaxis) is in CAVE coordinates; the scene
  * is drawn at scene point = CAVE point + scene_offset (no rotation).
@@ -55,7 +61,9 @@
 typedef struct cv_render_opts {
   int half_transfer; /* 1: transfer stored as half floats (RGBA16F), half the bytes */
   int shadow_res;    /* sun shadow map size in texels (default 2048) */
-  int timing;        /* 1: bracket passes with glFinish and fill cv_frame_timing (default 1) */
+  int timing;        /* 1: bracket passes with glFinish and fill cv_frame_timing with wall-clock
+                        ms (default); 2: the same with the process's CPU ms (all threads: the
+                        work done, for comparisons on a loaded machine); 0: off */
   int display_float; /* 1: tone-mapped target RGBA32F (exact values); 0: RGBA8, what a
                         display gets, quantised to k/255 (default) */
   int cull_frustum;  /* 1: skip chunks of 1024 triangles outside the view (default 1) */
@@ -63,10 +71,18 @@ typedef struct cv_render_opts {
                         such as the cabin; the CPU reference sees both sides) (default 0) */
   int debug_clear;   /* 1: clear colour targets to -1 before shading (tests find holes) */
   int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests) */
+  int sun_split;     /* 1: with a sun, draw the triangles facing away from it (n_t . s <= 0:
+                        no direct sun) with the shader without the sun's per-pixel code
+                        (default 1; the image is the same) */
+  int tone_exact;    /* 1: Drago and the transfer computed in the shader with log and pow
+                        (log, log, pow + 3 pow per pixel) instead of a table for Drago and a
+                        polynomial for the transfer (default 0; the table falls back to it
+                        by itself when it misses its tolerance) */
 } cv_render_opts;
 
 /* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
- * target, frustum culling on, back-face culling off, no debug. */
+ * target, frustum culling on, back-face culling off, no debug, sun split on,
+ * tone-mapping table and transfer polynomial. */
 void cv_render_default_opts(cv_render_opts *o);
 
 /* One wall-eye view. */
@@ -138,6 +154,13 @@ int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3
                           const float v[3], const float size[2], const cv_image *img, cv_err *err);
 /* Texels of the last panel image that were not finite and >= 0. */
 uint64_t cv_renderer_panel_invalid(const cv_renderer *r);
+
+/* The Drago table of the last tone-mapped cv_renderer_shade (see
+ * shaders/common.glsl): *drago_err (may be NULL) gets its largest error
+ * measured against the curve when it was built, relative with a floor of
+ * 1e-4 on Ld (NaN before any).  Returns 1 when the shader used it, 0 when it
+ * computed the curve (opts.tone_exact, or an error above 2e-6). */
+int cv_renderer_tone_table(const cv_renderer *r, double *drago_err);
 
 /* Samples sl's background radiance (cv_scene_light_background, sun
  * included) at the texel centres of a w x w/2 lat-long image; *out owned by

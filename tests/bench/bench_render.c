@@ -17,7 +17,12 @@
  * Medians over the frames; every pass is bracketed by glFinish.
  *
  * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
- *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440]
+ *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440] [--cpu]
+ *   [--tone-exact] [--no-sun-split]
+ * --cpu: every pass timed in CPU ms of the whole process (all llvmpipe
+ * threads: the work done, steady on a machine others load) instead of wall
+ * ms; --tone-exact / --no-sun-split: the renderer options of those names
+ * (opts.tone_exact = 1, opts.sun_split = 0), for before/after tables.
  * Back faces are culled by default (the cabin is closed and consistently
  * wound; tests/render checks the image does not change). */
 #include <math.h>
@@ -78,7 +83,7 @@ static cv_prt *load_or_bake(void) {
 }
 
 int main(int argc, char **argv) {
-  int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0;
+  int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
 #ifdef CV_SOURCE_DIR
   const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
 #else
@@ -89,6 +94,9 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--no-cull-back")) cull_back = 0;
     else if (!strcmp(argv[i], "--no-frustum")) frustum = 0;
     else if (!strcmp(argv[i], "--float-display")) dfloat = 1;
+    else if (!strcmp(argv[i], "--cpu")) cpu = 1;
+    else if (!strcmp(argv[i], "--tone-exact")) exact = 1;
+    else if (!strcmp(argv[i], "--no-sun-split")) split = 0;
     else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--cave") && i + 1 < argc) cave_path = argv[++i];
     else frames = atoi(argv[i]);
@@ -108,6 +116,9 @@ int main(int argc, char **argv) {
   ro.cull_back = cull_back;
   ro.cull_frustum = frustum;
   ro.display_float = dfloat;
+  ro.timing = cpu ? 2 : 1;
+  ro.tone_exact = exact;
+  ro.sun_split = split;
   cv_renderer *r;
   if (cv_renderer_create(prt, &ro, &r, &err)) {
     fprintf(stderr, "%s\n", err.msg);
@@ -126,7 +137,9 @@ int main(int argc, char **argv) {
   }
   cv_lighting l = cv_scene_light_sh(sl);
   const char *lp = getenv("LP_NUM_THREADS");
-  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)");
+  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s; sun split %s\n",
+         cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)", cpu ? "CPU (all threads)" : "wall",
+         exact ? "log/pow" : "table + polynomial", split ? "on" : "off");
   printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
          "back faces %s, frustum culling %s, display target %s\n",
          prt->nt, prt->nv, prt->bands, half ? "half" : "float",

@@ -352,6 +352,38 @@ static void test_gl_sun(void **state) {
   assert_true(fabs(yg / yc - 1) < 0.05);
   assert_true(fabs(sg / sc - 1) < 0.05);
   assert_true(rel[ngeom / 2] < 0.02);
+  /* The sun split (triangles facing away from the sun drawn without the
+   * sun's code) changes no pixel: the same frame from a renderer without
+   * it, both poses, within float noise (1e-6 relative). */
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.sun_split = 0;
+  cv_renderer *whole;
+  OK(cv_renderer_create(F.prt, &o, &whole, &err));
+  OK(cv_renderer_set_lighting(whole, &l, NULL, NULL, &err));
+  OK(cv_renderer_set_background(whole, bg, &err));
+  for (int k = 0; k < 2; k++) {
+    pose pk = make_pose(k);
+    cv_render_view vk = make_view(&pk, 1);
+    cv_image *a, *b;
+    assert_int_equal(cv_image_create(pk.w, pk.h, 3, &a), CV_OK);
+    assert_int_equal(cv_image_create(pk.w, pk.h, 3, &b), CV_OK);
+    OK(cv_renderer_shade(F.r, &vk, NULL, 0, NULL, a, NULL, &err));
+    OK(cv_renderer_shade(whole, &vk, NULL, 0, NULL, b, NULL, &err));
+    size_t differ = 0, np = (size_t)pk.w * pk.h;
+    double worst = 0;
+    for (size_t i = 0; i < 3 * np; i++) {
+      double d = fabs(a->px[i] - b->px[i]) / (fabs(b->px[i]) + 1e-3);
+      worst = fmax(worst, d);
+      differ += d > 1e-6;
+    }
+    printf("sun split, pose %d: %zu of %zu channel values differ beyond 1e-6 from the unsplit "
+           "frame, max relative difference %.2e\n", k, differ, 3 * np, worst);
+    assert_int_equal(differ, 0);
+    cv_image_destroy(a);
+    cv_image_destroy(b);
+  }
+  cv_renderer_destroy(whole);
   free(rel);
   free(geom);
   cv_image_destroy(g);
@@ -376,15 +408,25 @@ static void test_no_holes(void **state) {
   OK(cv_renderer_create(F.prt, &o, &eq, &err));
   o.depth_less = 1;
   OK(cv_renderer_create(F.prt, &o, &less, &err));
-  cv_lighting l;
-  test_lighting(&l);
   cv_image *bg = const_bg();
   cv_renderer *rs[2] = {eq, less};
-  for (int i = 0; i < 2; i++) {
-    OK(cv_renderer_set_lighting(rs[i], &l, NULL, NULL, &err));
-    OK(cv_renderer_set_background(rs[i], bg, &err));
-  }
+  /* the SH lighting, then a sky with a sun (the shading pass then draws
+   * the sun-facing and the other triangles separately) */
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  for (int li = 0; li < 2; li++)
   for (int k = 0; k < 2; k++) {
+    cv_lighting l;
+    if (li == 0) test_lighting(&l);
+    else l = cv_scene_light_sh(sl);
+    for (int i = 0; i < 2; i++) {
+      OK(cv_renderer_set_lighting(rs[i], &l, NULL, NULL, &err));
+      OK(cv_renderer_set_background(rs[i], bg, &err));
+    }
     pose p = make_pose(k);
     p.w *= 2, p.h *= 2;
     cv_render_view v = make_view(&p, 1);
@@ -398,14 +440,15 @@ static void test_no_holes(void **state) {
       if (a->px[3 * i] == -1.0f || b->px[3 * i] == -1.0f) holes++;
       if (memcmp(a->px + 3 * i, b->px + 3 * i, 3 * sizeof(float))) differ++;
     }
-    printf("pose %d %dx%d: %zu holes, %zu pixels (%.4f%%) differ from depth LESS\n", k, p.w, p.h,
-           holes, differ, 100.0 * differ / n);
+    printf("%s, pose %d %dx%d: %zu holes, %zu pixels (%.4f%%) differ from depth LESS\n",
+           li ? "sky + sun" : "SH lighting", k, p.w, p.h, holes, differ, 100.0 * differ / n);
     assert_int_equal(holes, 0);
     assert_true(differ <= n / 1000);
     cv_image_destroy(a);
     cv_image_destroy(b);
   }
   cv_image_destroy(bg);
+  cv_scene_light_destroy(sl);
   cv_renderer_destroy(eq);
   cv_renderer_destroy(less);
 }
@@ -440,17 +483,18 @@ static cv_prt *ramp_prt(double *values) {
   return p;
 }
 
-static void test_drago_ramp(void **state) {
-  (void)state;
+/* exact: the shader's own log/pow (opts.tone_exact) instead of the tables. */
+static void drago_ramp(int exact) {
   double values[RAMP_N * RAMP_N];
   cv_prt *p = ramp_prt(values);
   cv_renderer *r, *r8;
   cv_err err;
   cv_render_opts o;
   cv_render_default_opts(&o);
+  o.tone_exact = exact;
+  OK(cv_renderer_create(p, &o, &r8, &err)); /* default 8-bit display target */
   o.display_float = 1;
   OK(cv_renderer_create(p, &o, &r, &err));
-  OK(cv_renderer_create(p, NULL, &r8, &err)); /* default 8-bit display target */
   const int res = RAMP_N * 8;
   pose ps = {.pa = {-1, -1, -1}, .pb = {1, -1, -1}, .pc = {-1, 1, -1}, .eye = {0.1, -0.2, 0.5},
              .w = res, .h = res};
@@ -459,8 +503,10 @@ static void test_drago_ramp(void **state) {
   assert_int_equal(cv_offaxis_compute(ps.pa, ps.pb, ps.pc, ps.eye, 0.1, 10, &v.proj), CV_OK);
   v.w = v.h = res, v.supersample = 1;
   const double tints[2][3] = {{1, 1, 1}, {1.0, 0.45, 0.2}};
-  const double lw[2][2] = {{1, 100}, {0.37, 5e3}}; /* (lwa, lwmax) */
-  double worst[2] = {0, 0}, worst8 = 0;
+  /* (lwa, lwmax, bias): Lwmax/Lwa 100, 1.4e4, 4e7 (the clamp below Lwmax at
+   * bias 0.85), 1e3 at bias 0.7 */
+  const double lw[4][3] = {{1, 100, 0.85}, {0.37, 5e3, 0.85}, {2e-3, 8e4, 0.85}, {5, 5e3, 0.7}};
+  double worst[2] = {0, 0}, worst8 = 0, tab_err = 0;
   cv_image *disp, *hdr, *cpu_in, *cpu_out, *disp8;
   assert_int_equal(cv_image_create(res, res, 3, &disp8), CV_OK);
   assert_int_equal(cv_image_create(res, res, 3, &disp), CV_OK);
@@ -474,16 +520,20 @@ static void test_drago_ramp(void **state) {
     for (int c = 0; c < 3; c++) l.sh[c] = tints[ti][c];
     OK(cv_renderer_set_lighting(r, &l, NULL, NULL, &err));
     OK(cv_renderer_set_lighting(r8, &l, NULL, NULL, &err));
-    for (int li = 0; li < 2; li++) {
+    for (int li = 0; li < 4; li++) {
       cv_drago d;
       cv_drago_default(&d);
       d.lwa = lw[li][0];
       d.lwmax = lw[li][1];
+      d.bias = lw[li][2];
       cv_drago_consts dc;
       cv_drago_prepare(&d, &dc);
       for (int tr = 0; tr < 2; tr++) {
         OK(cv_renderer_shade(r, &v, &dc, tr, disp, hdr, NULL, &err));
         OK(cv_renderer_shade(r8, &v, &dc, tr, disp8, NULL, NULL, &err));
+        double te;
+        assert_int_equal(cv_renderer_tone_table(r, &te), !exact);
+        tab_err = fmax(tab_err, te);
         for (int q = 0; q < RAMP_N * RAMP_N; q++)
           for (int c = 0; c < 3; c++) cpu_in->px[3 * q + c] = (float)(values[q] * tints[ti][c]);
         assert_int_equal(cv_drago_image(cpu_in, &d, tr, cpu_out, NULL), CV_OK);
@@ -512,9 +562,11 @@ static void test_drago_ramp(void **state) {
       }
     }
   }
-  printf("Drago ramp (%d values 0, 1e-4..1e5, 2 tints, 2 adaptations): max |GPU - CPU| %.2e "
-         "display-linear, %.2e with Rec.709 transfer\n",
-         RAMP_N * RAMP_N, worst[0], worst[1]);
+  printf("Drago ramp, %s (%d values 0, 1e-4..1e5, 2 tints, 4 adaptations): max |GPU - CPU| "
+         "%.2e display-linear, %.2e with Rec.709 transfer\n",
+         exact ? "shader log/pow" : "Drago table + transfer polynomial", RAMP_N * RAMP_N,
+         worst[0], worst[1]);
+  if (!exact) printf("Drago table as built: max relative error %.2e (floor 1e-4)\n", tab_err);
   printf("8-bit display target: max |GPU - CPU| %.3f / 255\n", worst8);
   cv_image_destroy(disp8);
   cv_renderer_destroy(r8);
@@ -522,6 +574,107 @@ static void test_drago_ramp(void **state) {
   cv_image_destroy(hdr);
   cv_image_destroy(cpu_in);
   cv_image_destroy(cpu_out);
+  cv_renderer_destroy(r);
+  cv_prt_destroy(p);
+}
+
+static void test_drago_ramp(void **state) {
+  (void)state;
+  drago_ramp(0);
+}
+
+static void test_drago_ramp_exact(void **state) {
+  (void)state;
+  drago_ramp(1);
+}
+
+/* The dashboard LCD (cv_renderer_set_panel, the shaders' PANEL variant):
+ * a panel over the middle of the ramp's plane shows its image's radiance
+ * in the HDR, luminance and display outputs, the ramp stays outside it, and
+ * NaN texels are counted. */
+static void test_panel(void **state) {
+  (void)state;
+  double values[RAMP_N * RAMP_N];
+  cv_prt *p = ramp_prt(values);
+  cv_renderer *r;
+  cv_err err;
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1;
+  OK(cv_renderer_create(p, &o, &r, &err));
+  cv_lighting l;
+  memset(&l, 0, sizeof l);
+  l.bands = 2;
+  for (int c = 0; c < 3; c++) l.sh[c] = 1;
+  OK(cv_renderer_set_lighting(r, &l, NULL, NULL, &err));
+  const int res = 128;
+  cv_render_view v;
+  memset(&v, 0, sizeof v);
+  const double pa[3] = {-1, -1, -1}, pb[3] = {1, -1, -1}, pc[3] = {-1, 1, -1}, eye[3] = {0.1, -0.2, 0.5};
+  assert_int_equal(cv_offaxis_compute(pa, pb, pc, eye, 0.1, 10, &v.proj), CV_OK);
+  v.w = v.h = res, v.supersample = 1;
+  cv_image *img;
+  assert_int_equal(cv_image_create(4, 4, 3, &img), CV_OK);
+  const float rgb[3] = {7, 8, 9};
+  for (int i = 0; i < 16; i++)
+    for (int c = 0; c < 3; c++) img->px[3 * i + c] = rgb[c];
+  img->px[0] = NAN;
+  const float ctr[3] = {0, 0, -1}, u[3] = {1, 0, 0}, vv[3] = {0, 1, 0}, size[2] = {1, 1};
+  OK(cv_renderer_set_panel(r, ctr, u, vv, size, img, &err));
+  assert_int_equal(cv_renderer_panel_invalid(r), 1);
+  img->px[0] = rgb[0];
+  OK(cv_renderer_set_panel(r, ctr, u, vv, size, img, &err));
+  assert_int_equal(cv_renderer_panel_invalid(r), 0);
+  cv_image *hdr, *disp, *lm;
+  assert_int_equal(cv_image_create(res, res, 3, &hdr), CV_OK);
+  assert_int_equal(cv_image_create(res, res, 3, &disp), CV_OK);
+  assert_int_equal(cv_image_create(res, res, 1, &lm), CV_OK);
+  cv_drago d;
+  cv_drago_default(&d);
+  d.lwa = 2, d.lwmax = 50;
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  OK(cv_renderer_luminance(r, &v, lm, NULL, &err));
+  OK(cv_renderer_shade(r, &v, &dc, 1, disp, hdr, NULL, &err));
+  const double y = lum(rgb), ld = cv_drago_map(&dc, y);
+  int inside = 0, outside = 0, ramp = 0;
+  double worst = 0;
+  for (int py = 0; py < res; py++)
+    for (int px = 0; px < res; px++) {
+      double sx = -1 + 2.0 * (px + 0.5) / res, sy = 1 - 2.0 * (py + 0.5) / res;
+      const float *h = cv_image_at(hdr, px, py), *g = cv_image_at(disp, px, py);
+      if (fabs(sx) < 0.45 && fabs(sy) < 0.45) {
+        inside++;
+        for (int c = 0; c < 3; c++) {
+          worst = fmax(worst, fabs(h[c] - rgb[c]) / rgb[c]);
+          double want = cv_rec709_transfer(fmin(rgb[c] * ld / y, 1.0));
+          worst = fmax(worst, fabs(g[c] - want));
+        }
+        worst = fmax(worst, fabs(lm->px[py * res + px] - y) / y);
+      } else if (fabs(sx) > 0.55 || fabs(sy) > 0.55) {
+        outside++;
+        ramp += fabs(h[0] - rgb[0]) > 1e-3; /* the ramp's values are never 7 */
+      }
+    }
+  printf("panel: %d pixels inside, max difference from the image (HDR, luminance relative; "
+         "display absolute) %.2e; %d of %d pixels outside show the ramp\n", inside, worst, ramp,
+         outside);
+  assert_true(inside > 2500);
+  assert_int_equal(ramp, outside);
+  /* with a sun too (the SUN + PANEL variants): the panel still wins */
+  l.has_sun = 1;
+  l.sun_dir[0] = 0.3, l.sun_dir[1] = 0.2, l.sun_dir[2] = 1;
+  l.sun_E[0] = l.sun_E[1] = l.sun_E[2] = 3;
+  OK(cv_renderer_set_lighting(r, &l, NULL, NULL, &err));
+  OK(cv_renderer_luminance(r, &v, lm, NULL, &err));
+  OK(cv_renderer_shade(r, &v, &dc, 1, disp, hdr, NULL, &err));
+  const float *mid = cv_image_at(hdr, res / 2, res / 2);
+  for (int c = 0; c < 3; c++) assert_true(fabs(mid[c] - rgb[c]) < 1e-5 * rgb[c]);
+  assert_true(worst < 1e-5);
+  cv_image_destroy(hdr);
+  cv_image_destroy(disp);
+  cv_image_destroy(lm);
+  cv_image_destroy(img);
   cv_renderer_destroy(r);
   cv_prt_destroy(p);
 }
@@ -667,7 +820,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
       cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun),          cmocka_unit_test(test_no_holes),
-      cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_luminance_pass),
+      cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
+      cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
