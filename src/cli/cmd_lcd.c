@@ -43,7 +43,8 @@ static void help(FILE *f) {
           "  --size WxH        panel texels (default 400x300)\n"
           "  --brdf FILE       BRDF table (docs/brdf-format.md), MERL .binary, or\n"
           "                    builtin:antiglare (default)\n"
-          "  --sampling S      brdf, cosine, or mis (default: mis, 90%% BRDF / 10%% cosine)\n"
+          "  --sampling S      brdf, cosine, or mis (default: mis: half the samples towards\n"
+          "                    the windows, the rest 90%% BRDF / 10%% cosine)\n"
           "  --content FILE    .png (sRGB) or .exr shown on the panel (default: a test pattern)\n"
           "  --luminance CD    content white luminance in cd/m^2 (default 250)\n"
           "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (see lcd_config.h)\n"
@@ -325,6 +326,8 @@ int cmd_lcd(int argc, char **argv) {
   par.h = lc.height;
   par.spp = lc.spp;
   par.brdf_fraction = lc.brdf_fraction;
+  /* brdf / cosine alone: no window samples (mis: the default share) */
+  if (sampling && strcmp(sampling, "mis")) par.window_fraction = 0;
   par.seed = lc.seed;
   double clamp = lc.clamp > 0 ? lc.clamp : cv_lcd_default_clamp(light, brdf);
   const float ef[3] = {(float)eye[0], (float)eye[1], (float)eye[2]};

@@ -21,6 +21,11 @@ struct cv_lcd_gather {
   const cv_brdf *brdf;
   cv_brdf_sampler *smp;
   cv_sobol_tab sobol;
+  /* window openings (one per window material) for window sampling: the
+   * distinct vertices of each, xyz */
+  int nopen;
+  float **open_pos;
+  int *open_nv;
 };
 
 static inline float dot3(const float a[3], const float b[3]) {
@@ -248,6 +253,56 @@ int cv_lcd_light_from_scene(const cv_scene_light *sl, const cv_light_spec *spec,
 
 /* --- gather -------------------------------------------------------------- */
 
+/* The window openings: the distinct vertices of each window material's
+ * triangles (at most CV_LCD_MAX_OPENINGS openings; further ones are still
+ * reached by BRDF and cosine sampling). */
+static int collect_openings(cv_lcd_gather *g, const cv_mesh *m) {
+  uint32_t *mark = calloc(m->nv + 1, sizeof(uint32_t));
+  g->open_pos = calloc(CV_LCD_MAX_OPENINGS, sizeof(float *));
+  g->open_nv = calloc(CV_LCD_MAX_OPENINGS, sizeof(int));
+  if (!mark || !g->open_pos || !g->open_nv) {
+    free(mark);
+    return CV_ERR_NOMEM;
+  }
+  for (size_t mi = 0; mi < m->nm && g->nopen < CV_LCD_MAX_OPENINGS; mi++) {
+    if (!(m->mats[mi].flags & CV_MAT_WINDOW)) continue;
+    int n = 0;
+    const uint32_t tag = (uint32_t)mi + 1;
+    for (size_t t = 0; t < m->nt; t++) {
+      if (m->tri_mat[t] != mi) continue;
+      for (int j = 0; j < 3; j++) {
+        uint32_t v = m->tri[3 * t + j];
+        if (mark[v] != tag) mark[v] = tag, n++;
+      }
+    }
+    if (!n) continue;
+    float *pos = malloc(3 * (size_t)n * sizeof(float));
+    if (!pos) {
+      free(mark);
+      return CV_ERR_NOMEM;
+    }
+    int k = 0;
+    for (size_t t = 0; t < m->nt; t++) {
+      if (m->tri_mat[t] != mi) continue;
+      for (int j = 0; j < 3; j++) {
+        uint32_t v = m->tri[3 * t + j];
+        if (mark[v] == tag) {
+          mark[v] = 0xFFFFFFFFu; /* taken */
+          memcpy(pos + 3 * k++, m->pos + 3 * (size_t)v, 3 * sizeof(float));
+        }
+      }
+    }
+    /* vertices shared with an earlier opening were re-tagged: reset */
+    for (size_t t = 0; t < m->nt; t++)
+      if (m->tri_mat[t] == mi)
+        for (int j = 0; j < 3; j++) mark[m->tri[3 * t + j]] = 0;
+    g->open_pos[g->nopen] = pos;
+    g->open_nv[g->nopen++] = k;
+  }
+  free(mark);
+  return CV_OK;
+}
+
 int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
                          const cv_brdf *brdf, cv_lcd_gather **out, cv_err *err) {
   *out = NULL;
@@ -266,6 +321,10 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
   }
   memcpy(g->tri, m->tri, 3 * m->nt * sizeof(uint32_t));
+  if (g->has_windows && collect_openings(g, m)) {
+    cv_lcd_gather_destroy(g);
+    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
+  }
   cv_sobol_tab_init(&g->sobol);
   *out = g;
   return CV_OK;
@@ -273,6 +332,9 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
 
 void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   if (!g) return;
+  for (int k = 0; k < g->nopen; k++) free(g->open_pos[k]);
+  free(g->open_pos);
+  free(g->open_nv);
   free(g->tri);
   cv_brdf_sampler_destroy(g->smp);
   free(g);
@@ -287,6 +349,7 @@ void cv_lcd_params_default(cv_lcd_params *p) {
   p->h = 300;
   p->spp = 40;
   p->brdf_fraction = 0.9;
+  p->window_fraction = CV_LCD_WINDOW_FRACTION;
   p->seed = 1;
   p->sun = 1;
 }
@@ -313,6 +376,7 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
   h = cv_hash64_u64(h, (uint64_t)p->h);
   h = cv_hash64_u64(h, (uint64_t)p->spp);
   h = cv_hash64_double(h, p->brdf_fraction);
+  h = cv_hash64_double(h, p->window_fraction);
   h = cv_hash64_u64(h, p->seed);
   h = cv_hash64_u64(h, (uint64_t)p->sun);
   h = cv_hash64_double(h, clamp);
@@ -320,7 +384,21 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
   return h;
 }
 
-#define GATHER_BATCH 64
+/* Trace blocks: the gather rays of BLOCK x BLOCK texels (aligned to the
+ * panel's texel grid, clipped to the panel, never to the tile) and at most
+ * CHUNK_SPP samples per texel are sorted by direction and traced in packets
+ * of CV_RT_PACKET_MAX.  Rays of one texel spread over the BRDF lobe, but the
+ * mirror direction moves slowly across the panel, so sorting thousands of
+ * rays by direction gathers nearly parallel rays from nearby origins into
+ * each packet, which Embree's coherent packet traversal walks together.
+ * The composition of every packet depends only on (panel size, block,
+ * samples), never on the tile, split or thread count: a tile that cuts a
+ * block still traces the whole block (and keeps its own texels), so that
+ * every ray's hit, and hence every texel's sums, are bit-identical whatever
+ * the tiling (Embree's packet kernels may round t, u, v differently for
+ * another packet composition). */
+#define BLOCK 16
+#define CHUNK_SPP 64
 
 /* Clamps one sample's RGB (counted) and adds it in fixed point. */
 static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t s[3],
@@ -342,11 +420,316 @@ static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t
   s2[1] += (int64_t)(q & ((1ull << CV_LCD_M2_SHIFT) - 1));
 }
 
+/* Strategies (gather.h). */
+enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, NSTRAT };
+
+/* Per-texel state of a block. */
+typedef struct texel_state {
+  int in_tile;        /* its sums go to the buffer */
+  int behind;         /* the eye sees the panel's back: no rays */
+  size_t aix;         /* buffer texel (in_tile only) */
+  float pc[3], off[3], tn[3], bn[3];
+  int kb;
+  float tb;
+  uint32_t seed[NSTRAT], dseed[NSTRAT][4]; /* one sequence per strategy */
+  float nee[3];       /* sun term of the round */
+  int64_t s[3], s2[2];
+} texel_state;
+
+/* Window-strategy rectangles of one block, in the panel's projected disk
+ * (a, b) = (w.u, w.v): cosine-weighted directions restricted to them have
+ * the density p_w = cos * (rectangles holding (a, b)) / (their total area). */
+typedef struct win_rects {
+  int n;
+  float r[CV_LCD_MAX_OPENINGS][4]; /* a0, a1, b0, b1 */
+  float cum[CV_LCD_MAX_OPENINGS];  /* cumulative areas */
+  float total;
+} win_rects;
+
+/* Scratch of one thread: the rays of one block and chunk. */
+typedef struct block_buf {
+  size_t cap;
+  float *org, *dir;      /* 3 per ray */
+  float *fc;             /* f cos (RGB) and the interior MIS denominator c_b p_b + c_c p_c;
+                            window-strategy rays: the local direction and -1 (f and p_b are
+                            evaluated only if the ray leaves through a window) */
+  uint32_t *tex;         /* texel in the block; | TEX_WIN for window-strategy rays */
+  uint16_t *key;
+  uint32_t *ord, *tmp;
+  /* the rays permuted into direction order (traced and shaded in order) */
+  float *sorg, *sdir, *sfc;
+  uint32_t *stex;
+  uint32_t *htri;        /* hit triangle (kind 1) */
+  float *huv;            /* its barycentrics u, v */
+  uint8_t *kind;
+  texel_state *ts;       /* BLOCK * BLOCK */
+} block_buf;
+
+#define TEX_WIN 0x80000000u
+
+static void block_buf_free(block_buf *b) {
+  free(b->org);
+  free(b->dir);
+  free(b->fc);
+  free(b->tex);
+  free(b->key);
+  free(b->ord);
+  free(b->tmp);
+  free(b->sorg);
+  free(b->sdir);
+  free(b->sfc);
+  free(b->stex);
+  free(b->htri);
+  free(b->huv);
+  free(b->kind);
+  free(b->ts);
+  memset(b, 0, sizeof *b);
+}
+
+static int block_buf_alloc(block_buf *b, size_t cap) {
+  memset(b, 0, sizeof *b);
+  b->cap = cap;
+  b->org = malloc(3 * cap * sizeof(float));
+  b->dir = malloc(3 * cap * sizeof(float));
+  b->fc = malloc(4 * cap * sizeof(float));
+  b->tex = malloc(cap * sizeof(uint32_t));
+  b->key = malloc(cap * sizeof(uint16_t));
+  b->ord = malloc(cap * sizeof(uint32_t));
+  b->tmp = malloc(cap * sizeof(uint32_t));
+  b->sorg = malloc(3 * cap * sizeof(float));
+  b->sdir = malloc(3 * cap * sizeof(float));
+  b->sfc = malloc(4 * cap * sizeof(float));
+  b->stex = malloc(cap * sizeof(uint32_t));
+  b->htri = malloc(cap * sizeof(uint32_t));
+  b->huv = malloc(2 * cap * sizeof(float));
+  b->kind = malloc(cap);
+  b->ts = malloc(BLOCK * BLOCK * sizeof(texel_state));
+  if (!b->org || !b->dir || !b->fc || !b->tex || !b->key || !b->ord || !b->tmp || !b->sorg ||
+      !b->sdir || !b->sfc || !b->stex || !b->htri || !b->huv || !b->kind || !b->ts) {
+    block_buf_free(b);
+    return CV_ERR_NOMEM;
+  }
+  return CV_OK;
+}
+
+/* The block's rectangles: each opening's vertices seen from the block's
+ * centre c (behind the panel plane: pushed onto the rim), bounded, widened
+ * by the angle the block's half diagonal hd subtends from the nearest
+ * vertex, clipped to [-1, 1]^2.  They need not hold the openings exactly:
+ * any rectangle gives an unbiased estimate (BRDF and cosine sampling cover
+ * every direction); a tight one wastes fewer samples. */
+static void block_rects(const cv_lcd_gather *g, const float c[3], float hd, win_rects *wr) {
+  const cv_lcd_panel *pn = &g->panel;
+  wr->n = 0;
+  wr->total = 0;
+  for (int o = 0; o < g->nopen; o++) {
+    float a0 = INFINITY, a1 = -INFINITY, b0 = INFINITY, b1 = -INFINITY, dmin = INFINITY;
+    int front = 0;
+    for (int i = 0; i < g->open_nv[o]; i++) {
+      const float *q = g->open_pos[o] + 3 * i;
+      float d[3] = {q[0] - c[0], q[1] - c[1], q[2] - c[2]};
+      float l = sqrtf(dot3(d, d));
+      if (!(l > 0)) continue;
+      dmin = fminf(dmin, l);
+      float a = dot3(d, pn->u) / l, b = dot3(d, pn->v) / l, z = dot3(d, pn->normal) / l;
+      if (z > 0) {
+        front = 1;
+      } else {
+        float r = sqrtf(a * a + b * b);
+        if (!(r > 0)) continue;
+        a /= r, b /= r;
+      }
+      a0 = fminf(a0, a), a1 = fmaxf(a1, a), b0 = fminf(b0, b), b1 = fmaxf(b1, b);
+    }
+    if (!front) continue;
+    const float m = hd / dmin;
+    a0 = fmaxf(a0 - m, -1.0f), a1 = fminf(a1 + m, 1.0f);
+    b0 = fmaxf(b0 - m, -1.0f), b1 = fminf(b1 + m, 1.0f);
+    const float area = (a1 - a0) * (b1 - b0);
+    if (!(area > 0)) continue;
+    float *r = wr->r[wr->n];
+    r[0] = a0, r[1] = a1, r[2] = b0, r[3] = b1;
+    wr->total += area;
+    wr->cum[wr->n++] = wr->total;
+  }
+}
+
+/* Density of the window strategy for a world direction d (1/sr). */
+static inline float window_pdf(const cv_lcd_panel *pn, const win_rects *wr, const float d[3]) {
+  const float z = dot3(d, pn->normal);
+  if (!(z > 0) || !(wr->total > 0)) return 0;
+  const float a = dot3(d, pn->u), b = dot3(d, pn->v);
+  int in = 0;
+  for (int k = 0; k < wr->n; k++)
+    in += a >= wr->r[k][0] && a < wr->r[k][1] && b >= wr->r[k][2] && b < wr->r[k][3];
+  return z * (float)in / wr->total;
+}
+
+/* A window-strategy direction from u[0..1]: a rectangle by area, a point in
+ * it (u0 rescaled within the rectangle's share, so the map stays monotone
+ * in each), lifted to the hemisphere.  Returns 0 outside the disk. */
+static inline int window_sample(const cv_lcd_panel *pn, const win_rects *wr, const float u[2],
+                                float d[3]) {
+  if (!(wr->total > 0)) return 0;
+  const float x = u[0] * wr->total;
+  int k = 0;
+  while (k < wr->n - 1 && wr->cum[k] <= x) k++;
+  const float c0 = k ? wr->cum[k - 1] : 0.0f, w = wr->cum[k] - c0;
+  float s = w > 0 ? (x - c0) / w : 0.5f;
+  s = s < 0 ? 0 : (s > 1 ? 1 : s);
+  const float *r = wr->r[k];
+  const float a = r[0] + s * (r[1] - r[0]), b = r[2] + u[1] * (r[3] - r[2]);
+  const float z2 = 1 - a * a - b * b;
+  if (!(z2 > 0)) return 0;
+  const float z = sqrtf(z2);
+  for (int i = 0; i < 3; i++) d[i] = a * pn->u[i] + b * pn->v[i] + z * pn->normal[i];
+  return 1;
+}
+
+/* 16-bit sort key of a unit direction: Morton order of its octahedral
+ * coordinates quantised to 8 bits each (cells of about 1 degree). */
+static inline uint16_t dir_key(const float d[3]) {
+  float s = fabsf(d[0]) + fabsf(d[1]) + fabsf(d[2]);
+  float x = d[0] / s, y = d[1] / s;
+  if (d[2] < 0) {
+    float ox = x;
+    x = (1 - fabsf(y)) * (x >= 0 ? 1.0f : -1.0f);
+    y = (1 - fabsf(ox)) * (y >= 0 ? 1.0f : -1.0f);
+  }
+  uint32_t qx = (uint32_t)((x * 0.5f + 0.5f) * 255.0f + 0.5f);
+  uint32_t qy = (uint32_t)((y * 0.5f + 0.5f) * 255.0f + 0.5f);
+  qx &= 255, qy &= 255;
+  qx = (qx | (qx << 4)) & 0x0F0Fu;
+  qx = (qx | (qx << 2)) & 0x3333u;
+  qx = (qx | (qx << 1)) & 0x5555u;
+  qy = (qy | (qy << 4)) & 0x0F0Fu;
+  qy = (qy | (qy << 2)) & 0x3333u;
+  qy = (qy | (qy << 1)) & 0x5555u;
+  return (uint16_t)(qx | (qy << 1));
+}
+
+/* ord = 0..n-1 stably sorted by key (LSD radix sort, two 8-bit passes). */
+static void sort_by_key(const uint16_t *key, size_t n, uint32_t *ord, uint32_t *tmp) {
+  size_t c0[257], c1[257];
+  memset(c0, 0, sizeof c0);
+  memset(c1, 0, sizeof c1);
+  for (size_t i = 0; i < n; i++) {
+    c0[(key[i] & 255) + 1]++;
+    c1[(key[i] >> 8) + 1]++;
+  }
+  for (int b = 0; b < 256; b++) {
+    c0[b + 1] += c0[b];
+    c1[b + 1] += c1[b];
+  }
+  for (size_t i = 0; i < n; i++) tmp[c0[key[i] & 255]++] = (uint32_t)i;
+  for (size_t i = 0; i < n; i++) {
+    uint32_t j = tmp[i];
+    ord[c1[key[j] >> 8]++] = j;
+  }
+}
+
+/* Traces rays ord[0..n) in packets: opaque closest hits, then the window
+ * crossings of the rays that escaped.  kind: 1 interior, 2 environment,
+ * 3 lost (escaped without crossing a window). */
+/* Window crossings of the escaped rays esc[0..ne) (indices into the
+ * sorted arrays): kind 2 (environment) or 3 (lost). */
+static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, int ne) {
+  float po[3 * CV_RT_PACKET_MAX], pd[3 * CV_RT_PACKET_MAX];
+  cv_hit ph[CV_RT_PACKET_MAX];
+  uint8_t pf[CV_RT_PACKET_MAX];
+  for (int l = 0; l < ne; l++) {
+    memcpy(po + 3 * l, b->sorg + 3 * (size_t)esc[l], 3 * sizeof(float));
+    memcpy(pd + 3 * l, b->sdir + 3 * (size_t)esc[l], 3 * sizeof(float));
+  }
+  cv_rt_window_hit_packet(rt, ne, po, pd, NULL, 0.0f, 1, ph, pf);
+  for (int l = 0; l < ne; l++) b->kind[esc[l]] = pf[l] ? 2 : 3;
+}
+
+/* Traces the n sorted rays in consecutive packets: opaque closest hits,
+ * then the window crossings of the rays that escaped (still in direction
+ * order, in packets of their own).  kind: 1 interior, 2 environment, 3 lost
+ * (escaped without crossing a window). */
+static void trace_sorted(const cv_rt *rt, int has_windows, block_buf *b, size_t n) {
+  cv_hit ph[CV_RT_PACKET_MAX];
+  uint8_t pf[CV_RT_PACKET_MAX];
+  uint32_t esc[CV_RT_PACKET_MAX];
+  int ne = 0;
+  for (size_t i0 = 0; i0 < n; i0 += CV_RT_PACKET_MAX) {
+    const int m = n - i0 < CV_RT_PACKET_MAX ? (int)(n - i0) : CV_RT_PACKET_MAX;
+    cv_rt_intersect_packet(rt, m, b->sorg + 3 * i0, b->sdir + 3 * i0, NULL, 0.0f, INFINITY, 1, ph, pf);
+    for (int l = 0; l < m; l++) {
+      const size_t r = i0 + (size_t)l;
+      if (pf[l]) {
+        b->htri[r] = ph[l].tri;
+        b->huv[2 * r] = ph[l].u;
+        b->huv[2 * r + 1] = ph[l].v;
+        b->kind[r] = 1;
+        continue;
+      }
+      b->kind[r] = 2;
+      if (!has_windows) continue;
+      esc[ne++] = (uint32_t)r;
+      if (ne == CV_RT_PACKET_MAX) {
+        trace_windows(rt, b, esc, ne);
+        ne = 0;
+      }
+    }
+  }
+  if (ne > 0) trace_windows(rt, b, esc, ne);
+}
+
+/* Bilinear lookup of a lat-long table in float (the layout and filter of
+ * light/envmap.c's cv_envmap_lookup, without its double-precision
+ * trigonometry), in two steps so that the texels of many rays can be
+ * prefetched before any is read: env_texel gives the top-left texel
+ * (y0 << 16 | x0) and the weights of d (unit), env_fetch filters. */
+static inline uint32_t env_texel(const cv_image *img, const float d[3], float *tx, float *ty) {
+  const int w = img->w, h = img->h;
+  float y = d[1];
+  y = y > 1 ? 1 : (y < -1 ? -1 : y);
+  float u = 0.5f + atan2f(d[0], -d[2]) * (float)(0.5 * M_1_PI);
+  if (u >= 1) u -= 1;
+  if (u < 0) u = 0;
+  const float v = acosf(y) * (float)M_1_PI;
+  const float fx = u * (float)w - 0.5f, fy = v * (float)h - 0.5f;
+  const float flx = floorf(fx), fly = floorf(fy);
+  *tx = fx - flx;
+  *ty = fy - fly;
+  int x0 = (int)flx;
+  if (x0 < 0) x0 += w;
+  if (x0 >= w) x0 -= w;
+  int y0 = (int)fly;
+  if (y0 < 0) {
+    y0 = 0;
+    *ty = 0;
+  } else if (y0 + 1 >= h) {
+    y0 = h - 1;
+    *ty = 0;
+  }
+  return (uint32_t)y0 << 16 | (uint32_t)x0;
+}
+
+static inline const float *env_px(const cv_image *img, uint32_t t) {
+  return img->px + 3 * ((size_t)(t >> 16) * (size_t)img->w + (t & 0xFFFFu));
+}
+
+static inline void env_fetch(const cv_image *img, uint32_t t, float tx, float ty, float rgb[3]) {
+  const int w = img->w, x0 = (int)(t & 0xFFFFu), x1 = x0 + 1 == w ? 0 : x0 + 1;
+  const float *p00 = env_px(img, t), *p10 = p00 + 3 * (x1 - x0);
+  const size_t row = ty > 0 ? 3 * (size_t)w : 0; /* ty = 0: the lower row has no weight */
+  const float *p01 = p00 + row, *p11 = p10 + row;
+  for (int c = 0; c < 3; c++) {
+    const float a = p00[c] + tx * (p10[c] - p00[c]), b = p01[c] + tx * (p11[c] - p01[c]);
+    rgb[c] = a + ty * (b - a);
+  }
+}
+
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                         uint32_t round, cv_lcd_accum *acc) {
   if (!g || !l || !p || !acc || p->w < 1 || p->h < 1 || p->x0 < 0 || p->y0 < 0 ||
       p->x0 + acc->w > p->w || p->y0 + acc->h > p->h || p->spp < 1 ||
       l->nv != g->nv || !(p->brdf_fraction >= 0 && p->brdf_fraction <= 1) ||
+      !(p->window_fraction >= 0 && p->window_fraction < 1) ||
       !isfinite(p->eye[0]) || !isfinite(p->eye[1]) || !isfinite(p->eye[2]))
     return CV_ERR_INVALID;
   if (acc->data[CV_LCD_ACC_SPP] + p->spp > CV_LCD_MAX_SPP) return CV_ERR_RANGE;
@@ -354,148 +737,263 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   const cv_lcd_panel *pn = &g->panel;
   const cv_brdf_sampler *smp = g->smp;
   const int w = p->w, h = p->h, spp = p->spp, aw = acc->w, ah = acc->h;
-  const float cfrac = (float)p->brdf_fraction;
+  /* samples per strategy and round; at least one non-window sample */
+  int nstr[NSTRAT];
+  nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
+  if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
+  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN]));
+  nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_BRDF];
+  const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS]};
+  const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
+              cw = (float)nstr[STRAT_WIN] / (float)spp;
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
+  const int chunk = spp < CHUNK_SPP ? spp : CHUNK_SPP;
+  /* blocks that hold a texel of the tile */
+  const int bx0 = p->x0 / BLOCK, bx1 = (p->x0 + aw - 1) / BLOCK;
+  const int by0 = p->y0 / BLOCK, by1 = (p->y0 + ah - 1) / BLOCK;
+  const int nbx = bx1 - bx0 + 1, nblocks = nbx * (by1 - by0 + 1);
   int64_t cnt[CV_LCD_ACC_HEADER];
   memset(cnt, 0, sizeof cnt);
   int64_t *data = acc->data;
+  int status = CV_OK;
 
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads) reduction(+ : cnt[:CV_LCD_ACC_HEADER])
-  for (int ay = 0; ay < ah; ay++) {
+#pragma omp parallel num_threads(nthreads) reduction(+ : cnt[:CV_LCD_ACC_HEADER])
+  {
     cv_rt_thread_init();
-    for (int ax = 0; ax < aw; ax++) {
-      const int x = p->x0 + ax, y = p->y0 + ay;
-      const uint32_t tix = (uint32_t)y * (uint32_t)w + (uint32_t)x; /* panel texel: the seed */
-      const size_t aix = (size_t)ay * (size_t)aw + (size_t)ax;     /* buffer texel */
-      int64_t s[3] = {0, 0, 0}, s2[2] = {0, 0};
-      float pc[3], wo[3], tn[3], bn[3];
-      const float fx = ((float)x + 0.5f) / (float)w - 0.5f, fy = 0.5f - ((float)y + 0.5f) / (float)h;
-      for (int k = 0; k < 3; k++) {
-        pc[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
-        wo[k] = p->eye[k] - pc[k];
+    block_buf bb;
+    int ok = block_buf_alloc(&bb, (size_t)BLOCK * BLOCK * (size_t)chunk) == CV_OK;
+    if (!ok) {
+#pragma omp atomic write
+      status = CV_ERR_NOMEM;
+    }
+#pragma omp for schedule(dynamic, 1)
+    for (int bi = 0; bi < nblocks; bi++) {
+      if (!ok) continue;
+      const int tx0 = (bx0 + bi % nbx) * BLOCK, ty0 = (by0 + bi / nbx) * BLOCK;
+      const int bw = w - tx0 < BLOCK ? w - tx0 : BLOCK, bh = h - ty0 < BLOCK ? h - ty0 : BLOCK;
+      const int nbt = bw * bh;
+      win_rects wr;
+      wr.n = 0;
+      wr.total = 0;
+      if (nstr[STRAT_WIN] > 0) {
+        const float fx = ((float)tx0 + 0.5f * (float)bw) / (float)w - 0.5f;
+        const float fy = 0.5f - ((float)ty0 + 0.5f * (float)bh) / (float)h;
+        const float ex = (float)bw / (float)w * pn->size[0], ey = (float)bh / (float)h * pn->size[1];
+        float c[3];
+        for (int k = 0; k < 3; k++)
+          c[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
+        block_rects(g, c, 0.5f * sqrtf(ex * ex + ey * ey), &wr);
       }
-      normalize3(wo);
-      const float co = dot3(wo, pn->normal);
-      if (!(co > 1e-6f)) {
-        cnt[CV_LCD_ACC_BEHIND] += spp; /* the eye sees the panel's back: black */
-        continue;
-      }
-      for (int k = 0; k < 3; k++) tn[k] = wo[k] - co * pn->normal[k];
-      if (!normalize3(tn)) memcpy(tn, pn->u, sizeof tn);
-      cross3(pn->normal, tn, bn);
-      int kb;
-      float tb;
-      cv_brdf_view_bins(smp, acosf(co > 1 ? 1 : co), &kb, &tb);
-      /* sun term constants: f(s, w_o) cos(theta_s) E */
-      float fsun[3] = {0, 0, 0};
-      int sun_here = 0;
-      if (sun) {
-        float cs = dot3(l->sun_dir, pn->normal);
-        if (cs > 0) {
-          float th = acosf(cs > 1 ? 1 : cs);
-          float ph = fabsf(atan2f(dot3(l->sun_dir, bn), dot3(l->sun_dir, tn)));
-          cv_brdf_eval_bins(smp, kb, tb, th, ph, fsun);
-          for (int c = 0; c < 3; c++) fsun[c] *= cs * l->sun_E[c];
-          sun_here = 1;
+      /* per-texel setup */
+      for (int i = 0; i < nbt; i++) {
+        texel_state *T = &bb.ts[i];
+        const int x = tx0 + i % bw, y = ty0 + i / bw;
+        T->in_tile = x >= p->x0 && x < p->x0 + aw && y >= p->y0 && y < p->y0 + ah;
+        T->aix = T->in_tile ? (size_t)(y - p->y0) * (size_t)aw + (size_t)(x - p->x0) : 0;
+        memset(T->s, 0, sizeof T->s);
+        memset(T->s2, 0, sizeof T->s2);
+        memset(T->nee, 0, sizeof T->nee);
+        float wo[3];
+        const float fx = ((float)x + 0.5f) / (float)w - 0.5f, fy = 0.5f - ((float)y + 0.5f) / (float)h;
+        for (int k = 0; k < 3; k++) {
+          T->pc[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
+          wo[k] = p->eye[k] - T->pc[k];
+        }
+        normalize3(wo);
+        const float co = dot3(wo, pn->normal);
+        T->behind = !(co > 1e-6f);
+        if (T->behind) {
+          if (T->in_tile) cnt[CV_LCD_ACC_BEHIND] += spp; /* the eye sees the panel's back: black */
+          continue;
+        }
+        for (int k = 0; k < 3; k++) T->tn[k] = wo[k] - co * pn->normal[k];
+        if (!normalize3(T->tn)) memcpy(T->tn, pn->u, sizeof T->tn);
+        cross3(pn->normal, T->tn, T->bn);
+        /* The panel is flat: one scale-aware offset along the normal serves
+         * every jittered origin of the texel. */
+        cv_rt_offset_origin(T->pc, pn->normal, T->off);
+        for (int k = 0; k < 3; k++) T->off[k] -= T->pc[k];
+        cv_brdf_view_bins(smp, acosf(co > 1 ? 1 : co), &T->kb, &T->tb);
+        const uint32_t tix = (uint32_t)y * (uint32_t)w + (uint32_t)x; /* panel texel: the seed */
+        const uint32_t ts = cv_hash_combine(p->seed, tix);
+        for (int st = 0; st < NSTRAT; st++) {
+          T->seed[st] = st == STRAT_BRDF ? ts : cv_hash_combine(ts, 0x51u + (uint32_t)st);
+          cv_sobol_dim_seeds(T->seed[st], 4, T->dseed[st]);
         }
       }
-      float nee[3] = {0, 0, 0};
-      const uint32_t seed = cv_hash_combine(p->seed, tix);
-      uint32_t dseed[5];
-      cv_sobol_dim_seeds(seed, 5, dseed);
-      /* The panel is flat: one scale-aware offset along the normal serves
-       * every jittered origin of the texel. */
-      float off[3];
-      cv_rt_offset_origin(pc, pn->normal, off);
-      for (int k = 0; k < 3; k++) off[k] -= pc[k];
-      /* Samples in batches: (1) draw directions and BRDF weights, (2) trace,
-       * (3) shade.  Keeping the table look-ups apart from the traversal lets
-       * their cache misses overlap. */
-      for (int j0 = 0; j0 < spp; j0 += GATHER_BATCH) {
-        const int nb = spp - j0 < GATHER_BATCH ? spp - j0 : GATHER_BATCH;
-        float org[GATHER_BATCH][3], dir[GATHER_BATCH][3], wt[GATHER_BATCH][3];
-        int live[GATHER_BATCH];
-        for (int j = 0; j < nb; j++) {
-          float u[5];
-          cv_sobol_owen_tab(&g->sobol, round * (uint32_t)spp + (uint32_t)(j0 + j), seed, dseed, 5, u);
-          /* dims 0, 1 (a (0,2)-sequence): direction; 2, 3: position; 4: strategy */
-          const float jx = ((float)x + u[2]) / (float)w - 0.5f, jy = 0.5f - ((float)y + u[3]) / (float)h;
-          for (int k = 0; k < 3; k++)
-            org[j][k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + off[k];
-          float wl[3], th, ph, pdf;
-          live[j] = 0;
-          if (u[4] < cfrac) {
-            const float ub[3] = {u[0], u[1], u[4] / cfrac};
-            float pb;
-            if (!cv_brdf_sample(smp, kb, tb, ub, wl, &th, &ph, &pb)) continue;
-            pdf = cfrac < 1 ? cfrac * pb + (1 - cfrac) * wl[2] * (float)M_1_PI : pb;
-          } else {
-            cv_cosine_sample(u, wl);
-            th = acosf(wl[2] > 1 ? 1 : wl[2]);
-            ph = fabsf(atan2f(wl[1], wl[0]));
-            pdf = (1 - cfrac) * wl[2] * (float)M_1_PI;
-            if (cfrac > 0) pdf += cfrac * cv_brdf_pdf(smp, kb, tb, th, ph);
+      for (int j0 = 0; j0 < spp; j0 += chunk) {
+        const int nj = spp - j0 < chunk ? spp - j0 : chunk;
+        size_t n = 0;
+        for (int i = 0; i < nbt; i++) {
+          texel_state *T = &bb.ts[i];
+          if (T->behind) continue;
+          const int x = tx0 + i % bw, y = ty0 + i / bw;
+          /* the texel's points first: short independent iterations overlap */
+          float uu[CHUNK_SPP][4];
+          uint8_t sj[CHUNK_SPP];
+          for (int j = j0; j < j0 + nj; j++) {
+            const int st = j >= first[STRAT_WIN] ? STRAT_WIN : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
+            sj[j - j0] = (uint8_t)st;
+            const uint32_t idx = round * (uint32_t)nstr[st] + (uint32_t)(j - first[st]);
+            cv_sobol_owen_tab(&g->sobol, idx, T->seed[st], T->dseed[st], 4, uu[j - j0]);
           }
-          if (!(wl[2] > 0 && pdf > 0)) continue;
-          float f[3];
-          cv_brdf_eval_bins(smp, kb, tb, th, ph, f);
-          const float r = wl[2] / pdf;
-          for (int k = 0; k < 3; k++) {
-            wt[j][k] = f[k] * r;
-            dir[j][k] = tn[k] * wl[0] + bn[k] * wl[1] + pn->normal[k] * wl[2];
-          }
-          live[j] = 1;
-          if (p->ray_log && round == 0) {
-            float *rl = p->ray_log + 6 * (aix * (size_t)spp + (size_t)(j0 + j));
-            memcpy(rl, org[j], 3 * sizeof(float));
-            memcpy(rl + 3, dir[j], 3 * sizeof(float));
+          for (int j = j0; j < j0 + nj; j++) {
+            /* dims 0, 1 (a (0,2)-sequence): direction; 2, 3: position */
+            const float *u = uu[j - j0];
+            const int st = sj[j - j0];
+            float o[3];
+            const float jx = ((float)x + u[2]) / (float)w - 0.5f, jy = 0.5f - ((float)y + u[3]) / (float)h;
+            for (int k = 0; k < 3; k++)
+              o[k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + T->off[k];
+            if (j == 0 && sun && T->in_tile) {
+              /* next-event estimate of the sun from sample 0's position, for the round */
+              const float cs = dot3(l->sun_dir, pn->normal);
+              if (cs > 0) {
+                cnt[CV_LCD_ACC_SHADOW]++;
+                if (cv_rt_reaches_env(g->rt, o, l->sun_dir, 0)) {
+                  cnt[CV_LCD_ACC_SUNLIT]++;
+                  const float th = acosf(cs > 1 ? 1 : cs);
+                  const float ph = fabsf(atan2f(dot3(l->sun_dir, T->bn), dot3(l->sun_dir, T->tn)));
+                  cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, T->nee);
+                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * l->sun_E[c];
+                }
+              }
+            }
+            float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, f[3] = {0, 0, 0};
+            int live = 0;
+            if (st == STRAT_BRDF) {
+              live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
+              if (live)
+                for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
+            } else {
+              if (st == STRAT_COS) {
+                cv_cosine_sample(u, wl);
+                for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
+                live = 1;
+              } else if (window_sample(pn, &wr, u, rd)) {
+                /* f and p_b wait until the ray is known to leave: only
+                 * then does a window sample count */
+                wl[0] = dot3(rd, T->tn);
+                wl[1] = dot3(rd, T->bn);
+                wl[2] = dot3(rd, pn->normal);
+                live = 1;
+              }
+              if (live && st == STRAT_COS) {
+                th = acosf(wl[2] > 1 ? 1 : wl[2]);
+                ph = fabsf(atan2f(wl[1], wl[0]));
+                if (cb > 0)
+                  pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
+                cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
+              }
+            }
+            const float dint = st == STRAT_WIN ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI;
+            if (!(live && wl[2] > 0 && (dint > 0 || st == STRAT_WIN))) {
+              /* no ray: the sample is the sun term alone */
+              if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, clamp, inv_unit, T->s, T->s2, cnt);
+              continue;
+            }
+            float *ro = bb.org + 3 * n, *rdir = bb.dir + 3 * n, *rf = bb.fc + 4 * n;
+            for (int k = 0; k < 3; k++) {
+              ro[k] = o[k];
+              rdir[k] = rd[k];
+              rf[k] = st == STRAT_WIN ? wl[k] : f[k] * wl[2]; /* window: the local direction */
+            }
+            rf[3] = dint;
+            bb.tex[n] = (uint32_t)i | (st == STRAT_WIN ? TEX_WIN : 0u);
+            bb.key[n] = dir_key(rd);
+            if (p->ray_log && round == 0 && T->in_tile) {
+              float *rl = p->ray_log + 6 * (T->aix * (size_t)spp + (size_t)j);
+              memcpy(rl, ro, 3 * sizeof(float));
+              memcpy(rl + 3, rd, 3 * sizeof(float));
+            }
+            n++;
           }
         }
-        if (j0 == 0 && sun_here) {
-          /* next-event estimate of the sun from sample 0's position, for the round */
-          cnt[CV_LCD_ACC_SHADOW]++;
-          if (cv_rt_reaches_env(g->rt, org[0], l->sun_dir, 0)) {
-            cnt[CV_LCD_ACC_SUNLIT]++;
-            memcpy(nee, fsun, sizeof nee);
+        sort_by_key(bb.key, n, bb.ord, bb.tmp);
+        /* permute once into direction order: packets and shading then read
+         * consecutive memory */
+        for (size_t q = 0; q < n; q++) {
+          const uint32_t r = bb.ord[q];
+          memcpy(bb.sorg + 3 * q, bb.org + 3 * (size_t)r, 3 * sizeof(float));
+          memcpy(bb.sdir + 3 * q, bb.dir + 3 * (size_t)r, 3 * sizeof(float));
+          memcpy(bb.sfc + 4 * q, bb.fc + 4 * (size_t)r, 4 * sizeof(float));
+          bb.stex[q] = bb.tex[r];
+        }
+        trace_sorted(g->rt, g->has_windows, &bb, n);
+        /* environment texels of the rays that left: computed and prefetched
+         * for all of them first (they miss the cache; this overlaps the
+         * misses), kept in htri / huv, which only interior hits use */
+        for (size_t q = 0; q < n; q++) {
+          if (bb.kind[q] != 2) continue;
+          const uint32_t t = env_texel(l->env->img, bb.sdir + 3 * q, &bb.huv[2 * q], &bb.huv[2 * q + 1]);
+          bb.htri[q] = t;
+          const float *px = env_px(l->env->img, t);
+          __builtin_prefetch(px);
+          __builtin_prefetch(px + 3 * (size_t)l->env->img->w);
+        }
+        /* shade in direction order: consecutive rays hit nearby triangles;
+         * the vertex records of a hit a few rays ahead are prefetched */
+        for (size_t q = 0; q < n; q++) {
+          if (q + 8 < n && bb.kind[q + 8] == 1) {
+            const uint32_t *t8 = g->tri + 3 * (size_t)bb.htri[q + 8];
+            __builtin_prefetch(l->vrad + 3 * (size_t)t8[0]);
+            __builtin_prefetch(l->vrad + 3 * (size_t)t8[1]);
+            __builtin_prefetch(l->vrad + 3 * (size_t)t8[2]);
           }
-        }
-        cv_hit hit[GATHER_BATCH];
-        int kind[GATHER_BATCH]; /* 0 dead, 1 interior, 2 environment, 3 lost */
-        for (int j = 0; j < nb; j++) {
-          kind[j] = 0;
-          if (!live[j]) continue;
-          if (cv_rt_intersect(g->rt, org[j], dir[j], 0, INFINITY, &hit[j])) kind[j] = 1;
-          else kind[j] = (!g->has_windows || cv_rt_window_hit(g->rt, org[j], dir[j], 0, &hit[j])) ? 2 : 3;
-        }
-        for (int j = 0; j < nb; j++) {
-          float v[3] = {nee[0], nee[1], nee[2]}, L[3] = {0, 0, 0};
-          if (kind[j] == 1) {
-            const uint32_t *t = g->tri + 3 * (size_t)hit[j].tri;
-            const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
-                        *r2 = l->vrad + 3 * (size_t)t[2];
-            const float w0 = 1 - hit[j].u - hit[j].v;
-            for (int c = 0; c < 3; c++) L[c] = w0 * r0[c] + hit[j].u * r1[c] + hit[j].v * r2[c];
+          if (q + 16 < n && bb.kind[q + 16] == 1) __builtin_prefetch(g->tri + 3 * (size_t)bb.htri[q + 16]);
+          texel_state *T = &bb.ts[bb.stex[q] & ~TEX_WIN];
+          if (!T->in_tile) continue;
+          const int win = (bb.stex[q] & TEX_WIN) != 0;
+          const float *rf = bb.sfc + 4 * q;
+          float v[3] = {T->nee[0], T->nee[1], T->nee[2]};
+          if (bb.kind[q] == 1) {
             cnt[CV_LCD_ACC_HITS]++;
-          } else if (kind[j] == 2) {
-            cv_envmap_lookup(l->env, dir[j], L);
+            if (!win) { /* interior: MIS over BRDF and cosine sampling only */
+              const uint32_t *t = g->tri + 3 * (size_t)bb.htri[q];
+              const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
+                          *r2 = l->vrad + 3 * (size_t)t[2];
+              const float hu = bb.huv[2 * q], hv = bb.huv[2 * q + 1];
+              const float w0 = 1 - hu - hv, inv = 1 / rf[3];
+              for (int c = 0; c < 3; c++) v[c] += rf[c] * inv * (w0 * r0[c] + hu * r1[c] + hv * r2[c]);
+            }
+          } else if (bb.kind[q] == 2) {
+            float L[3], fc[3], dint = rf[3];
+            env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
             cnt[CV_LCD_ACC_ENV]++;
-          } else if (kind[j] == 3) {
+            if (win) {
+              /* the deferred f cos and interior denominator of a window sample */
+              const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(atan2f(rf[1], rf[0]));
+              const float pb = cb > 0 ? cv_brdf_pdf_cs(smp, T->kb, T->tb, rf[2], rf[0] * rf[0] + rf[1] * rf[1], th, ph) : 0.0f;
+              cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, fc);
+              for (int c = 0; c < 3; c++) fc[c] *= rf[2];
+              dint = cb * pb + cc * rf[2] * (float)M_1_PI;
+            } else {
+              memcpy(fc, rf, sizeof fc);
+            }
+            const float den = dint + (cw > 0 ? cw * window_pdf(pn, &wr, bb.sdir + 3 * q) : 0.0f);
+            if (den > 0)
+              for (int c = 0; c < 3; c++) v[c] += fc[c] / den * L[c];
+          } else {
             cnt[CV_LCD_ACC_LOST]++;
           }
-          if (kind[j])
-            for (int c = 0; c < 3; c++) v[c] += wt[j][c] * L[c];
-          add_sample(v, clamp, inv_unit, s, s2, cnt);
+          add_sample(v, clamp, inv_unit, T->s, T->s2, cnt);
         }
       }
-      int64_t *q = data + CV_LCD_ACC_HEADER + 3 * aix;
-      for (int c = 0; c < 3; c++) q[c] += s[c];
-      int64_t *q2 = data + CV_LCD_ACC_HEADER + 3 * (size_t)aw * (size_t)ah + 2 * aix;
-      q2[0] += s2[0];
-      q2[1] += s2[1];
+      for (int i = 0; i < nbt; i++) {
+        const texel_state *T = &bb.ts[i];
+        if (!T->in_tile || T->behind) continue;
+        int64_t *q = data + CV_LCD_ACC_HEADER + 3 * T->aix;
+        for (int c = 0; c < 3; c++) q[c] += T->s[c];
+        int64_t *q2 = data + CV_LCD_ACC_HEADER + 3 * (size_t)aw * (size_t)ah + 2 * T->aix;
+        q2[0] += T->s2[0];
+        q2[1] += T->s2[1];
+      }
     }
+    block_buf_free(&bb);
   }
+  if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;
   data[CV_LCD_ACC_ROUNDS] += 1;

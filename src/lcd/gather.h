@@ -12,16 +12,43 @@
  * visibility (cv_prt_relight with a tracer), computed once per lighting
  * state.
  *
- * Estimator of texel radiance (one-sample MIS, Veach 1997 sec. 9.2.4):
- *   L = f(w_i, w_o) cos(theta_i) L_in(w_i) / (c p_brdf(w_i) + (1 - c) cos(theta_i)/pi)
- *       + f(s, w_o) cos(theta_s) E_sun V(s)
- * with c = brdf_fraction the probability of drawing w_i from the table.
- * c = 1 is pure BRDF sampling, c = 0 pure cosine sampling.
+ * Three sampling strategies, each with its own Owen-scrambled Sobol
+ * sequence per texel, and a fixed number of samples of each per round
+ * (multi-sample MIS with the balance heuristic, Veach 1997 sec. 9.2):
+ *   b: the BRDF table (brdf_sample.h), n_b samples;
+ *   c: the cosine lobe, n_c samples;
+ *   w: the window openings (only when the mesh has windows), n_w samples:
+ *      cosine-weighted directions restricted to one rectangle per opening
+ *      in the panel's projected (Nusselt) disk, the rectangle bounding the
+ *      opening's vertices as seen from the texel's block; p_w is exact for
+ *      any direction (rectangle membership), so no window crossing is needed
+ *      to weigh a sample.
+ * with n_w = round(window_fraction spp), n_b = round(brdf_fraction (spp -
+ * n_w)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
+ * into what the interior returns and what the environment sends through a
+ * window, and each part is its own MIS integral: the environment part over
+ * all three strategies, the interior part over b and c only (the window
+ * strategy's weight is 0 there, so its samples that hit the interior add
+ * nothing and no other sample needs p_w):
+ *   L = f cos L_int / (c_b p_b + c_c p_c)             (interior hit)
+ *     = f cos L_env / (c_b p_b + c_c p_c + c_w p_w)   (through a window)
+ *     + f(s, w_o) cos(theta_s) E_sun V(s)            (sun, every sample)
+ * The window strategy puts samples where the sky is, which dominates the
+ * error under BRDF sampling (the diffuse and haze lobes see it through the
+ * windows); BRDF sampling alone is brdf_fraction 1, window_fraction 0.
  *
- * Determinism: sample j of round r of texel (x, y) uses index r*spp + j of
- * an Owen-scrambled Sobol sequence seeded by (seed, texel); its value
- * depends on nothing else, and values are summed in fixed point
- * (accum.h), so rounds may be rendered by any contributor in any order.
+ * Determinism: sample j of round r of texel (x, y) is sample j - (first
+ * index of its strategy in the round) + r n_s of its strategy's sequence,
+ * seeded by (seed, texel, strategy); its value depends on nothing else, and
+ * values are summed in fixed point (accum.h), so rounds may be rendered by
+ * any contributor in any order.  Each strategy's samples over rounds
+ * 0..R-1 are the first R n_s points of its sequence.
+ *
+ * Tracing: the rays of 16 x 16 texel blocks (aligned to the panel's texel
+ * grid) are sorted by direction and traced in coherent packets of 16
+ * (cv_rt_intersect_packet); a tile that cuts a block still traces the whole
+ * block, so every packet, and hence every texel, is the same whatever the
+ * tiling, split or thread count.
  * The view direction is taken at the texel centre (the eye moves less than
  * 0.05 degrees across a 0.5 mm texel seen from 0.6 m); sample positions are
  * jittered over the texel.
@@ -113,7 +140,10 @@ typedef struct cv_lcd_params {
                             a tile's texels equal the whole panel's bit for bit */
   int spp;               /* samples per texel per round (default 40) */
   float eye[3];          /* eye position, car frame (from cv_lcd_key_eye) */
-  double brdf_fraction;  /* c in [0, 1]: 1 BRDF, 0 cosine, between MIS (default 0.9) */
+  double brdf_fraction;  /* share of the non-window samples drawn from the BRDF table, the rest
+                            cosine-weighted (default 0.9; 1 = BRDF sampling, 0 = cosine) */
+  double window_fraction;/* share of the samples drawn towards the window openings, in [0, 1)
+                            (default CV_LCD_WINDOW_FRACTION; ignored without windows) */
   uint32_t seed;         /* sequence seed (default 1) */
   int sun;               /* 1: sun next-event estimation (default 1) */
   int threads;           /* OpenMP threads, 0 = OpenMP's default */
@@ -122,6 +152,11 @@ typedef struct cv_lcd_params {
    * (origin, direction); holds 6*acc->w*acc->h*spp floats. */
   float *ray_log;
 } cv_lcd_params;
+
+/* Default window_fraction (measured on the default cabin: docs/benchmarks.md). */
+#define CV_LCD_WINDOW_FRACTION 0.5
+/* Openings (window materials) the window strategy aims at. */
+#define CV_LCD_MAX_OPENINGS 16
 
 void cv_lcd_params_default(cv_lcd_params *p);
 
@@ -139,7 +174,8 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
  * clamp and unit apply).  A pure function of (g, l, p, round, tile): any
  * split of rounds over calls, threads or processes sums to the same
  * integers.  Errors: CV_ERR_INVALID (sizes, tile outside the panel,
- * spp < 1, light for another mesh, brdf_fraction outside [0, 1]),
+ * spp < 1, light for another mesh, brdf_fraction outside [0, 1],
+ * window_fraction outside [0, 1)),
  * CV_ERR_RANGE (the buffer would exceed CV_LCD_MAX_SPP or the sample index
  * 2^32). */
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,

@@ -159,6 +159,130 @@ int cv_rt_window_hit(const cv_rt *rt, const float org[3], const float dir[3], fl
   return closest(rt->windows, rt->win_to_tri, org, dir, tnear, INFINITY, hit);
 }
 
+/* --- packets ---------------------------------------------------------------- */
+
+static inline void init_context(struct RTCIntersectContext *ctx, int coherent) {
+  rtcInitIntersectContext(ctx);
+  ctx->flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+}
+
+/* One packet function per native width W: SoA fill of the n <= W rays
+ * (inactive and unused lanes masked off with valid = 0), the traversal,
+ * and the hits written back.  Unused lanes still get finite dummy rays. */
+#define CV_RT_PACKET_FN(W)                                                                       \
+  static int closest##W(RTCScene sc, const uint32_t *map, int n, const float *org,              \
+                        const float *dir, const uint8_t *active, float tnear, float tfar,        \
+                        int coherent, cv_hit *hit, uint8_t *found) {                             \
+    struct RTCIntersectContext ctx;                                                              \
+    init_context(&ctx, coherent);                                                                \
+    RTC_ALIGN(4 * W) int valid[W];                                                               \
+    struct RTCRayHit##W rh;                                                                      \
+    for (int i = 0; i < W; i++) {                                                                \
+      const int on = i < n && (!active || active[i]);                                           \
+      const int j = i < n ? i : 0;                                                               \
+      valid[i] = on ? -1 : 0;                                                                    \
+      rh.ray.org_x[i] = org[3 * j];                                                              \
+      rh.ray.org_y[i] = org[3 * j + 1];                                                          \
+      rh.ray.org_z[i] = org[3 * j + 2];                                                          \
+      rh.ray.dir_x[i] = dir[3 * j];                                                              \
+      rh.ray.dir_y[i] = dir[3 * j + 1];                                                          \
+      rh.ray.dir_z[i] = dir[3 * j + 2];                                                          \
+      rh.ray.tnear[i] = tnear;                                                                   \
+      rh.ray.tfar[i] = tfar;                                                                     \
+      rh.ray.time[i] = 0.0f;                                                                     \
+      rh.ray.mask[i] = 0xFFFFFFFFu;                                                              \
+      rh.ray.id[i] = (unsigned)i;                                                                \
+      rh.ray.flags[i] = 0;                                                                       \
+      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;                                                \
+      rh.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;                                                \
+    }                                                                                            \
+    rtcIntersect##W(valid, sc, &ctx, &rh);                                                       \
+    int count = 0;                                                                               \
+    for (int i = 0; i < n; i++) {                                                                \
+      found[i] = valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;                        \
+      if (!found[i]) continue;                                                                   \
+      hit[i].tri = map[rh.hit.primID[i]];                                                        \
+      hit[i].u = rh.hit.u[i];                                                                    \
+      hit[i].v = rh.hit.v[i];                                                                    \
+      hit[i].t = rh.ray.tfar[i];                                                                 \
+      hit[i].ng[0] = rh.hit.Ng_x[i];                                                             \
+      hit[i].ng[1] = rh.hit.Ng_y[i];                                                             \
+      hit[i].ng[2] = rh.hit.Ng_z[i];                                                             \
+      count++;                                                                                   \
+    }                                                                                            \
+    return count;                                                                                \
+  }
+CV_RT_PACKET_FN(4)
+CV_RT_PACKET_FN(8)
+CV_RT_PACKET_FN(16)
+
+static int closest_packet(RTCScene sc, const uint32_t *map, int n, const float *org,
+                          const float *dir, const uint8_t *active, float tnear, float tfar,
+                          int coherent, cv_hit *hit, uint8_t *found) {
+  if (n < 1 || n > CV_RT_PACKET_MAX) return -1;
+  if (!sc) {
+    memset(found, 0, (size_t)n);
+    return 0;
+  }
+  if (n <= 4) return closest4(sc, map, n, org, dir, active, tnear, tfar, coherent, hit, found);
+  if (n <= 8) return closest8(sc, map, n, org, dir, active, tnear, tfar, coherent, hit, found);
+  return closest16(sc, map, n, org, dir, active, tnear, tfar, coherent, hit, found);
+}
+
+int cv_rt_intersect_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                           const uint8_t *active, float tnear, float tfar, int coherent,
+                           cv_hit *hit, uint8_t *found) {
+  return closest_packet(rt->opaque, rt->prim_to_tri, n, org, dir, active, tnear, tfar, coherent,
+                        hit, found);
+}
+
+int cv_rt_window_hit_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                            const uint8_t *active, float tnear, int coherent, cv_hit *hit,
+                            uint8_t *found) {
+  return closest_packet(rt->windows, rt->win_to_tri, n, org, dir, active, tnear, INFINITY,
+                        coherent, hit, found);
+}
+
+#define STREAM_CHUNK 256
+
+size_t cv_rt_intersect_stream(const cv_rt *rt, size_t n, const float *org, const float *dir,
+                              const uint8_t *active, float tnear, float tfar, int coherent,
+                              cv_hit *hit, uint8_t *found) {
+  struct RTCIntersectContext ctx;
+  init_context(&ctx, coherent);
+  struct RTCRayHit rh[STREAM_CHUNK];
+  uint32_t idx[STREAM_CHUNK];
+  size_t count = 0;
+  for (size_t i0 = 0; i0 < n; i0 += STREAM_CHUNK) {
+    const size_t m = n - i0 < STREAM_CHUNK ? n - i0 : STREAM_CHUNK;
+    unsigned k = 0;
+    for (size_t i = i0; i < i0 + m; i++) {
+      found[i] = 0;
+      if (active && !active[i]) continue;
+      make_ray(&rh[k].ray, org + 3 * i, dir + 3 * i, tnear, tfar);
+      rh[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh[k].hit.primID = RTC_INVALID_GEOMETRY_ID;
+      idx[k++] = (uint32_t)(i - i0);
+    }
+    if (!k) continue;
+    rtcIntersect1M(rt->opaque, &ctx, rh, k, sizeof rh[0]);
+    for (unsigned j = 0; j < k; j++) {
+      if (rh[j].hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+      const size_t i = i0 + idx[j];
+      found[i] = 1;
+      hit[i].tri = rt->prim_to_tri[rh[j].hit.primID];
+      hit[i].u = rh[j].hit.u;
+      hit[i].v = rh[j].hit.v;
+      hit[i].t = rh[j].ray.tfar;
+      hit[i].ng[0] = rh[j].hit.Ng_x;
+      hit[i].ng[1] = rh[j].hit.Ng_y;
+      hit[i].ng[2] = rh[j].hit.Ng_z;
+      count++;
+    }
+  }
+  return count;
+}
+
 static int occluded(RTCScene sc, const float org[3], const float dir[3], float tnear,
                     float tfar) {
   struct RTCIntersectContext ctx;

@@ -52,6 +52,46 @@ int cv_rt_window_hit(const cv_rt *rt, const float org[3], const float dir[3], fl
 /* 1 when the mesh has window triangles. */
 int cv_rt_has_windows(const cv_rt *rt);
 
+/* --- packets and streams ----------------------------------------------------
+ * Many rays per call, for coherent work such as the LCD final gather (most
+ * rays of one texel leave near its mirror direction).  Rays are AoS: ray i
+ * has origin org[3*i .. 3*i+2] and direction dir[3*i .. 3*i+2] (unit, as
+ * for cv_rt_intersect).  active may be NULL (every ray) or n flags: an
+ * inactive ray is not traced and gets found[i] = 0.  coherent != 0 passes
+ * RTC_INTERSECT_CONTEXT_FLAG_COHERENT (Embree then sorts and packs the rays
+ * for packet traversal).  found[i] = 1 and hit[i] filled for each hit; the
+ * return value is the number of hits.
+ *
+ * Each ray gets the closest hit that cv_rt_intersect gives it (the same
+ * triangle; t, u, v may differ from the single-ray path in the last bits,
+ * Embree's packet kernels round differently), and its result depends only on
+ * its own ray and on the set of rays in the call, never on the thread: a
+ * caller that needs bit-identical results whatever its work split must keep
+ * the composition of each call fixed. */
+
+/* Largest n of a packet call (Embree's widest native packet). */
+#define CV_RT_PACKET_MAX 16
+
+/* Closest opaque hits of 1 <= n <= CV_RT_PACKET_MAX rays traced together
+ * as one Embree packet (rtcIntersect4, 8 or 16: the smallest that holds n;
+ * unused lanes are masked off).  Returns -1 (nothing traced) for n outside
+ * [1, CV_RT_PACKET_MAX]. */
+int cv_rt_intersect_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                           const uint8_t *active, float tnear, float tfar, int coherent,
+                           cv_hit *hit, uint8_t *found);
+/* Closest window triangle crossed in (tnear, inf) for 1 <= n <=
+ * CV_RT_PACKET_MAX rays, as cv_rt_window_hit (hit->tri is the window
+ * triangle's index in the mesh); found[i] = 0 for every ray when the mesh
+ * has no windows.  Returns the number of crossings, -1 for a bad n. */
+int cv_rt_window_hit_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                            const uint8_t *active, float tnear, int coherent, cv_hit *hit,
+                            uint8_t *found);
+/* Closest opaque hits of any number of rays through Embree's stream
+ * interface (rtcIntersect1M, in chunks of 256 rays). */
+size_t cv_rt_intersect_stream(const cv_rt *rt, size_t n, const float *org, const float *dir,
+                              const uint8_t *active, float tnear, float tfar, int coherent,
+                              cv_hit *hit, uint8_t *found);
+
 /* Offsets a ray origin p off its surface along the geometric normal ng (any
  * length; the side is sign(dot(ng, dir)) chosen by the caller by passing ng
  * already flipped towards the ray), with a scale-aware epsilon in integer ULPs

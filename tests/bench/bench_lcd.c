@@ -5,24 +5,30 @@
  *             [--reps N] [--dat FILE]
  *
  * 1. Speed: one 400 x 300 round of 40 samples per texel on ONE thread, for
- *    BRDF sampling, cosine sampling and their one-sample MIS (median of
- *    --reps runs, alternating with the bare loop), and MIS on all threads.
- * 2. Rays/s next to a bare Embree closest-hit loop (cv_rt_intersect over the
- *    very rays the gather traced in that round, recorded through the
- *    ray_log hook, same order, one thread).
+ *    each sampling strategy (median and range of --reps runs, alternating
+ *    with the bare loops; thread CPU time, which a loaded machine inflates
+ *    less than wall time, and wall time), and the default on all threads.
+ * 2. Rays/s next to two bare Embree closest-hit loops over the very rays the
+ *    default strategy traced in that round (recorded through the ray_log
+ *    hook), one thread: cv_rt_intersect one ray at a time in texel order,
+ *    and cv_rt_intersect_packet over the same rays grouped and sorted as the
+ *    gather does (16 x 16 texel blocks, by the same direction key, coherent
+ *    packets of 16; the sort itself not timed).
  * 3. Error: relative RMSE against a reference of --ref-spp samples per
- *    texel (MIS, another seed) on a centred crop of the panel (texels of the
- *    full 400 x 300 panel, bit-identical to a full render), as a function of
- *    samples per texel, for the three strategies; time = samples x the
- *    per-sample time of step 1 on the whole panel (one core); samples and
- *    time to 1% RMSE.  Defaults: a 16 x 12 crop and 262144 samples per
- *    texel: the issue's 16384-sample reference would itself be about 1.4%
- *    off on this scene (the sky seen through the windows by the haze and
- *    diffuse lobes dominates the variance), too coarse to measure 1%.
+ *    texel (the default strategy, another seed) on a centred crop of the
+ *    panel (texels of the full 400 x 300 panel, bit-identical to a full
+ *    render), as a function of samples per texel, for each strategy; time =
+ *    samples x the per-sample CPU time of step 1 on the whole panel (one
+ *    core); samples and time to 1% RMSE.  Defaults: a 16 x 12 crop and
+ *    262144 samples per texel: the issue's 16384-sample reference would
+ *    itself be about 1% off on this scene (the sky seen through the windows
+ *    by the haze and diffuse lobes dominates the variance), too coarse to
+ *    measure 1%.
  * Prints markdown tables; --dat writes gnuplot-ready blocks (one per
  * strategy: spp, seconds, rmse). */
 #include <math.h>
 #include <omp.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,24 +41,117 @@
 #include "prt/bake.h"
 #include "prt/scene_light.h"
 
+#include <time.h>
+
 typedef struct {
   const char *name;
-  double c;
+  double c, w; /* brdf_fraction, window_fraction */
 } strategy;
 
-static const strategy strategies[3] = {{"BRDF sampling", 1.0}, {"cosine sampling", 0.0},
-                                       {"MIS (c = 0.9)", 0.9}};
+#define NSTRAT 4
+#define DEFAULT_STRAT 3
+static const strategy strategies[NSTRAT] = {
+    {"BRDF sampling", 1.0, 0.0},
+    {"cosine sampling", 0.0, 0.0},
+    {"MIS BRDF + cosine (c = 0.9)", 0.9, 0.0},
+    {"MIS BRDF + cosine + window (c = 0.9, w = 0.5, default)", 0.9, 0.5}};
 
-static double bare_loop(const cv_rt *rt, const float *rays, size_t n, uint64_t *hits) {
+/* CPU time of the calling thread (a loaded machine inflates it less than
+ * wall time: descheduled time does not count). */
+static double cpu_seconds(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static double bare_loop(const cv_rt *rt, const float *org, const float *dir, size_t n,
+                        uint64_t *hits) {
   uint64_t h = 0;
   cv_rt_thread_init();
-  double t0 = cv_now_seconds();
+  double t0 = cpu_seconds();
   for (size_t i = 0; i < n; i++) {
     cv_hit hit;
-    h += (uint64_t)cv_rt_intersect(rt, rays + 6 * i, rays + 6 * i + 3, 0, INFINITY, &hit);
+    h += (uint64_t)cv_rt_intersect(rt, org + 3 * i, dir + 3 * i, 0, INFINITY, &hit);
   }
   *hits = h;
-  return cv_now_seconds() - t0;
+  return cpu_seconds() - t0;
+}
+
+static double bare_packets(const cv_rt *rt, const float *org, const float *dir, size_t n,
+                           uint64_t *hits) {
+  uint64_t h = 0;
+  cv_hit hit[CV_RT_PACKET_MAX];
+  uint8_t found[CV_RT_PACKET_MAX];
+  cv_rt_thread_init();
+  double t0 = cpu_seconds();
+  for (size_t i = 0; i < n; i += CV_RT_PACKET_MAX) {
+    int m = n - i < CV_RT_PACKET_MAX ? (int)(n - i) : CV_RT_PACKET_MAX;
+    h += (uint64_t)cv_rt_intersect_packet(rt, m, org + 3 * i, dir + 3 * i, NULL, 0, INFINITY, 1,
+                                          hit, found);
+  }
+  *hits = h;
+  return cpu_seconds() - t0;
+}
+
+/* The gather's direction key (src/lcd/gather.c): octahedral coordinates
+ * quantised to 8 bits each, Morton order. */
+static uint16_t dir_key(const float d[3]) {
+  float s = fabsf(d[0]) + fabsf(d[1]) + fabsf(d[2]);
+  float x = d[0] / s, y = d[1] / s;
+  if (d[2] < 0) {
+    float ox = x;
+    x = (1 - fabsf(y)) * (x >= 0 ? 1.0f : -1.0f);
+    y = (1 - fabsf(ox)) * (y >= 0 ? 1.0f : -1.0f);
+  }
+  uint32_t qx = (uint32_t)((x * 0.5f + 0.5f) * 255.0f + 0.5f) & 255;
+  uint32_t qy = (uint32_t)((y * 0.5f + 0.5f) * 255.0f + 0.5f) & 255;
+  uint32_t k = 0;
+  for (int b = 0; b < 8; b++) k |= ((qx >> b) & 1u) << (2 * b) | ((qy >> b) & 1u) << (2 * b + 1);
+  return (uint16_t)k;
+}
+
+typedef struct {
+  uint16_t key;
+  uint32_t i;
+} keyed;
+
+static int keyed_cmp(const void *a, const void *b) {
+  const keyed *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  return x->i < y->i ? -1 : x->i > y->i;
+}
+
+/* Reorders the logged rays (texel-major, spp per texel, NaN = none) as the
+ * gather traces them: per 16 x 16 texel block, stably sorted by key.
+ * Writes org/dir (3 floats each) and returns the count. */
+static size_t gather_order(const float *log, int W, int H, int S, float *org, float *dir) {
+  const int B = 16;
+  keyed *k = malloc((size_t)B * B * S * sizeof *k);
+  size_t o = 0;
+  for (int by = 0; by < H; by += B)
+    for (int bx = 0; bx < W; bx += B) {
+      size_t n = 0;
+      for (int y = by; y < by + B && y < H; y++)
+        for (int x = bx; x < bx + B && x < W; x++)
+          for (int j = 0; j < S; j++) {
+            size_t i = ((size_t)y * W + x) * S + j;
+            if (isnan(log[6 * i])) continue;
+            k[n].key = dir_key(log + 6 * i + 3);
+            k[n++].i = (uint32_t)i;
+          }
+      qsort(k, n, sizeof *k, keyed_cmp);
+      for (size_t q = 0; q < n; q++, o++) {
+        memcpy(org + 3 * o, log + 6 * (size_t)k[q].i, 3 * sizeof(float));
+        memcpy(dir + 3 * o, log + 6 * (size_t)k[q].i + 3, 3 * sizeof(float));
+      }
+    }
+  free(k);
+  return o;
+}
+
+static void range(const double *v, int n, double *lo, double *hi) {
+  *lo = *hi = v[0];
+  for (int i = 1; i < n; i++) *lo = fmin(*lo, v[i]), *hi = fmax(*hi, v[i]);
 }
 
 static double rel_rmse(const cv_image *a, const cv_image *ref) {
@@ -185,40 +284,60 @@ int main(int argc, char **argv) {
   printf("per lighting state: relight + background table %.2f s; BRDF table + sampler %.2f s\n\n",
          t_light, t_setup);
 
-  /* 1 + 2. Speed, and the bare loop over the rays of the MIS round. */
+  /* 1 + 2. Speed, and the bare loops over the rays of the default round. */
   cv_lcd_accum *acc;
   if (cv_lcd_accum_create(W, H, clamp, &acc)) return 1;
   size_t nlog = (size_t)W * H * S;
   float *rays = malloc(6 * nlog * sizeof(float));
-  if (!rays) return 1;
+  float *org = malloc(3 * nlog * sizeof(float)), *dir = malloc(3 * nlog * sizeof(float));
+  float *porg = malloc(3 * nlog * sizeof(float)), *pdir = malloc(3 * nlog * sizeof(float));
+  if (!rays || !org || !dir || !porg || !pdir) return 1;
   for (size_t i = 0; i < 6 * nlog; i++) rays[i] = NAN;
   p.threads = 1;
-  p.brdf_fraction = strategies[2].c;
+  p.brdf_fraction = strategies[DEFAULT_STRAT].c;
+  p.window_fraction = strategies[DEFAULT_STRAT].w;
   p.ray_log = rays;
   cv_lcd_render_round(g, light, &p, 0, acc); /* records the rays; also a warm-up */
   p.ray_log = NULL;
   size_t nvalid = 0;
   for (size_t i = 0; i < nlog; i++)
-    if (!isnan(rays[6 * i])) memmove(rays + 6 * nvalid++, rays + 6 * i, 6 * sizeof(float));
+    if (!isnan(rays[6 * i])) {
+      memcpy(org + 3 * nvalid, rays + 6 * i, 3 * sizeof(float));
+      memcpy(dir + 3 * nvalid++, rays + 6 * i + 3, 3 * sizeof(float));
+    }
+  size_t npk = gather_order(rays, W, H, S, porg, pdir);
+  free(rays);
   const cv_rt *rt = cv_tracer_rt(tr);
-  double t_gather[3][15], t_bare[15];
-  int64_t cnt[3][CV_LCD_ACC_HEADER];
-  uint64_t bare_hits = 0;
+  double t_gather[NSTRAT][15], w_gather[NSTRAT][15], t_bare[15], t_pack[15];
+  int64_t cnt[NSTRAT][CV_LCD_ACC_HEADER];
+  uint64_t bare_hits = 0, pack_hits = 0;
   for (int r = 0; r < reps; r++) {
-    t_bare[r] = bare_loop(rt, rays, nvalid, &bare_hits);
-    for (int s = 0; s < 3; s++) {
+    t_bare[r] = bare_loop(rt, org, dir, nvalid, &bare_hits);
+    t_pack[r] = bare_packets(rt, porg, pdir, npk, &pack_hits);
+    for (int s = 0; s < NSTRAT; s++) {
       p.brdf_fraction = strategies[s].c;
+      p.window_fraction = strategies[s].w;
       cv_lcd_accum_clear(acc);
-      t0 = cv_now_seconds();
+      double w0 = cv_now_seconds();
+      t0 = cpu_seconds();
       cv_lcd_render_round(g, light, &p, (uint32_t)r, acc);
-      t_gather[s][r] = cv_now_seconds() - t0;
+      t_gather[s][r] = cpu_seconds() - t0;
+      w_gather[s][r] = cv_now_seconds() - w0;
       memcpy(cnt[s], acc->data, sizeof cnt[s]);
     }
   }
-  double tb = bench_median(t_bare, reps);
-  double tg[3];
-  for (int s = 0; s < 3; s++) tg[s] = bench_median(t_gather[s], reps);
-  p.brdf_fraction = strategies[2].c;
+  double tb_lo, tb_hi, tp_lo, tp_hi, tg_lo[NSTRAT], tg_hi[NSTRAT];
+  range(t_bare, reps, &tb_lo, &tb_hi);
+  range(t_pack, reps, &tp_lo, &tp_hi);
+  const double tb = bench_median(t_bare, reps), tpk = bench_median(t_pack, reps);
+  double tg[NSTRAT], wg[NSTRAT];
+  for (int s = 0; s < NSTRAT; s++) {
+    range(t_gather[s], reps, &tg_lo[s], &tg_hi[s]);
+    tg[s] = bench_median(t_gather[s], reps);
+    wg[s] = bench_median(w_gather[s], reps);
+  }
+  p.brdf_fraction = strategies[DEFAULT_STRAT].c;
+  p.window_fraction = strategies[DEFAULT_STRAT].w;
   p.threads = 0;
   double t_all[15];
   for (int r = 0; r < reps; r++) {
@@ -229,27 +348,41 @@ int main(int argc, char **argv) {
   }
   double tall = bench_median(t_all, reps);
   const double samples = (double)W * H * S;
-  printf("## One %dx%d rough image, %d samples per texel (median of %d)\n\n", W, H, S, reps);
-  printf("| strategy | threads | seconds | M samples/s | closest-hit rays | + window / shadow "
-         "queries | closest-hit M rays/s | vs bare loop |\n|---|---|---|---|---|---|---|---|\n");
-  for (int s = 0; s < 3; s++) {
+  printf("## One %dx%d rough image, %d samples per texel (median [range] of %d; thread CPU "
+         "seconds, wall in parentheses)\n\n",
+         W, H, S, reps);
+  printf("| strategy | threads | CPU seconds | M samples/s | closest-hit rays | + window / shadow "
+         "queries | closest-hit M rays/s | vs bare single-ray loop | vs bare packet loop "
+         "|\n|---|---|---|---|---|---|---|---|---|\n");
+  for (int s = 0; s < NSTRAT; s++) {
     double nr = (double)(cnt[s][CV_LCD_ACC_HITS] + cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]);
     double nq = (double)(cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]) +
                 (double)cnt[s][CV_LCD_ACC_SHADOW];
-    printf("| %s | 1 | %.3f | %.2f | %.0f | %.0f | %.2f | %.2f |\n", strategies[s].name, tg[s],
-           samples / tg[s] / 1e6, nr, nq, nr / tg[s] / 1e6, (nr / tg[s]) / (nvalid / tb));
+    printf("| %s | 1 | %.3f [%.3f, %.3f] (%.3f) | %.2f | %.0f | %.0f | %.2f | %.2f | %.2f |\n",
+           strategies[s].name, tg[s], tg_lo[s], tg_hi[s], wg[s], samples / tg[s] / 1e6, nr, nq,
+           nr / tg[s] / 1e6, (nr / tg[s]) / (nvalid / tb), (nr / tg[s]) / (npk / tpk));
   }
-  printf("| %s | %d | %.3f | %.2f | | | | |\n", strategies[2].name, omp_get_max_threads(), tall,
-         samples / tall / 1e6);
-  printf("| bare Embree closest hit (cv_rt_intersect, the MIS round's %zu rays) | 1 | %.3f | | "
-         "%zu | | %.2f | 1.00 |\n\n",
-         nvalid, tb, nvalid, nvalid / tb / 1e6);
-  printf("MIS round: %.1f%% of gather rays hit the interior, %.1f%% left through a window, %.2f%% "
-         "lost; sun shadow rays %lld (%lld unblocked); clamped channel values %lld\n\n",
-         100.0 * cnt[2][CV_LCD_ACC_HITS] / nvalid, 100.0 * cnt[2][CV_LCD_ACC_ENV] / nvalid,
-         100.0 * cnt[2][CV_LCD_ACC_LOST] / nvalid, (long long)cnt[2][CV_LCD_ACC_SHADOW],
-         (long long)cnt[2][CV_LCD_ACC_SUNLIT], (long long)cnt[2][CV_LCD_ACC_CLAMPED]);
-  free(rays);
+  printf("| %s | %d | (%.3f wall) | %.2f | | | | | |\n", strategies[DEFAULT_STRAT].name,
+         omp_get_max_threads(), tall, samples / tall / 1e6);
+  printf("| bare single-ray loop (cv_rt_intersect, the default round's %zu rays, texel order) | 1 "
+         "| %.3f [%.3f, %.3f] | | %zu | | %.2f | 1.00 | |\n",
+         nvalid, tb, tb_lo, tb_hi, nvalid, nvalid / tb / 1e6);
+  printf("| bare packet loop (cv_rt_intersect_packet, the same rays sorted as the gather sorts "
+         "them, coherent packets of %d) | 1 | %.3f [%.3f, %.3f] | | %zu | | %.2f | %.2f | 1.00 "
+         "|\n\n",
+         CV_RT_PACKET_MAX, tpk, tp_lo, tp_hi, npk, npk / tpk / 1e6, tb / tpk);
+  const int64_t *cd = cnt[DEFAULT_STRAT];
+  printf("default round: %.1f%% of gather rays hit the interior, %.1f%% left through a window, "
+         "%.2f%% lost; sun shadow rays %lld (%lld unblocked); clamped channel values %lld; bare "
+         "loops found %llu and %llu hits\n\n",
+         100.0 * cd[CV_LCD_ACC_HITS] / nvalid, 100.0 * cd[CV_LCD_ACC_ENV] / nvalid,
+         100.0 * cd[CV_LCD_ACC_LOST] / nvalid, (long long)cd[CV_LCD_ACC_SHADOW],
+         (long long)cd[CV_LCD_ACC_SUNLIT], (long long)cd[CV_LCD_ACC_CLAMPED],
+         (unsigned long long)bare_hits, (unsigned long long)pack_hits);
+  free(org);
+  free(dir);
+  free(porg);
+  free(pdir);
   cv_lcd_accum_destroy(acc);
 
   /* 3. Error against the reference on the crop. */
@@ -257,7 +390,8 @@ int main(int argc, char **argv) {
   q.x0 = (W - cw) / 2;
   q.y0 = (H - ch) / 2;
   q.threads = 0;
-  q.brdf_fraction = strategies[2].c;
+  q.brdf_fraction = strategies[DEFAULT_STRAT].c;
+  q.window_fraction = strategies[DEFAULT_STRAT].w;
   q.seed = 777;
   q.spp = 256;
   cv_lcd_accum *ra;
@@ -270,26 +404,28 @@ int main(int argc, char **argv) {
   cv_lcd_accum_error(ra, &rerr);
   if (cv_lcd_accum_to_image(ra, NULL, &ref)) return 1;
   printf("## Relative RMSE against a reference (crop %dx%d at texel %d,%d; %lld samples per "
-         "texel, MIS, seed 777: %.1f s on %d threads; its own estimated error %.3f%%)\n\n",
+         "texel, the default strategy, seed 777: %.1f s on %d threads; its own estimated error "
+         "%.3f%%)\n\n",
          cw, ch, q.x0, q.y0, (long long)ra->data[CV_LCD_ACC_SPP], t_ref, omp_get_max_threads(),
          100 * rerr.rel_rms);
   printf("RMSE = sqrt(mean over texels and RGB of (L - L_ref)^2) / mean(L_ref); mean reflected "
-         "luminance of the crop %.4g; seconds = samples x the one-core time per sample of the "
-         "whole 400x300 panel above.\n\n",
+         "luminance of the crop %.4g; rounds of 16 samples per texel; seconds = samples x the "
+         "one-core CPU time per sample of the whole 400x300 panel above.\n\n",
          rerr.mean_luminance);
   enum { MAXP = 32 };
-  int spp_pts[3][MAXP], npts[3] = {0, 0, 0};
-  double err_pts[3][MAXP];
+  int spp_pts[NSTRAT][MAXP], npts[NSTRAT] = {0};
+  double err_pts[NSTRAT][MAXP];
   FILE *df = dat ? fopen(dat, "w") : NULL;
   if (df)
     fprintf(df, "# bench_lcd: relative RMSE vs samples per texel and one-core seconds for the "
-                "400x300 panel\n# columns: spp seconds rmse; blocks: BRDF, cosine, MIS\n");
-  const int round_spp = 4;
-  for (int s = 0; s < 3; s++) {
+                "400x300 panel\n# columns: spp seconds rmse; one block per strategy\n");
+  const int round_spp = 16;
+  for (int s = 0; s < NSTRAT; s++) {
     cv_lcd_params e = q;
     e.seed = 1;
     e.spp = round_spp;
     e.brdf_fraction = strategies[s].c;
+    e.window_fraction = strategies[s].w;
     cv_lcd_accum *a;
     cv_lcd_accum_create(cw, ch, clamp, &a);
     int next = round_spp;
@@ -313,28 +449,28 @@ int main(int argc, char **argv) {
   }
   if (df) fclose(df);
   printf("| samples per texel |");
-  for (int s = 0; s < 3; s++) printf(" %s RMSE | seconds |", strategies[s].name);
+  for (int s = 0; s < NSTRAT; s++) printf(" %s RMSE | seconds |", strategies[s].name);
   printf("\n|---|");
-  for (int s = 0; s < 3; s++) printf("---|---|");
+  for (int s = 0; s < NSTRAT; s++) printf("---|---|");
   printf("\n");
   for (int i = 0; i < npts[0]; i++) {
     printf("| %d |", spp_pts[0][i]);
-    for (int s = 0; s < 3; s++)
+    for (int s = 0; s < NSTRAT; s++)
       printf(" %.3f%% | %.3f |", 100 * err_pts[s][i], spp_pts[s][i] * tg[s] / S);
     printf("\n");
   }
   printf("\n## Time to 1%% RMSE on the default panel (400x300, one core)\n\n");
-  printf("| strategy | samples per texel | seconds |\n|---|---|---|\n");
-  double n1[3];
-  for (int s = 0; s < 3; s++) {
+  printf("| strategy | samples per texel | CPU seconds |\n|---|---|---|\n");
+  double n1[NSTRAT];
+  for (int s = 0; s < NSTRAT; s++) {
     int ex;
     n1[s] = spp_at(spp_pts[s], err_pts[s], npts[s], 0.01, &ex);
     printf("| %s | %.0f%s | %.2f%s |\n", strategies[s].name, n1[s], ex ? " (extrapolated)" : "",
            n1[s] * tg[s] / S, ex ? " (extrapolated)" : "");
   }
-  printf("\ncosine sampling needs %.1fx the samples of BRDF sampling and %.1fx those of MIS for 1%% "
-         "RMSE\n",
-         n1[1] / n1[0], n1[1] / n1[2]);
+  printf("\ncosine sampling needs %.1fx the samples of BRDF sampling, %.1fx those of BRDF + "
+         "cosine MIS and %.1fx those of the default (window MIS) for 1%% RMSE\n",
+         n1[1] / n1[0], n1[1] / n1[2], n1[1] / n1[3]);
   cv_image_destroy(ref);
   cv_lcd_accum_destroy(ra);
   cv_lcd_gather_destroy(g);
