@@ -26,9 +26,10 @@ mkdir -p "$OUT"
 # 11 ranks on one machine: one thread each (OpenMP, llvmpipe), oversubscribed.
 export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
 # Ctrl-C / SIGTERM: mpirun forwards SIGTERM and sends SIGKILL after this many
-# seconds (default 1); 20 lets the ranks finish their frame and the master
-# write the LCD image and the summary.
-export OMPI_MCA_odls_base_sigkill_timeout=20
+# seconds (default 1); 10 lets the ranks finish their frame and the master
+# write the LCD image and the summary (it also delays the end of a job whose
+# rank died by that much).
+export OMPI_MCA_odls_base_sigkill_timeout=10
 MPI=(mpirun --oversubscribe -np "$RANKS" -x OMP_NUM_THREADS -x LP_NUM_THREADS)
 if [ "$(id -u)" -eq 0 ]; then MPI+=(--allow-run-as-root); fi
 # dt 0.3 s: 48 frames cover 14 s of the 20 s drive (the car turns through

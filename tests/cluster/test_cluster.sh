@@ -139,6 +139,7 @@ tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] &
   || bad "SIGTERM to mpirun: rc $rc, $left ranks left, $(tail -c 200 term/metrics.jsonl)"
 
 # --- a rank that dies: Open MPI 4 ends the job at once and names the rank ---
+unset OMPI_MCA_odls_base_sigkill_timeout  # back to 1 s (the others get SIGTERM, then SIGKILL)
 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o death \
   >death.txt 2>deatherr.txt &
 mpid=$!
