@@ -822,15 +822,19 @@ int cv_master_run(cv_service *s) {
   cv_metrics_uint(ml, "held_frames", nframes > 0 && f > (uint32_t)nframes ? f - (uint32_t)nframes : 0);
   cv_metrics_bool(ml, "interrupted", *s->stop != 0);
   cv_metrics_double(ml, "seconds", cv_service_now() - run_t0);
-  const size_t nd = m->nframes_done < cap ? m->nframes_done : cap;
+  /* Percentiles without frame 0 (warm-up: every rank's first lighting and
+   * the first round trip), when there are later frames. */
+  const size_t nall = m->nframes_done < cap ? m->nframes_done : cap;
+  const size_t skip = nall > 1 ? 1 : 0, nd = nall - skip;
   const double ps[3] = {50, 99, 100};
   double q[3];
-  if (nd && cv_percentiles(m->frame_ms, nd, ps, 3, q, NULL) == CV_OK) {
+  cv_metrics_uint(ml, "warmup_frames_excluded", skip);
+  if (nd && cv_percentiles(m->frame_ms + skip, nd, ps, 3, q, NULL) == CV_OK) {
     cv_metrics_double(ml, "frame_ms_p50", q[0]);
     cv_metrics_double(ml, "frame_ms_p99", q[1]);
     cv_metrics_double(ml, "fps", q[0] > 0 ? 1e3 / q[0] : 0);
   }
-  if (nd && cv_percentiles(m->overhead_ms, nd, ps, 3, q, NULL) == CV_OK) {
+  if (nd && cv_percentiles(m->overhead_ms + skip, nd, ps, 3, q, NULL) == CV_OK) {
     cv_metrics_double(ml, "master_ms_p50", q[0]);
     cv_metrics_double(ml, "master_ms_p99", q[1]);
     cv_metrics_double(ml, "master_ms_max", q[2]);

@@ -40,16 +40,19 @@ for size in 360 720; do
   echo "| $size x $size | 11 | $FRAMES | $(summary "$out/metrics.jsonl" fps frame_ms_p50 frame_ms_p99 master_ms_p50 master_ms_p99) |"
 done
 echo
+[ "${SKIP_LCD:-0}" = 1 ] && exit 0
 echo "| gather-only ranks | LCD rounds summed | seconds to 1% rel. RMS | final rel. RMS |"
 echo "|---|---|---|---|"
-for g in 0 2 4; do
+LCD_SIZE="${LCD_SIZE:-400x300}"
+LCD_LIMIT="${LCD_LIMIT:-600}"
+for g in ${GATHER:-0 2 4}; do
   out="$WORK/lcd$g"
   np=$((11 + g))
   "${MPI[@]}" -np "$np" "$CAVE" run "$CFG" --scene "$SCENE" --frames 0 --size 64 --write-every 0 \
-    --no-compensation --lcd-budget 400 --max-fps 2 --quiet -o "$out" >/dev/null 2>&1 &
+    --no-compensation --lcd-budget 400 --lcd-size "$LCD_SIZE" --max-fps 2 --quiet -o "$out" >/dev/null 2>&1 &
   job=$!
   t0=$(date +%s.%N); t1=""
-  for i in $(seq 1 600); do
+  for i in $(seq 1 "$LCD_LIMIT"); do
     sleep 1
     r=$(tail -1 "$out/metrics.jsonl" 2>/dev/null | python3 -c "import json,sys
 try: print(json.loads(sys.stdin.read())['lcd'].get('rel_rms', 1))
@@ -59,6 +62,6 @@ except Exception: print(1)")
   kill -TERM "$(cat "$out/pids/rank0.pid")"; wait $job || true
   rounds=$(grep -o '"lcd_rounds":[0-9]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9]*$')
   fin=$(grep -o '"lcd_rel_rms":[0-9.e-]*' "$out/metrics.jsonl" | tail -1 | grep -o '[0-9.e-]*$')
-  dt=$( [ -n "$t1" ] && python3 -c "print(round($t1 - $t0, 1))" || echo "> 600")
+  dt=$( [ -n "$t1" ] && python3 -c "print(round($t1 - $t0, 1))" || echo "> $LCD_LIMIT")
   echo "| $g | $rounds | $dt | $fin |"
 done
