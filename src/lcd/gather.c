@@ -634,7 +634,7 @@ static void sort_by_key(const uint16_t *key, size_t n, uint32_t *ord, uint32_t *
 /* Window crossings of the escaped rays esc[0..ne) (indices into the
  * sorted arrays): kind 2 (environment) or 3 (lost). */
 static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, int ne) {
-  float po[3 * CV_RT_PACKET_MAX], pd[3 * CV_RT_PACKET_MAX];
+  float po[3 * CV_RT_PACKET_MAX] = {0}, pd[3 * CV_RT_PACKET_MAX] = {0};
   cv_hit ph[CV_RT_PACKET_MAX];
   uint8_t pf[CV_RT_PACKET_MAX];
   for (int l = 0; l < ne; l++) {
