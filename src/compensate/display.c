@@ -9,6 +9,7 @@
 
 #include "compensate/vec3d.h"
 #include "io/json_keys.h"
+#include "io/problems.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -25,38 +26,7 @@
 
 /* --- problem collector ---------------------------------------------------- */
 
-typedef struct ctx {
-  const char *file;
-  int count;        /* problems so far */
-  int first_status;
-  char first[512];  /* first problem, one line */
-  char *buf;        /* all problems, one per line (may be NULL) */
-  size_t cap, len;
-} ctx;
-
-static void problem(ctx *x, int status, const char *field, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
-
-static void problem(ctx *x, int status, const char *field, const char *fmt, ...) {
-  char what[384], line[512];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(what, sizeof what, fmt, ap);
-  va_end(ap);
-  if (field && field[0])
-    snprintf(line, sizeof line, "%s: %s: %s", x->file, field, what);
-  else
-    snprintf(line, sizeof line, "%s: %s", x->file, what);
-  if (x->count++ == 0) {
-    snprintf(x->first, sizeof x->first, "%s", line);
-    x->first_status = status;
-  }
-  if (x->buf && x->cap > 0 && x->len + 1 < x->cap) {
-    int w = snprintf(x->buf + x->len, x->cap - x->len, "%s\n", line);
-    if (w > 0) x->len += (size_t)w;
-    if (x->len >= x->cap) x->len = x->cap - 1;
-  }
-}
+typedef cv_problems ctx; /* io/problems.h */
 
 
 /* --- typed field readers: each reports its own problem and returns 0 on it */
@@ -67,11 +37,11 @@ static void field_name(char *out, size_t n, const char *path, const char *key) {
 
 static int read_number(ctx *x, const cJSON *v, const char *field, double *out) {
   if (!cJSON_IsNumber(v)) {
-    problem(x, CV_ERR_CONFIG, field, "expected a number");
+    cv_problem(x, CV_ERR_CONFIG, field, "expected a number");
     return 0;
   }
   if (!isfinite(v->valuedouble)) {
-    problem(x, CV_ERR_NONFINITE, field, "expected a finite number, got %g", v->valuedouble);
+    cv_problem(x, CV_ERR_NONFINITE, field, "expected a finite number, got %g", v->valuedouble);
     return 0;
   }
   *out = v->valuedouble;
@@ -82,7 +52,7 @@ static int read_number(ctx *x, const cJSON *v, const char *field, double *out) {
 static int read_vec(ctx *x, const cJSON *v, const char *field, int n, double lo, double hi,
                     const char *what, double *out) {
   if (!cJSON_IsArray(v) || cJSON_GetArraySize(v) != n) {
-    problem(x, CV_ERR_CONFIG, field, "expected %s", what);
+    cv_problem(x, CV_ERR_CONFIG, field, "expected %s", what);
     return 0;
   }
   int ok = 1;
@@ -95,7 +65,7 @@ static int read_vec(ctx *x, const cJSON *v, const char *field, int n, double lo,
       continue;
     }
     if (d < lo || d > hi) {
-      problem(x, CV_ERR_RANGE, f, "%g is outside [%g, %g]", d, lo, hi);
+      cv_problem(x, CV_ERR_RANGE, f, "%g is outside [%g, %g]", d, lo, hi);
       ok = 0;
       continue;
     }
@@ -112,7 +82,7 @@ static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *co
       char field[256], list[320];
       field_name(field, sizeof field, path, it->string);
       cv_json_key_list(allowed, list, sizeof list);
-      problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
+      cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
   }
 }
@@ -123,7 +93,7 @@ static const cJSON *required(ctx *x, const cJSON *obj, const char *path, const c
   if (!v) {
     char field[256];
     field_name(field, sizeof field, path, key);
-    problem(x, CV_ERR_CONFIG, field, "missing (expected %s)", what);
+    cv_problem(x, CV_ERR_CONFIG, field, "missing (expected %s)", what);
   }
   return v;
 }
@@ -138,7 +108,7 @@ static int read_opt_num(ctx *x, const cJSON *obj, const char *path, const char *
   double d;
   if (!read_number(x, v, field, &d)) return 0;
   if ((lo_open ? !(d > lo) : !(d >= lo)) || (hi_open ? !(d < hi) : !(d <= hi))) {
-    problem(x, CV_ERR_RANGE, field, "%g is outside %c%g, %g%c", d, lo_open ? '(' : '[', lo, hi,
+    cv_problem(x, CV_ERR_RANGE, field, "%g is outside %c%g, %g%c", d, lo_open ? '(' : '[', lo, hi,
             hi_open ? ')' : ']');
     return 0;
   }
@@ -161,12 +131,12 @@ static int read_range(ctx *x, const cJSON *obj, const char *path, const char *ke
   field_name(field, sizeof field, path, key);
   if (!read_vec(x, v, field, 2, min, max, what, out)) return 0;
   if (!(out[1] > out[0])) {
-    problem(x, CV_ERR_RANGE, field, "expected the first value below the second, got [%g, %g]",
+    cv_problem(x, CV_ERR_RANGE, field, "expected the first value below the second, got [%g, %g]",
             out[0], out[1]);
     return 0;
   }
   if (out[1] - out[0] > max_span) {
-    problem(x, CV_ERR_RANGE, field, "span %g exceeds %g", out[1] - out[0], max_span);
+    cv_problem(x, CV_ERR_RANGE, field, "span %g exceeds %g", out[1] - out[0], max_span);
     return 0;
   }
   return 1;
@@ -178,7 +148,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
   char path[64], field[128];
   snprintf(path, sizeof path, "surfaces[%d]", k);
   if (!cJSON_IsObject(o)) {
-    problem(x, CV_ERR_CONFIG, path, "expected an object");
+    cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
     return 0;
   }
   int ok = 1;
@@ -195,7 +165,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     else if (cJSON_IsString(type) && !strcmp(type->valuestring, "dome"))
       s->kind = CV_SURFACE_DOME;
     else {
-      problem(x, CV_ERR_CONFIG, field, "expected \"plane\", \"cylinder\" or \"dome\"");
+      cv_problem(x, CV_ERR_CONFIG, field, "expected \"plane\", \"cylinder\" or \"dome\"");
       ok = 0;
     }
   }
@@ -218,7 +188,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
   if (name) {
     field_name(field, sizeof field, path, "name");
     if (!cJSON_IsString(name) || !name->valuestring[0] || strlen(name->valuestring) > 63) {
-      problem(x, CV_ERR_CONFIG, field, "expected a surface name (1..63 characters)");
+      cv_problem(x, CV_ERR_CONFIG, field, "expected a surface name (1..63 characters)");
       ok = 0;
     } else {
       snprintf(s->name, sizeof s->name, "%s", name->valuestring);
@@ -232,7 +202,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     field_name(field, sizeof field, path, "patches");
     double v[2];
     if (!cJSON_IsArray(pt) || cJSON_GetArraySize(pt) != 2) {
-      problem(x, CV_ERR_CONFIG, field, "expected [nu, nv], positive integers");
+      cv_problem(x, CV_ERR_CONFIG, field, "expected [nu, nv], positive integers");
       ok = 0;
     } else {
       for (int a = 0; a < 2; a++) {
@@ -241,7 +211,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
         if (!read_number(x, cJSON_GetArrayItem(pt, a), f, &v[a])) {
           ok = 0;
         } else if (v[a] != floor(v[a]) || v[a] < 1 || v[a] > MAX_PATCHES_PER_AXIS) {
-          problem(x, CV_ERR_RANGE, f, "expected a positive integer up to %d, got %g",
+          cv_problem(x, CV_ERR_RANGE, f, "expected a positive integer up to %d, got %g",
                   MAX_PATCHES_PER_AXIS, v[a]);
           ok = 0;
         } else {
@@ -269,7 +239,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     field_name(rpath, sizeof rpath, path, "refine");
     static const char *const rkeys[] = {"seams", "strength", "width", NULL};
     if (!cJSON_IsObject(rf)) {
-      problem(x, CV_ERR_CONFIG, rpath, "expected {\"seams\": \"auto\" | [edges], \"strength\", \"width\"}");
+      cv_problem(x, CV_ERR_CONFIG, rpath, "expected {\"seams\": \"auto\" | [edges], \"strength\", \"width\"}");
       ok = 0;
     } else {
       only_keys(x, rf, rpath, rkeys);
@@ -287,14 +257,14 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
           for (int q = 0; q < 4; q++)
             if (cJSON_IsString(e) && !strcmp(e->valuestring, names[q])) hit = q;
           if (hit < 0) {
-            problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
+            cv_problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
             ok = 0;
           } else {
             s->refine_edges |= 1u << hit;
           }
         }
       } else {
-        problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
+        cv_problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
         ok = 0;
       }
       if (!read_opt_num(x, rf, rpath, "strength", 0, 0, 100, 0, &s->refine_strength)) ok = 0;
@@ -308,7 +278,7 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     if (!c) return 0;
     field_name(field, sizeof field, path, "corners");
     if (!cJSON_IsArray(c) || cJSON_GetArraySize(c) != 3) {
-      problem(x, CV_ERR_CONFIG, field,
+      cv_problem(x, CV_ERR_CONFIG, field,
               "expected [pa, pb, pc] (lower-left, lower-right, upper-left), each [x, y, z]");
       return 0;
     }
@@ -326,13 +296,13 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
     sub3(s->pc, s->pa, e2);
     double l1 = len3(e1), l2 = len3(e2);
     if (!(l1 > 1e-9) || !(l2 > 1e-9)) {
-      problem(x, CV_ERR_CONFIG, field, "pa->%s has zero length", !(l1 > 1e-9) ? "pb" : "pc");
+      cv_problem(x, CV_ERR_CONFIG, field, "pa->%s has zero length", !(l1 > 1e-9) ? "pb" : "pc");
       return 0;
     }
     double cosang = dot3(e1, e2) / (l1 * l2);
     double ang = acos(fmax(-1.0, fmin(1.0, cosang))) * 180.0 / PI;
     if (fabs(ang - 90.0) > RIGHT_ANGLE_TOL_DEG) {
-      problem(x, CV_ERR_CONFIG, field,
+      cv_problem(x, CV_ERR_CONFIG, field,
               "pa->pb and pa->pc are not perpendicular (angle %.4g deg); the surface must be a "
               "rectangle",
               ang);
@@ -618,7 +588,7 @@ static void build_projector_factors(cv_display *d, ctx *x) {
       d->proj[i] = (float)acc[i];
     }
     if (unlit)
-      problem(x, CV_ERR_CONFIG, "projectors",
+      cv_problem(x, CV_ERR_CONFIG, "projectors",
               "%zu of %zu patches of surface '%s' (surfaces[%zu]) receive no projector light",
               unlit, np, s->name, k);
   }
@@ -630,12 +600,12 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
   if (!pj) return;
   if (cJSON_IsString(pj)) {
     if (strcmp(pj->valuestring, "ideal"))
-      problem(x, CV_ERR_CONFIG, "projectors",
+      cv_problem(x, CV_ERR_CONFIG, "projectors",
               "expected \"ideal\" or an array of {\"position\", \"surfaces\", \"intensity_scale\"}");
     return;
   }
   if (!cJSON_IsArray(pj) || cJSON_GetArraySize(pj) < 1) {
-    problem(x, CV_ERR_CONFIG, "projectors",
+    cv_problem(x, CV_ERR_CONFIG, "projectors",
             "expected \"ideal\" or a non-empty array of {\"position\", \"surfaces\", "
             "\"intensity_scale\"}");
     return;
@@ -644,7 +614,7 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
   int np = cJSON_GetArraySize(pj);
   d->projectors = calloc((size_t)np, sizeof *d->projectors);
   if (!d->projectors) {
-    problem(x, CV_ERR_NOMEM, "projectors", "out of memory");
+    cv_problem(x, CV_ERR_NOMEM, "projectors", "out of memory");
     return;
   }
   d->n_projectors = (size_t)np;
@@ -654,14 +624,14 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
     pr->intensity_scale = 1.0;
     pr->lights = calloc(d->n_surfaces ? d->n_surfaces : 1, 1);
     if (!pr->lights) {
-      problem(x, CV_ERR_NOMEM, "projectors", "out of memory");
+      cv_problem(x, CV_ERR_NOMEM, "projectors", "out of memory");
       return;
     }
     char path[64], field[128];
     snprintf(path, sizeof path, "projectors[%d]", i);
     const cJSON *o = cJSON_GetArrayItem(pj, i);
     if (!cJSON_IsObject(o)) {
-      problem(x, CV_ERR_CONFIG, path, "expected an object");
+      cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
       continue;
     }
     only_keys(x, o, path, keys);
@@ -676,7 +646,7 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
     }
     field_name(field, sizeof field, path, "surfaces");
     if (!cJSON_IsArray(sl) || cJSON_GetArraySize(sl) < 1) {
-      problem(x, CV_ERR_CONFIG, field, "expected a non-empty array of surface names");
+      cv_problem(x, CV_ERR_CONFIG, field, "expected a non-empty array of surface names");
       continue;
     }
     for (int k = 0; k < cJSON_GetArraySize(sl); k++) {
@@ -684,12 +654,12 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
       char f[160];
       snprintf(f, sizeof f, "%s[%d]", field, k);
       if (!cJSON_IsString(e)) {
-        problem(x, CV_ERR_CONFIG, f, "expected a surface name");
+        cv_problem(x, CV_ERR_CONFIG, f, "expected a surface name");
         continue;
       }
       int idx = cv_display_find_surface(d, e->valuestring);
       if (idx < 0)
-        problem(x, CV_ERR_CONFIG, f, "no surface is named '%s'", e->valuestring);
+        cv_problem(x, CV_ERR_CONFIG, f, "no surface is named '%s'", e->valuestring);
       else
         pr->lights[idx] = 1;
     }
@@ -700,22 +670,22 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
   static const char *const keys[] = {"description", "surfaces", "environment", "viewer",
                                      "projectors", NULL};
   if (!cJSON_IsObject(root)) {
-    problem(x, CV_ERR_CONFIG, "", "expected a JSON object at the top level");
+    cv_problem(x, CV_ERR_CONFIG, "", "expected a JSON object at the top level");
     return;
   }
   only_keys(x, root, "", keys);
   const cJSON *desc = cJSON_GetObjectItemCaseSensitive(root, "description");
-  if (desc && !cJSON_IsString(desc)) problem(x, CV_ERR_CONFIG, "description", "expected a string");
+  if (desc && !cJSON_IsString(desc)) cv_problem(x, CV_ERR_CONFIG, "description", "expected a string");
 
   const cJSON *surfs = required(x, root, "", "surfaces", "a non-empty array of surfaces");
   int ns = surfs && cJSON_IsArray(surfs) ? cJSON_GetArraySize(surfs) : 0;
   if (surfs && ns == 0)
-    problem(x, CV_ERR_CONFIG, "surfaces", "expected a non-empty array of surfaces");
+    cv_problem(x, CV_ERR_CONFIG, "surfaces", "expected a non-empty array of surfaces");
   int geometry_ok = ns > 0;
   if (ns > 0) {
     d->surfaces = calloc((size_t)ns, sizeof *d->surfaces);
     if (!d->surfaces) {
-      problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
+      cv_problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
       return;
     }
     d->n_surfaces = (size_t)ns;
@@ -728,12 +698,12 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
         if (s->name[0] && !strcmp(s->name, d->surfaces[j].name)) {
           char f[64];
           snprintf(f, sizeof f, "surfaces[%d].name", k);
-          problem(x, CV_ERR_CONFIG, f, "duplicate surface name '%s' (also surfaces[%d])", s->name, j);
+          cv_problem(x, CV_ERR_CONFIG, f, "duplicate surface name '%s' (also surfaces[%d])", s->name, j);
           break;
         }
     }
     if (total > MAX_PATCHES_TOTAL) {
-      problem(x, CV_ERR_RANGE, "surfaces", "%zu patches in all; at most %u are supported", total,
+      cv_problem(x, CV_ERR_RANGE, "surfaces", "%zu patches in all; at most %u are supported", total,
               MAX_PATCHES_TOTAL);
       geometry_ok = 0;
     }
@@ -747,7 +717,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
   if (!geometry_ok || x->count) return;
 
   if (build_patches(d)) {
-    problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
+    cv_problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
     return;
   }
   if (d->has_viewer)
@@ -762,7 +732,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
       if (away) {
         char f[64];
         snprintf(f, sizeof f, "surfaces[%zu]%s", k, s->kind == CV_SURFACE_PLANE ? ".corners" : "");
-        problem(x, CV_ERR_CONFIG, f,
+        cv_problem(x, CV_ERR_CONFIG, f,
                 "%zu of %zu patches face away from the viewer [%g, %g, %g]%s", away, np,
                 d->viewer[0], d->viewer[1], d->viewer[2],
                 s->kind == CV_SURFACE_PLANE
@@ -775,7 +745,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
   d->env = malloc(3 * (n ? n : 1) * sizeof *d->env);
   d->proj = malloc((n ? n : 1) * sizeof *d->proj);
   if (!d->refl || !d->env || !d->proj) {
-    problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
+    cv_problem(x, CV_ERR_NOMEM, "surfaces", "out of memory");
     return;
   }
   for (size_t i = 0; i < n; i++)
@@ -790,7 +760,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
 static cv_display *parse_text(ctx *x, const char *text) {
   cv_display *d = calloc(1, sizeof *d);
   if (!d) {
-    problem(x, CV_ERR_NOMEM, "", "out of memory");
+    cv_problem(x, CV_ERR_NOMEM, "", "out of memory");
     return NULL;
   }
   snprintf(d->source, sizeof d->source, "%s", x->file);
@@ -801,7 +771,7 @@ static cv_display *parse_text(ctx *x, const char *text) {
     for (const char *p = text; end && p < end && *p; p++) line += *p == '\n';
     char f[32];
     snprintf(f, sizeof f, "line %d", line);
-    problem(x, CV_ERR_CONFIG, f, "JSON syntax error (NaN and Inf are not JSON numbers)");
+    cv_problem(x, CV_ERR_CONFIG, f, "JSON syntax error (NaN and Inf are not JSON numbers)");
     return d;
   }
   parse_root(x, root, d);
@@ -813,7 +783,7 @@ static int read_file(const char *path, char **text, ctx *x) {
   *text = NULL;
   FILE *f = fopen(path, "rb");
   if (!f) {
-    problem(x, CV_ERR_IO, "", "cannot open: %s", strerror(errno));
+    cv_problem(x, CV_ERR_IO, "", "cannot open: %s", strerror(errno));
     return CV_ERR_IO;
   }
   fseek(f, 0, SEEK_END);
@@ -821,14 +791,14 @@ static int read_file(const char *path, char **text, ctx *x) {
   fseek(f, 0, SEEK_SET);
   if (n < 0 || n > (64 << 20)) {
     fclose(f);
-    problem(x, CV_ERR_CONFIG, "", "not a plausible display description (size %ld)", n);
+    cv_problem(x, CV_ERR_CONFIG, "", "not a plausible display description (size %ld)", n);
     return CV_ERR_CONFIG;
   }
   char *t = malloc((size_t)n + 1);
   if (!t || fread(t, 1, (size_t)n, f) != (size_t)n) {
     fclose(f);
     free(t);
-    problem(x, CV_ERR_IO, "", "read failed");
+    cv_problem(x, CV_ERR_IO, "", "read failed");
     return CV_ERR_IO;
   }
   fclose(f);

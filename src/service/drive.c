@@ -9,6 +9,7 @@
 
 #include "core/hash.h"
 #include "io/json_keys.h"
+#include "io/problems.h"
 #include "service/textfile.h"
 
 #include <cjson/cJSON.h>
@@ -35,38 +36,7 @@ struct cv_drive {
 
 /* --- problem collector (as compensate/display.c) -------------------------- */
 
-typedef struct ctx {
-  const char *file;
-  int count;
-  int first_status;
-  char first[512];
-  char *buf; /* all problems, one per line (may be NULL) */
-  size_t cap, len;
-} ctx;
-
-static void problem(ctx *x, int status, const char *field, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
-
-static void problem(ctx *x, int status, const char *field, const char *fmt, ...) {
-  char what[384], line[512];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(what, sizeof what, fmt, ap);
-  va_end(ap);
-  if (field && field[0])
-    snprintf(line, sizeof line, "%s: %s: %s", x->file, field, what);
-  else
-    snprintf(line, sizeof line, "%s: %s", x->file, what);
-  if (x->count++ == 0) {
-    snprintf(x->first, sizeof x->first, "%s", line);
-    x->first_status = status;
-  }
-  if (x->buf && x->cap > 0 && x->len + 1 < x->cap) {
-    int w = snprintf(x->buf + x->len, x->cap - x->len, "%s\n", line);
-    if (w > 0) x->len += (size_t)w;
-    if (x->len >= x->cap) x->len = x->cap - 1;
-  }
-}
+typedef cv_problems ctx; /* io/problems.h */
 
 static int finish(ctx *x, cv_err *err) {
   if (x->count == 0) return CV_OK;
@@ -86,7 +56,7 @@ static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *co
       char field[256], list[320];
       snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", it->string);
       cv_json_key_list(allowed, list, sizeof list);
-      problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
+      cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
   }
 }
@@ -99,16 +69,16 @@ static int opt_num(ctx *x, const cJSON *obj, const char *path, const char *name,
   char field[256];
   snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", name);
   if (!cJSON_IsNumber(v)) {
-    problem(x, CV_ERR_CONFIG, field, "expected a number");
+    cv_problem(x, CV_ERR_CONFIG, field, "expected a number");
     return 0;
   }
   double d = v->valuedouble;
   if (!isfinite(d)) {
-    problem(x, CV_ERR_NONFINITE, field, "expected a finite number");
+    cv_problem(x, CV_ERR_NONFINITE, field, "expected a finite number");
     return 0;
   }
   if (d < lo || d > hi) {
-    problem(x, CV_ERR_RANGE, field, "%g is outside [%g, %g]", d, lo, hi);
+    cv_problem(x, CV_ERR_RANGE, field, "%g is outside [%g, %g]", d, lo, hi);
     return 0;
   }
   *out = d;
@@ -119,7 +89,7 @@ static int opt_bool(ctx *x, const cJSON *obj, const char *name, int *out) {
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, name);
   if (!v) return 0;
   if (!cJSON_IsBool(v)) {
-    problem(x, CV_ERR_CONFIG, name, "expected true or false");
+    cv_problem(x, CV_ERR_CONFIG, name, "expected true or false");
     return 0;
   }
   *out = cJSON_IsTrue(v);
@@ -142,7 +112,7 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
   char path[64];
   snprintf(path, sizeof path, "keyframes[%d]", k);
   if (!cJSON_IsObject(o)) {
-    problem(x, CV_ERR_CONFIG, path, "expected an object");
+    cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
     return;
   }
   only_keys(x, o, path, is_sky ? sky_key_fields : map_key_fields);
@@ -157,12 +127,12 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
   char field[96];
   snprintf(field, sizeof field, "%s.t", path);
   if (!cJSON_GetObjectItemCaseSensitive(o, "t")) {
-    problem(x, CV_ERR_CONFIG, field, "missing (expected the time in seconds)");
+    cv_problem(x, CV_ERR_CONFIG, field, "missing (expected the time in seconds)");
   } else if (opt_num(x, o, path, "t", 0.0, 1e9, &kf->t)) {
     if (!prev && kf->t != 0.0)
-      problem(x, CV_ERR_RANGE, field, "the first keyframe must be at t = 0, got %g", kf->t);
+      cv_problem(x, CV_ERR_RANGE, field, "the first keyframe must be at t = 0, got %g", kf->t);
     if (prev && !(kf->t > prev->t))
-      problem(x, CV_ERR_RANGE, field, "t = %g is not after the previous keyframe's %g", kf->t,
+      cv_problem(x, CV_ERR_RANGE, field, "t = %g is not after the previous keyframe's %g", kf->t,
               prev->t);
   }
   opt_num(x, o, path, "yaw", -ANGLE_MAX, ANGLE_MAX, &kf->yaw);
@@ -178,12 +148,12 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
   if (!w) return;
   snprintf(field, sizeof field, "%s.weights", path);
   if (!cJSON_IsArray(w)) {
-    problem(x, CV_ERR_CONFIG, field, "expected an array of numbers, one per map");
+    cv_problem(x, CV_ERR_CONFIG, field, "expected an array of numbers, one per map");
     return;
   }
   int n = cJSON_GetArraySize(w);
   if (n_maps >= 0 && n != n_maps) {
-    problem(x, CV_ERR_CONFIG, field, "%d weights for %d maps", n, n_maps);
+    cv_problem(x, CV_ERR_CONFIG, field, "%d weights for %d maps", n, n_maps);
     return;
   }
   if (n > CV_MAX_ENV_MAPS) return; /* the maps problem is reported already */
@@ -194,13 +164,13 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
     snprintf(f, sizeof f, "%s[%d]", field, i);
     const cJSON *e = cJSON_GetArrayItem(w, i);
     if (!cJSON_IsNumber(e)) {
-      problem(x, CV_ERR_CONFIG, f, "expected a number");
+      cv_problem(x, CV_ERR_CONFIG, f, "expected a number");
       ok = 0;
     } else if (!isfinite(e->valuedouble)) {
-      problem(x, CV_ERR_NONFINITE, f, "expected a finite number");
+      cv_problem(x, CV_ERR_NONFINITE, f, "expected a finite number");
       ok = 0;
     } else if (e->valuedouble < 0 || e->valuedouble > 1e12) {
-      problem(x, CV_ERR_RANGE, f, "%g is outside [0, 1e12]", e->valuedouble);
+      cv_problem(x, CV_ERR_RANGE, f, "%g is outside [0, 1e12]", e->valuedouble);
       ok = 0;
     } else {
       v[i] = e->valuedouble;
@@ -209,7 +179,7 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
   }
   if (!ok) return;
   if (!(sum > 0)) {
-    problem(x, CV_ERR_RANGE, field, "the weights sum to 0 (expected a positive sum)");
+    cv_problem(x, CV_ERR_RANGE, field, "the weights sum to 0 (expected a positive sum)");
     return;
   }
   for (int i = 0; i < CV_MAX_ENV_MAPS; i++) kf->w[i] = v[i] / sum;
@@ -230,27 +200,27 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
     int line = 1;
     if (e)
       for (const char *p = json; *p && p < e; p++) line += (*p == '\n');
-    problem(x, CV_ERR_CONFIG, "", "JSON syntax error near line %d", line);
+    cv_problem(x, CV_ERR_CONFIG, "", "JSON syntax error near line %d", line);
     return;
   }
   cv_drive *d = calloc(1, sizeof *d);
   if (!d) {
-    problem(x, CV_ERR_NOMEM, "", "out of memory");
+    cv_problem(x, CV_ERR_NOMEM, "", "out of memory");
     cJSON_Delete(root);
     return;
   }
   d->scale = 1.0;
   d->ground_albedo = 0.2;
   if (!cJSON_IsObject(root)) {
-    problem(x, CV_ERR_CONFIG, "", "expected a JSON object");
+    cv_problem(x, CV_ERR_CONFIG, "", "expected a JSON object");
     goto done;
   }
   only_keys(x, root, "", top_fields);
 
   const cJSON *desc = cJSON_GetObjectItemCaseSensitive(root, "description");
-  if (desc && !cJSON_IsString(desc)) problem(x, CV_ERR_CONFIG, "description", "expected a string");
+  if (desc && !cJSON_IsString(desc)) cv_problem(x, CV_ERR_CONFIG, "description", "expected a string");
   d->description = strdup(desc && cJSON_IsString(desc) ? desc->valuestring : "");
-  if (!d->description) problem(x, CV_ERR_NOMEM, "", "out of memory");
+  if (!d->description) cv_problem(x, CV_ERR_NOMEM, "", "out of memory");
   opt_bool(x, root, "loop", &d->loop);
   opt_bool(x, root, "sky", &d->is_sky);
 
@@ -258,22 +228,22 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
   int n_maps = -1; /* unknown: the list is bad */
   if (d->is_sky) {
     n_maps = 0;
-    if (maps) problem(x, CV_ERR_CONFIG, "maps", "not allowed with \"sky\": true (choose one)");
+    if (maps) cv_problem(x, CV_ERR_CONFIG, "maps", "not allowed with \"sky\": true (choose one)");
     if (cJSON_GetObjectItemCaseSensitive(root, "scale"))
-      problem(x, CV_ERR_CONFIG, "scale", "only for map drives (the sky has its own radiance)");
+      cv_problem(x, CV_ERR_CONFIG, "scale", "only for map drives (the sky has its own radiance)");
     opt_num(x, root, "", "ground_albedo", 0.0, 1.0, &d->ground_albedo);
   } else {
     if (cJSON_GetObjectItemCaseSensitive(root, "ground_albedo"))
-      problem(x, CV_ERR_CONFIG, "ground_albedo", "only for sky drives");
+      cv_problem(x, CV_ERR_CONFIG, "ground_albedo", "only for sky drives");
     if (cJSON_GetObjectItemCaseSensitive(root, "scale") &&
         opt_num(x, root, "", "scale", 0.0, 1e12, &d->scale) && !(d->scale > 0))
-      problem(x, CV_ERR_RANGE, "scale", "expected a positive multiplier, got %g", d->scale);
+      cv_problem(x, CV_ERR_RANGE, "scale", "expected a positive multiplier, got %g", d->scale);
     if (!maps) {
-      problem(x, CV_ERR_CONFIG, "maps",
+      cv_problem(x, CV_ERR_CONFIG, "maps",
               "missing (expected a list of environment maps, or \"sky\": true)");
     } else if (!cJSON_IsArray(maps) || cJSON_GetArraySize(maps) < 1 ||
                cJSON_GetArraySize(maps) > CV_MAX_ENV_MAPS) {
-      problem(x, CV_ERR_CONFIG, "maps", "expected an array of 1..%d file names",
+      cv_problem(x, CV_ERR_CONFIG, "maps", "expected an array of 1..%d file names",
               CV_MAX_ENV_MAPS);
     } else {
       n_maps = cJSON_GetArraySize(maps);
@@ -282,13 +252,13 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
         snprintf(f, sizeof f, "maps[%d]", i);
         const cJSON *e = cJSON_GetArrayItem(maps, i);
         if (!cJSON_IsString(e) || !e->valuestring[0]) {
-          problem(x, CV_ERR_CONFIG, f, "expected a file name");
+          cv_problem(x, CV_ERR_CONFIG, f, "expected a file name");
           continue;
         }
         cv_err e2;
         cv_err_clear(&e2);
         if (cv_resolve_env_path(e->valuestring, base_dir, d->maps[i], &e2))
-          problem(x, e2.status, f, "%s", e2.msg);
+          cv_problem(x, e2.status, f, "%s", e2.msg);
       }
       d->n_maps = n_maps;
     }
@@ -296,16 +266,16 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
 
   const cJSON *keys = cJSON_GetObjectItemCaseSensitive(root, "keyframes");
   if (!keys) {
-    problem(x, CV_ERR_CONFIG, "keyframes", "missing (expected an array of keyframe objects)");
+    cv_problem(x, CV_ERR_CONFIG, "keyframes", "missing (expected an array of keyframe objects)");
   } else if (!cJSON_IsArray(keys) || cJSON_GetArraySize(keys) < 1 ||
              cJSON_GetArraySize(keys) > CV_DRIVE_MAX_KEYS) {
-    problem(x, CV_ERR_CONFIG, "keyframes", "expected an array of 1..%d keyframe objects",
+    cv_problem(x, CV_ERR_CONFIG, "keyframes", "expected an array of 1..%d keyframe objects",
             CV_DRIVE_MAX_KEYS);
   } else {
     int n = cJSON_GetArraySize(keys);
     d->keys = calloc((size_t)n, sizeof *d->keys);
     if (!d->keys) {
-      problem(x, CV_ERR_NOMEM, "", "out of memory");
+      cv_problem(x, CV_ERR_NOMEM, "", "out of memory");
     } else {
       d->n_keys = n;
       int k = 0;
@@ -371,7 +341,7 @@ int cv_drive_validate_text(const char *json, const char *name, const char *base_
   x.cap = buf ? n : 0;
   if (buf && n) buf[0] = '\0';
   if (!json)
-    problem(&x, CV_ERR_INVALID, "", "NULL text");
+    cv_problem(&x, CV_ERR_INVALID, "", "NULL text");
   else
     parse_drive(&x, json, base_dir, NULL);
   if (n_problems) *n_problems = x.count;

@@ -1,0 +1,23 @@
+/* Collecting every problem of a configuration file before failing, so a user
+ * sees all of them at once (display descriptions, drives): each problem is
+ * one line "file: field.path: what"; the first is kept with its status for
+ * the one-line cv_err, and all of them go to an optional buffer. */
+#ifndef CV_IO_PROBLEMS_H
+#define CV_IO_PROBLEMS_H
+
+#include <stddef.h>
+
+typedef struct cv_problems {
+  const char *file;
+  int count;
+  int first_status;
+  char first[512]; /* the first problem, one line */
+  char *buf;       /* all problems, one per line (may be NULL; not owned) */
+  size_t cap, len;
+} cv_problems;
+
+/* Records one problem (field may be NULL or ""). */
+void cv_problem(cv_problems *x, int status, const char *field, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+#endif
