@@ -662,7 +662,10 @@ int cv_master_run(cv_service *s) {
           if (got[k]) ngot++;
         }
       }
+      /* LCD sums and the LCD image for the wall-eyes overlap their
+       * rendering: off the frame's critical path. */
       lcd_drain(m);
+      lcd_publish(m, 0);
       montage_drain(m);
       cv_comm_progress();
       if (ngot == s->n_walleyes || *s->stop) break;
@@ -685,7 +688,6 @@ int cv_master_run(cv_service *s) {
     if (m->disp) compensate_frame(m, f);
     const double tc1 = cv_service_now();
     lcd_drain(m);
-    lcd_publish(m, 0);
     const double tf1 = cv_service_now();
     /* Metrics. */
     cv_metrics_line *ml = m->ml;
