@@ -134,8 +134,12 @@ wait "$mpid"; rc=$?
 alive() { for f in term/pids/*.pid; do
   st=$(awk '/^State:/ {print $2}' "/proc/$(cat "$f")/status" 2>/dev/null); [ -n "$st" ] && [ "$st" != Z ] && echo x; done | wc -l; }
 for i in $(seq 1 20); do left=$(alive); [ "$left" -eq 0 ] && break; sleep 0.5; done
-tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] && [ -s term/lcd.exr ] \
-  && ok "SIGTERM to mpirun: every rank ended, summary and LCD image written (mpirun status $rc)" \
+# the LCD image is written when any round was summed (the idle LCD threads
+# may get no core at all while ten renderers run flat out)
+rounds=$(tail -1 term/metrics.jsonl | grep -o '"lcd_rounds":[0-9]*' | grep -o '[0-9]*$')
+lcd_ok=1; [ "${rounds:-0}" -gt 0 ] && [ ! -s term/lcd.exr ] && lcd_ok=0
+tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] && [ $lcd_ok -eq 1 ] \
+  && ok "SIGTERM to mpirun: every rank ended, summary written, LCD image for its ${rounds:-0} rounds (mpirun status $rc)" \
   || bad "SIGTERM to mpirun: rc $rc, $left ranks left, $(tail -c 200 term/metrics.jsonl)"
 
 # --- a rank that dies: Open MPI 4 ends the job at once and names the rank ---
