@@ -7,7 +7,7 @@
  * once the description is free of problems. */
 #include "compensate/display.h"
 
-#include "compensate/vec3d.h"
+#include "core/vec3d.h"
 #include "io/json_keys.h"
 #include "io/problems.h"
 

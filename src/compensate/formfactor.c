@@ -2,7 +2,7 @@
  * for the method, the normalisations and the sparsification rule). */
 #include "compensate/formfactor.h"
 
-#include "compensate/vec3d.h"
+#include "core/vec3d.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "compensate/vec3d.h"
+#include "core/vec3d.h"
 
 /* Estimates along one line of m centres x[0..m-1] with values f (stride
  * `stride` in f), maxed into est[i * est_stride]. */

@@ -8,19 +8,8 @@
 #include <math.h>
 #include <stddef.h>
 
-static double dot3(const double a[3], const double b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-static void cross3(const double a[3], const double b[3], double o[3]) {
-  double t0 = a[1] * b[2] - a[2] * b[1], t1 = a[2] * b[0] - a[0] * b[2],
-         t2 = a[0] * b[1] - a[1] * b[0];
-  o[0] = t0;
-  o[1] = t1;
-  o[2] = t2;
-}
-static int finite3(const double a[3]) {
-  return isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]);
-}
+#include "core/vec3d.h"
+
 
 /* Unit gaze into g; 0 when degenerate. */
 static int unit_gaze(const double gaze[3], double g[3]) {

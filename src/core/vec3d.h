@@ -1,8 +1,9 @@
-/* Double-precision 3-vector helpers for the display geometry and the form
- * factors (cglm, the project's vector library, is single precision; form
- * factors next to a shared edge need double). */
-#ifndef CV_COMPENSATE_VEC3D_H
-#define CV_COMPENSATE_VEC3D_H
+/* Double-precision 3-vector helpers for the display geometry, the form
+ * factors, the off-axis projection and the foveal cone (cglm, the project's
+ * vector library, is single precision; form factors next to a shared edge
+ * and the Kooima projection are computed in double). */
+#ifndef CV_CORE_VEC3D_H
+#define CV_CORE_VEC3D_H
 
 #include <math.h>
 
@@ -24,6 +25,9 @@ static inline void cross3(const double a[3], const double b[3], double o[3]) {
   o[2] = t2;
 }
 static inline double len3(const double a[3]) { return sqrt(dot3(a, a)); }
+static inline int finite3(const double a[3]) {
+  return isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]);
+}
 static inline double dist3(const double a[3], const double b[3]) {
   double d[3];
   sub3(a, b, d);
