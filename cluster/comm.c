@@ -15,6 +15,9 @@ typedef struct pending_send {
 /* Sends in flight (owned copies).  One process, one thread calls MPI. */
 static pending_send *g_sends;
 static size_t g_nsends, g_capsends;
+/* The render ranks' communicator and its barrier in flight (same rule). */
+static MPI_Comm g_render = MPI_COMM_NULL;
+static MPI_Request g_barrier = MPI_REQUEST_NULL;
 
 static void release(pending_send *ps);
 
@@ -36,6 +39,7 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
 
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
+  if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
     MPI_Request_free(&g_sends[i].req);
@@ -196,3 +200,31 @@ void cv_mailbox_close(cv_mailbox *m) {
 }
 
 void cv_comm_barrier(void) { MPI_Barrier(MPI_COMM_WORLD); }
+
+
+int cv_comm_render_group(int render) {
+  MPI_Comm c;
+  if (MPI_Comm_split(MPI_COMM_WORLD, render ? 1 : MPI_UNDEFINED, 0, &c) != MPI_SUCCESS) return -1;
+  g_render = c;
+  return 0;
+}
+
+int cv_comm_render_barrier_start(void) {
+  if (g_render == MPI_COMM_NULL || g_barrier != MPI_REQUEST_NULL) return -1;
+  return MPI_Ibarrier(g_render, &g_barrier) == MPI_SUCCESS ? 0 : -1;
+}
+
+int cv_comm_render_barrier_test(void) {
+  if (g_barrier == MPI_REQUEST_NULL) return 1;
+  int done = 0;
+  MPI_Test(&g_barrier, &done, MPI_STATUS_IGNORE);
+  return done;
+}
+
+void cv_comm_host(char *buf, size_t cap) {
+  char name[MPI_MAX_PROCESSOR_NAME];
+  int len = 0;
+  if (MPI_Get_processor_name(name, &len) != MPI_SUCCESS) len = 0;
+  name[len] = 0;
+  snprintf(buf, cap, "%s", name);
+}

@@ -27,7 +27,10 @@ enum {
   CV_TAG_LCD = 5,     /* contributor -> master: LCD round (key, round, fixed point) */
   CV_TAG_LCDIMG = 6,  /* master -> wall-eyes: current LCD image */
   CV_TAG_READY = 7,   /* every rank -> master at start: set-up done or failed */
-  CV_TAG_IMAGE = 8    /* left-eye wall-eye -> master: display image of a written frame */
+  CV_TAG_IMAGE = 8,   /* left-eye wall-eye -> master: display image of a written frame */
+  CV_TAG_PING = 9,    /* master -> render rank: clock probe (t0 of the master) */
+  CV_TAG_PONG = 10,   /* render rank -> master: t0 echoed, t1 (received), t2 (sent) */
+  CV_TAG_STOPREQ = 11 /* render rank -> master: its window was closed / Escape / X lost */
 };
 
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size);
@@ -62,5 +65,16 @@ void cv_mailbox_close(cv_mailbox *m);
 
 /* MPI_Barrier (the optional swap lock). */
 void cv_comm_barrier(void);
+
+/* The render ranks' communicator (the swap lock): every rank calls it once
+ * after init, collectively, with render = 1 on the ranks that render. */
+int cv_comm_render_group(int render);
+/* Starts a non-blocking barrier among the render ranks (MPI_Ibarrier on
+ * their communicator); cv_comm_render_barrier_test polls it: 1 done, 0 not
+ * yet.  One barrier at a time per rank. */
+int cv_comm_render_barrier_start(void);
+int cv_comm_render_barrier_test(void);
+/* Name of this rank's host (MPI_Get_processor_name). */
+void cv_comm_host(char *buf, size_t cap);
 
 #endif

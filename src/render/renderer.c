@@ -24,6 +24,8 @@
 #include "io/exr.h"
 #include "render/egl_context.h"
 #include "render/shaders.h"
+#include "render/window.h"
+#include "view/cave.h"
 #include "sh/sh.h"
 
 enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64 };
@@ -46,6 +48,9 @@ enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 
 
 struct cv_renderer {
   cv_egl egl;
+  cv_window *win;     /* opts.window: the X11 window (NULL headless) */
+  GLuint prog_present, tex_present;
+  int present_w, present_h;
   cv_render_opts o;
   char gl_name[256];
   int nc;             /* SH coefficients */
@@ -116,9 +121,13 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->timing = 1;
   o->cull_frustum = 1;
   o->sun_split = 1;
+  o->gpu = CV_GPU_AUTO;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
+int cv_renderer_is_software(const cv_renderer *r) { return r->egl.software; }
+int cv_renderer_hw_devices(const cv_renderer *r) { return r->egl.hw_devices; }
+const char *cv_renderer_platform(const cv_renderer *r) { return r->egl.platform; }
 
 static double now_ms(void) {
   struct timespec ts;
@@ -536,8 +545,13 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
   if (opts) r->o = *opts;
   else cv_render_default_opts(&r->o);
   if (r->o.shadow_res < 16) r->o.shadow_res = 2048;
-  int st = cv_egl_open(&r->egl, err);
+  cv_egl_request rq = {r->o.gpu, NULL, r->o.window};
+  int st = CV_OK;
+  if (r->o.window) st = cv_window_connect(r->o.window->display, &r->win, err);
+  rq.window = r->win;
+  if (!st) st = cv_egl_open(&rq, &r->egl, err);
   if (st) {
+    cv_window_destroy(r->win);
     free(r);
     return st;
   }
@@ -556,6 +570,7 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
       (st = build("geom.vert", "depth.frag", "#define DEPTH_ONLY\n", NULL, &r->prog_depth, err)) ||
       (st = build("geom.vert", "unlit.frag", "", NULL, &r->prog_unlit, err)) ||
       (st = build("fullscreen.vert", "downsample.frag", "", NULL, &r->prog_down, err)) ||
+      (r->win && (st = build("present.vert", "present.frag", "", NULL, &r->prog_present, err))) ||
       (st = upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err))) {
     cv_renderer_destroy(r);
     return st;
@@ -592,12 +607,15 @@ void cv_renderer_destroy(cv_renderer *r) {
     glDeleteProgram(r->prog_depth);
     glDeleteProgram(r->prog_unlit);
     glDeleteProgram(r->prog_down);
+    glDeleteProgram(r->prog_present);
+    glDeleteTextures(1, &r->tex_present);
     for (int k = 0; k < 2; k++)
       for (int f = 0; f < NVARIANT; f++) glDeleteProgram(r->prog_var[k][f]);
     glDeleteBuffers(1, &r->buf_tone);
     glDeleteTextures(1, &r->tex_tone);
   }
   cv_egl_close(&r->egl);
+  cv_window_destroy(r->win);
   free(r->chunk_box);
   free(r->idx_cpu);
   free(r->pos_cpu);
@@ -1480,4 +1498,73 @@ int cv_renderer_unlit(cv_renderer *r, const cv_render_view *v, cv_image *out, cv
     t->read_ms = t3 - t2;
   }
   return CV_OK;
+}
+
+/* ---------------------------------------------------------------- present */
+
+int cv_renderer_present(cv_renderer *r, const uint8_t *left, const uint8_t *right, int w, int h,
+                        int layout, cv_err *err) {
+  if (!r->win) return cv_err_set(err, CV_ERR_INVALID, "renderer: no window to present on");
+  const int packed = layout == CV_STEREO_SIDE_BY_SIDE || layout == CV_STEREO_TOP_BOTTOM;
+  if (!left || w < 1 || h < 1 || (packed && !right))
+    return cv_err_set(err, CV_ERR_INVALID, "renderer: present: no image or bad size");
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  int ww, wh;
+  cv_window_size(r->win, &ww, &wh);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glViewport(0, 0, ww, wh);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  glClearColor(0, 0, 0, 1);
+  glClear(GL_COLOR_BUFFER_BIT);
+  glUseProgram(r->prog_present);
+  glActiveTexture(GL_TEXTURE0 + U_SRC);
+  if (!r->tex_present) glGenTextures(1, &r->tex_present);
+  glBindTexture(GL_TEXTURE_2D, r->tex_present);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  const int eyes = packed ? 2 : 1;
+  /* 1:1 pixels copy exactly; another window size is filtered. */
+  const int exact = layout == CV_STEREO_SIDE_BY_SIDE ? (2 * w == ww && h == wh)
+                    : layout == CV_STEREO_TOP_BOTTOM ? (w == ww && 2 * h == wh)
+                                                     : (w == ww && h == wh);
+  const GLint filt = exact ? GL_NEAREST : GL_LINEAR;
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filt);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filt);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  const GLint loc = glGetUniformLocation(r->prog_present, "u_rect");
+  glBindVertexArray(r->vao_empty);
+  for (int e = 0; e < eyes; e++) {
+    if (r->present_w != w || r->present_h != h) {
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, w, h, 0, GL_RGB, GL_UNSIGNED_BYTE, e ? right : left);
+      r->present_w = w, r->present_h = h;
+    } else {
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, e ? right : left);
+    }
+    float rect[4] = {-1, -1, 1, 1};
+    if (layout == CV_STEREO_SIDE_BY_SIDE) rect[0] = e ? 0.0f : -1.0f, rect[2] = e ? 1.0f : 0.0f;
+    if (layout == CV_STEREO_TOP_BOTTOM) rect[1] = e ? -1.0f : 0.0f, rect[3] = e ? 0.0f : 1.0f;
+    glUniform4fv(loc, 1, rect);
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    if (e == 0 && eyes == 2) glFlush();
+  }
+  glBindVertexArray(0);
+  glFinish();
+  return gl_check("present", err);
+}
+
+int cv_renderer_swap(cv_renderer *r, cv_err *err) {
+  if (!r->win) return CV_OK;
+  if (cv_window_poll(r->win) == CV_WIN_LOST || cv_egl_swap(&r->egl))
+    return cv_err_set(err, CV_ERR_BACKEND, "eglSwapBuffers on X display '%s' failed (%s)",
+                      cv_window_display_name(r->win), cv_window_event_name(cv_window_poll(r->win)));
+  return CV_OK;
+}
+
+int cv_renderer_window_poll(cv_renderer *r) { return r->win ? cv_window_poll(r->win) : CV_WIN_OK; }
+
+void cv_renderer_window_size(const cv_renderer *r, int *w, int *h) {
+  *w = *h = 0;
+  if (r->win) cv_window_size(r->win, w, h);
 }

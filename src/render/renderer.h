@@ -58,6 +58,8 @@
 #include "tonemap/drago.h"
 #include "view/offaxis.h"
 
+struct cv_window_spec;
+
 typedef struct cv_render_opts {
   int half_transfer; /* 1: transfer stored as half floats (RGBA16F), half the bytes */
   int shadow_res;    /* sun shadow map size in texels (default 2048) */
@@ -74,6 +76,10 @@ typedef struct cv_render_opts {
   int sun_split;     /* 1: with a sun, draw the triangles facing away from it (n_t . s <= 0:
                         no direct sun) with the shader without the sun's per-pixel code
                         (default 1; the image is the same) */
+  int gpu;           /* CV_GPU_AUTO (default), CV_GPU_SOFTWARE or a hardware EGL device index
+                        (view/cave.h; render/egl_context.h says how each is chosen) */
+  const struct cv_window_spec *window; /* non-NULL: draw on this X11 window (connected and
+                        created here; cv_renderer_present / _swap); NULL: headless (default) */
   int tone_exact;    /* 1: Drago and the transfer computed in the shader with log and pow
                         (log, log, pow + 3 pow per pixel) instead of a table for Drago and a
                         polynomial for the transfer (default 0; the table falls back to it
@@ -125,6 +131,33 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
                        cv_err *err);
 /* Frees the GL objects and the context; accepts NULL. */
 void cv_renderer_destroy(cv_renderer *r);
+
+/* 1 when the context renders in software (llvmpipe), 0 on a hardware GPU. */
+int cv_renderer_is_software(const cv_renderer *r);
+/* Hardware EGL devices this process sees (whatever was chosen). */
+int cv_renderer_hw_devices(const cv_renderer *r);
+/* "device 0 (hardware, ...)", "software device (EGL device 0)", "x11 :99". */
+const char *cv_renderer_platform(const cv_renderer *r);
+
+/* ---- window presentation (opts.window) ----------------------------------
+ * Layouts of cv_renderer_present (view/cave.h cv_stereo_mode): passive
+ * (left only, whole window), side-by-side (left | right), top-bottom (left
+ * above right).  Quad-buffered stereo is refused at create time: EGL has no
+ * stereo configs. */
+
+/* Draws the 8-bit RGB image(s) (w x h, row 0 at the top; right NULL
+ * unless a packed stereo layout) into the window's back buffer, then
+ * glFinish: the frame is ready to swap.  Errors: CV_ERR_INVALID (no window,
+ * sizes), CV_ERR_BACKEND. */
+int cv_renderer_present(cv_renderer *r, const uint8_t *left, const uint8_t *right, int w, int h,
+                        int layout, cv_err *err);
+/* Swaps the window (eglSwapBuffers; vsync interval 1).  Errors: CV_ERR_BACKEND. */
+int cv_renderer_swap(cv_renderer *r, cv_err *err);
+/* Window events since the last poll: CV_WIN_OK, _CLOSED, _ESCAPE, _LOST
+ * (render/window.h); CV_WIN_OK without a window. */
+int cv_renderer_window_poll(cv_renderer *r);
+/* The window's size (0 x 0 without one). */
+void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
 
 /* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
 const char *cv_renderer_gl_name(const cv_renderer *r);

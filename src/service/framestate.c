@@ -219,6 +219,10 @@ int cv_walleye_report_pack(const cv_walleye_report *rp, uint8_t *buf) {
   put_f64(&w, rp->ms_lcd);
   put_u64(&w, rp->lcd_rounds_done);
   put_u64(&w, rp->state_hash);
+  put_u32(&w, rp->swap_frame);
+  put_f64(&w, rp->swap_t);
+  put_f64(&w, rp->ms_present);
+  put_f64(&w, rp->ms_barrier);
   if (w.off != CV_WALLEYE_REPORT_BYTES) return CV_ERR_INVALID;
   return w.nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
@@ -257,6 +261,10 @@ int cv_walleye_report_unpack(const uint8_t *buf, size_t len, cv_walleye_report *
   p.ms_lcd = GET_F64(&r, "ms_lcd");
   p.lcd_rounds_done = get_u64(&r);
   p.state_hash = get_u64(&r);
+  p.swap_frame = get_u32(&r);
+  p.swap_t = GET_F64(&r, "swap_t");
+  p.ms_present = GET_F64(&r, "ms_present");
+  p.ms_barrier = GET_F64(&r, "ms_barrier");
   if (r.off != CV_WALLEYE_REPORT_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
   if (r.bad) return nonfinite_err(&r, what, err);

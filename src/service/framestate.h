@@ -92,11 +92,15 @@ typedef struct cv_walleye_report {
   double ms_lum, ms_depth, ms_shade, ms_read, ms_total, ms_lcd; /* stage times, ms */
   uint64_t lcd_rounds_done;
   uint64_t state_hash;       /* FNV-1a of the packed frame state this rank rendered with */
+  uint32_t swap_frame;       /* the frame whose swap swap_t stamps (the previous one; 0xffffffff: none) */
+  double swap_t;             /* monotonic seconds of this rank's clock when that swap returned */
+  double ms_present;         /* that frame: present draw + glFinish, barrier wait, swap (ms) */
+  double ms_barrier;         /* of which waiting in the swap-lock barrier (ms) */
 } cv_walleye_report;
 
 #define CV_WALLEYE_REPORT_MAGIC 0x52455743u /* "CWER" */
-#define CV_WALLEYE_REPORT_VERSION 1u
-#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8)
+#define CV_WALLEYE_REPORT_VERSION 2u
+#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8 + 4 + 8 * 3)
 
 /* Packs r into buf (CV_WALLEYE_REPORT_BYTES bytes).  Errors: CV_ERR_NONFINITE
  * if a double is not finite, CV_ERR_INVALID on NULL. */

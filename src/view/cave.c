@@ -27,6 +27,9 @@ typedef struct ctx {
   char all[4096]; /* "field: what; field: what" */
   size_t len;
   int truncated;
+  char prefix[64]; /* prepended to field names (nested objects read with opt_num) */
+  char *lines;    /* optional: every problem, "file: field: what\n" (not owned) */
+  size_t lines_cap, lines_len;
 } ctx;
 
 static void problem(ctx *x, int status, const char *field, const char *fmt, ...)
@@ -39,10 +42,15 @@ static void problem(ctx *x, int status, const char *field, const char *fmt, ...)
   vsnprintf(what, sizeof what, fmt, ap);
   va_end(ap);
   if (field && field[0])
-    snprintf(line, sizeof line, "%s: %s", field, what);
+    snprintf(line, sizeof line, "%s%s: %s", x->prefix, field, what);
   else
     snprintf(line, sizeof line, "%s", what);
   if (x->count++ == 0) x->first_status = status;
+  if (x->lines && x->lines_len + 1 < x->lines_cap) {
+    int w = snprintf(x->lines + x->lines_len, x->lines_cap - x->lines_len, "%s: %s\n", x->file, line);
+    if (w > 0) x->lines_len += (size_t)w;
+    if (x->lines_len >= x->lines_cap) x->lines_len = x->lines_cap - 1;
+  }
   size_t need = strlen(line) + (x->len ? 2 : 0);
   if (x->len + need + 1 > sizeof x->all) {
     x->truncated = 1;
@@ -275,6 +283,234 @@ static int parse_wall(ctx *x, const cJSON *o, int i, cv_wall *w) {
   return ok;
 }
 
+static void ctx_field_prefix(ctx *x, const char *p) { snprintf(x->prefix, sizeof x->prefix, "%s", p); }
+
+/* --- outputs ---------------------------------------------------------------- */
+
+const char *cv_stereo_mode_name(int mode) {
+  switch (mode) {
+  case CV_STEREO_PASSIVE: return "passive";
+  case CV_STEREO_QUAD: return "quad";
+  case CV_STEREO_SIDE_BY_SIDE: return "side-by-side";
+  case CV_STEREO_TOP_BOTTOM: return "top-bottom";
+  default: return "?";
+  }
+}
+
+/* Without "outputs": one passive output per wall-eye, rank order wall-major
+ * (rank 1 + 2w + e), this host's $DISPLAY, tiled at run time, GPU auto. */
+static void default_outputs(cv_cave *c) {
+  c->n_outputs = 0;
+  for (int w = 0; w < c->n_walls; w++)
+    for (int e = 0; e < 2; e++) {
+      cv_output *o = &c->outputs[c->n_outputs++];
+      memset(o, 0, sizeof *o);
+      o->wall = w;
+      o->eyes = 1 << e;
+      o->gpu = CV_GPU_AUTO;
+      o->stereo = CV_STEREO_PASSIVE;
+    }
+}
+
+/* "name:N.S" -> host part ("" when none) and the rest. */
+static void display_host(const char *d, char *host, size_t cap) {
+  const char *colon = strrchr(d, ':');
+  size_t n = colon ? (size_t)(colon - d) : 0;
+  if (n >= cap) n = cap - 1;
+  memcpy(host, d, n);
+  host[n] = 0;
+}
+
+static int parse_output(ctx *x, const cJSON *o, int i, const cv_cave *c, cv_output *out) {
+  char path[32], f[64];
+  snprintf(path, sizeof path, "outputs[%d]", i);
+  if (!cJSON_IsObject(o)) {
+    problem(x, CV_ERR_CONFIG, path, "expected an object {wall, eye, host, display, geometry, gpu, stereo}");
+    return 0;
+  }
+  static const char *const keys[] = {"wall", "eye", "host", "display", "geometry", "fullscreen",
+                                     "gpu", "stereo", NULL};
+  int before = x->count;
+  only_keys(x, o, path, keys);
+  memset(out, 0, sizeof *out);
+  out->wall = -1;
+  out->gpu = CV_GPU_UNSET;
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, "wall");
+  snprintf(f, sizeof f, "%s.wall", path);
+  if (!v || !cJSON_IsString(v)) {
+    problem(x, CV_ERR_CONFIG, f, "%s (expected the name of one of the walls)", v ? "not a string" : "missing");
+  } else {
+    for (int w = 0; w < c->n_walls; w++)
+      if (!strcmp(c->walls[w].name, v->valuestring)) out->wall = w;
+    if (out->wall < 0) problem(x, CV_ERR_CONFIG, f, "no wall named \"%s\"", v->valuestring);
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "stereo");
+  snprintf(f, sizeof f, "%s.stereo", path);
+  out->stereo = CV_STEREO_PASSIVE;
+  if (v) {
+    int m = -1;
+    for (int k = 0; k < 4 && cJSON_IsString(v); k++)
+      if (!strcmp(v->valuestring, cv_stereo_mode_name(k))) m = k;
+    if (m < 0) problem(x, CV_ERR_CONFIG, f, "expected \"passive\", \"quad\", \"side-by-side\" or \"top-bottom\"");
+    else out->stereo = m;
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "eye");
+  snprintf(f, sizeof f, "%s.eye", path);
+  if (out->stereo == CV_STEREO_PASSIVE) {
+    if (!v || !cJSON_IsString(v) || (strcmp(v->valuestring, "left") && strcmp(v->valuestring, "right")))
+      problem(x, CV_ERR_CONFIG, f, "%s (a passive output shows one eye: \"left\" or \"right\")",
+              v ? "invalid" : "missing");
+    else
+      out->eyes = strcmp(v->valuestring, "left") ? 2 : 1;
+  } else {
+    if (v && (!cJSON_IsString(v) || strcmp(v->valuestring, "both")))
+      problem(x, CV_ERR_CONFIG, f, "a %s output shows both eyes: \"both\" or leave it out",
+              cv_stereo_mode_name(out->stereo));
+    out->eyes = 3;
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "host");
+  snprintf(f, sizeof f, "%s.host", path);
+  if (v) {
+    if (!cJSON_IsString(v) || strlen(v->valuestring) >= sizeof out->host || strchr(v->valuestring, ' '))
+      problem(x, CV_ERR_CONFIG, f, "expected a host name (no spaces, up to %zu characters)", sizeof out->host - 1);
+    else
+      snprintf(out->host, sizeof out->host, "%s", v->valuestring);
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "display");
+  snprintf(f, sizeof f, "%s.display", path);
+  if (v) {
+    if (!cJSON_IsString(v) || strlen(v->valuestring) >= sizeof out->display || !strchr(v->valuestring, ':'))
+      problem(x, CV_ERR_CONFIG, f, "expected an X display such as \":0\" or \":0.1\"");
+    else
+      snprintf(out->display, sizeof out->display, "%s", v->valuestring);
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "fullscreen");
+  snprintf(f, sizeof f, "%s.fullscreen", path);
+  if (v) {
+    if (!cJSON_IsBool(v)) problem(x, CV_ERR_CONFIG, f, "expected true or false");
+    else out->fullscreen = cJSON_IsTrue(v);
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "geometry");
+  snprintf(f, sizeof f, "%s.geometry", path);
+  if (v) {
+    int ok = cJSON_IsArray(v) && cJSON_GetArraySize(v) == 4;
+    for (int k = 0; ok && k < 4; k++) {
+      const cJSON *e = cJSON_GetArrayItem(v, k);
+      if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) ||
+          fabs(e->valuedouble) > 65535 || (k >= 2 && e->valuedouble < 1))
+        ok = 0;
+      else
+        out->geometry[k] = (int)e->valuedouble;
+    }
+    if (!ok) {
+      problem(x, CV_ERR_CONFIG, f, "expected [x, y, w, h] in pixels (w, h >= 1)");
+      out->geometry[2] = 0;
+    } else if (out->fullscreen) {
+      problem(x, CV_ERR_CONFIG, f, "give geometry or \"fullscreen\": true, not both");
+    }
+  }
+  v = cJSON_GetObjectItemCaseSensitive(o, "gpu");
+  snprintf(f, sizeof f, "%s.gpu", path);
+  if (!v) {
+    problem(x, CV_ERR_CONFIG, f, "missing (expected a hardware EGL device index >= 0, \"auto\" or \"software\")");
+  } else if (cJSON_IsString(v) && !strcmp(v->valuestring, "auto")) {
+    out->gpu = CV_GPU_AUTO;
+  } else if (cJSON_IsString(v) && !strcmp(v->valuestring, "software")) {
+    out->gpu = CV_GPU_SOFTWARE;
+  } else if (cJSON_IsNumber(v) && v->valuedouble == floor(v->valuedouble) && v->valuedouble >= 0 &&
+             v->valuedouble < 64) {
+    out->gpu = (int)v->valuedouble;
+  } else {
+    problem(x, CV_ERR_CONFIG, f, "expected a hardware EGL device index 0..63, \"auto\" or \"software\"");
+  }
+  if (out->display[0] && out->host[0]) {
+    char dh[64];
+    display_host(out->display, dh, sizeof dh);
+    if (dh[0] && strcmp(dh, out->host)) {
+      snprintf(f, sizeof f, "%s.display", path);
+      problem(x, CV_ERR_CONFIG, f, "\"%s\" is a display of host \"%s\", but the output runs on \"%s\"",
+              out->display, dh, out->host);
+    }
+  }
+  return x->count == before;
+}
+
+/* Two outputs share a screen when they are on the same host and X display
+ * (an empty display means the rank's $DISPLAY: the same for one host). */
+static int same_screen(const cv_output *a, const cv_output *b) {
+  return !strcmp(a->host, b->host) && !strcmp(a->display, b->display);
+}
+
+static int overlap(const cv_output *a, const cv_output *b) {
+  if (a->fullscreen || b->fullscreen) return 1;
+  if (!a->geometry[2] || !b->geometry[2]) return 0; /* tiled at run time, side by side */
+  return a->geometry[0] < b->geometry[0] + b->geometry[2] && b->geometry[0] < a->geometry[0] + a->geometry[2] &&
+         a->geometry[1] < b->geometry[1] + b->geometry[3] && b->geometry[1] < a->geometry[1] + a->geometry[3];
+}
+
+static void parse_outputs(ctx *x, const cJSON *v, cv_cave *c) {
+  if (!cJSON_IsArray(v) || cJSON_GetArraySize(v) < 1 || cJSON_GetArraySize(v) > CV_CAVE_MAX_OUTPUTS) {
+    problem(x, CV_ERR_CONFIG, "outputs", "expected an array of 1..%d outputs", CV_CAVE_MAX_OUTPUTS);
+    return;
+  }
+  const int n = cJSON_GetArraySize(v);
+  int ok = 1;
+  for (int i = 0; i < n; i++) ok &= parse_output(x, cJSON_GetArrayItem(v, i), i, c, &c->outputs[i]);
+  c->n_outputs = n;
+  /* Every wall-eye exactly once. */
+  int cover[CV_CAVE_MAX_WALLS][2];
+  memset(cover, 0, sizeof cover);
+  for (int i = 0; i < n; i++)
+    for (int e = 0; e < 2; e++)
+      if (c->outputs[i].wall >= 0 && (c->outputs[i].eyes >> e & 1)) {
+        int *cv = &cover[c->outputs[i].wall][e];
+        if (*cv) {
+          char f[32];
+          snprintf(f, sizeof f, "outputs[%d]", i);
+          problem(x, CV_ERR_CONFIG, f, "wall \"%s\" %s eye is already shown by outputs[%d]",
+                  c->walls[c->outputs[i].wall].name, e ? "right" : "left", *cv - 1);
+        } else {
+          *cv = i + 1;
+        }
+      }
+  if (ok)
+    for (int w = 0; w < c->n_walls; w++)
+      for (int e = 0; e < 2; e++)
+        if (!cover[w][e])
+          problem(x, CV_ERR_CONFIG, "outputs", "no output shows wall \"%s\" %s eye", c->walls[w].name,
+                  e ? "right" : "left");
+  /* Windows sharing a screen must not overlap; a display naming a host
+   * belongs to that host alone. */
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < i; j++) {
+      const cv_output *a = &c->outputs[i], *b = &c->outputs[j];
+      char f[32];
+      snprintf(f, sizeof f, "outputs[%d]", i);
+      if (same_screen(a, b) && overlap(a, b))
+        problem(x, CV_ERR_CONFIG, f, "window overlaps outputs[%d] on host \"%s\" display \"%s\"", j,
+                a->host[0] ? a->host : "(any)", a->display[0] ? a->display : "$DISPLAY");
+      char ha[64], hb[64];
+      display_host(a->display, ha, sizeof ha);
+      display_host(b->display, hb, sizeof hb);
+      if (ha[0] && !strcmp(a->display, b->display) && strcmp(a->host, b->host))
+        problem(x, CV_ERR_CONFIG, f, "display \"%s\" is used by hosts \"%s\" (outputs[%d]) and \"%s\"",
+                a->display, b->host[0] ? b->host : "(any)", j, a->host[0] ? a->host : "(any)");
+    }
+}
+
+cv_rank_role cv_cave_rank_role(const cv_cave *c, int rank) {
+  cv_rank_role r = {CV_ROLE_GATHER, -1};
+  if (rank == 0) r.role = CV_ROLE_MASTER;
+  else if (rank - 1 < c->n_outputs) r.role = CV_ROLE_RENDER, r.output = rank - 1;
+  return r;
+}
+
+int cv_cave_walleye_rank(const cv_cave *c, int wall, int eye) {
+  for (int i = 0; i < c->n_outputs; i++)
+    if (c->outputs[i].wall == wall && (c->outputs[i].eyes >> eye & 1)) return 1 + i;
+  return -1;
+}
+
 /* --- root ----------------------------------------------------------------- */
 
 void cv_cave_defaults(cv_cave *c) {
@@ -293,6 +529,9 @@ void cv_cave_defaults(cv_cave *c) {
   c->gaze[2] = -1.0;
   c->near = 0.05;
   c->far = 50.0;
+  c->rate = 60.0;
+  c->screen_reflectance = 0.8;
+  c->screen_patches = 24;
 }
 
 static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
@@ -304,7 +543,8 @@ static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
       "description", "walls",   "eye_separation", "supersample", "foveal_deg",
       "lum_res",     "drago_bias", "drago_ldmax", "t0_cone",     "t0_rod",
       "tau_cone",    "tau_rod", "head",           "gaze",        "scene_offset",
-      "near",        "far",     NULL};
+      "near",        "far",     "rate",           "screens",     "outputs",
+      NULL};
   only_keys(x, root, "", keys);
 
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(root, "description");
@@ -376,6 +616,30 @@ static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
   if (clip_ok && !(c->far > c->near))
     problem(x, CV_ERR_RANGE, "far", "expected far > near, got near %g, far %g", c->near, c->far);
 
+  opt_num(x, root, "rate", 0.0, 1, 1000.0, 0, &c->rate);
+  v = cJSON_GetObjectItemCaseSensitive(root, "screens");
+  if (v) {
+    static const char *const skeys[] = {"reflectance", "patches", NULL};
+    if (!cJSON_IsObject(v)) {
+      problem(x, CV_ERR_CONFIG, "screens", "expected an object {reflectance, patches}");
+    } else {
+      only_keys(x, v, "screens", skeys);
+      ctx_field_prefix(x, "screens.");
+      opt_num(x, v, "reflectance", 0.0, 0, 1.0, 1, &c->screen_reflectance);
+      opt_int(x, v, "patches", 1, 256, &c->screen_patches);
+      ctx_field_prefix(x, "");
+    }
+  }
+  if (walls_ok) {
+    v = cJSON_GetObjectItemCaseSensitive(root, "outputs");
+    if (v) {
+      c->outputs_given = 1;
+      parse_outputs(x, v, c);
+    } else {
+      default_outputs(c);
+    }
+  }
+
   /* The default head must see every wall from its front. */
   if (walls_ok && head_ok)
     for (int i = 0; i < c->n_walls; i++) {
@@ -387,10 +651,22 @@ static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
     }
 }
 
+static int cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out, char *lines,
+                      size_t cap, int *count, cv_err *err);
+
 int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out,
                   cv_err *err) {
+  return cave_parse(json_text, name_for_errors, out, NULL, 0, NULL, err);
+}
+
+static int cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out, char *lines,
+                      size_t cap, int *count, cv_err *err) {
   ctx x;
   memset(&x, 0, sizeof x);
+  x.lines = lines;
+  x.lines_cap = cap;
+  if (lines && cap) lines[0] = 0;
+  if (count) *count = 0;
   x.file = name_for_errors ? name_for_errors : "(cave)";
   if (!json_text || !out) {
     problem(&x, CV_ERR_INVALID, "", "no text or no output");
@@ -403,6 +679,7 @@ int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *o
     if (e)
       for (const char *q = json_text; q < e && *q; q++) line += *q == '\n';
     problem(&x, CV_ERR_FORMAT, "", "not valid JSON (near line %d)", line);
+    if (count) *count = x.count;
     return finish(&x, err);
   }
   cv_cave *c = malloc(sizeof *c);
@@ -413,6 +690,7 @@ int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *o
   cv_cave_defaults(c);
   parse_root(&x, root, c);
   cJSON_Delete(root);
+  if (count) *count = x.count;
   if (x.count) {
     free(c);
     return finish(&x, err);
@@ -424,6 +702,12 @@ int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *o
 }
 
 int cv_cave_load(const char *path, cv_cave *out, cv_err *err) {
+  return cv_cave_load_all(path, out, NULL, 0, NULL, err);
+}
+
+int cv_cave_load_all(const char *path, cv_cave *out, char *buf, size_t cap, int *count, cv_err *err) {
+  if (count) *count = 1;
+  if (buf && cap) buf[0] = 0;
   if (!path || !out) return cv_err_set(err, CV_ERR_INVALID, "cv_cave_load: no path or output");
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
@@ -444,7 +728,7 @@ int cv_cave_load(const char *path, cv_cave *out, cv_err *err) {
   }
   fclose(f);
   t[n] = '\0';
-  int st = cv_cave_parse(t, path, out, err);
+  int st = cave_parse(t, path, out, buf, cap, count, err);
   free(t);
   return st;
 }

@@ -93,7 +93,7 @@ static void test_size_constants(void **state) {
   (void)state;
   assert_int_equal(CV_DRIVE_STATE_BYTES, 128);
   assert_int_equal(CV_FRAME_STATE_BYTES, 1892);
-  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 128);
+  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 156);
 }
 
 static void test_round_trip_bit_exact(void **state) {
@@ -267,6 +267,10 @@ static void fill_report(cv_walleye_report *r) {
   r->ms_lcd = 0;
   r->lcd_rounds_done = 123456789012ull;
   r->state_hash = 0xfedcba9876543210ull;
+  r->swap_frame = 76;
+  r->swap_t = 12345.678901234;
+  r->ms_present = 2.5;
+  r->ms_barrier = 0.125;
 }
 
 static void test_walleye_round_trip(void **state) {
@@ -292,6 +296,9 @@ static void test_walleye_round_trip(void **state) {
   assert_memory_equal(&u.ms_total, &r.ms_total, 8);
   assert_true(u.lcd_rounds_done == r.lcd_rounds_done);
   assert_true(u.state_hash == r.state_hash);
+  assert_int_equal(u.swap_frame, 76);
+  assert_memory_equal(&u.swap_t, &r.swap_t, 8);
+  assert_true(u.ms_present == 2.5 && u.ms_barrier == 0.125);
 
   r.max_l = NAN;
   assert_int_equal(cv_walleye_report_pack(&r, b), CV_ERR_NONFINITE);

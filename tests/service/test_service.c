@@ -7,5 +7,6 @@ int main(void) {
   failed += run_tracker_tests();
   failed += run_framestate_tests();
   failed += run_metrics_tests();
+  failed += run_clocksync_tests();
   return failed ? 1 : 0;
 }

@@ -6,5 +6,6 @@ int run_drive_tests(void);
 int run_tracker_tests(void);
 int run_framestate_tests(void);
 int run_metrics_tests(void);
+int run_clocksync_tests(void);
 
 #endif
