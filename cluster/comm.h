@@ -30,7 +30,9 @@ enum {
   CV_TAG_IMAGE = 8,   /* left-eye wall-eye -> master: display image of a written frame */
   CV_TAG_PING = 9,    /* master -> render rank: clock probe (t0 of the master) */
   CV_TAG_PONG = 10,   /* render rank -> master: t0 echoed, t1 (received), t2 (sent) */
-  CV_TAG_STOPREQ = 11 /* render rank -> master: its window was closed / Escape / X lost */
+  CV_TAG_STOPREQ = 11, /* render rank -> master: its window was closed / Escape / X lost */
+  CV_TAG_SWAPREADY = 12, /* render rank -> master: frame drawn and finished (u32 frame) */
+  CV_TAG_GO = 13        /* master -> render rank: swap frame at this time of the rank's clock */
 };
 
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size);

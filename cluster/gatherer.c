@@ -20,7 +20,7 @@ void cv_service_ready(int ok, const char *msg) {
   char buf[512];
   buf[0] = ok ? 'O' : 'F';
   size_t n = 1;
-  if (!ok && msg) {
+  if (msg) {
     size_t l = strlen(msg);
     if (l > sizeof buf - 2) l = sizeof buf - 2;
     memcpy(buf + 1, msg, l);
@@ -37,7 +37,13 @@ int cv_gather_run(cv_service *s) {
   const int index = cv_service_contributor(s, s->rank);
   int st = cv_prt_read(s->o.scene_path, &prt, &err);
   if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, &w, &err);
-  cv_service_ready(st == CV_OK, err.msg);
+  {
+    char host[128], msg[800];
+    cv_comm_host(host, sizeof host);
+    if (st == CV_OK) snprintf(msg, sizeof msg, "rank %d on %s: gather-only (LCD path tracing)", s->rank, host);
+    else snprintf(msg, sizeof msg, "rank %d on %s (gather): %s", s->rank, host, err.msg);
+    cv_service_ready(st == CV_OK, msg);
+  }
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
   double stop_since = 0;
   int rc = st ? 1 : 0;

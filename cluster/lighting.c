@@ -34,12 +34,19 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->lcd_luminance = 500;
   o->lcd_idle = 1;
   o->seed = 1;
+  o->present = CV_PRESENT_FILES;
+  o->gpu = CV_GPU_UNSET;
+  o->clock = -1;
+  o->predict = 1;
+  o->swap_sync = CV_SWAP_SCHEDULED;
+  o->swap_margin_ms = 3;
+  o->predict_horizon = 0.1;
 }
 
 int cv_service_contributor(const cv_service *s, int rank) {
   if (!s->o.lcd || rank <= 0 || rank >= s->size) return -1;
-  if (rank <= s->n_walleyes) return s->o.lcd_idle ? rank - 1 : -1;
-  return (s->o.lcd_idle ? s->n_walleyes : 0) + (rank - 1 - s->n_walleyes);
+  if (rank <= s->n_render) return s->o.lcd_idle ? rank - 1 : -1;
+  return (s->o.lcd_idle ? s->n_render : 0) + (rank - 1 - s->n_render);
 }
 
 static double snap(double v, double step) { return step * floor(v / step + 0.5); }

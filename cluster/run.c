@@ -52,7 +52,25 @@ static void help(FILE *f) {
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
-          "  --barrier            per-frame barrier (swap lock)\n"
+          "  --present WHAT       files, window, none, or a list: window,files (default files).\n"
+          "                       window: one borderless window per output of the CAVE config\n"
+          "                       (its host, X display, geometry or fullscreen), vsync, swap\n"
+          "                       lock; Escape or closing a window stops the service\n"
+          "  --gpu G              auto, software or a hardware EGL device index N, for every\n"
+          "                       output (default: each output's \"gpu\"); auto prefers hardware,\n"
+          "                       and a hardware request never falls back to llvmpipe\n"
+          "  --clock C            wall (real time: paced to the config's rate, drive and sun\n"
+          "                       follow the clock) or sim (fixed --dt per frame, reproducible);\n"
+          "                       default wall with windows, else sim\n"
+          "  --no-predict         use the newest head pose as it is (default: predicted to\n"
+          "                       the expected scan-out, constant velocity; wall clock only)\n"
+          "  --predict-horizon S  predict at most S seconds ahead (default 0.1)\n"
+          "  --barrier            swap lock also without windows\n"
+          "  --swap-sync S        scheduled (default: the master sends every rank one swap\n"
+          "                       time once all are ready; each sleeps to it) or barrier\n"
+          "                       (MPI_Ibarrier among the render ranks, swap on release)\n"
+          "  --swap-margin-ms T   scheduled swaps: the swap time is T ms after the last rank\n"
+          "                       is ready (default 3)\n"
           "  --display FILE.json  compensation display (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default 24)\n"
           "  --reflectance R      screen reflectance of the generated display (default 0.8)\n"
@@ -100,6 +118,24 @@ static void problem(problems *p, const char *fmt, ...) {
   p->n++;
 }
 
+/* "files", "window", "none" or a comma list of the first two. */
+static int parse_present(const char *v, unsigned *out) {
+  char buf[64];
+  if (strlen(v) >= sizeof buf) return -1;
+  snprintf(buf, sizeof buf, "%s", v);
+  unsigned p = 0;
+  int none = 0, n = 0;
+  for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save), n++) {
+    if (!strcmp(t, "files")) p |= CV_PRESENT_FILES;
+    else if (!strcmp(t, "window")) p |= CV_PRESENT_WINDOW;
+    else if (!strcmp(t, "none")) none = 1;
+    else return -1;
+  }
+  if (n == 0 || (none && n > 1)) return -1;
+  *out = p;
+  return 0;
+}
+
 static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, problems *pb) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -120,6 +156,34 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       *check = 1;
     } else if (!strcmp(a, "--barrier")) {
       o->barrier = 1;
+    } else if (!strcmp(a, "--no-predict")) {
+      o->predict = 0;
+    } else if (!strcmp(a, "--present")) {
+      NEED();
+      if (parse_present(v, &o->present)) problem(pb, "--present: expected files, window, none or a comma list such as window,files, got '%s'", v);
+    } else if (!strcmp(a, "--gpu")) {
+      NEED();
+      if (!strcmp(v, "auto")) o->gpu = CV_GPU_AUTO;
+      else if (!strcmp(v, "software")) o->gpu = CV_GPU_SOFTWARE;
+      else if (cli_parse_int(v, 0, 63, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
+    } else if (!strcmp(a, "--clock")) {
+      NEED();
+      if (!strcmp(v, "wall")) o->clock = 1;
+      else if (!strcmp(v, "sim")) o->clock = 0;
+      else problem(pb, "--clock: expected wall or sim, got '%s'", v);
+    } else if (!strcmp(a, "--swap-sync")) {
+      NEED();
+      if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;
+      else if (!strcmp(v, "barrier")) o->swap_sync = CV_SWAP_BARRIER;
+      else problem(pb, "--swap-sync: expected scheduled or barrier, got '%s'", v);
+    } else if (!strcmp(a, "--swap-margin-ms")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--swap-margin-ms: expected 0..1000, got '%s'", v);
+      else o->swap_margin_ms = d;
+    } else if (!strcmp(a, "--predict-horizon")) {
+      NEED();
+      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--predict-horizon: expected 0..1 s, got '%s'", v);
+      else o->predict_horizon = d;
     } else if (!strcmp(a, "--quiet")) {
       o->quiet = 1;
     } else if (!strcmp(a, "--no-compensation")) {
@@ -240,17 +304,45 @@ static int file_readable(const char *p) {
   return 1;
 }
 
+/* Loads the CAVE config, adding each of its problems; 1 when there were any. */
+static int cave_problems(const char *path, cv_cave *cave, problems *pb) {
+  char buf[8192];
+  int n = 0;
+  cv_err err;
+  if (cv_cave_load_all(path, cave, buf, sizeof buf, &n, &err) == CV_OK) return 0;
+  if (!buf[0]) {
+    problem(pb, "%s", err.msg);
+    return 1;
+  }
+  int listed = 0;
+  for (char *save = NULL, *line = strtok_r(buf, "\n", &save); line; line = strtok_r(NULL, "\n", &save), listed++)
+    problem(pb, "%s", line);
+  for (; listed < n; listed++) problem(pb, "%s: (a further problem did not fit in the list)", path);
+  return 1;
+}
+
+/* Window outputs need an X display: the output's, or $DISPLAY. */
+static void check_present(cv_service *s, problems *pb) {
+  if (!(s->o.present & CV_PRESENT_WINDOW)) return;
+  const char *env = getenv("DISPLAY");
+  for (int i = 0; i < s->cave.n_outputs; i++)
+    if (!s->cave.outputs[i].display[0] && !(env && env[0]))
+      problem(pb, "--present window: outputs[%d] (wall %s) names no display and DISPLAY is not set", i,
+              s->cave.walls[s->cave.outputs[i].wall].name);
+}
+
 /* Every check that can be made before anything starts; fills s. */
 static void check_all(cv_service *s, int size, problems *pb) {
   cv_run_opts *o = &s->o;
   cv_err err;
   if (!o->cave_path[0]) {
     problem(pb, "no CAVE configuration given (cave run <cave.json> ...)");
-  } else if (cv_cave_load(o->cave_path, &s->cave, &err)) {
-    problem(pb, "%s", err.msg);
+  } else if (cave_problems(o->cave_path, &s->cave, pb)) {
+    /* every problem of the file listed */
   } else {
     s->n_walls = s->cave.n_walls;
     s->n_walleyes = 2 * s->n_walls;
+    s->n_render = s->cave.n_outputs;
     for (int a = 0; a < s->n_walls; a++)
       for (int b = a + 1; b < s->n_walls; b++) {
         const cv_wall *A = &s->cave.walls[a], *B = &s->cave.walls[b];
@@ -260,11 +352,11 @@ static void check_all(cv_service *s, int size, problems *pb) {
                   A->name, b, B->name);
       }
     if (cv_cave_check_eye(&s->cave, s->cave.head, &err)) problem(pb, "%s: head: %s", o->cave_path, err.msg);
-    const int need = 1 + s->n_walleyes;
+    const int need = 1 + s->n_render;
     if (size < need)
-      problem(pb, "%d ranks: %s has %d walls, so the service needs at least 1 + 2 x %d = %d ranks "
-              "(master + one per wall-eye); extra ranks path-trace the LCD", size, o->cave_path,
-              s->n_walls, s->n_walls, need);
+      problem(pb, "%d ranks: %s has %d walls shown by %d outputs, so the service needs at least "
+              "1 + %d = %d ranks (master + one per output); extra ranks path-trace the LCD", size,
+              o->cave_path, s->n_walls, s->n_render, s->n_render, need);
     else
       s->n_gather = size - need;
   }
@@ -304,7 +396,30 @@ static void check_all(cv_service *s, int size, problems *pb) {
     if (cv_service_display(s, &d, &err)) problem(pb, "--display: %s", err.msg);
     else cv_display_destroy(d);
   }
+  if (s->n_walls > 0) check_present(s, pb);
   if (!o->out_dir[0]) snprintf(o->out_dir, sizeof o->out_dir, "out/run");
+  if (o->clock < 0) o->clock = (o->present & CV_PRESENT_WINDOW) ? 1 : 0;
+  o->swap_lock = o->barrier || (o->present & CV_PRESENT_WINDOW);
+}
+
+static void print_layout(const cv_service *s, int ranks) {
+  printf("cave run: %d ranks: rank 0 master\n", ranks);
+  for (int i = 0; i < s->cave.n_outputs; i++) {
+    const cv_output *o = &s->cave.outputs[i];
+    char gpu[16];
+    const int g = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : o->gpu;
+    if (g == CV_GPU_AUTO) snprintf(gpu, sizeof gpu, "auto");
+    else if (g == CV_GPU_SOFTWARE) snprintf(gpu, sizeof gpu, "software");
+    else snprintf(gpu, sizeof gpu, "%d", g);
+    printf("  rank %d: wall %s, %s, host %s, display %s, ", 1 + i, s->cave.walls[o->wall].name,
+           o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"),
+           o->host[0] ? o->host : "(any)", o->display[0] ? o->display : "$DISPLAY");
+    if (o->fullscreen) printf("fullscreen");
+    else if (o->geometry[2]) printf("%dx%d+%d+%d", o->geometry[2], o->geometry[3], o->geometry[0], o->geometry[1]);
+    else printf("tiled");
+    printf(", gpu %s\n", gpu);
+  }
+  if (s->n_gather) printf("  ranks %d-%d: gather-only\n", 1 + s->n_render, ranks - 1);
 }
 
 static int mkdirs(const char *path) {
@@ -342,11 +457,7 @@ int cmd_run(int argc, char **argv) {
       cv_drive_destroy(s.drive);
       return 2;
     }
-    printf("cave run: %d ranks: rank 0 master", ranks);
-    for (int w = 0; w < s.n_walls; w++)
-      printf(", ranks %d-%d %s (left, right)", 1 + 2 * w, 2 + 2 * w, s.cave.walls[w].name);
-    if (s.n_gather) printf(", ranks %d-%d gather-only", 1 + s.n_walleyes, ranks - 1);
-    printf("\n");
+    print_layout(&s, ranks);
     cv_drive_destroy(s.drive);
     return 0;
   }
@@ -378,16 +489,21 @@ int cmd_run(int argc, char **argv) {
       }
     }
   }
-  s.n_contributors = s.o.lcd ? (s.o.lcd_idle ? s.n_walleyes : 0) + s.n_gather : 0;
+  s.n_contributors = s.o.lcd ? (s.o.lcd_idle ? s.n_render : 0) + s.n_gather : 0;
   if (s.o.lcd && s.n_contributors == 0) s.o.lcd = 0; /* nobody to path-trace the LCD */
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
+  const cv_rank_role role = cv_cave_rank_role(&s.cave, s.rank);
+  if (cv_comm_render_group(role.role == CV_ROLE_RENDER)) {
+    fprintf(stderr, "cave run: rank %d: cannot create the render ranks' communicator\n", s.rank);
+    cv_comm_abort(1, NULL);
+  }
   int rc;
-  if (s.rank == 0) rc = cv_master_run(&s);
-  else if (s.rank <= s.n_walleyes) rc = cv_walleye_run(&s);
+  if (role.role == CV_ROLE_MASTER) rc = cv_master_run(&s);
+  else if (role.role == CV_ROLE_RENDER) rc = cv_walleye_run(&s);
   else rc = cv_gather_run(&s);
   cv_drive_destroy(s.drive);
   cv_comm_finalize();

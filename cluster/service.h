@@ -3,9 +3,11 @@
  * in one picture").
  *   rank 0            master: scene state, tracker, adaptation, LCD sums,
  *                     compensation solve, metrics;
- *   ranks 1 .. 2W     wall-eyes: rank 1 + 2w + e renders wall w, eye e
- *                     (0 left, 1 right); an idle thread does LCD rounds;
- *   ranks > 2W        gather-only: LCD final-gather rounds.
+ *   ranks 1 .. R      render ranks: rank 1 + i shows outputs[i] of the CAVE
+ *                     config (one eye of a wall, or both eyes in one window;
+ *                     without outputs rank 1 + 2w + e is wall w, eye e); an
+ *                     idle thread does LCD rounds;
+ *   ranks > R         gather-only: LCD final-gather rounds.
  * No MPI here: roles talk through comm.h. */
 #ifndef CV_CLUSTER_SERVICE_H
 #define CV_CLUSTER_SERVICE_H
@@ -22,6 +24,21 @@
 #include "view/cave.h"
 
 #define CV_PATHLEN 1024
+
+/* --swap-sync: how the swap lock releases the render ranks.
+ *   barrier    MPI_Ibarrier among the render ranks, swap on release;
+ *   scheduled  each rank tells the master it is ready; when all are (or the
+ *              timeout passed) the master sends every rank one swap time,
+ *              converted to that rank's clock with its measured offset, a
+ *              margin ahead; each sleeps to it (clock_nanosleep, absolute)
+ *              and swaps.  Oversubscribed hosts release a barrier one
+ *              scheduler slice per rank apart; a shared deadline does not
+ *              depend on who runs when. */
+enum { CV_SWAP_SCHEDULED = 0, CV_SWAP_BARRIER = 1 };
+
+/* --present: what the render ranks do with a frame (bits). */
+#define CV_PRESENT_FILES 1u  /* EXR + PNG files on the frames the master marks */
+#define CV_PRESENT_WINDOW 2u /* a window per output (X11, EGL), swap-locked */
 
 typedef struct cv_run_opts {
   char cave_path[CV_PATHLEN];
@@ -43,6 +60,15 @@ typedef struct cv_run_opts {
   double timeout_ms;             /* wait for late contributions at most this long (default 2000) */
   double startup_timeout_s;      /* ranks must be ready within this (default 300) */
   int barrier;                   /* per-frame MPI barrier (swap lock) */
+  unsigned present;              /* CV_PRESENT_* bits (default files; 0 = none) */
+  int gpu;                       /* CV_GPU_UNSET: each output's; else it overrides all (--gpu) */
+  int clock;                     /* 0 sim (fixed dt), 1 wall (real time); -1: wall with windows */
+  int swap_lock;                 /* render ranks meet at a barrier before each swap (on with
+                                    windows or --barrier) */
+  int swap_sync;                 /* CV_SWAP_SCHEDULED (default) or CV_SWAP_BARRIER */
+  double swap_margin_ms;         /* scheduled swaps: GO sent this far ahead (default 3) */
+  int predict;                   /* 1: head predicted to the expected scan-out (wall clock) */
+  double predict_horizon;        /* at most this far ahead of the newest pose, s (default 0.1) */
   int compensate;                /* 1: scattering compensation (default) */
   int patches;                   /* patches per wall side for the generated display (default 24) */
   double reflectance;            /* screens of the generated display (default 0.8) */
@@ -65,6 +91,7 @@ typedef struct cv_service {
   cv_run_opts o;
   int rank, size;
   int n_walls, n_walleyes, n_gather;
+  int n_render;        /* render ranks 1..n_render (one per output; n_walleyes views) */
   int n_contributors;  /* LCD: wall-eye idle threads (if on) + gather ranks */
   cv_cave cave;
   cv_drive *drive;

@@ -1,12 +1,23 @@
-/* Wall-eye ranks: rank 1 + 2w + e renders wall w for eye e (0 left, 1 right).
- * Per frame: take the master's frame state; relight when the light key
- * changed; the three-pass frame (luminance at lum_res for the foveal
- * statistics, depth, PRT shading tone-mapped with the shared adaptation,
- * display-linear); the patch means of the display image go to the master
- * with the report; the master's correction for this wall (or the last one,
- * when it is late) is applied with equation 7; images are written on the
- * frames the master marks.  An idle thread renders LCD rounds meanwhile. */
+/* Render ranks: rank 1 + i shows outputs[i] of the CAVE config (view/cave.h):
+ * one eye of a wall (passive stereo) or both eyes of a wall in one window
+ * (side-by-side, top-bottom; quad-buffered is refused: EGL has no stereo
+ * configs).  Per frame, as named phases:
+ *   take the master's frame state; relight when the light key changed;
+ *   render each eye (luminance pass for the foveal statistics, depth, PRT
+ *     shading tone-mapped with the shared adaptation, display-linear);
+ *   report each eye (statistics, patch means, the previous frame's swap
+ *     time) to the master;
+ *   apply the master's scattering correction for this wall (or the last
+ *     one when it is late) with equation 7;
+ *   present: 8-bit projector codes (the PNG's) drawn into the window,
+ *     glFinish, the swap-lock barrier among all render ranks, swap, stamp;
+ *   write the frame's files when the master marks it.
+ * While waiting it answers the master's clock probes, does LCD rounds in an
+ * idle thread, takes LCD images, and watches its window: Escape, a closed
+ * window or a lost X connection is sent to the master, which stops every
+ * rank; this rank keeps its place in the barriers until then. */
 #include <math.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,9 +27,11 @@
 #include "compensate/resample.h"
 #include "core/hash.h"
 #include "io/exr.h"
+#include "io/png.h"
 #include "lcd/gather.h"
 #include "lcdwork.h"
 #include "render/renderer.h"
+#include "render/window.h"
 #include "service_internal.h"
 #include "tonemap/drago.h"
 #include "tonemap/foveal.h"
@@ -29,28 +42,45 @@ static int send_to_master(const uint8_t *buf, size_t len, void *user) {
   return cv_comm_send(buf, len, 0, CV_TAG_LCD);
 }
 
+/* One eye of the output. */
+typedef struct eye_view {
+  int eye;              /* 0 left, 1 right */
+  cv_image *disp_img;   /* uncompensated display-linear (Drago, no transfer) */
+  cv_image *hdr, *lum;
+  cv_image *out;        /* compensated display-linear: what the projector gets */
+  uint8_t *code;        /* 3 w h: out as 8-bit Rec.709 codes (window and PNG) */
+  double *patch;        /* 3 np: patch means of disp_img */
+} eye_view;
+
 typedef struct walleye {
   cv_service *s;
-  int wall, eye;
+  const cv_output *o;
+  int wall, n_eyes;
+  eye_view ev[2];
   cv_prt *prt;
   cv_renderer *r;
   cv_lcd_worker *lw;
   cv_display *disp;
   const cv_display_surface *S;
   int w, h;
-  cv_image *disp_img, *hdr, *lum, *out;
-  double *patch;      /* 3 np */
   float *delta;       /* 3 np: last correction */
   int have_delta;
   uint64_t light_key;
   int have_light;
-  cv_mailbox *state_mb, *corr_mb, *lcdimg_mb;
+  cv_mailbox *state_mb, *corr_mb, *lcdimg_mb, *ping_mb, *go_mb;
   uint64_t lcd_rounds_done;
   double lcd_ms;
   uint64_t late_corr;
   int have_panel;
   cv_lcd_panel panel;
   cv_lightmix *mix;
+  cv_rec709_lut lut;
+  cv_window_spec spec;
+  char title[96];
+  int win_event;      /* CV_WIN_* sent to the master (once) */
+  /* the last swap, reported with the next frame */
+  uint32_t swap_frame;
+  double swap_t, ms_present, ms_barrier;
 } walleye;
 
 static void walleye_free(walleye *we) {
@@ -59,46 +89,101 @@ static void walleye_free(walleye *we) {
   cv_renderer_destroy(we->r);
   cv_prt_destroy(we->prt);
   cv_display_destroy(we->disp);
-  cv_image_destroy(we->disp_img);
-  cv_image_destroy(we->hdr);
-  cv_image_destroy(we->lum);
-  cv_image_destroy(we->out);
-  free(we->patch);
+  for (int k = 0; k < 2; k++) {
+    eye_view *v = &we->ev[k];
+    cv_image_destroy(v->disp_img);
+    cv_image_destroy(v->hdr);
+    cv_image_destroy(v->lum);
+    cv_image_destroy(v->out);
+    free(v->code);
+    free(v->patch);
+  }
   free(we->delta);
   cv_mailbox_close(we->state_mb);
   cv_mailbox_close(we->corr_mb);
   cv_mailbox_close(we->lcdimg_mb);
+  cv_mailbox_close(we->ping_mb);
+  cv_mailbox_close(we->go_mb);
+}
+
+/* Where the window goes: the output's geometry, fullscreen, or (neither
+ * given) tiled five to a row in output order at the rendered size. */
+static void window_spec(walleye *we) {
+  const cv_output *o = we->o;
+  cv_window_spec *sp = &we->spec;
+  memset(sp, 0, sizeof *sp);
+  sp->display = o->display;
+  sp->fullscreen = o->fullscreen;
+  const int idx = we->s->rank - 1;
+  const int ww = we->w * (o->stereo == CV_STEREO_SIDE_BY_SIDE ? 2 : 1);
+  const int wh = we->h * (o->stereo == CV_STEREO_TOP_BOTTOM ? 2 : 1);
+  if (o->geometry[2] > 0) {
+    sp->x = o->geometry[0], sp->y = o->geometry[1], sp->w = o->geometry[2], sp->h = o->geometry[3];
+  } else {
+    sp->x = (idx % 5) * ww, sp->y = (idx / 5) * wh, sp->w = ww, sp->h = wh;
+  }
+  snprintf(we->title, sizeof we->title, "cave %s %s (rank %d)", we->s->cave.walls[we->wall].name,
+           o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "L" : "R"), we->s->rank);
+  sp->title = we->title;
+}
+
+static int eye_setup(walleye *we, eye_view *v, int eye, size_t np, cv_err *err) {
+  v->eye = eye;
+  if (cv_image_create(we->w, we->h, 3, &v->disp_img) || cv_image_create(we->w, we->h, 3, &v->hdr) ||
+      cv_image_create(we->w, we->h, 3, &v->out) ||
+      cv_image_create(we->s->cave.lum_res, we->s->cave.lum_res, 1, &v->lum) ||
+      !(v->code = malloc(3 * (size_t)we->w * we->h)) || (np && !(v->patch = calloc(3 * np, sizeof *v->patch))))
+    return cv_err_set(err, CV_ERR_NOMEM, "render rank: out of memory");
+  return CV_OK;
 }
 
 static int walleye_setup(walleye *we, cv_err *err) {
   cv_service *s = we->s;
+  const cv_rank_role role = cv_cave_rank_role(&s->cave, s->rank);
+  we->o = &s->cave.outputs[role.output];
+  we->wall = we->o->wall;
   const cv_wall *W = &s->cave.walls[we->wall];
   we->w = s->o.size > 0 ? s->o.size : W->res[0];
   we->h = s->o.size > 0 ? s->o.size : W->res[1];
+  we->swap_frame = 0xffffffffu;
+  cv_rec709_lut_init(&we->lut);
+  const int window = (s->o.present & CV_PRESENT_WINDOW) != 0;
+  if (window && we->o->stereo == CV_STEREO_QUAD)
+    return cv_err_set(err, CV_ERR_BACKEND,
+                      "outputs[%d] (wall %s): quad-buffered stereo needs a stereo GL config, and EGL "
+                      "offers none (no EGL stereo attribute exists; Mesa's GLX has no stereo visuals "
+                      "either): use \"passive\" (one output per eye) or \"side-by-side\"/\"top-bottom\"",
+                      role.output, W->name);
   int st = cv_prt_read(s->o.scene_path, &we->prt, err);
   if (st) return st;
   cv_render_opts ro;
   cv_render_default_opts(&ro);
   ro.timing = 1;
+  ro.gpu = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : we->o->gpu;
+  if (window) {
+    window_spec(we);
+    ro.window = &we->spec;
+  }
   st = cv_renderer_create(we->prt, &ro, &we->r, err);
   if (st) return st;
   st = cv_service_lightmix(s, (int)we->prt->bands, &we->mix, err);
   if (st) return st;
-  if (cv_image_create(we->w, we->h, 3, &we->disp_img) || cv_image_create(we->w, we->h, 3, &we->hdr) ||
-      cv_image_create(we->w, we->h, 3, &we->out) ||
-      cv_image_create(s->cave.lum_res, s->cave.lum_res, 1, &we->lum))
-    return cv_err_set(err, CV_ERR_NOMEM, "wall-eye: out of memory");
+  size_t np = 0;
   if (s->o.compensate) {
     st = cv_service_display(s, &we->disp, err);
     if (st) return st;
     we->S = cv_display_surface_at(we->disp, (size_t)we->wall);
-    const size_t np = (size_t)we->S->nu * we->S->nv;
-    we->patch = calloc(3 * np, sizeof *we->patch);
+    np = (size_t)we->S->nu * we->S->nv;
     we->delta = calloc(3 * np, sizeof *we->delta);
-    if (!we->patch || !we->delta) return cv_err_set(err, CV_ERR_NOMEM, "wall-eye: out of memory");
+    if (!we->delta) return cv_err_set(err, CV_ERR_NOMEM, "render rank: out of memory");
     we->corr_mb = cv_mailbox_open(0, CV_TAG_CORR, sizeof(cv_patch_msg) + 3 * np * sizeof(float));
-    if (!we->corr_mb) return cv_err_set(err, CV_ERR_NOMEM, "wall-eye: cannot post receives");
+    if (!we->corr_mb) return cv_err_set(err, CV_ERR_NOMEM, "render rank: cannot post receives");
   }
+  for (int e = 0; e < 2; e++)
+    if (we->o->eyes >> e & 1) {
+      st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
+      if (st) return st;
+    }
   if (s->o.lcd) {
     /* The panel frame, to show the LCD image on it. */
     cv_mesh *mesh;
@@ -113,14 +198,49 @@ static int walleye_setup(walleye *we, cv_err *err) {
     if (st) return st;
   }
   we->state_mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
+  we->ping_mb = cv_mailbox_open(0, CV_TAG_PING, sizeof(double));
+  we->go_mb = cv_mailbox_open(0, CV_TAG_GO, 2 * sizeof(double));
   we->lcdimg_mb = cv_mailbox_open(0, CV_TAG_LCDIMG,
                                   sizeof(cv_lcdimg_msg) + 3 * (size_t)s->o.lcd_w * s->o.lcd_h * sizeof(float));
-  if (!we->state_mb || !we->lcdimg_mb) return cv_err_set(err, CV_ERR_NOMEM, "wall-eye: cannot post receives");
+  if (!we->state_mb || !we->lcdimg_mb || !we->ping_mb || !we->go_mb)
+    return cv_err_set(err, CV_ERR_NOMEM, "render rank: cannot post receives");
   return CV_OK;
 }
 
-/* Background work while waiting: LCD rounds out, LCD images in. */
+/* Clock probes: echo t0 with this rank's receive and send times. */
+static void answer_pings(walleye *we) {
+  const uint8_t *data;
+  long len;
+  while ((len = cv_mailbox_take(we->ping_mb, &data, NULL)) >= 0) {
+    const double t1 = cv_service_now();
+    if (len != sizeof(double)) continue;
+    double msg[3];
+    memcpy(&msg[0], data, sizeof(double));
+    msg[1] = t1;
+    msg[2] = cv_service_now();
+    cv_comm_send(msg, sizeof msg, 0, CV_TAG_PONG);
+  }
+}
+
+/* The window: an operator's Escape or close, or a lost X connection, goes
+ * to the master once; it stops every rank. */
+static void watch_window(walleye *we) {
+  if (!we->r || we->win_event) return;
+  const int ev = cv_renderer_window_poll(we->r);
+  if (ev == CV_WIN_OK) return;
+  we->win_event = ev;
+  char msg[256];
+  snprintf(msg, sizeof msg, "%c rank %d (wall %s, %s, X display '%s'): %s", '0' + ev, we->s->rank,
+           we->s->cave.walls[we->wall].name, we->o->eyes == 3 ? "both eyes" : (we->o->eyes == 1 ? "left eye" : "right eye"),
+           we->spec.display && we->spec.display[0] ? we->spec.display : "$DISPLAY", cv_window_event_name(ev));
+  cv_comm_send(msg, strlen(msg) + 1, 0, CV_TAG_STOPREQ);
+}
+
+/* Background work while waiting: clock probes, the window, LCD rounds out,
+ * LCD images in. */
 static void idle(walleye *we) {
+  answer_pings(we);
+  watch_window(we);
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, &we->lcd_rounds_done, &we->lcd_ms);
   const uint8_t *data;
   long len;
@@ -152,7 +272,6 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
   for (;;) {
     const uint8_t *data;
     long len;
-    int got = 0;
     while ((len = cv_mailbox_take(we->state_mb, &data, NULL)) >= 0) {
       cv_err err;
       cv_frame_state t;
@@ -162,12 +281,9 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
       }
       *fs = t;
       if (hash) *hash = cv_hash64(data, (size_t)len);
-      got = 1;
-      if (t.flags & CV_FS_QUIT) return 0;
-      break; /* one frame at a time: later states stay queued */
+      return !(t.flags & CV_FS_QUIT); /* one frame at a time: later states stay queued */
     }
-    if (got) return 1;
-    idle(we);
+    if (we->ping_mb) idle(we);
     if (*we->s->stop) {
       if (stop_since == 0) stop_since = cv_service_now();
       else if (cv_service_now() - stop_since > 5) return 0;
@@ -176,38 +292,282 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
   }
 }
 
-static int write_outputs(walleye *we, const cv_frame_state *fs, cv_err *err) {
+/* ---- phases of a frame ----------------------------------------------------- */
+
+static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_timing *tm) {
+  if (we->have_light && fs->light_key == we->light_key) return;
+  cv_lighting l;
+  memset(&l, 0, sizeof l);
+  l.bands = fs->bands;
+  memcpy(l.sh, fs->sh, sizeof l.sh);
+  l.has_sun = fs->has_sun;
+  memcpy(l.sun_dir, fs->sun_dir, sizeof l.sun_dir);
+  memcpy(l.sun_E, fs->sun_E, sizeof l.sun_E);
+  cv_image *bg = NULL;
+  cv_lighting unused;
+  cv_err err;
+  if (cv_renderer_set_lighting(we->r, &l, NULL, tm, &err) ||
+      cv_service_lighting(we->s, we->mix, &fs->drive, fs->bands, &unused, 512, &bg, &err) ||
+      cv_renderer_set_background(we->r, bg, &err)) {
+    fprintf(stderr, "cave run: rank %d: lighting: %s\n", we->s->rank, err.msg);
+  } else {
+    we->light_key = fs->light_key;
+    we->have_light = 1;
+  }
+  cv_image_destroy(bg);
+}
+
+/* Renders one eye and fills its report's statistics and stage times. */
+static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_frame_timing *tm,
+                       cv_walleye_report *rep) {
+  cv_service *s = we->s;
+  const cv_wall *W = &s->cave.walls[we->wall];
+  double eyes[2][3];
+  cv_head_eyes(fs->head, fs->gaze, s->cave.eye_separation, eyes[0], eyes[1]);
+  cv_render_view rv;
+  memset(&rv, 0, sizeof rv);
+  const int vst = cv_offaxis_compute(W->pa, W->pb, W->pc, eyes[v->eye], s->cave.near, s->cave.far, &rv.proj);
+  memcpy(rv.scene_offset, s->cave.scene_offset, sizeof rv.scene_offset);
+  rv.w = we->w;
+  rv.h = we->h;
+  rv.supersample = s->cave.supersample;
+  cv_drago d;
+  cv_drago_default(&d);
+  d.bias = s->cave.drago_bias;
+  d.ldmax = s->cave.drago_ldmax;
+  d.lwa = fs->lwa;
+  d.lwmax = fs->lwmax;
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  cv_err err;
+  if (vst || cv_renderer_frame(we->r, &rv, &dc, 0, v->disp_img, v->hdr, v->lum, tm, &err)) {
+    /* head behind this wall or a GL failure: black frame, no statistics */
+    if (!vst) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
+    memset(v->disp_img->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
+    memset(v->hdr->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
+  } else {
+    /* Foveal statistics from the head position (the cone of the gaze). */
+    const double half_angle = 0.5 * s->cave.foveal_deg * M_PI / 180.0;
+    cv_lumstats ls;
+    memset(&ls, 0, sizeof ls);
+    if (cv_foveal_touches(W->pa, W->pb, W->pc, fs->head, fs->gaze, half_angle))
+      cv_foveal_accumulate(v->lum->px, v->lum->w, v->lum->h, W->pa, W->pb, W->pc, fs->head, fs->gaze,
+                           half_angle, &ls);
+    rep->sum_log = ls.sum_log;
+    rep->weight = ls.weight;
+    rep->n_pixels = ls.n_pixels;
+    rep->n_invalid = ls.n_invalid;
+    /* max_l: the largest luminance of the whole pass (Drago's Lwmax). */
+    double mx = 0;
+    for (size_t i = 0; i < (size_t)v->lum->w * v->lum->h; i++)
+      if (isfinite(v->lum->px[i]) && v->lum->px[i] > mx) mx = v->lum->px[i];
+    rep->max_l = mx;
+  }
+  rep->ms_lum = tm->lum_ms + tm->lum_read_ms;
+  rep->ms_depth = tm->depth_ms;
+  rep->ms_shade = tm->shade_ms + tm->background_ms + tm->resolve_ms;
+  rep->ms_read = tm->read_ms;
+}
+
+/* Sends one eye's report (+ the patch means of its image) to the master. */
+static void send_report(walleye *we, eye_view *v, cv_walleye_report *rep) {
+  size_t np = 0;
+  if (we->disp) {
+    np = (size_t)we->S->nu * we->S->nv;
+    cv_downsample_to_patches(v->disp_img, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v, v->patch);
+  }
+  rep->ms_lcd = we->lcd_ms;
+  rep->lcd_rounds_done = we->lcd_rounds_done;
+  rep->swap_frame = we->swap_frame;
+  rep->swap_t = we->swap_t;
+  rep->ms_present = we->ms_present;
+  rep->ms_barrier = we->ms_barrier;
+  size_t len = CV_WALLEYE_REPORT_BYTES + (we->disp ? sizeof(cv_patch_msg) + 3 * np * sizeof(float) : 0);
+  uint8_t *buf = malloc(len);
+  if (buf && cv_walleye_report_pack(rep, buf) == CV_OK) {
+    if (we->disp) {
+      cv_patch_msg pm = {.frame = rep->frame, .n = (uint32_t)np};
+      memcpy(buf + CV_WALLEYE_REPORT_BYTES, &pm, sizeof pm);
+      float *px = (float *)(void *)(buf + CV_WALLEYE_REPORT_BYTES + sizeof pm);
+      for (size_t i = 0; i < 3 * np; i++) px[i] = (float)v->patch[i];
+    }
+    cv_comm_send(buf, len, 0, CV_TAG_REPORT);
+  }
+  free(buf);
+}
+
+/* This frame's correction for the wall, or the last one when late. */
+static void take_correction(walleye *we, const cv_frame_state *fs) {
+  cv_service *s = we->s;
+  const size_t np = (size_t)we->S->nu * we->S->nv;
+  const double deadline = cv_service_now() + (fs->frame == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s)
+                                                             : s->o.timeout_ms * 1e-3);
+  int got = 0;
+  while (!got) {
+    const uint8_t *data;
+    long l;
+    while ((l = cv_mailbox_take(we->corr_mb, &data, NULL)) >= 0) {
+      cv_patch_msg pm;
+      if ((size_t)l != sizeof pm + 3 * np * sizeof(float)) continue;
+      memcpy(&pm, data, sizeof pm);
+      if (pm.n != np) continue;
+      memcpy(we->delta, data + sizeof pm, 3 * np * sizeof(float));
+      we->have_delta = 1;
+      if (pm.frame == fs->frame) {
+        got = 1;
+        break;
+      }
+    }
+    if (got || cv_service_now() > deadline || *s->stop) break;
+    idle(we);
+    nap();
+  }
+  if (!got) we->late_corr++;
+}
+
+/* out = the projector image of each eye: compensated (equation 7) or as rendered. */
+static void compensate_eyes(walleye *we) {
+  const size_t px = 3 * (size_t)we->w * we->h;
+  double *dd = NULL;
+  if (we->disp && we->have_delta) {
+    const size_t np = (size_t)we->S->nu * we->S->nv;
+    dd = malloc(3 * np * sizeof *dd);
+    if (dd)
+      for (size_t i = 0; i < 3 * np; i++) dd[i] = we->delta[i];
+  }
+  for (int k = 0; k < we->n_eyes; k++) {
+    eye_view *v = &we->ev[k];
+    if (dd)
+      cv_apply_patch_delta(v->disp_img, dd, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v, v->out);
+    else
+      memcpy(v->out->px, v->disp_img->px, px * sizeof(float));
+    cv_rec709_codes(&we->lut, v->out->px, px, v->code);
+  }
+  free(dd);
+}
+
+/* Scheduled swap: ready to the master, then its swap time (this rank's
+ * clock) for this frame, slept to. */
+static void wait_for_go(walleye *we, uint32_t frame) {
+  const double ready = (double)frame;
+  cv_comm_send(&ready, sizeof ready, 0, CV_TAG_SWAPREADY);
+  for (;;) {
+    const uint8_t *data;
+    long len;
+    while ((len = cv_mailbox_take(we->go_mb, &data, NULL)) >= 0) {
+      double msg[2];
+      if (len != sizeof msg) continue;
+      memcpy(msg, data, sizeof msg);
+      if ((uint32_t)msg[0] != frame) continue; /* an older frame's */
+      const double at = msg[1];
+      struct timespec ts = {(time_t)floor(at), (long)((at - floor(at)) * 1e9)};
+      if (at > cv_service_now()) clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
+      return;
+    }
+    if (*we->s->stop) return;
+    answer_pings(we);
+    watch_window(we);
+    cv_comm_progress();
+    sched_yield();
+  }
+}
+
+/* Present: draw, glFinish, meet every render rank at the barrier, swap,
+ * stamp the swap's return.  Without a window only the barrier (when the
+ * swap lock is on), so the frame loop keeps the same shape. */
+static void present(walleye *we, const cv_frame_state *fs) {
+  cv_service *s = we->s;
+  const double t0 = cv_service_now();
+  cv_err err;
+  const int window = (s->o.present & CV_PRESENT_WINDOW) && we->win_event == CV_WIN_OK;
+  if (window) {
+    const int packed = we->o->eyes == 3;
+    if (cv_renderer_present(we->r, we->ev[0].code, packed ? we->ev[1].code : NULL, we->w, we->h,
+                            we->o->stereo, &err))
+      fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
+  }
+  double tb = cv_service_now();
+  if (s->o.swap_lock && s->o.swap_sync == CV_SWAP_SCHEDULED) {
+    wait_for_go(we, fs->frame);
+  } else if (s->o.swap_lock) {
+    cv_comm_render_barrier_start();
+    /* Poll, yielding the core: on an oversubscribed host the ranks that
+     * still render (and MPI's progress) need it, and a rank that spun here
+     * would see the barrier's release a scheduler slice late. */
+    while (!cv_comm_render_barrier_test()) {
+      answer_pings(we);
+      cv_comm_progress();
+      sched_yield();
+    }
+  }
+  const double tb1 = cv_service_now();
+  if (window && we->win_event == CV_WIN_OK && cv_renderer_swap(we->r, &err)) {
+    watch_window(we);
+    if (!we->win_event) fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
+  }
+  we->swap_t = cv_service_now();
+  we->swap_frame = fs->frame;
+  we->ms_barrier = (tb1 - tb) * 1e3;
+  we->ms_present = (we->swap_t - t0) * 1e3;
+}
+
+static int write_outputs(walleye *we, eye_view *v, const cv_frame_state *fs, cv_err *err) {
   const char *wn = we->s->cave.walls[we->wall].name;
+  const char *en = v->eye ? "R" : "L";
   char path[CV_PATHLEN + 96];
-  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.exr", we->s->o.out_dir, fs->frame, wn,
-           we->eye ? "R" : "L");
-  int st = cv_exr_write(path, we->hdr, 1, CV_EXR_ZIP, err);
+  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.exr", we->s->o.out_dir, fs->frame, wn, en);
+  int st = cv_exr_write(path, v->hdr, 1, CV_EXR_ZIP, err);
   if (st) return st;
-  /* PNG: compensated display values through the Rec.709 transfer. */
-  cv_image *png;
-  st = cv_image_create(we->w, we->h, 3, &png);
-  if (st) return cv_err_set(err, st, "out of memory");
-  for (size_t i = 0; i < 3 * (size_t)we->w * we->h; i++)
-    png->px[i] = (float)cv_rec709_transfer(we->out->px[i]);
-  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.png", we->s->o.out_dir, fs->frame, wn,
-           we->eye ? "R" : "L");
-  st = cv_service_write_png01(path, png, err);
-  if (st == CV_OK && we->eye == 0) {
-    /* the master assembles the left eye's montage */
-    size_t n = sizeof(cv_patch_msg) + 2 * sizeof(int32_t) + 3 * (size_t)we->w * we->h * sizeof(float);
+  /* PNG: the projector's 8-bit codes, the same bytes the window shows. */
+  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.png", we->s->o.out_dir, fs->frame, wn, en);
+  st = cv_png_write(path, we->w, we->h, 3, v->code, err);
+  if (st) return st;
+  if (we->disp) {
+    /* the uncompensated tone-mapped image beside it */
+    uint8_t *u = malloc(3 * (size_t)we->w * we->h);
+    if (!u) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    cv_rec709_codes(&we->lut, v->disp_img->px, 3 * (size_t)we->w * we->h, u);
+    snprintf(path, sizeof path, "%s/frame%05u_%s_%s_uncompensated.png", we->s->o.out_dir, fs->frame, wn, en);
+    st = cv_png_write(path, we->w, we->h, 3, u, err);
+    free(u);
+    if (st) return st;
+  }
+  if (v->eye == 0) {
+    /* the master assembles the left eye's montages and the viewer
+     * simulation: display-linear compensated and uncompensated images */
+    const size_t npx = 3 * (size_t)we->w * we->h;
+    size_t n = sizeof(cv_patch_msg) + 2 * sizeof(int32_t) + 2 * npx * sizeof(float);
     uint8_t *buf = malloc(n);
     if (buf) {
       cv_patch_msg pm = {.frame = fs->frame, .n = (uint32_t)we->wall};
       int32_t wh[2] = {we->w, we->h};
       memcpy(buf, &pm, sizeof pm);
       memcpy(buf + sizeof pm, wh, sizeof wh);
-      memcpy(buf + sizeof pm + sizeof wh, png->px, 3 * (size_t)we->w * we->h * sizeof(float));
+      memcpy(buf + sizeof pm + sizeof wh, v->out->px, npx * sizeof(float));
+      memcpy(buf + sizeof pm + sizeof wh + npx * sizeof(float), v->disp_img->px, npx * sizeof(float));
       cv_comm_send(buf, n, 0, CV_TAG_IMAGE);
       free(buf);
     }
   }
-  cv_image_destroy(png);
-  return st;
+  return CV_OK;
+}
+
+/* The ready line's text: where this rank renders and with what. */
+static void ready_text(const walleye *we, char *buf, size_t cap) {
+  char host[128];
+  cv_comm_host(host, sizeof host);
+  const cv_output *o = we->o;
+  const int win = (we->s->o.present & CV_PRESENT_WINDOW) != 0;
+  int ww = 0, wh = 0;
+  cv_renderer_window_size(we->r, &ww, &wh);
+  char where[160];
+  if (win) snprintf(where, sizeof where, "window %dx%d+%d+%d on %s", ww, wh, we->spec.x, we->spec.y,
+                    cv_renderer_platform(we->r));
+  else snprintf(where, sizeof where, "headless on the %s", cv_renderer_platform(we->r));
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none",
+           we->s->rank, host, we->s->cave.walls[we->wall].name,
+           o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
+           cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU");
 }
 
 int cv_walleye_run(cv_service *s) {
@@ -215,15 +575,14 @@ int cv_walleye_run(cv_service *s) {
   memset(&WE, 0, sizeof WE);
   walleye *we = &WE;
   we->s = s;
-  we->wall = (s->rank - 1) / 2;
-  we->eye = (s->rank - 1) % 2;
   cv_err err;
   cv_err_clear(&err);
   int st = walleye_setup(we, &err);
   {
-    char msg[700];
-    snprintf(msg, sizeof msg, "wall-eye %s/%s: %s", s->cave.walls[we->wall].name, we->eye ? "right" : "left",
-             err.msg);
+    char msg[900];
+    if (st == CV_OK) ready_text(we, msg, sizeof msg);
+    else snprintf(msg, sizeof msg, "rank %d (outputs[%d], wall %s): %s", s->rank, s->rank - 1,
+                  we->o ? s->cave.walls[we->wall].name : "?", err.msg);
     cv_service_ready(st == CV_OK, msg);
   }
   if (st) {
@@ -234,8 +593,6 @@ int cv_walleye_run(cv_service *s) {
     cv_comm_flush(2);
     return 1;
   }
-  const cv_wall *W = &s->cave.walls[we->wall];
-  const double half_angle = 0.5 * s->cave.foveal_deg * M_PI / 180.0;
   cv_frame_state fs;
   int rc = 0;
   uint64_t state_hash = 0;
@@ -244,146 +601,28 @@ int cv_walleye_run(cv_service *s) {
     if (we->lw) cv_lcd_worker_post(we->lw, &fs);
     cv_frame_timing tm;
     memset(&tm, 0, sizeof tm);
-    /* Lighting. */
-    if (!we->have_light || fs.light_key != we->light_key) {
-      cv_lighting l;
-      memset(&l, 0, sizeof l);
-      l.bands = fs.bands;
-      memcpy(l.sh, fs.sh, sizeof l.sh);
-      l.has_sun = fs.has_sun;
-      memcpy(l.sun_dir, fs.sun_dir, sizeof l.sun_dir);
-      memcpy(l.sun_E, fs.sun_E, sizeof l.sun_E);
-      cv_image *bg = NULL;
-      cv_lighting unused;
-      if (cv_renderer_set_lighting(we->r, &l, NULL, &tm, &err) ||
-          cv_service_lighting(s, we->mix, &fs.drive, fs.bands, &unused, 512, &bg, &err) ||
-          cv_renderer_set_background(we->r, bg, &err)) {
-        fprintf(stderr, "cave run: rank %d: lighting: %s\n", s->rank, err.msg);
-      } else {
-        we->light_key = fs.light_key;
-        we->have_light = 1;
-      }
-      cv_image_destroy(bg);
+    relight_if_needed(we, &fs, &tm);
+    for (int k = 0; k < we->n_eyes; k++) {
+      cv_walleye_report rep;
+      memset(&rep, 0, sizeof rep);
+      rep.frame = fs.frame;
+      rep.rank = s->rank;
+      rep.wall = we->wall;
+      rep.eye = we->ev[k].eye;
+      rep.state_hash = state_hash;
+      render_eye(we, &we->ev[k], &fs, &tm, &rep);
+      rep.ms_total = (cv_service_now() - t0) * 1e3;
+      send_report(we, &we->ev[k], &rep);
     }
-    /* This eye's off-axis view. */
-    double eyes[2][3];
-    cv_head_eyes(fs.head, fs.gaze, s->cave.eye_separation, eyes[0], eyes[1]);
-    cv_render_view v;
-    memset(&v, 0, sizeof v);
-    int vst = cv_offaxis_compute(W->pa, W->pb, W->pc, eyes[we->eye], s->cave.near, s->cave.far, &v.proj);
-    memcpy(v.scene_offset, s->cave.scene_offset, sizeof v.scene_offset);
-    v.w = we->w;
-    v.h = we->h;
-    v.supersample = s->cave.supersample;
-    cv_drago d;
-    cv_drago_default(&d);
-    d.bias = s->cave.drago_bias;
-    d.ldmax = s->cave.drago_ldmax;
-    d.lwa = fs.lwa;
-    d.lwmax = fs.lwmax;
-    cv_drago_consts dc;
-    cv_drago_prepare(&d, &dc);
-    cv_walleye_report rep;
-    memset(&rep, 0, sizeof rep);
-    rep.frame = fs.frame;
-    rep.rank = s->rank;
-    rep.wall = we->wall;
-    rep.eye = we->eye;
-    rep.state_hash = state_hash;
-    if (vst || cv_renderer_frame(we->r, &v, &dc, 0, we->disp_img, we->hdr, we->lum, &tm, &err)) {
-      /* head behind this wall or a GL failure: black frame, no statistics */
-      if (!vst) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs.frame, err.msg);
-      memset(we->disp_img->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
-      memset(we->hdr->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
-    } else {
-      /* Foveal statistics from the head position (the cone of the gaze). */
-      cv_lumstats ls;
-      memset(&ls, 0, sizeof ls);
-      if (cv_foveal_touches(W->pa, W->pb, W->pc, fs.head, fs.gaze, half_angle))
-        cv_foveal_accumulate(we->lum->px, we->lum->w, we->lum->h, W->pa, W->pb, W->pc, fs.head,
-                             fs.gaze, half_angle, &ls);
-      rep.sum_log = ls.sum_log;
-      rep.weight = ls.weight;
-      rep.n_pixels = ls.n_pixels;
-      rep.n_invalid = ls.n_invalid;
-      /* max_l: the largest luminance of the whole pass (Drago's Lwmax). */
-      double mx = 0;
-      for (size_t i = 0; i < (size_t)we->lum->w * we->lum->h; i++)
-        if (isfinite(we->lum->px[i]) && we->lum->px[i] > mx) mx = we->lum->px[i];
-      rep.max_l = mx;
-    }
-    rep.ms_lum = tm.lum_ms + tm.lum_read_ms;
-    rep.ms_depth = tm.depth_ms;
-    rep.ms_shade = tm.shade_ms + tm.background_ms + tm.resolve_ms;
-    rep.ms_read = tm.read_ms;
-    /* Report (+ patch means) to the master. */
-    size_t np = 0;
-    if (we->disp) {
-      np = (size_t)we->S->nu * we->S->nv;
-      cv_downsample_to_patches(we->disp_img, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v,
-                               we->patch);
-    }
-    rep.ms_total = (cv_service_now() - t0) * 1e3;
-    rep.ms_lcd = we->lcd_ms;
-    rep.lcd_rounds_done = we->lcd_rounds_done;
-    size_t len = CV_WALLEYE_REPORT_BYTES + (we->disp ? sizeof(cv_patch_msg) + 3 * np * sizeof(float) : 0);
-    uint8_t *buf = malloc(len);
-    if (buf && cv_walleye_report_pack(&rep, buf) == CV_OK) {
-      if (we->disp) {
-        cv_patch_msg pm = {.frame = fs.frame, .n = (uint32_t)np};
-        memcpy(buf + CV_WALLEYE_REPORT_BYTES, &pm, sizeof pm);
-        float *px = (float *)(void *)(buf + CV_WALLEYE_REPORT_BYTES + sizeof pm);
-        for (size_t i = 0; i < 3 * np; i++) px[i] = (float)we->patch[i];
-      }
-      cv_comm_send(buf, len, 0, CV_TAG_REPORT);
-    }
-    free(buf);
-    /* Compensation: this frame's correction, or the last one if late. */
-    if (we->disp) {
-      const double deadline =
-          cv_service_now() + (fs.frame == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s)
-                                            : s->o.timeout_ms * 1e-3);
-      int got = 0;
-      while (!got) {
-        const uint8_t *data;
-        long l;
-        while ((l = cv_mailbox_take(we->corr_mb, &data, NULL)) >= 0) {
-          cv_patch_msg pm;
-          if ((size_t)l != sizeof pm + 3 * np * sizeof(float)) continue;
-          memcpy(&pm, data, sizeof pm);
-          if (pm.n != np) continue;
-          memcpy(we->delta, data + sizeof pm, 3 * np * sizeof(float));
-          we->have_delta = 1;
-          if (pm.frame == fs.frame) {
-            got = 1;
-            break;
-          }
+    if (we->disp) take_correction(we, &fs);
+    compensate_eyes(we);
+    present(we, &fs);
+    if (fs.flags & CV_FS_WRITE)
+      for (int k = 0; k < we->n_eyes; k++)
+        if (write_outputs(we, &we->ev[k], &fs, &err)) {
+          fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
+          rc = 1;
         }
-        if (got || cv_service_now() > deadline || *s->stop) break;
-        idle(we);
-        nap();
-      }
-      if (!got) we->late_corr++;
-      if (we->have_delta) {
-        double *dd = malloc(3 * np * sizeof *dd);
-        if (dd) {
-          for (size_t i = 0; i < 3 * np; i++) dd[i] = we->delta[i];
-          cv_apply_patch_delta(we->disp_img, dd, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v,
-                               we->out);
-          free(dd);
-        }
-      } else {
-        memcpy(we->out->px, we->disp_img->px, 3 * (size_t)we->w * we->h * sizeof(float));
-      }
-    } else {
-      memcpy(we->out->px, we->disp_img->px, 3 * (size_t)we->w * we->h * sizeof(float));
-    }
-    if (fs.flags & CV_FS_WRITE) {
-      if (write_outputs(we, &fs, &err)) {
-        fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
-        rc = 1;
-      }
-    }
     idle(we);
   }
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, NULL, NULL);

@@ -8,6 +8,7 @@
 #include "tonemap/foveal.h"
 
 #include <math.h>
+#include <string.h>
 #include <stddef.h>
 
 void cv_drago_default(cv_drago *d) {
@@ -52,6 +53,43 @@ double cv_rec709_transfer(double e) {
   if (!(e > 0.0)) return 0.0;
   if (e > 1.0) e = 1.0;
   return e <= 0.012 ? 6.75 * e : 1.099 * pow(e, 0.9 / 2.2) - 0.099;
+}
+
+uint8_t cv_rec709_code_exact(float e) {
+  float t = (float)cv_rec709_transfer(e);
+  t = t > 0 ? (t < 1 ? t : 1) : 0;
+  return (uint8_t)lrintf(t * 255.0f);
+}
+
+void cv_rec709_lut_init(cv_rec709_lut *t) {
+  for (int k = 0; k < 255; k++) {
+    /* smallest float e in (0, 1] with code > k: bisect on the float bits
+     * (positive floats order as their bit patterns) */
+    uint32_t lo = 0, hi = 0x3f800000u; /* 0 .. 1.0f; code(1) = 255 > k */
+    while (hi - lo > 1) {
+      uint32_t mid = lo + (hi - lo) / 2;
+      float e;
+      memcpy(&e, &mid, sizeof e);
+      if (cv_rec709_code_exact(e) > k) hi = mid;
+      else lo = mid;
+    }
+    memcpy(&t->step[k], &hi, sizeof hi);
+  }
+}
+
+uint8_t cv_rec709_code(const cv_rec709_lut *t, float e) {
+  if (!(e > 0)) return 0; /* NaN, 0, negative */
+  int lo = 0, hi = 255; /* code = number of steps <= e */
+  while (lo < hi) {
+    int mid = (lo + hi) / 2;
+    if (t->step[mid] <= e) lo = mid + 1;
+    else hi = mid;
+  }
+  return (uint8_t)lo;
+}
+
+void cv_rec709_codes(const cv_rec709_lut *t, const float *e, size_t n, uint8_t *out) {
+  for (size_t i = 0; i < n; i++) out[i] = cv_rec709_code(t, e[i]);
 }
 
 static int finite_nonneg(float v) { return isfinite(v) && v >= 0.0f; }

@@ -77,6 +77,22 @@ double cv_drago_map(const cv_drago_consts *c, double lw);
  * to [0, 1] first (NaN -> 0). */
 double cv_rec709_transfer(double e);
 
+/* The 8-bit code a display gets for display-linear e: lrintf((float)
+ * cv_rec709_transfer(e) * 255), what the PNG previews store.  The table
+ * holds the 255 smallest floats at which the code steps (found by bisection
+ * on the exact curve, which is monotone), so a lookup is 8 comparisons and
+ * equals the direct formula for every float (NaN and e <= 0 give 0).
+ * Initialise once with cv_rec709_lut_init; read-only afterwards. */
+typedef struct cv_rec709_lut {
+  float step[255]; /* step[k]: smallest e with code > k */
+} cv_rec709_lut;
+void cv_rec709_lut_init(cv_rec709_lut *t);
+uint8_t cv_rec709_code(const cv_rec709_lut *t, float e);
+/* Codes of n values (e.g. 3 w h of an RGB image). */
+void cv_rec709_codes(const cv_rec709_lut *t, const float *e, size_t n, uint8_t *out);
+/* The direct formula (the reference of the table). */
+uint8_t cv_rec709_code_exact(float e);
+
 /* Tone-maps an image.  in: c = 1 (luminance), 3 (RGB) or 4 (RGBA, alpha copied).
  * RGB colour is scaled by Ld/Lw with Lw = Rec.709 Y = 0.2126R + 0.7152G + 0.0722B;
  * the result is clamped per channel to [0, 1] (saturated colours can exceed 1

@@ -40,9 +40,9 @@ COMMON=(--scene scene.prt --size 48 --lcd-size 40x30 --lcd-spp 4 --patches 8 --q
 
 # --- configuration errors before launch ------------------------------------
 "$CAVE" run --check --ranks 3 "$CFG" --scene scene.prt >out.txt 2>err.txt; rc=$?
-[ $rc -ne 0 ] && grep -q "at least 1 + 2 x 5 = 11 ranks" err.txt && ok "too few ranks (check): $(head -1 err.txt)" || bad "too few ranks: rc $rc $(cat err.txt)"
+[ $rc -ne 0 ] && grep -q "at least 1 + 10 = 11 ranks" err.txt && ok "too few ranks (check): $(head -1 err.txt)" || bad "too few ranks: rc $rc $(cat err.txt)"
 "$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt >out.txt 2>err.txt \
-  && grep -q "ranks 9-10 ceiling" out.txt && ok "layout: $(cat out.txt)" || bad "layout $(cat out.txt err.txt)"
+  && grep -q "rank 10: wall ceiling, right eye" out.txt && ok "layout: $(cat out.txt)" || bad "layout $(cat out.txt err.txt)"
 sed 's/"name": "left"/"name": "front"/' "$CFG" > dup.json
 "$CAVE" run --check --ranks 11 dup.json --scene missing.prt --drive nodrive.json >out.txt 2>err.txt; rc=$?
 n=$(grep -c "" err.txt)

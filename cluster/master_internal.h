@@ -1,0 +1,162 @@
+/* The master's state and the parts of its frame loop that live in their own
+ * files (internal to cluster/):
+ *   master.c         set-up, the frame loop as named phases, metrics
+ *   master_sync.c    clock probes of the render ranks, swap skew, tracker
+ *                    age and motion-to-photon latency, head prediction,
+ *                    stop requests from windows
+ *   master_lcd.c     LCD rounds summed in fixed point, the LCD image
+ *   master_images.c  montages of written frames and the viewer simulation */
+#ifndef CV_CLUSTER_MASTER_INTERNAL_H
+#define CV_CLUSTER_MASTER_INTERNAL_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "compensate/formfactor.h"
+#include "compensate/solve.h"
+#include "service/clocksync.h"
+#include "service/metrics.h"
+#include "service_internal.h"
+#include "tonemap/adapt.h"
+#include "tonemap/drago.h"
+#include "tonemap/foveal.h"
+
+typedef struct wall_in {
+  int got;                /* eyes that reported this frame */
+  double *r;              /* 3 np: sum over eyes of the patch images */
+} wall_in;
+
+#define POSE_RING 256
+
+/* What the master used for a frame: the pose's sample time (its clock), the
+ * time the pose was predicted to, the pose itself. */
+typedef struct pose_rec {
+  uint32_t frame;
+  int valid;
+  double t_sample;        /* when the tracker sample was taken / received (s) */
+  double t_target;        /* the scan-out time it was predicted to (s) */
+  double pos[3];
+} pose_rec;
+
+typedef struct master {
+  cv_service *s;
+  int bands;
+  int wall_clock;         /* 1: --clock wall */
+  double t_start;         /* master clock at the first frame */
+  cv_head_path *path;
+  cv_dtrack_receiver *dtr;
+  cv_head_pose pose;      /* newest tracker sample */
+  double pose_time;       /* its sample time (master clock) */
+  cv_head_pose prev_pose; /* the one before (prediction) */
+  double prev_pose_time;
+  double latency_est;     /* expected pose -> scan-out (s), running average */
+  pose_rec poses[POSE_RING];
+  cv_tracker_stats trk;
+  cv_adapt_params ap;
+  cv_adapt_state ad;
+  int have_adapt;
+  double pending_dt;      /* simulated time since the last adaptation update */
+  cv_lumstats stats;      /* previous frame's merged foveal statistics */
+  int have_stats;
+  double lwmax;
+  uint64_t light_key;
+  int have_light;
+  cv_lighting lighting;
+  cv_lightmix *mix;       /* map drives: per-frame lighting from preprocessed maps */
+  /* compensation */
+  cv_display *disp;
+  cv_ffmatrix *F;
+  cv_scatter_system sys;
+  cv_scatter_workspace *ws;
+  float *T, *I;
+  double *r;              /* 3n: current patch images (eyes averaged) */
+  wall_in *walls;
+  cv_scatter_stats cst;
+  int comp_ok;
+  /* LCD */
+  cv_mailbox *lcd_mb;
+  uint64_t lcd_key;
+  int32_t lcd_eye_q[3];
+  cv_lcd_progress prog;
+  uint8_t *seen;          /* budget flags: round already summed */
+  uint32_t lcd_rounds;
+  uint64_t lcd_rejected, lcd_late;
+  double lcd_last_send;
+  uint32_t lcd_sent_rounds;
+  cv_image *lcd_content;
+  /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
+  cv_mailbox **rep_mb;
+  uint64_t late_reports;
+  uint64_t sent_hash;     /* FNV-1a of this frame's packed state */
+  int state_mismatch;     /* reports of this frame rendered with other bytes */
+  uint64_t state_mismatch_total;
+  cv_walleye_report *reps; /* per wall-eye, this frame */
+  int *got;               /* per wall-eye */
+  /* synchronisation (master_sync.c) */
+  cv_mailbox *pong_mb, *stop_mb, *ready_mb;
+  uint8_t *swap_ready;    /* per render rank: ready for this frame's swap */
+  double release_ms;      /* the last frame: waiting for the ranks to be ready */
+  int release_late;       /* ranks not ready by the deadline */
+  cv_clock_est *clk;      /* per render rank */
+  double *last_ping;      /* per render rank: when the last probe went out */
+  double offset_unc_max;  /* largest offset uncertainty of the last frame (s) */
+  double skew_us;         /* the last frame's swap skew; NAN when not measured */
+  double mtp_ms, age_ms, pred_err_mm, held_err_mm; /* the last frame's; NAN unmeasured */
+  double *skew_hist, *mtp_hist, *age_hist, *pred_hist, *held_hist;
+  size_t n_skew, n_lat, n_pred;
+  int stop_code;          /* CV_WIN_* of the first stop request; 0 none */
+  char stop_reason[300];
+  /* montages of the left eye (written frames) and the viewer simulation */
+  cv_mailbox **img_mb;
+  cv_image **mont, **mont_unc; /* per wall: display-linear compensated / uncompensated */
+  uint32_t mont_frame;
+  int mont_have;
+  uint64_t montages;
+  double viewer_rms, viewer_rms_unc, viewer_ms; /* last viewer simulation (display-linear) */
+  int have_viewer;
+  cv_rec709_lut lut;
+  /* metrics */
+  FILE *mf;
+  cv_metrics_line *ml;
+  double *frame_ms, *overhead_ms;
+  size_t cap;             /* entries of the per-frame histories */
+  size_t nframes_done;
+} master;
+
+/* master_sync.c */
+int master_sync_setup(master *m, cv_err *err);
+void master_sync_free(master *m);
+/* Initial clock probes: `rounds` to every render rank, waiting for each. */
+void master_sync_initial(master *m, int rounds);
+/* Sends due probes (one per rank every 0.25 s) and takes the answers. */
+void master_sync_poll(master *m);
+/* Scheduled swap lock: waits (at most the timeout) until every render rank
+ * finished frame f, then sends each its swap time, margin ahead, in its
+ * own clock.  No-op unless --swap-sync scheduled with the swap lock on. */
+void master_release_swaps(master *m, uint32_t f);
+/* Takes stop requests; 1 when the service must stop (reason in m). */
+int master_stop_poll(master *m);
+/* Records the pose used for frame f (sample time, target time). */
+void master_pose_record(master *m, uint32_t f, double t_sample, double t_target, const double pos[3]);
+/* From this frame's reports: the previous frame's swap skew, tracker age,
+ * motion-to-photon estimate and prediction error. */
+void master_swap_stats(master *m, uint32_t f);
+/* The head for a frame: newest sample, predicted to the expected scan-out
+ * on the wall clock.  *t_sample gets the sample time, *t_target the target. */
+void master_head(master *m, double now, double frame_time, double head[3], double gaze[3],
+                 double *t_sample, double *t_target);
+void master_sync_metrics(master *m, cv_metrics_line *ml);
+void master_sync_summary(master *m, cv_metrics_line *ml);
+
+/* master_lcd.c */
+void lcd_drain(master *m);
+void lcd_publish(master *m, int force);
+void lcd_write(master *m, const char *stem);
+
+/* master_images.c */
+int master_images_setup(master *m, cv_err *err);
+void master_images_free(master *m);
+void montage_drain(master *m);
+void montage_flush(master *m);
+
+#endif
