@@ -12,7 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli/cli.h"
+#include "core/parse.h"
 #include "comm.h"
 #include "prt/prt.h"
 #include "service.h"
@@ -72,8 +72,10 @@ static void help(FILE *f) {
           "  --swap-margin-ms T   scheduled swaps: the swap time is T ms after the last rank\n"
           "                       is ready (default 3)\n"
           "  --display FILE.json  compensation display (default: generated from the walls)\n"
-          "  --patches P          patches per wall side of the generated display (default 24)\n"
-          "  --reflectance R      screen reflectance of the generated display (default 0.8)\n"
+          "  --patches P          patches per wall side of the generated display (default: the\n"
+          "                       config's screens.patches, 24)\n"
+          "  --reflectance R      screen reflectance of the generated display (default: the\n"
+          "                       config's screens.reflectance, 0.8)\n"
           "  --compensation-ms T  time slot of the compensation solve per frame (default 20;\n"
           "                       warm-started from the previous frame)\n"
           "  --no-compensation    no scattering compensation\n"
@@ -165,7 +167,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       NEED();
       if (!strcmp(v, "auto")) o->gpu = CV_GPU_AUTO;
       else if (!strcmp(v, "software")) o->gpu = CV_GPU_SOFTWARE;
-      else if (cli_parse_int(v, 0, 63, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
+      else if (cv_parse_int(v, 0, 63, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
     } else if (!strcmp(a, "--clock")) {
       NEED();
       if (!strcmp(v, "wall")) o->clock = 1;
@@ -178,11 +180,11 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       else problem(pb, "--swap-sync: expected scheduled or barrier, got '%s'", v);
     } else if (!strcmp(a, "--swap-margin-ms")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--swap-margin-ms: expected 0..1000, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--swap-margin-ms: expected 0..1000, got '%s'", v);
       else o->swap_margin_ms = d;
     } else if (!strcmp(a, "--predict-horizon")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--predict-horizon: expected 0..1 s, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--predict-horizon: expected 0..1 s, got '%s'", v);
       else o->predict_horizon = d;
     } else if (!strcmp(a, "--quiet")) {
       o->quiet = 1;
@@ -220,44 +222,44 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
     } else if (!strcmp(a, "--dtrack")) {
       NEED();
-      if (cli_parse_int(v, 1, 65535, &o->dtrack_port)) problem(pb, "--dtrack: expected a UDP port 1..65535, got '%s'", v);
+      if (cv_parse_int(v, 1, 65535, &o->dtrack_port)) problem(pb, "--dtrack: expected a UDP port 1..65535, got '%s'", v);
     } else if (!strcmp(a, "--dtrack-body")) {
       NEED();
-      if (cli_parse_int(v, 0, 1000000, &o->dtrack_body)) problem(pb, "--dtrack-body: expected an id >= 0, got '%s'", v);
+      if (cv_parse_int(v, 0, 1000000, &o->dtrack_body)) problem(pb, "--dtrack-body: expected an id >= 0, got '%s'", v);
     } else if (!strcmp(a, "--frames")) {
       NEED();
-      if (cli_parse_int(v, 0, 100000000, &o->frames)) problem(pb, "--frames: expected N >= 0, got '%s'", v);
+      if (cv_parse_int(v, 0, 100000000, &o->frames)) problem(pb, "--frames: expected N >= 0, got '%s'", v);
     } else if (!strcmp(a, "--ranks")) {
       NEED();
-      if (cli_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
+      if (cv_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
     } else if (!strcmp(a, "--dt")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
       else o->dt = d;
     } else if (!strcmp(a, "--max-fps")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d > 0 && d <= 1000)) problem(pb, "--max-fps: expected 0 < F <= 1000, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d > 0 && d <= 1000)) problem(pb, "--max-fps: expected 0 < F <= 1000, got '%s'", v);
       else o->max_fps = d;
     } else if (!strcmp(a, "--size")) {
       NEED();
-      if (cli_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
+      if (cv_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
     } else if (!strcmp(a, "--write-every")) {
       NEED();
-      if (cli_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);
+      if (cv_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);
     } else if (!strcmp(a, "--timeout-ms")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
       else o->timeout_ms = d;
     } else if (!strcmp(a, "--patches")) {
       NEED();
-      if (cli_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
+      if (cv_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
     } else if (!strcmp(a, "--reflectance")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--reflectance: expected 0..1, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--reflectance: expected 0..1, got '%s'", v);
       else o->reflectance = d;
     } else if (!strcmp(a, "--compensation-ms")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);
       else o->compensation_ms = d;
     } else if (!strcmp(a, "--lcd-size")) {
       NEED();
@@ -268,21 +270,21 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       else o->lcd_w = w, o->lcd_h = h;
     } else if (!strcmp(a, "--lcd-spp")) {
       NEED();
-      if (cli_parse_int(v, 1, 65536, &o->lcd_spp)) problem(pb, "--lcd-spp: expected 1..65536, got '%s'", v);
+      if (cv_parse_int(v, 1, 65536, &o->lcd_spp)) problem(pb, "--lcd-spp: expected 1..65536, got '%s'", v);
     } else if (!strcmp(a, "--lcd-budget")) {
       NEED();
-      if (cli_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
+      if (cv_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
     } else if (!strcmp(a, "--lcd-tolerance")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 1e-4 && d <= 1)) problem(pb, "--lcd-tolerance: expected 1e-4..1 m, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 1e-4 && d <= 1)) problem(pb, "--lcd-tolerance: expected 1e-4..1 m, got '%s'", v);
       else o->lcd_tolerance = d;
     } else if (!strcmp(a, "--lcd-luminance")) {
       NEED();
-      if (cli_parse_double(v, &d) || !(d >= 0 && d <= 1e6)) problem(pb, "--lcd-luminance: expected 0..1e6 cd/m2, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1e6)) problem(pb, "--lcd-luminance: expected 0..1e6 cd/m2, got '%s'", v);
       else o->lcd_luminance = d;
     } else if (!strcmp(a, "--seed")) {
       NEED();
-      if (cli_parse_int(v, 0, 2147483647, &n)) problem(pb, "--seed: expected 0..2^31-1, got '%s'", v);
+      if (cv_parse_int(v, 0, 2147483647, &n)) problem(pb, "--seed: expected 0..2^31-1, got '%s'", v);
       else o->seed = (uint32_t)n;
     } else if (a[0] == '-') {
       problem(pb, "unknown option '%s' (cave run --help lists them)", a);

@@ -108,6 +108,9 @@ int cv_service_contributor(const cv_service *s, int rank);
 void cv_service_quantise_drive(cv_drive_state *s);
 uint64_t cv_service_light_key(const cv_drive_state *quantised);
 
+/* `cave run`'s entry point (the cli's command table calls it). */
+int cmd_run(int argc, char **argv);
+
 int cv_master_run(cv_service *s);
 int cv_walleye_run(cv_service *s);
 int cv_gather_run(cv_service *s);

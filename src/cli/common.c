@@ -8,6 +8,7 @@
 #include <strings.h>
 
 #include "cli/cli.h"
+#include "core/parse.h"
 #include "io/mesh_import.h"
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
@@ -22,34 +23,9 @@ int cli_fail(const char *cmd, int code, const char *fmt, ...) {
   return code;
 }
 
-int cli_parse_double(const char *s, double *out) {
-  if (!s || !*s) return -1;
-  char *end;
-  errno = 0;
-  double v = strtod(s, &end);
-  if (*end || errno || !isfinite(v)) return -1;
-  *out = v;
-  return 0;
-}
-
-int cli_parse_int(const char *s, int lo, int hi, int *out) {
-  double v;
-  if (cli_parse_double(s, &v) || v != floor(v) || v < lo || v > hi) return -1;
-  *out = (int)v;
-  return 0;
-}
-
-int cli_parse_vec(const char *s, int n, double *out) {
-  char buf[256];
-  if (!s || strlen(s) >= sizeof buf) return -1;
-  strcpy(buf, s);
-  char *save = NULL, *tok = strtok_r(buf, ",", &save);
-  for (int i = 0; i < n; i++) {
-    if (!tok || cli_parse_double(tok, &out[i])) return -1;
-    tok = strtok_r(NULL, ",", &save);
-  }
-  return tok ? -1 : 0;
-}
+int cli_parse_double(const char *s, double *out) { return cv_parse_double(s, out); }
+int cli_parse_int(const char *s, int lo, int hi, int *out) { return cv_parse_int(s, lo, hi, out); }
+int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n, out); }
 
 int cli_has_ext(const char *path, const char *ext) {
   size_t n = strlen(path), e = strlen(ext);

@@ -1,0 +1,36 @@
+/* Strict number parsing for command lines (see parse.h). */
+#include "core/parse.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int cv_parse_double(const char *s, double *out) {
+  if (!s || !*s) return -1;
+  char *end;
+  errno = 0;
+  double v = strtod(s, &end);
+  if (*end || errno || !isfinite(v)) return -1;
+  *out = v;
+  return 0;
+}
+
+int cv_parse_int(const char *s, int lo, int hi, int *out) {
+  double v;
+  if (cv_parse_double(s, &v) || v != floor(v) || v < lo || v > hi) return -1;
+  *out = (int)v;
+  return 0;
+}
+
+int cv_parse_vec(const char *s, int n, double *out) {
+  char buf[256];
+  if (!s || strlen(s) >= sizeof buf) return -1;
+  strcpy(buf, s);
+  char *save = NULL, *tok = strtok_r(buf, ",", &save);
+  for (int i = 0; i < n; i++) {
+    if (!tok || cv_parse_double(tok, &out[i])) return -1;
+    tok = strtok_r(NULL, ",", &save);
+  }
+  return tok ? -1 : 0;
+}

@@ -1,0 +1,14 @@
+/* Strict parsing of numbers given on command lines (every command and the
+ * service use these, so an option's value means the same everywhere): the
+ * whole string must be one finite number. */
+#ifndef CV_CORE_PARSE_H
+#define CV_CORE_PARSE_H
+
+/* 0 on success, -1 otherwise (empty, trailing text, NaN/Inf, overflow). */
+int cv_parse_double(const char *s, double *out);
+/* An integer in [lo, hi]; 0 on success, -1 otherwise. */
+int cv_parse_int(const char *s, int lo, int hi, int *out);
+/* "x,y,z" (exactly n comma-separated finite numbers) into out; 0 on success. */
+int cv_parse_vec(const char *s, int n, double *out);
+
+#endif
