@@ -1,0 +1,338 @@
+/* The renderer's lighting: relight by transform feedback, the sun's shadow
+ * map and split, the background and the dashboard LCD image (see renderer.h). */
+#include "render/renderer_internal.h"
+
+/* ---------------------------------------------------------------- lighting */
+
+/* Orthographic sun view over the scene bounds: clip matrix for rendering
+ * the shadow map, and for the lookup (prt.frag) the texel-space matrix
+ * shadow_q, its axis scales shadow_k and the sign of its determinant. */
+void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel) {
+  double up[3] = {0, 1, 0};
+  if (fabs(s[1]) > 0.99) up[0] = 1, up[1] = 0;
+  double x[3] = {up[1] * s[2] - up[2] * s[1], up[2] * s[0] - up[0] * s[2],
+                 up[0] * s[1] - up[1] * s[0]};
+  double xl = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+  for (int j = 0; j < 3; j++) x[j] /= xl;
+  double y[3] = {s[1] * x[2] - s[2] * x[1], s[2] * x[0] - s[0] * x[2], s[0] * x[1] - s[1] * x[0]};
+  /* Axes: x, y across the beam; depth = distance along -s (away from the sun). */
+  double axis[3][3] = {{x[0], x[1], x[2]}, {y[0], y[1], y[2]}, {-s[0], -s[1], -s[2]}};
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int c = 0; c < 8; c++) {
+    double p[3] = {c & 1 ? r->hi[0] : r->lo[0], c & 2 ? r->hi[1] : r->lo[1],
+                   c & 4 ? r->hi[2] : r->lo[2]};
+    for (int a = 0; a < 3; a++) {
+      double d = axis[a][0] * p[0] + axis[a][1] * p[1] + axis[a][2] * p[2];
+      if (d < lo[a]) lo[a] = d;
+      if (d > hi[a]) hi[a] = d;
+    }
+  }
+  for (int a = 0; a < 3; a++) {
+    double pad = 0.01 * (hi[a] - lo[a]) + 1e-3;
+    lo[a] -= pad, hi[a] += pad;
+  }
+  /* clip_a = 2 (axis_a . p - lo_a)/(hi_a - lo_a) - 1; the lookup in texel
+   * space (prt.frag): x, y = [0,1] coordinate * res - 0.5 (texel centres at
+   * integers), z = the [0,1] depth.  Its linear part is A = D R, R the
+   * rotation with rows axis_a, D = diag(res sc_x/2, res sc_y/2, sc_z/2). */
+  const double res = r->o.shadow_res;
+  float *q = r->shadow_q;
+  memset(clip, 0, 16 * sizeof *clip);
+  memset(q, 0, 16 * sizeof *q);
+  double D[3];
+  for (int a = 0; a < 3; a++) {
+    double sc = 2.0 / (hi[a] - lo[a]), ts = a < 2 ? res : 1.0;
+    D[a] = 0.5 * sc * ts;
+    for (int j = 0; j < 3; j++) {
+      clip[4 * j + a] = (float)(sc * axis[a][j]);
+      q[4 * j + a] = (float)(D[a] * axis[a][j]);
+    }
+    clip[12 + a] = (float)(-sc * lo[a] - 1);
+    q[12 + a] = (float)((0.5 * (-sc * lo[a] - 1) + 0.5) * ts - (a < 2 ? 0.5 : 0.0));
+  }
+  clip[15] = q[15] = 1;
+  for (int a = 0; a < 3; a++) r->shadow_k[a] = (float)(D[a] * D[a]);
+  r->shadow_k[3] = (float)-D[2];
+  const double det = axis[0][0] * (axis[1][1] * axis[2][2] - axis[1][2] * axis[2][1]) -
+                     axis[0][1] * (axis[1][0] * axis[2][2] - axis[1][2] * axis[2][0]) +
+                     axis[0][2] * (axis[1][0] * axis[2][1] - axis[1][1] * axis[2][0]);
+  r->shadow_detsign = det < 0 ? -1 : 1;
+  double ext = fmax(hi[0] - lo[0], hi[1] - lo[1]);
+  *texel = (float)(ext / r->o.shadow_res);
+}
+
+int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
+  const int n = r->o.shadow_res;
+  if (!r->fbo_shadow || r->shadow_res != n) {
+    if (!r->fbo_shadow) glGenFramebuffers(1, &r->fbo_shadow);
+    if (!r->tex_shadow) glGenTextures(1, &r->tex_shadow);
+    glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, n, n, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+                 NULL);
+    /* read by texelFetch, compared and filtered in prt.frag */
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_NONE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, r->tex_shadow, 0);
+    glDrawBuffer(GL_NONE);
+    glReadBuffer(GL_NONE);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      return cv_err_set(err, CV_ERR_BACKEND, "shadow map framebuffer incomplete (%d texels)", n);
+    r->shadow_res = n;
+  }
+  float clip[16], texel;
+  cvr_sun_matrices(r, s, clip, &texel);
+  /* Against self-shadowing acne the lookup point moves 1.5 texels along the
+   * triangle's normal (a slope-scaled polygon offset on top changed neither
+   * the sun test's figures nor the time). */
+  r->shadow_bias = 1.5f * texel;
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
+  glViewport(0, 0, n, n);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glClear(GL_DEPTH_BUFFER_BIT);
+  cvr_set_cull(r, 0);
+  glUseProgram(r->prog_depth);
+  cvr_uni_mat(r->prog_depth, "u_mvp", clip);
+  cvr_draw_mesh(r, NULL, DRAW_ALL);
+  return cvr_gl_check("shadow map", err);
+}
+
+/* The sun split (see the struct): reorders each chunk of buf_idx into
+ * buf_idx_sun, the triangles whose winding normal (that of cv_sun_direct
+ * and prt.frag's n_t) has n . s > 0 first.  The others get no direct sun,
+ * so the shading pass draws them with the variant without it: on llvmpipe,
+ * which pays for every instruction of a shader on every pixel, the sun's
+ * normal, shadow-map fetches and filter are about half the shading pass.
+ * Same triangles, vertex order and positions: same depths (depth EQUAL). */
+int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
+  uint32_t *out = malloc(3 * r->nt * sizeof *out + 4);
+  unsigned char *facing = malloc(CHUNK);
+  if (!out || !facing) {
+    free(out), free(facing);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
+  }
+  for (size_t c = 0; c < r->nchunks; c++) {
+    const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
+    size_t nf = 0;
+    for (size_t t = first; t < end; t++) {
+      const uint32_t *v = r->idx_cpu + 3 * t;
+      const float *a = r->pos_cpu + 3 * v[0], *b = r->pos_cpu + 3 * v[1], *d = r->pos_cpu + 3 * v[2];
+      double e1[3], e2[3];
+      for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
+      const double ns = (e1[1] * e2[2] - e1[2] * e2[1]) * s[0] +
+                        (e1[2] * e2[0] - e1[0] * e2[2]) * s[1] +
+                        (e1[0] * e2[1] - e1[1] * e2[0]) * s[2];
+      facing[t - first] = ns > 0;
+      nf += ns > 0;
+    }
+    size_t kf = first, ko = first + nf;
+    for (size_t t = first; t < end; t++)
+      memcpy(out + 3 * (facing[t - first] ? kf++ : ko++), r->idx_cpu + 3 * t, 3 * sizeof *out);
+    r->chunk_nf[c] = (uint32_t)nf;
+  }
+  free(facing);
+  glBindVertexArray(0);
+  if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
+  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof *out + 4), out,
+               GL_STATIC_DRAW);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
+  free(out);
+  r->sun_split = 1;
+  return cvr_gl_check("sun split", err);
+}
+
+int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
+                             cv_frame_timing *t, cv_err *err) {
+  if (!r || !l) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL lighting");
+  if (l->bands < 1 || l->bands > CV_PRT_MAX_BANDS || l->bands * l->bands < r->nc)
+    return cv_err_set(err, CV_ERR_RANGE, "lighting has %d bands, the scene needs %d", l->bands,
+                      (int)lround(sqrt(r->nc)));
+  for (int i = 0; i < 3 * r->nc; i++)
+    if (!isfinite(l->sh[i])) return cv_err_set(err, CV_ERR_NONFINITE, "lighting SH[%d] is not finite", i);
+  double sd[3] = {0, 0, 0};
+  int sun = 0;
+  if (l->has_sun) {
+    double n = sqrt(l->sun_dir[0] * l->sun_dir[0] + l->sun_dir[1] * l->sun_dir[1] +
+                    l->sun_dir[2] * l->sun_dir[2]);
+    for (int c = 0; c < 3; c++)
+      if (!isfinite(l->sun_E[c]) || l->sun_E[c] < 0)
+        return cv_err_set(err, CV_ERR_NONFINITE, "sun irradiance[%d] is %g", c, l->sun_E[c]);
+    if (!(n > 0) || !isfinite(n)) return cv_err_set(err, CV_ERR_INVALID, "sun direction has no length");
+    for (int c = 0; c < 3; c++) sd[c] = l->sun_dir[c] / n;
+    sun = 1;
+  }
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  cvr_gl_check("(before set_lighting)", NULL);
+  double t0 = cvr_tick(r);
+  /* Uniforms: lighting without the sun (with td) and with the sun's SH
+   * projection E * y_i(s) (with ti), as relight.c. */
+  float ul[4 * 64], uls[4 * 64];
+  double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS] = {0};
+  if (sun) cv_sh_eval_d((int)lround(sqrt(r->nc)), l->sun_dir, y);
+  for (int i = 0; i < r->nc; i++) {
+    for (int c = 0; c < 3; c++) {
+      ul[4 * i + c] = (float)l->sh[3 * i + c];
+      uls[4 * i + c] = (float)(l->sh[3 * i + c] + (sun ? l->sun_E[c] * y[i] : 0.0));
+    }
+    ul[4 * i + 3] = uls[4 * i + 3] = 0;
+  }
+  GLuint p = r->prog_relight;
+  glUseProgram(p);
+  glUniform4fv(glGetUniformLocation(p, "u_l"), r->nc, ul);
+  glUniform4fv(glGetUniformLocation(p, "u_ls"), r->nc, uls);
+  glActiveTexture(GL_TEXTURE0 + U_TRANSFER);
+  glBindTexture(GL_TEXTURE_BUFFER, r->tex_transfer);
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_tiny);
+  glBindVertexArray(r->vao_empty);
+  glEnable(GL_RASTERIZER_DISCARD);
+  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, r->buf_rad);
+  glBeginTransformFeedback(GL_POINTS);
+  glDrawArrays(GL_POINTS, 0, (GLsizei)r->nv);
+  glEndTransformFeedback();
+  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
+  glDisable(GL_RASTERIZER_DISCARD);
+  glBindVertexArray(0);
+  /* Clamp count: sum of the captured w (exact in double). */
+  uint64_t clamped = 0;
+  glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
+  const float *m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)),
+                                    GL_MAP_READ_BIT);
+  if (m) {
+    for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
+    glUnmapBuffer(GL_ARRAY_BUFFER);
+  }
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  int st = cvr_gl_check("relighting", err);
+  if (st) return st;
+  if (!m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
+  double t1 = cvr_tick(r);
+  r->has_sun = sun;
+  if (sun) {
+    for (int c = 0; c < 3; c++) {
+      r->sun_e[c] = (float)(l->sun_E[c] / M_PI);
+    }
+    if ((st = cvr_render_shadow(r, sd, err))) return st;
+    r->sun_split = 0;
+    if (r->o.sun_split && (st = cvr_sun_split(r, sd, err))) return st;
+  }
+  double t2 = cvr_tick(r);
+  r->lit = 1;
+  if (stats) stats->clamped = clamped;
+  if (t) {
+    t->relight_ms = t1 - t0;
+    t->shadow_ms = t2 - t1;
+  }
+  return CV_OK;
+}
+
+int cv_renderer_set_background(cv_renderer *r, const cv_image *img, cv_err *err) {
+  if (!r) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL");
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (!img) return cvr_upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err);
+  if (img->w < 1 || img->h < 1 || img->c < 3 || !img->px)
+    return cv_err_set(err, CV_ERR_INVALID, "background: expected an RGB image, got %dx%dx%d", img->w,
+                      img->h, img->c);
+  if (img->w > r->max_rb || img->h > r->max_rb)
+    return cv_err_set(err, CV_ERR_RANGE, "background %dx%d exceeds the GL texture limit %d", img->w,
+                      img->h, (int)r->max_rb);
+  size_t n = (size_t)img->w * img->h;
+  float *rgb = malloc(3 * n * sizeof *rgb);
+  if (!rgb) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  for (size_t i = 0; i < n; i++)
+    for (int c = 0; c < 3; c++) {
+      float v = img->px[i * img->c + c];
+      rgb[3 * i + c] = isfinite(v) && v > 0 ? v : 0.0f;
+    }
+  int st = cvr_upload_background(r, img->w, img->h, rgb, err);
+  free(rgb);
+  return st;
+}
+
+int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3],
+                          const float v[3], const float size[2], const cv_image *img, cv_err *err) {
+  if (!r) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL");
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (!img) {
+    r->panel_on = 0;
+    return CV_OK;
+  }
+  if (!center || !u || !v || !size || img->w < 1 || img->h < 1 || img->c < 3 || !img->px ||
+      !(size[0] > 0) || !(size[1] > 0))
+    return cv_err_set(err, CV_ERR_INVALID, "panel: expected a frame, sizes > 0 and an RGB image");
+  if (img->w > r->max_rb || img->h > r->max_rb)
+    return cv_err_set(err, CV_ERR_RANGE, "panel image %dx%d exceeds the GL texture limit %d", img->w,
+                      img->h, (int)r->max_rb);
+  double lu = 0, lv = 0;
+  for (int a = 0; a < 3; a++) {
+    lu += (double)u[a] * u[a];
+    lv += (double)v[a] * v[a];
+  }
+  if (!(lu > 0) || !(lv > 0)) return cv_err_set(err, CV_ERR_INVALID, "panel: zero axis");
+  for (int a = 0; a < 3; a++) {
+    r->panel_c[a] = center[a];
+    r->panel_u[a] = (float)(u[a] / sqrt(lu));
+    r->panel_v[a] = (float)(v[a] / sqrt(lv));
+  }
+  r->panel_n[0] = r->panel_u[1] * r->panel_v[2] - r->panel_u[2] * r->panel_v[1];
+  r->panel_n[1] = r->panel_u[2] * r->panel_v[0] - r->panel_u[0] * r->panel_v[2];
+  r->panel_n[2] = r->panel_u[0] * r->panel_v[1] - r->panel_u[1] * r->panel_v[0];
+  r->panel_half[0] = 0.5f * size[0];
+  r->panel_half[1] = 0.5f * size[1];
+  size_t n = (size_t)img->w * img->h;
+  float *rgb = malloc(3 * n * sizeof *rgb);
+  if (!rgb) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  uint64_t bad = 0;
+  for (size_t i = 0; i < n; i++)
+    for (int c = 0; c < 3; c++) {
+      float x = img->px[i * img->c + c];
+      if (!(isfinite(x) && x >= 0)) bad++;
+      rgb[3 * i + c] = isfinite(x) && x > 0 ? x : 0.0f; /* NaN/Inf/negative: black, counted */
+    }
+  if (!r->tex_panel) glGenTextures(1, &r->tex_panel);
+  glBindTexture(GL_TEXTURE_2D, r->tex_panel);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, img->w, img->h, 0, GL_RGB, GL_FLOAT, rgb);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  free(rgb);
+  r->panel_on = 1;
+  r->panel_bad = bad;
+  return cvr_gl_check("panel upload", err);
+}
+
+uint64_t cv_renderer_panel_invalid(const cv_renderer *r) { return r ? r->panel_bad : 0; }
+
+int cv_renderer_tone_table(const cv_renderer *r, double *drago_err) {
+  if (drago_err) *drago_err = r && r->tone_built ? r->tone_err : NAN;
+  return r && r->tone_built && r->tone_ok;
+}
+
+int cv_render_background_image(const cv_scene_light *sl, int w, cv_image **out) {
+  *out = NULL;
+  if (!sl || w < 2) return CV_ERR_INVALID;
+  int h = w / 2;
+  cv_image *img;
+  int st = cv_image_create(w, h, 3, &img);
+  if (st) return st;
+#pragma omp parallel for schedule(static)
+  for (int y = 0; y < h; y++) {
+    double th = M_PI * (y + 0.5) / h;
+    for (int x = 0; x < w; x++) {
+      double a = 2 * M_PI * ((x + 0.5) / w - 0.5);
+      float d[3] = {(float)(sin(th) * sin(a)), (float)cos(th), (float)(-sin(th) * cos(a))};
+      cv_scene_light_background(sl, d, cv_image_at(img, x, y));
+    }
+  }
+  *out = img;
+  return CV_OK;
+}
+

@@ -1,0 +1,162 @@
+/* Internals of the wall-eye renderer shared by its files (not installed):
+ *   renderer.c        context, programs, matrices, scene upload, create/destroy
+ *   render_light.c    relighting by transform feedback, the sun's shadow map
+ *                     and split, background, dashboard LCD image
+ *   render_passes.c   targets, read-back, the luminance / depth / shading
+ *                     passes, Drago tables, the unlit reference
+ *   render_present.c  window presentation and swap
+ * The GL objects are described in renderer.c. */
+#ifndef CV_RENDER_RENDERER_INTERNAL_H
+#define CV_RENDER_RENDERER_INTERNAL_H
+
+#define GL_GLEXT_PROTOTYPES 1
+#include "render/renderer.h"
+
+#include <GL/glcorearb.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "io/exr.h"
+#include "render/egl_context.h"
+#include "render/shaders.h"
+#include "render/window.h"
+#include "view/cave.h"
+#include "sh/sh.h"
+
+enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64 };
+#define NVARIANT 128
+enum { K_PRT = 0, K_BG = 1 };
+enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6 }; /* texture units */
+
+/* Drago table (common.glsl, cv_drago_table): Ld as a function of y = x / Lwmax'
+ * over [2^-126, 1), a piecewise cubic with one RGBA32F texel of
+ * coefficients per segment and a segment per 1/16 octave of y (picked by
+ * its float exponent and top 4 mantissa bits), rebuilt when the Drago
+ * constants change. */
+#define LUT_PER_OCT 16
+#define LUT_DRAGO_E0 1                      /* first biased exponent */
+#define LUT_DRAGO_SEGS (126 * LUT_PER_OCT)  /* 2^-126 .. 1 */
+/* Largest table error accepted (relative, with a floor of 1e-4 on Ld): the
+ * display values then stay within ~1e-6 of cv_drago_image.  Beyond it the
+ * shader computes the curve (DRAGO_EXACT). */
+#define LUT_TOL 2e-6
+
+
+struct cv_renderer {
+  cv_egl egl;
+  cv_window *win;     /* opts.window: the X11 window (NULL headless) */
+  GLuint prog_present, tex_present;
+  int present_w, present_h;
+  cv_render_opts o;
+  char gl_name[256];
+  int nc;             /* SH coefficients */
+  size_t nv, nt;      /* vertices, opaque triangles drawn */
+  double lo[3], hi[3];/* scene bounds */
+  GLuint vao_geom, vao_empty;
+  GLuint buf_pos, buf_rad, buf_idx, buf_transfer, buf_alb;
+  GLuint tex_transfer, tex_bg;
+  /* the dashboard LCD image (cv_renderer_set_panel) */
+  GLuint tex_panel;
+  int panel_on;
+  uint64_t panel_bad;
+  float panel_c[3], panel_u[3], panel_v[3], panel_n[3], panel_half[2];
+  GLuint prog_relight, prog_depth, prog_unlit, prog_down;
+  GLuint prog_var[2][NVARIANT];
+  /* the Drago table (LUT_*): texture buffer, the constants it was built
+   * for, whether it passed LUT_TOL, its measured error, its uniforms */
+  GLuint buf_tone, tex_tone;
+  cv_drago_consts tone_dc;
+  int tone_built, tone_ok;
+  double tone_err;
+  float lut_k, lut_tail;
+  /* lighting */
+  int lit, has_sun;
+  /* the sun: E/pi, the scene -> shadow-map texel space matrix (prt.frag),
+   * its axis scales (D^2, -D_z), the sign of its determinant, the bias */
+  float sun_e[3], shadow_q[16], shadow_k[4], shadow_bias;
+  int shadow_detsign;
+  GLuint fbo_shadow, tex_shadow;
+  int shadow_res;
+  /* targets */
+  GLuint fbo_lum, rb_lum, rb_lum_depth;
+  int lum_w, lum_h;
+  GLuint fbo_main, tex_disp, tex_hdr, rb_depth;
+  int main_w, main_h;
+  GLenum main_fmt;
+  uint8_t *rgba8;     /* read-back scratch of 8-bit display targets */
+  size_t rgba8_cap;
+  GLuint fbo_res, rb_res_disp, rb_res_hdr;
+  int res_w, res_h;
+  GLuint fbo_tiny, rb_tiny; /* 1x1: a complete framebuffer for the relight draw (a
+                               surfaceless context has no default framebuffer) */
+  GLint max_rb;
+  /* Frustum culling: the opaque triangles sorted along a Morton curve of
+   * their centroids, in chunks of CHUNK triangles with their bounds. */
+  size_t nchunks;
+  float *chunk_box;   /* 6 per chunk: lo xyz, hi xyz */
+  uint32_t *run;      /* scratch: 2 per chunk (first triangle, count) */
+  /* The sun split (set_lighting with a sun): within each chunk the
+   * triangles facing the sun first (chunk_nf of them), then the others, in
+   * buf_idx_sun; the shading pass draws the second part without the sun's
+   * per-pixel code.  idx_cpu / pos_cpu: the uploaded triangles and positions. */
+  uint32_t *idx_cpu, *chunk_nf;
+  float *pos_cpu;
+  GLuint buf_idx_sun;
+  int sun_split;
+  GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
+  const void **md_off;
+};
+
+enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
+
+#define CHUNK 1024
+
+/* Helpers shared between the renderer's files. */
+double cvr_now_ms(void);
+double cvr_tick(const cv_renderer *r);
+int cvr_gl_check(const char *where, cv_err *err);
+GLuint cvr_compile(GLenum type, const char *name, const char *defines, cv_err *err);
+void cvr_set_samplers(GLuint p);
+int cvr_build(const char *vs_name, const char *fs_name, const char *defines, const char *tf,
+                 GLuint *out, cv_err *err);
+int cvr_variant(cv_renderer *r, int kind, int flags, GLuint *out, cv_err *err);
+void cvr_uni_mat(GLuint p, const char *name, const float m[16]);
+void cvr_uni_f(GLuint p, const char *name, float v);
+void cvr_uni_v3(GLuint p, const char *name, const float v[3]);
+int cvr_invert4(const double m[16], double inv[16]);
+int cvr_view_matrices(const cv_render_view *v, float mvp[16], float inv[16], float eye[3],
+                         float *facing);
+GLuint cvr_make_tbo(GLuint *buf, GLenum fmt, const void *data, size_t bytes);
+uint64_t cvr_morton3(uint32_t x, uint32_t y, uint32_t z);
+int cvr_cmp_u64(const void *a, const void *b);
+int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err *err);
+int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
+void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
+int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
+int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
+GLuint cvr_make_rb(GLenum fmt, int w, int h);
+GLuint cvr_make_tex(GLenum fmt, int w, int h);
+int cvr_fbo_complete(const char *what, int w, int h, cv_err *err);
+int cvr_ensure_lum(cv_renderer *r, int w, int h, cv_err *err);
+GLenum cvr_disp_fmt(const cv_renderer *r, int resolve_target, int ss);
+int cvr_ensure_main(cv_renderer *r, int w, int h, GLenum dfmt, cv_err *err);
+int cvr_ensure_res(cv_renderer *r, int w, int h, cv_err *err);
+int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img);
+void cvr_set_cull(const cv_renderer *r, int on);
+int cvr_check_view(const cv_renderer *r, const cv_render_view *v, cv_err *err);
+void cvr_bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const float inv[16],
+                         float facing, const cv_drago_consts *dc);
+double cvr_drago_raw(const cv_drago_consts *c, double y);
+double cvr_fit_table(double (*fn)(const cv_drago_consts *, double), const cv_drago_consts *c,
+                        int e0, int nseg, double floor, float *out);
+void cvr_tone_table(cv_renderer *r, const cv_drago_consts *dc);
+int cvr_box_outside(const float mvp[16], const float *lo, const float *hi);
+size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part);
+void cvr_draw_fullscreen(const cv_renderer *r);
+void cvr_depth_pass(cv_renderer *r, const float mvp[16], int W, int H);
+void cvr_shading_depth_state(const cv_renderer *r);
+
+#endif
