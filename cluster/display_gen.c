@@ -1,7 +1,7 @@
 /* The compensation display of a CAVE: the configured display file, checked
- * against the walls, or one generated from the walls (same corners and
- * order, reflectance and patch count from the options, patches graded
- * towards the seams, ideal projectors).  Every rank builds the same one, so
+ * against the walls, or the one the CAVE config describes
+ * (cv_display_from_cave: its "screens", --patches / --reflectance
+ * overriding).  Every rank builds the same one, so
  * wall-eyes know their wall's patch grid without a message. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,24 +19,7 @@ int cv_service_display(const cv_service *s, cv_display **out, cv_err *err) {
     st = cv_display_load(s->o.display_path, &d, err);
     if (st) return st;
   } else {
-    size_t cap = 1024 + (size_t)s->n_walls * 512, len = 0;
-    char *json = malloc(cap);
-    if (!json) return cv_err_set(err, CV_ERR_NOMEM, "display: out of memory");
-    len += (size_t)snprintf(json + len, cap - len, "{\"surfaces\": [");
-    for (int w = 0; w < s->n_walls; w++) {
-      const cv_wall *W = &s->cave.walls[w];
-      const double r = s->o.reflectance;
-      len += (size_t)snprintf(
-          json + len, cap - len,
-          "%s{\"name\": \"%s\", \"corners\": [[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
-          "[%.17g,%.17g,%.17g]], \"patches\": [%d,%d], \"reflectance\": [%g,%g,%g], "
-          "\"refine\": {\"seams\": \"auto\"}}",
-          w ? ", " : "", W->name, W->pa[0], W->pa[1], W->pa[2], W->pb[0], W->pb[1], W->pb[2],
-          W->pc[0], W->pc[1], W->pc[2], s->o.patches, s->o.patches, r, r, r);
-    }
-    snprintf(json + len, cap - len, "], \"projectors\": \"ideal\"}");
-    st = cv_display_parse(json, "display generated from the CAVE walls", &d, err);
-    free(json);
+    st = cv_display_from_cave(&s->cave, s->o.patches, s->o.reflectance, &d, err);
     if (st) return st;
   }
   if ((int)cv_display_surface_count(d) != s->n_walls) {

@@ -22,8 +22,8 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->timeout_ms = 2000;
   o->startup_timeout_s = 300;
   o->compensate = 1;
-  o->patches = 24;
-  o->reflectance = 0.8;
+  o->patches = 0; /* the config's screens.patches */
+  o->reflectance = -1; /* the config's screens.reflectance */
   o->compensation_ms = 20;
   o->lcd = 1;
   o->lcd_w = 400;

@@ -17,8 +17,36 @@
 #include "compensate/solve.h"
 #include "core/progress.h"
 #include "io/exr.h"
+#include "view/cave.h"
+
+#include <cjson/cJSON.h>
 
 #define MAX_IMAGES 64
+
+/* A CAVE config (top-level "walls") rather than a display description
+ * ("surfaces"): decided by the keys, so that each loader reports its own
+ * problems; anything unreadable goes to the display loader, which says why. */
+static int is_cave_config(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return 0;
+  char *text = NULL;
+  long n = -1;
+  if (!fseek(f, 0, SEEK_END) && (n = ftell(f)) >= 0 && n < (64L << 20) && !fseek(f, 0, SEEK_SET) &&
+      (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
+    text[n] = 0;
+  else
+    n = -1;
+  fclose(f);
+  int cave = 0;
+  if (n >= 0) {
+    cJSON *root = cJSON_Parse(text);
+    cave = cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
+           !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
+    cJSON_Delete(root);
+  }
+  free(text);
+  return cave;
+}
 
 static void help(FILE *f) {
   fprintf(f,
@@ -29,7 +57,8 @@ static void help(FILE *f) {
           "                       [--seam-budget E|off] [--quiet]\n\n"
           "Computes projector images that cancel the light the screens scatter onto each\n"
           "other, so that every surface shows what its image shows without scattering.\n\n"
-          "  --display FILE    display description (configs/displays/*.json)\n"
+          "  --display FILE    display description (configs/displays/*.json), or a CAVE config\n"
+          "                    (configs/caves/*.json: its walls and \"screens\")\n"
           "  --image R.exr     one image per surface in surface order, or one atlas with\n"
           "                    the surfaces side by side at equal widths\n"
           "  --right R.exr     the right eye's images (stereo): one solve on (L + R) / 2,\n"
@@ -171,7 +200,18 @@ int cmd_compensate(int argc, char **argv) {
   cv_image *imgs[2][MAX_IMAGES] = {{0}};
   double *R[2] = {NULL, NULL}, *T = NULL, *B = NULL, *delta = NULL;
   float *I = NULL, *I0 = NULL, *Tf[2] = {NULL, NULL};
-  if (cv_display_load(display_path, &d, &err)) {
+  if (is_cave_config(display_path)) {
+    /* a CAVE config: the display it describes (its walls and "screens") */
+    cv_cave cave;
+    if (cv_cave_load(display_path, &cave, &err)) {
+      rc = cli_fail("compensate", 1, "%s", err.msg);
+      goto done;
+    }
+    if (cv_display_from_cave(&cave, 0, -1, &d, &err)) {
+      rc = cli_fail("compensate", 1, "%s: %s", display_path, err.msg);
+      goto done;
+    }
+  } else if (cv_display_load(display_path, &d, &err)) {
     char buf[8192];
     int np = 0;
     cv_display_validate_all(display_path, buf, sizeof buf, &np);

@@ -201,4 +201,13 @@ size_t cv_display_patch_index(const cv_display *d, size_t k, int u, int v);
  * F (both borrowed: they must outlive *out). */
 void cv_display_scatter_system(const cv_display *d, const cv_ffmatrix *F, cv_scatter_system *out);
 
+/* The display of a CAVE config (display_cave.c): its walls with the
+ * config's screen reflectance and patches per side (patches > 0 and
+ * reflectance >= 0 override them), graded towards the seams, ideal
+ * projectors, viewer at the CAVE's head.  *out owned by the caller.
+ * Errors: those of cv_display_parse, CV_ERR_NOMEM. */
+struct cv_cave;
+int cv_display_from_cave(const struct cv_cave *c, int patches, double reflectance, cv_display **out,
+                         cv_err *err);
+
 #endif
