@@ -656,6 +656,37 @@ static void test_foveal_timing(void **state) {
   free(lum);
 }
 
+/* The 8-bit code table equals the direct formula for every float it is
+ * asked about: around every step (+-1 ulp), 2e6 random values, the ends,
+ * NaN/Inf/negative. */
+static void test_rec709_code_table(void **state) {
+  (void)state;
+  cv_rec709_lut t;
+  cv_rec709_lut_init(&t);
+  long checked = 0, wrong = 0;
+  for (int k = 0; k < 255; k++) {
+    float e = t.step[k];
+    float around[3] = {nextafterf(e, 0.0f), e, nextafterf(e, 2.0f)};
+    for (int i = 0; i < 3; i++, checked++) wrong += cv_rec709_code(&t, around[i]) != cv_rec709_code_exact(around[i]);
+    assert_true(cv_rec709_code_exact(e) > k);
+    assert_true(k == 0 || cv_rec709_code_exact(nextafterf(e, 0.0f)) <= k);
+  }
+  uint32_t x = 12345;
+  for (int i = 0; i < 2000000; i++, checked++) {
+    x = x * 1664525u + 1013904223u;
+    float e = (float)((x >> 8) * (1.25 / 16777216.0)) - 0.05f;
+    wrong += cv_rec709_code(&t, e) != cv_rec709_code_exact(e);
+  }
+  const float special[] = {0.0f, -0.0f, -1.0f, 1.0f, 2.0f, 1e-30f, 0.012f, NAN, INFINITY, -INFINITY};
+  for (size_t i = 0; i < sizeof special / sizeof special[0]; i++, checked++)
+    wrong += cv_rec709_code(&t, special[i]) != cv_rec709_code_exact(special[i]);
+  assert_int_equal(cv_rec709_code(&t, NAN), 0);
+  assert_int_equal(cv_rec709_code(&t, INFINITY), 255);
+  assert_int_equal(cv_rec709_code(&t, 1.0f), 255);
+  printf("  rec709 code table: %ld of %ld values differ from the formula\n", wrong, checked);
+  assert_int_equal(wrong, 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_drago_reference),
@@ -675,6 +706,7 @@ int main(void) {
       cmocka_unit_test(test_foveal_merge_order),
       cmocka_unit_test(test_empty_region_keeps_state),
       cmocka_unit_test(test_foveal_timing),
+      cmocka_unit_test(test_rec709_code_table),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -169,6 +169,110 @@ static void test_bad_configs(void **state) {
   assert_int_equal(cv_cave_check_eye(&c, inside, &err), CV_OK);
 }
 
+/* --- outputs ------------------------------------------------------------------ */
+
+#define TWO_WALLS                                                                                   \
+  "\"walls\": [{\"name\": \"front\", \"pa\": [-1.5,0,-1.5], \"pb\": [1.5,0,-1.5], \"pc\": [-1.5,3,-1.5], " \
+  "\"res\": [64,64]}, {\"name\": \"left\", \"pa\": [-1.5,0,1.5], \"pb\": [-1.5,0,-1.5], "                 \
+  "\"pc\": [-1.5,3,1.5], \"res\": [64,64]}]"
+
+static void test_outputs_default_and_layout(void **state) {
+  (void)state;
+  cv_cave c;
+  cv_err err = {0};
+  assert_int_equal(cv_cave_load(CAVES "/cave5.json", &c, &err), CV_OK);
+  /* no "outputs": one passive output per wall-eye, rank 1 + 2w + e */
+  assert_int_equal(c.n_outputs, 10);
+  assert_int_equal(c.outputs_given, 0);
+  for (int w = 0; w < 5; w++)
+    for (int e = 0; e < 2; e++) {
+      assert_int_equal(cv_cave_walleye_rank(&c, w, e), 1 + 2 * w + e);
+      const cv_rank_role r = cv_cave_rank_role(&c, 1 + 2 * w + e);
+      assert_int_equal(r.role, CV_ROLE_RENDER);
+      assert_int_equal(c.outputs[r.output].gpu, CV_GPU_AUTO);
+    }
+  assert_int_equal(cv_cave_rank_role(&c, 0).role, CV_ROLE_MASTER);
+  assert_int_equal(cv_cave_rank_role(&c, 11).role, CV_ROLE_GATHER);
+  assert_true(c.rate == 60 && c.screen_patches == 24 && fabs(c.screen_reflectance - 0.8) < 1e-12);
+  /* packed stereo: one rank, both eyes */
+  const char *ok = "{" TWO_WALLS ", \"outputs\": ["
+                   "{\"wall\": \"left\", \"eye\": \"both\", \"stereo\": \"side-by-side\", \"gpu\": 1, \"host\": \"n2\", \"display\": \":0.1\", \"fullscreen\": true},"
+                   "{\"wall\": \"front\", \"eye\": \"right\", \"gpu\": \"software\", \"geometry\": [100, 0, 640, 480]},"
+                   "{\"wall\": \"front\", \"eye\": \"left\", \"gpu\": \"auto\", \"geometry\": [740, 0, 640, 480]}],"
+                   "\"rate\": 120, \"screens\": {\"reflectance\": 0.5, \"patches\": 16}}";
+  int st = cv_cave_parse(ok, "ok.json", &c, &err);
+  if (st) fprintf(stderr, "%s\n", err.msg);
+  assert_int_equal(st, CV_OK);
+  assert_int_equal(c.n_outputs, 3);
+  assert_int_equal(cv_cave_walleye_rank(&c, 1, 0), 1);
+  assert_int_equal(cv_cave_walleye_rank(&c, 1, 1), 1);
+  assert_int_equal(cv_cave_walleye_rank(&c, 0, 1), 2);
+  assert_int_equal(cv_cave_walleye_rank(&c, 0, 0), 3);
+  assert_int_equal(c.outputs[0].eyes, 3);
+  assert_int_equal(c.outputs[0].stereo, CV_STEREO_SIDE_BY_SIDE);
+  assert_int_equal(c.outputs[0].gpu, 1);
+  assert_int_equal(c.outputs[1].gpu, CV_GPU_SOFTWARE);
+  assert_int_equal(c.outputs[2].geometry[0], 740);
+  assert_true(c.rate == 120 && c.screen_patches == 16 && c.screen_reflectance == 0.5);
+}
+
+static void test_outputs_problems(void **state) {
+  (void)state;
+  cv_cave c;
+  cv_err err = {0};
+  char buf[4096];
+  int n = 0;
+  /* overlapping windows on one display, a display used by two hosts, a
+   * missing GPU, a display of another host, a passive output without an
+   * eye: every problem listed, counted */
+  const char *bad = "{" TWO_WALLS ", \"outputs\": ["
+                    "{\"wall\": \"front\", \"eye\": \"left\", \"gpu\": 0, \"host\": \"a\", \"display\": \"a:0\", \"geometry\": [0, 0, 100, 100]},"
+                    "{\"wall\": \"front\", \"eye\": \"right\", \"host\": \"a\", \"display\": \"a:0\", \"geometry\": [50, 50, 100, 100]},"
+                    "{\"wall\": \"left\", \"eye\": \"left\", \"gpu\": 0, \"host\": \"b\", \"display\": \"a:0\"},"
+                    "{\"wall\": \"left\", \"stereo\": \"passive\", \"gpu\": 0}]}";
+  FILE *f = fopen(CV_TEST_TMP_DIR "/bad_outputs.json", "w");
+  assert_non_null(f);
+  fputs(bad, f);
+  fclose(f);
+  int st = cv_cave_load_all(CV_TEST_TMP_DIR "/bad_outputs.json", &c, buf, sizeof buf, &n, &err);
+  assert_int_not_equal(st, CV_OK);
+  fprintf(stderr, "%s", buf);
+  must_contain(buf, "outputs[1].gpu: missing");
+  must_contain(buf, "outputs[1]: window overlaps outputs[0] on host \"a\" display \"a:0\"");
+  must_contain(buf, "outputs[2].display: \"a:0\" is a display of host \"a\", but the output runs on \"b\"");
+  must_contain(buf, "outputs[2]: display \"a:0\" is used by hosts");
+  must_contain(buf, "outputs[3].eye: missing");
+  must_contain(err.msg, "problems]");
+  int lines = 0;
+  for (const char *p = buf; *p; p++) lines += *p == '\n';
+  assert_int_equal(lines, n);
+  assert_true(n >= 5);
+  /* a wall-eye shown twice, one not at all; fullscreen overlaps everything */
+  const char *twice = "{" TWO_WALLS ", \"outputs\": ["
+                      "{\"wall\": \"front\", \"eye\": \"both\", \"stereo\": \"top-bottom\", \"gpu\": 0, \"fullscreen\": true},"
+                      "{\"wall\": \"front\", \"eye\": \"left\", \"gpu\": 0},"
+                      "{\"wall\": \"left\", \"eye\": \"left\", \"gpu\": \"fast\"}]}";
+  assert_int_not_equal(cv_cave_parse(twice, "twice.json", &c, &err), CV_OK);
+  must_contain(err.msg, "wall \"front\" left eye is already shown by outputs[0]");
+  must_contain(err.msg, "outputs[1]: window overlaps outputs[0]");
+  must_contain(err.msg, "outputs[2].gpu: expected a hardware EGL device index");
+  const char *uncovered = "{" TWO_WALLS ", \"outputs\": [{\"wall\": \"front\", \"eye\": \"both\", "
+                          "\"stereo\": \"side-by-side\", \"gpu\": 0}, {\"wall\": \"left\", \"eye\": \"left\", \"gpu\": 0}]}";
+  assert_int_not_equal(cv_cave_parse(uncovered, "u.json", &c, &err), CV_OK);
+  must_contain(err.msg, "no output shows wall \"left\" right eye");
+  const char *quad_eye = "{" TWO_WALLS ", \"outputs\": [{\"wall\": \"front\", \"eye\": \"left\", \"stereo\": \"quad\", \"gpu\": 0},"
+                         "{\"wall\": \"nowhere\", \"eye\": \"left\", \"gpu\": 0}, {\"wall\": \"left\", \"stereo\": \"3d\", \"gpu\": 0}]}";
+  assert_int_not_equal(cv_cave_parse(quad_eye, "q.json", &c, &err), CV_OK);
+  must_contain(err.msg, "outputs[0].eye: a quad output shows both eyes");
+  must_contain(err.msg, "outputs[1].wall: no wall named \"nowhere\"");
+  must_contain(err.msg, "outputs[2].stereo: expected \"passive\", \"quad\"");
+  const char *screens = "{" TWO_WALLS ", \"screens\": {\"reflectance\": 1.5, \"patch\": 3}, \"rate\": 0}";
+  assert_int_not_equal(cv_cave_parse(screens, "s.json", &c, &err), CV_OK);
+  must_contain(err.msg, "screens.reflectance: 1.5 is outside");
+  must_contain(err.msg, "screens.patch: unknown field");
+  must_contain(err.msg, "rate: 0 is outside");
+}
+
 /* --- Kooima ------------------------------------------------------------------ */
 
 static const double PA[3] = {-1.5, 0, -1.5}, PB[3] = {1.5, 0, -1.5}, PC[3] = {-1.5, 3, -1.5};
@@ -279,6 +383,7 @@ int main(void) {
       cmocka_unit_test(test_load_shipped),     cmocka_unit_test(test_bad_configs),
       cmocka_unit_test(test_corners_to_ndc),   cmocka_unit_test(test_symmetric_and_errors),
       cmocka_unit_test(test_shared_edge),      cmocka_unit_test(test_head_eyes),
+      cmocka_unit_test(test_outputs_default_and_layout), cmocka_unit_test(test_outputs_problems),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
