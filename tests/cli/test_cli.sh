@@ -124,6 +124,13 @@ expect_error "NaN in R" "nan.exr" $CAVE compensate --display two.json --image na
 expect_error "image count" "surfaces" $CAVE compensate --display two.json --image white.exr --image white.exr --image white.exr -o x.exr
 expect_error "missing display" "nodisplay.json" $CAVE compensate --display nodisplay.json --image white.exr -o x.exr
 [ ! -e x.exr ] && ok "no output left behind by compensate failures" || bad "compensate left output"
+# One description of the CAVE serves rendering and compensation: a CAVE
+# config as --display (its walls, screens.reflectance and screens.patches).
+W5=(--image white.exr --image white.exr --image white.exr --image white.exr --image white.exr)
+expect_ok "compensate with the CAVE config" $CAVE compensate --display "$ROOT/configs/caves/cave5.json" "${W5[@]}" -o cave5.exr --report
+grep -q "compensate: 2880 patches" out.txt && ok "CAVE config as display (5 walls x 24^2 patches from screens): $(grep -m1 "displayed RMS error" out.txt | tail -1)" || { bad "CAVE config display report"; cat out.txt; }
+printf '{"walls": [{"name": "front", "pa": [-1.5,0,-1.5], "pb": [1.5,0,-1.5], "pc": [-1.5,3,-1.5], "res": [64,64]}], "screens": {"reflectance": 2}}\n' >badcave.json
+expect_error "CAVE config with a bad screen" "screens.reflectance" $CAVE compensate --display badcave.json --image white.exr -o x.exr
 
 # The paper's two-sided wall (3 m x 2 m walls at 90 degrees, reflectance 0.475), 32 x 32
 # patches: about 9% of the luminance compensated overall, about 1% more from level 2.
