@@ -16,6 +16,7 @@ int cmd_compensate(int argc, char **argv);
 int cmd_lcd(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 int cmd_tonemap(int argc, char **argv);
+int cmd_cluster(int argc, char **argv);
 /* The MPI service; implemented in cluster/run.c (the only code with MPI). */
 int cmd_run(int argc, char **argv);
 
