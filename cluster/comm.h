@@ -32,7 +32,8 @@ enum {
   CV_TAG_PONG = 10,   /* render rank -> master: t0 echoed, t1 (received), t2 (sent) */
   CV_TAG_STOPREQ = 11, /* render rank -> master: its window was closed / Escape / X lost */
   CV_TAG_SWAPREADY = 12, /* render rank -> master: frame drawn and finished (u32 frame) */
-  CV_TAG_GO = 13        /* master -> render rank: swap frame at this time of the rank's clock */
+  CV_TAG_GO = 13,       /* master -> render rank: swap frame at this time of the rank's clock */
+  CV_TAG_PREVIEW = 14   /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
 };
 
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size);

@@ -35,6 +35,8 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->lcd_idle = 1;
   o->seed = 1;
   o->present = CV_PRESENT_FILES;
+  o->desktop_view = -1;
+  o->desktop_fps = 30;
   o->gpu = CV_GPU_UNSET;
   o->clock = -1;
   o->predict = 1;

@@ -11,7 +11,8 @@
  *   send_state       one fixed-layout frame state to every rank;
  *   collect_reports  the render ranks' reports and patch images until all
  *                    arrived or the deadline, while clock probes, LCD rounds,
- *                    montages and stop requests are served;
+ *                    montages, desktop preview images and input, and stop
+ *                    requests are served;
  *   master_swap_stats swap skew and latency of the previous frame;
  *   compensate_frame the scattering compensation, each wall its correction;
  *   write_frame_metrics, pace.
@@ -65,6 +66,7 @@ static void master_free(master *m) {
   free(m->got);
   master_sync_free(m);
   master_images_free(m);
+  master_desktop_free(m);
   if (m->mf) fclose(m->mf);
   cv_metrics_line_destroy(m->ml);
   free(m->frame_ms);
@@ -121,6 +123,7 @@ static int master_setup(master *m, cv_err *err) {
   memcpy(m->pose.pos, s->cave.head, sizeof m->pose.pos);
   memcpy(m->pose.gaze, s->cave.gaze, sizeof m->pose.gaze);
   m->pose.valid = 1;
+  if ((st = master_desktop_setup(m, err))) return st;
   cv_adapt_default_params(&m->ap);
   m->ap.t0_cone = s->cave.t0_cone;
   m->ap.t0_rod = s->cave.t0_rod;
@@ -204,7 +207,11 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     char host[128];
     cv_comm_host(host, sizeof host);
     if (!s->o.quiet) {
-      printf("cave run: ready: %d ranks; rank 0 on %s: master\n", s->size, host);
+      printf("cave run: ready: %d ranks; rank 0 on %s: master", s->size, host);
+      if (m->desk)
+        printf(", desktop preview %dx%d on X display '%s'%s", m->desk_w, m->desk_h,
+               cv_desktop_display_name(m->desk), m->desk_source ? ", keyboard and mouse steer the head" : "");
+      printf("\n");
       for (int r = 1; r < s->size; r++) printf("cave run: ready: %s\n", lines[r] ? lines[r] : "?");
     }
     cv_metrics_line *ml = m->ml;
@@ -213,6 +220,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_string(ml, "master_host", host);
     cv_metrics_string(ml, "clock", m->wall_clock ? "wall" : "sim");
     cv_metrics_bool(ml, "windows", (s->o.present & CV_PRESENT_WINDOW) != 0);
+    cv_metrics_bool(ml, "desktop", m->desk != NULL);
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
     cv_metrics_object_begin(ml, "ranks");
@@ -417,6 +425,7 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
     lcd_drain(m);
     lcd_publish(m, 0);
     montage_drain(m);
+    master_desktop_drain(m);
     master_sync_poll(m);
     master_stop_poll(m);
     cv_comm_progress();
@@ -514,6 +523,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
   cv_metrics_bool(ml, "new_light", (fs->flags & CV_FS_NEW_LIGHT) != 0);
   cv_metrics_object_end(ml);
   cv_metrics_object_begin(ml, "tracker");
+  cv_metrics_string(ml, "source", m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
   cv_metrics_doubles(ml, "head", fs->head, 3);
   cv_metrics_doubles(ml, "gaze", fs->gaze, 3);
   cv_metrics_double(ml, "age_s", fs->tracker_age);
@@ -523,6 +533,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
   }
   cv_metrics_object_end(ml);
   master_sync_metrics(m, ml);
+  master_desktop_metrics(m, ml);
   if (m->lcd_mb) {
     cv_metrics_object_begin(ml, "lcd");
     char kb[32];
@@ -595,6 +606,7 @@ static void pace(master *m, double tf0, int holding) {
   while (cv_service_now() - tf0 < period && !*s->stop && !m->stop_code &&
          !(holding && m->lcd_rounds >= (uint32_t)s->o.lcd_budget)) {
     lcd_drain(m);
+    master_desktop_drain(m);
     master_sync_poll(m);
     master_stop_poll(m);
     cv_comm_progress();
@@ -636,6 +648,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_uint(ml, "late_reports", m->late_reports);
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
   cv_metrics_uint(ml, "montages", m->montages);
+  master_desktop_summary(m, ml);
   if (m->have_viewer) {
     cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
     cv_metrics_double(ml, "viewer_rms_uncompensated", m->viewer_rms_unc);
@@ -704,6 +717,7 @@ int cv_master_run(cv_service *s) {
     const int last = nframes > 0 && f + 1 == (uint32_t)nframes;
     if (holding) fs.flags |= CV_FS_HOLD;
     if (last || (s->o.write_every > 0 && f % (uint32_t)s->o.write_every == 0)) fs.flags |= CV_FS_WRITE;
+    if (master_desktop_mark(m, f)) fs.flags |= CV_FS_PREVIEW;
     if (send_state(m, &fs)) {
       fprintf(stderr, "cave run: master: frame %u state not finite, frame skipped\n", f);
       continue;
@@ -764,7 +778,7 @@ int cv_master_run(cv_service *s) {
   write_summary(m, f, run_t0);
   if (!s->o.quiet) printf("cave run: %zu frames; metrics in the out folder\n", m->nframes_done);
   if (m->stop_code)
-    printf("cave run: stopped by rank request: %s\n", m->stop_reason);
+    printf("cave run: stopped on request: %s\n", m->stop_reason);
   cv_comm_flush(10);
   const int lost = m->stop_code == CV_WIN_LOST;
   master_free(m);

@@ -5,7 +5,9 @@
  *                    age and motion-to-photon latency, head prediction,
  *                    stop requests from windows
  *   master_lcd.c     LCD rounds summed in fixed point, the LCD image
- *   master_images.c  montages of written frames and the viewer simulation */
+ *   master_images.c  montages of written frames and the viewer simulation
+ *   master_desktop.c the desktop preview window: preview images shown,
+ *                    keyboard and mouse as the head tracker */
 #ifndef CV_CLUSTER_MASTER_INTERNAL_H
 #define CV_CLUSTER_MASTER_INTERNAL_H
 
@@ -14,6 +16,7 @@
 
 #include "compensate/formfactor.h"
 #include "compensate/solve.h"
+#include "render/desktop.h"
 #include "service/clocksync.h"
 #include "service/metrics.h"
 #include "service_internal.h"
@@ -115,6 +118,23 @@ typedef struct master {
   double viewer_rms, viewer_rms_unc, viewer_ms; /* last viewer simulation (display-linear) */
   int have_viewer;
   cv_rec709_lut lut;
+  /* the desktop preview (--present desktop) */
+  cv_desktop *desk;
+  int desk_source;        /* 1: its keyboard and mouse are the head tracker */
+  cv_head_nav nav;
+  cv_mailbox **prev_mb;   /* per wall; NULL for walls the preview does not show */
+  int desk_walls;         /* walls shown */
+  int cell_x[CV_CAVE_MAX_WALLS], cell_y[CV_CAVE_MAX_WALLS];
+  uint8_t *desk_rgb;      /* the composed image, desk_w x desk_h x 3 */
+  int desk_w, desk_h;
+  uint32_t desk_frame;    /* the preview frame being assembled */
+  int desk_got;           /* its walls in */
+  uint8_t desk_have[CV_CAVE_MAX_WALLS];
+  double desk_last_mark;  /* when the last preview frame was marked */
+  double desk_polled;     /* when its events were last taken */
+  int desk_marked;        /* the current frame is a preview frame */
+  uint64_t desk_marks, desk_shown; /* preview frames marked, shown */
+  double desk_show_ms;    /* the last compose + XPutImage */
   /* metrics */
   FILE *mf;
   cv_metrics_line *ml;
@@ -152,6 +172,24 @@ void master_sync_summary(master *m, cv_metrics_line *ml);
 void lcd_drain(master *m);
 void lcd_publish(master *m, int force);
 void lcd_write(master *m, const char *stem);
+
+/* master_desktop.c */
+/* Opens the preview window (a no-op without --present desktop) sized for
+ * the cross or the wall, the keyboard-and-mouse head (when neither
+ * --head-path nor --dtrack is given) and the preview mailboxes.  Errors:
+ * the window's (CV_ERR_BACKEND naming the X display), CV_ERR_NOMEM. */
+int master_desktop_setup(master *m, cv_err *err);
+void master_desktop_free(master *m);
+/* 1 when frame f is a preview frame (--desktop-fps allows one now). */
+int master_desktop_mark(master *m, uint32_t f);
+/* Takes preview images; shows a frame once all its walls are in. */
+void master_desktop_drain(master *m);
+/* Takes the window's events: input steers the head (m->pose, a tracker
+ * sample at time now, the master's clock); Escape, close or a lost
+ * connection become a stop request. */
+void master_desktop_poll(master *m, double now);
+void master_desktop_metrics(master *m, cv_metrics_line *ml);
+void master_desktop_summary(master *m, cv_metrics_line *ml);
 
 /* master_images.c */
 int master_images_setup(master *m, cv_err *err);

@@ -16,7 +16,8 @@
  *     a recorded head path (a tracker whose truth is known) the error of the
  *     predicted and of the held pose at scan-out is measured;
  *   - stop requests: a render rank whose window was closed, got Escape or
- *     lost its X connection. */
+ *     lost its X connection, and the same from the desktop preview window
+ *     (master_desktop.c). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -147,6 +148,10 @@ void master_sync_poll(master *m) {
 }
 
 int master_stop_poll(master *m) {
+  /* the desktop window's events at most every 5 ms here (the frame's head
+   * reads them at once, master_head) */
+  const double now = cv_service_now();
+  if (m->desk && now - m->desk_polled >= 0.005) master_desktop_poll(m, now);
   const uint8_t *data;
   long len;
   while ((len = cv_mailbox_take(m->stop_mb, &data, NULL)) > 1) {
@@ -234,6 +239,9 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
       m->pose = p;
       m->pose_time = now;
     }
+  } else if (m->desk_source) {
+    /* keyboard and mouse: m->pose moves as their events are taken */
+    master_desktop_poll(m, now);
   } else if (m->path) {
     /* a recorded path stands in for a tracker sampled now (wall clock) or
      * at the frame's simulated time */
@@ -246,7 +254,8 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
   *t_target = *t_sample;
   memcpy(head, m->pose.pos, 3 * sizeof *head);
   memcpy(gaze, m->pose.gaze, 3 * sizeof *gaze);
-  if (m->wall_clock && s->o.predict && m->prev_pose_time > 0 && m->latency_est > 0) {
+  /* key steps and drags are jumps, not motion: never extrapolated */
+  if (m->wall_clock && s->o.predict && !m->desk_source && m->prev_pose_time > 0 && m->latency_est > 0) {
     *t_target = now + m->latency_est;
     cv_head_predict(m->prev_pose.pos, m->prev_pose.gaze, m->prev_pose_time, m->pose.pos, m->pose.gaze,
                     m->pose_time, *t_target, s->o.predict_horizon, head, gaze);

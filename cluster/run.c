@@ -52,16 +52,24 @@ static void help(FILE *f) {
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
-          "  --present WHAT       files, window, none, or a list: window,files (default files).\n"
+          "  --present WHAT       files, window, desktop, none, or a list: window,files or\n"
+          "                       desktop,files (default files).\n"
           "                       window: one borderless window per output of the CAVE config\n"
           "                       (its host, X display, geometry or fullscreen), vsync, swap\n"
-          "                       lock; Escape or closing a window stops the service\n"
+          "                       lock; Escape or closing a window stops the service.\n"
+          "                       desktop: no CAVE needed: one window on the master's $DISPLAY\n"
+          "                       shows the unfolded CAVE; arrows/WASD, PageUp/PageDown (Q/E),\n"
+          "                       left-drag and R steer the head (docs/desktop.md); not with\n"
+          "                       window\n"
+          "  --desktop-view V     cross (default: every wall, unfolded) or a wall's name\n"
+          "  --desktop-fps F      at most F preview images a second (default 30; 0: every\n"
+          "                       frame)\n"
           "  --gpu G              auto, software or a hardware EGL device index N, for every\n"
           "                       output (default: each output's \"gpu\"); auto prefers hardware,\n"
           "                       and a hardware request never falls back to llvmpipe\n"
           "  --clock C            wall (real time: paced to the config's rate, drive and sun\n"
           "                       follow the clock) or sim (fixed --dt per frame, reproducible);\n"
-          "                       default wall with windows, else sim\n"
+          "                       default wall with window or desktop, else sim\n"
           "  --no-predict         use the newest head pose as it is (default: predicted to\n"
           "                       the expected scan-out, constant velocity; wall clock only)\n"
           "  --predict-horizon S  predict at most S seconds ahead (default 0.1)\n"
@@ -120,7 +128,7 @@ static void problem(problems *p, const char *fmt, ...) {
   p->n++;
 }
 
-/* "files", "window", "none" or a comma list of the first two. */
+/* "files", "window", "desktop", "none" or a comma list of the others. */
 static int parse_present(const char *v, unsigned *out) {
   char buf[64];
   if (strlen(v) >= sizeof buf) return -1;
@@ -130,6 +138,7 @@ static int parse_present(const char *v, unsigned *out) {
   for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save), n++) {
     if (!strcmp(t, "files")) p |= CV_PRESENT_FILES;
     else if (!strcmp(t, "window")) p |= CV_PRESENT_WINDOW;
+    else if (!strcmp(t, "desktop")) p |= CV_PRESENT_DESKTOP;
     else if (!strcmp(t, "none")) none = 1;
     else return -1;
   }
@@ -138,7 +147,8 @@ static int parse_present(const char *v, unsigned *out) {
   return 0;
 }
 
-static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, problems *pb) {
+static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, char *desktop_view,
+                 problems *pb) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     double d;
@@ -162,7 +172,15 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       o->predict = 0;
     } else if (!strcmp(a, "--present")) {
       NEED();
-      if (parse_present(v, &o->present)) problem(pb, "--present: expected files, window, none or a comma list such as window,files, got '%s'", v);
+      if (parse_present(v, &o->present))
+        problem(pb, "--present: expected files, window, desktop, none or a comma list such as window,files, got '%s'", v);
+    } else if (!strcmp(a, "--desktop-view")) {
+      NEED();
+      snprintf(desktop_view, CV_PATHLEN, "%s", v);
+    } else if (!strcmp(a, "--desktop-fps")) {
+      NEED();
+      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--desktop-fps: expected 0..1000 (0: every frame), got '%s'", v);
+      else o->desktop_fps = d;
     } else if (!strcmp(a, "--gpu")) {
       NEED();
       if (!strcmp(v, "auto")) o->gpu = CV_GPU_AUTO;
@@ -323,6 +341,32 @@ static int cave_problems(const char *path, cv_cave *cave, problems *pb) {
   return 1;
 }
 
+/* --present desktop: not with the walls' windows; --desktop-view names
+ * cross or a wall (-> s->o.desktop_view). */
+static void check_desktop(cv_service *s, const char *view, problems *pb) {
+  cv_run_opts *o = &s->o;
+  if (!(o->present & CV_PRESENT_DESKTOP)) {
+    if (view[0]) problem(pb, "--desktop-view needs --present desktop");
+    return;
+  }
+  if (o->present & CV_PRESENT_WINDOW)
+    problem(pb, "--present desktop and window do not combine: desktop is the CAVE's stand-in on one "
+            "screen, window drives the CAVE's projectors; use desktop or desktop,files");
+  o->desktop_view = -1;
+  if (!view[0] || !strcmp(view, "cross") || s->n_walls < 1) return;
+  for (int w = 0; w < s->n_walls; w++)
+    if (!strcmp(view, s->cave.walls[w].name)) {
+      o->desktop_view = w;
+      return;
+    }
+  char names[512] = "";
+  for (int w = 0; w < s->n_walls; w++) {
+    const size_t l = strlen(names);
+    snprintf(names + l, sizeof names - l, ", %s", s->cave.walls[w].name);
+  }
+  problem(pb, "--desktop-view: expected cross or a wall of %s (%s), got '%s'", o->cave_path, names + 2, view);
+}
+
 /* Window outputs need an X display: the output's, or $DISPLAY. */
 static void check_present(cv_service *s, problems *pb) {
   if (!(s->o.present & CV_PRESENT_WINDOW)) return;
@@ -334,7 +378,7 @@ static void check_present(cv_service *s, problems *pb) {
 }
 
 /* Every check that can be made before anything starts; fills s. */
-static void check_all(cv_service *s, int size, problems *pb) {
+static void check_all(cv_service *s, int size, const char *desktop_view, problems *pb) {
   cv_run_opts *o = &s->o;
   cv_err err;
   if (!o->cave_path[0]) {
@@ -399,13 +443,18 @@ static void check_all(cv_service *s, int size, problems *pb) {
     else cv_display_destroy(d);
   }
   if (s->n_walls > 0) check_present(s, pb);
+  check_desktop(s, desktop_view, pb);
   if (!o->out_dir[0]) snprintf(o->out_dir, sizeof o->out_dir, "out/run");
-  if (o->clock < 0) o->clock = (o->present & CV_PRESENT_WINDOW) ? 1 : 0;
+  if (o->clock < 0) o->clock = (o->present & (CV_PRESENT_WINDOW | CV_PRESENT_DESKTOP)) ? 1 : 0;
   o->swap_lock = o->barrier || (o->present & CV_PRESENT_WINDOW);
 }
 
 static void print_layout(const cv_service *s, int ranks) {
-  printf("cave run: %d ranks: rank 0 master\n", ranks);
+  printf("cave run: %d ranks: rank 0 master", ranks);
+  if (s->o.present & CV_PRESENT_DESKTOP)
+    printf(", desktop preview on $DISPLAY (%s)",
+           s->o.desktop_view < 0 ? "cross" : s->cave.walls[s->o.desktop_view].name);
+  printf("\n");
   for (int i = 0; i < s->cave.n_outputs; i++) {
     const cv_output *o = &s->cave.outputs[i];
     char gpu[16];
@@ -445,14 +494,15 @@ int cmd_run(int argc, char **argv) {
   problems pb;
   memset(&pb, 0, sizeof pb);
   int check = 0, ranks = 0;
-  int h = parse(argc, argv, &s.o, &check, &ranks, &pb);
+  char desktop_view[CV_PATHLEN] = "";
+  int h = parse(argc, argv, &s.o, &check, &ranks, desktop_view, &pb);
   if (h == 1) {
     help(stdout);
     return 0;
   }
   if (check) {
     if (ranks < 1) problem(&pb, "--check needs --ranks N");
-    check_all(&s, ranks, &pb);
+    check_all(&s, ranks, desktop_view, &pb);
     if (pb.n) {
       fputs(pb.buf, stderr);
       fprintf(stderr, "cave run: %d problem%s, not started\n", pb.n, pb.n > 1 ? "s" : "");
@@ -467,7 +517,7 @@ int cmd_run(int argc, char **argv) {
     fprintf(stderr, "cave run: MPI_Init failed\n");
     return 1;
   }
-  check_all(&s, s.size, &pb);
+  check_all(&s, s.size, desktop_view, &pb);
   if (!pb.n && mkdirs(s.o.out_dir)) problem(&pb, "-o: %s: cannot create: %s", s.o.out_dir, strerror(errno));
   if (pb.n) {
     if (s.rank == 0) {

@@ -39,6 +39,7 @@ enum { CV_SWAP_SCHEDULED = 0, CV_SWAP_BARRIER = 1 };
 /* --present: what the render ranks do with a frame (bits). */
 #define CV_PRESENT_FILES 1u  /* EXR + PNG files on the frames the master marks */
 #define CV_PRESENT_WINDOW 2u /* a window per output (X11, EGL), swap-locked */
+#define CV_PRESENT_DESKTOP 4u /* one preview window on the master's desktop (docs/desktop.md) */
 
 typedef struct cv_run_opts {
   char cave_path[CV_PATHLEN];
@@ -61,6 +62,8 @@ typedef struct cv_run_opts {
   double startup_timeout_s;      /* ranks must be ready within this (default 300) */
   int barrier;                   /* per-frame MPI barrier (swap lock) */
   unsigned present;              /* CV_PRESENT_* bits (default files; 0 = none) */
+  int desktop_view;              /* --desktop-view: -1 the cross of all walls (default), else a wall index */
+  double desktop_fps;            /* --desktop-fps: at most this many previews a second (default 30; 0 every frame) */
   int gpu;                       /* CV_GPU_UNSET: each output's; else it overrides all (--gpu) */
   int clock;                     /* 0 sim (fixed dt), 1 wall (real time); -1: wall with windows */
   int swap_lock;                 /* render ranks meet at a barrier before each swap (on with

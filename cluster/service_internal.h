@@ -58,6 +58,15 @@ typedef struct cv_patch_msg {
   uint32_t n;  /* patches of the wall */
 } cv_patch_msg;
 
+/* Desktop preview image (left-eye render rank -> master, frames marked
+ * CV_FS_PREVIEW): this header, then 3 w h bytes, the uncompensated
+ * tone-mapped image as 8-bit Rec.709 codes (the _uncompensated PNG's). */
+typedef struct cv_preview_msg {
+  uint32_t frame;
+  int32_t wall;
+  int32_t w, h;
+} cv_preview_msg;
+
 /* Tells the master this rank's set-up succeeded or why it failed. */
 void cv_service_ready(int ok, const char *msg);
 

@@ -6,7 +6,8 @@
  *   render each eye (luminance pass for the foveal statistics, depth, PRT
  *     shading tone-mapped with the shared adaptation, display-linear);
  *   report each eye (statistics, patch means, the previous frame's swap
- *     time) to the master;
+ *     time) to the master; on desktop preview frames the left eye also
+ *     sends its uncompensated tone-mapped image as 8-bit codes;
  *   apply the master's scattering correction for this wall (or the last
  *     one when it is late) with equation 7;
  *   present: 8-bit projector codes (the PNG's) drawn into the window,
@@ -230,9 +231,10 @@ static void watch_window(walleye *we) {
   if (ev == CV_WIN_OK) return;
   we->win_event = ev;
   char msg[256];
+  const char *dpy = we->spec.display && we->spec.display[0] ? we->spec.display : getenv("DISPLAY");
   snprintf(msg, sizeof msg, "%c rank %d (wall %s, %s, X display '%s'): %s", '0' + ev, we->s->rank,
            we->s->cave.walls[we->wall].name, we->o->eyes == 3 ? "both eyes" : (we->o->eyes == 1 ? "left eye" : "right eye"),
-           we->spec.display && we->spec.display[0] ? we->spec.display : "$DISPLAY", cv_window_event_name(ev));
+           dpy ? dpy : "(unset)", cv_window_event_name(ev));
   cv_comm_send(msg, strlen(msg) + 1, 0, CV_TAG_STOPREQ);
 }
 
@@ -393,6 +395,24 @@ static void send_report(walleye *we, eye_view *v, cv_walleye_report *rep) {
     }
     cv_comm_send(buf, len, 0, CV_TAG_REPORT);
   }
+  free(buf);
+}
+
+/* Desktop preview (frames the master marks CV_FS_PREVIEW, left eye, walls
+ * the preview shows): the uncompensated tone-mapped image as 8-bit codes.
+ * Uncompensated because a desktop monitor does not scatter light between
+ * walls: the target image is what a viewer in the CAVE should see. */
+static void send_preview(walleye *we, const eye_view *v, const cv_frame_state *fs) {
+  const cv_service *s = we->s;
+  if (!(fs->flags & CV_FS_PREVIEW) || v->eye != 0 || !(s->o.present & CV_PRESENT_DESKTOP)) return;
+  if (s->o.desktop_view >= 0 && s->o.desktop_view != we->wall) return;
+  const size_t npx = 3 * (size_t)we->w * we->h;
+  cv_preview_msg h = {.frame = fs->frame, .wall = we->wall, .w = we->w, .h = we->h};
+  uint8_t *buf = malloc(sizeof h + npx);
+  if (!buf) return; /* the master shows the next preview frame */
+  memcpy(buf, &h, sizeof h);
+  cv_rec709_codes(&we->lut, v->disp_img->px, npx, buf + sizeof h);
+  cv_comm_send(buf, sizeof h + npx, 0, CV_TAG_PREVIEW);
   free(buf);
 }
 
@@ -564,7 +584,7 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   if (win) snprintf(where, sizeof where, "window %dx%d+%d+%d on %s", ww, wh, we->spec.x, we->spec.y,
                     cv_renderer_platform(we->r));
   else snprintf(where, sizeof where, "headless on the %s", cv_renderer_platform(we->r));
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none",
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none (EGL has no swap-group extension)",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
            cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU");
@@ -612,6 +632,7 @@ int cv_walleye_run(cv_service *s) {
       rep.state_hash = state_hash;
       render_eye(we, &we->ev[k], &fs, &tm, &rep);
       rep.ms_total = (cv_service_now() - t0) * 1e3;
+      send_preview(we, &we->ev[k], &fs); /* before the report: complete when the frame is */
       send_report(we, &we->ev[k], &rep);
     }
     if (we->disp) take_correction(we, &fs);

@@ -34,6 +34,7 @@
 #define CV_FS_WRITE 2u     /* write this frame's images */
 #define CV_FS_NEW_LIGHT 4u /* lighting changed (light_key differs from the last frame) */
 #define CV_FS_HOLD 8u      /* time held after the drive (--lcd-wait): the LCD converges */
+#define CV_FS_PREVIEW 16u  /* send the desktop preview image of this frame (--present desktop) */
 
 #define CV_FRAME_STATE_MAGIC 0x53465643u /* "CVFS" in little-endian bytes */
 #define CV_FRAME_STATE_VERSION 1u

@@ -1,5 +1,6 @@
-/* Head tracking (tracker.h): recorded head paths, the DTrack ASCII parser
- * and a non-blocking UDP receiver (POSIX sockets). */
+/* Head tracking (tracker.h): recorded head paths, the DTrack ASCII parser,
+ * a non-blocking UDP receiver (POSIX sockets) and the keyboard-and-mouse
+ * head of the desktop preview. */
 #define _POSIX_C_SOURCE 200809L
 #include "service/tracker.h"
 
@@ -495,4 +496,88 @@ void cv_dtrack_receiver_close(cv_dtrack_receiver *r) {
   if (r->fd >= 0) close(r->fd);
   free(r->buf);
   free(r);
+}
+
+/* ---- keyboard and mouse (desktop preview) ------------------------------- */
+
+#define NAV_PI 3.14159265358979323846
+static const double k_max_pitch = 85.0 * NAV_PI / 180.0;
+
+static void nav_gaze(cv_head_nav *n) {
+  const double cp = cos(n->pitch);
+  n->pose.gaze[0] = cp * sin(n->yaw);
+  n->pose.gaze[1] = sin(n->pitch);
+  n->pose.gaze[2] = -cp * cos(n->yaw);
+}
+
+/* Yaw and pitch of a unit gaze (yaw kept when it looks straight up/down). */
+static void nav_angles(cv_head_nav *n, const double g[3]) {
+  const double h = sqrt(g[0] * g[0] + g[2] * g[2]);
+  if (h > 1e-9) n->yaw = atan2(g[0], -g[2]);
+  n->pitch = atan2(g[1], h);
+  if (n->pitch > k_max_pitch) n->pitch = k_max_pitch;
+  if (n->pitch < -k_max_pitch) n->pitch = -k_max_pitch;
+}
+
+static void nav_home(cv_head_nav *n) {
+  memcpy(n->pose.pos, n->home_pos, sizeof n->pose.pos);
+  memcpy(n->pose.gaze, n->home_gaze, sizeof n->pose.gaze);
+  n->yaw = 0;
+  nav_angles(n, n->home_gaze);
+}
+
+int cv_head_nav_init(cv_head_nav *n, const double pos[3], const double gaze[3], const double lo[3],
+                     const double hi[3], double step, double deg_per_px, double now, cv_err *err) {
+  memset(n, 0, sizeof *n);
+  double gl = 0;
+  for (int a = 0; a < 3; a++) {
+    if (!isfinite(pos[a]) || !isfinite(gaze[a]) || !isfinite(lo[a]) || !isfinite(hi[a]))
+      return cv_err_set(err, CV_ERR_INVALID, "head nav: non-finite pose or box");
+    if (!(lo[a] <= hi[a])) return cv_err_set(err, CV_ERR_INVALID, "head nav: empty box on axis %d", a);
+    if (pos[a] < lo[a] || pos[a] > hi[a])
+      return cv_err_set(err, CV_ERR_INVALID, "head nav: home (%g, %g, %g) outside the box", pos[0], pos[1], pos[2]);
+    gl += gaze[a] * gaze[a];
+  }
+  if (!(gl > 0)) return cv_err_set(err, CV_ERR_INVALID, "head nav: zero gaze");
+  if (!(step > 0 && isfinite(step)) || !(deg_per_px > 0 && isfinite(deg_per_px)))
+    return cv_err_set(err, CV_ERR_INVALID, "head nav: step and turn rate must be > 0");
+  gl = sqrt(gl);
+  for (int a = 0; a < 3; a++) {
+    n->home_pos[a] = pos[a];
+    n->home_gaze[a] = gaze[a] / gl;
+    n->lo[a] = lo[a];
+    n->hi[a] = hi[a];
+  }
+  n->step = step;
+  n->deg_per_px = deg_per_px;
+  nav_home(n);
+  n->pose.t = now;
+  n->pose.valid = 1;
+  return CV_OK;
+}
+
+int cv_head_nav_apply(cv_head_nav *n, const cv_head_nav_input *in, double now) {
+  const cv_head_pose before = n->pose;
+  if (in->reset) nav_home(n);
+  if ((in->drag_x != 0 || in->drag_y != 0) && isfinite(in->drag_x) && isfinite(in->drag_y)) {
+    const double k = n->deg_per_px * NAV_PI / 180.0;
+    n->yaw = remainder(n->yaw + in->drag_x * k, 2 * NAV_PI);
+    n->pitch -= in->drag_y * k;
+    if (n->pitch > k_max_pitch) n->pitch = k_max_pitch;
+    if (n->pitch < -k_max_pitch) n->pitch = -k_max_pitch;
+    nav_gaze(n);
+  }
+  if (in->right || in->forward || in->up) {
+    /* the floor frame of the gaze: forward (sin yaw, 0, -cos yaw), right = forward x up */
+    const double f[3] = {sin(n->yaw), 0, -cos(n->yaw)}, r[3] = {cos(n->yaw), 0, sin(n->yaw)};
+    for (int a = 0; a < 3; a++) {
+      double p = n->pose.pos[a] + n->step * (in->right * r[a] + in->forward * f[a] + (a == 1 ? in->up : 0));
+      n->pose.pos[a] = p < n->lo[a] ? n->lo[a] : (p > n->hi[a] ? n->hi[a] : p);
+    }
+  }
+  if (!memcmp(before.pos, n->pose.pos, sizeof before.pos) && !memcmp(before.gaze, n->pose.gaze, sizeof before.gaze))
+    return 0;
+  n->pose.t = now;
+  n->inputs++;
+  return 1;
 }

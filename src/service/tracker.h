@@ -1,5 +1,7 @@
 /* Head tracking for the render service's master rank: a recorded head path
- * (text file) or live ART DTrack ASCII packets over UDP.
+ * (text file), live ART DTrack ASCII packets over UDP, or a head steered
+ * from a desktop's keyboard and mouse (cv_head_nav, for the desktop
+ * preview without a CAVE).
  *
  * Poses are in CAVE coordinates (metres, right-handed, +Y up, the front
  * wall towards -Z).  The DTrack receiver is non-blocking so the master can
@@ -122,5 +124,44 @@ int cv_dtrack_receiver_port(const cv_dtrack_receiver *r);
 int cv_dtrack_receiver_poll(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
                             cv_tracker_stats *stats);
 void cv_dtrack_receiver_close(cv_dtrack_receiver *r); /* accepts NULL */
+
+/* --- keyboard and mouse (desktop preview) --------------------------------- */
+
+/* Input gathered since the last apply: key presses counted per axis of the
+ * head's own floor frame and the mouse drag in pixels. */
+typedef struct cv_head_nav_input {
+  int right;      /* presses: > 0 right, < 0 left (perpendicular to the gaze, floor plane) */
+  int forward;    /* presses: > 0 forward, < 0 back (the gaze projected on the floor) */
+  int up;         /* presses: > 0 up, < 0 down (+Y) */
+  double drag_x;  /* left-button drag, pixels: > 0 turns the gaze right */
+  double drag_y;  /* pixels: > 0 (downwards on the screen) turns the gaze down */
+  int reset;      /* back to the home pose (applied before the rest) */
+} cv_head_nav_input;
+
+/* A head moved by key steps in the CAVE's floor plane (XZ, relative to
+ * where the gaze points), up and down along +Y, and turned by mouse drags
+ * (yaw about +Y, pitch within +-85 degrees), kept inside a box.  Plain
+ * data, owned by the caller; the pose's t is the caller's clock at the
+ * input that last changed it (a sample time, as DTrack's receive time). */
+typedef struct cv_head_nav {
+  double home_pos[3], home_gaze[3]; /* reset pose (gaze unit) */
+  double lo[3], hi[3];              /* the head stays within [lo, hi] */
+  double step;                      /* metres per key press */
+  double deg_per_px;                /* degrees of turn per pixel of drag */
+  double yaw, pitch;                /* radians; yaw 0 looks along -Z, > 0 towards +X */
+  cv_head_pose pose;                /* current pose */
+  uint64_t inputs;                  /* applies that changed the pose */
+} cv_head_nav;
+
+/* Starts at pos/gaze (the home pose), sampled at time `now`.  Errors:
+ * CV_ERR_INVALID (zero or non-finite gaze, a non-finite or empty box, pos
+ * outside it, step or deg_per_px not > 0 and finite). */
+int cv_head_nav_init(cv_head_nav *n, const double pos[3], const double gaze[3], const double lo[3],
+                     const double hi[3], double step, double deg_per_px, double now, cv_err *err);
+/* Applies one batch of input at time now: reset first, then the turn,
+ * then the steps along the turned gaze's floor axes (the position clamped
+ * to the box).  Returns 1 when the pose changed (pose.t = now, inputs
+ * counted), 0 when not (an empty batch, or a step into the box's side). */
+int cv_head_nav_apply(cv_head_nav *n, const cv_head_nav_input *in, double now);
 
 #endif

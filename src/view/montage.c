@@ -22,57 +22,70 @@ static int cube_cell(const char *name, int *col, int *row) {
   return -1;
 }
 
-int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *disp, cv_err *err) {
-  if (!path || !cave || !disp || cave->n_walls < 1)
+int cv_montage_layout(const cv_cave *cave, const int *ws, const int *hs, int *x, int *y, int *W, int *H,
+                      cv_err *err) {
+  if (!cave || !ws || !hs || !x || !y || !W || !H || cave->n_walls < 1)
     return cv_err_set(err, CV_ERR_INVALID, "montage: no walls");
-  int cube = 1, cw = 0, ch = 0, cols = 0, rows = 0, first = 1;
+  int cube = 1, cw = 0, ch = 0, cols = 0;
   for (int i = 0; i < cave->n_walls; i++) {
     int c = 0, r = 0;
+    if (ws[i] < 1 || hs[i] < 1) return cv_err_set(err, CV_ERR_INVALID, "montage: wall %d is %dx%d", i, ws[i], hs[i]);
     if (cube_cell(cave->walls[i].name, &c, &r)) cube = 0;
-    if (!disp[i]) continue;
-    if (disp[i]->c < 3) return cv_err_set(err, CV_ERR_INVALID, "montage: wall %d has %d channels", i, disp[i]->c);
-    if (!first && (disp[i]->w != cw || disp[i]->h != ch)) cube = 0;
-    if (disp[i]->w > cw) cw = disp[i]->w;
-    if (disp[i]->h > ch) ch = disp[i]->h;
-    first = 0;
+    if (i && (ws[i] != cw || hs[i] != ch)) cube = 0;
+    if (ws[i] > cw) cw = ws[i];
+    if (hs[i] > ch) ch = hs[i];
   }
-  if (first) return cv_err_set(err, CV_ERR_INVALID, "montage: no wall image");
-  int W, H;
   if (cube) {
     for (int i = 0; i < cave->n_walls; i++) {
       int c = 0, r = 0;
       cube_cell(cave->walls[i].name, &c, &r);
       if (c + 1 > cols) cols = c + 1;
-      if (r + 1 > rows) rows = r + 1;
+      x[i] = c * cw, y[i] = r * ch;
     }
-    rows = 3; /* keep the front on the middle row even without floor/ceiling */
-    W = cols * cw, H = rows * ch;
+    /* three rows: the front stays on the middle row even without floor/ceiling */
+    *W = cols * cw, *H = 3 * ch;
   } else {
-    W = 0, H = ch;
-    for (int i = 0; i < cave->n_walls; i++) W += disp[i] ? disp[i]->w : cw;
+    int x0 = 0;
+    for (int i = 0; i < cave->n_walls; i++) {
+      x[i] = x0, y[i] = 0;
+      x0 += ws[i];
+    }
+    *W = x0, *H = ch;
   }
+  return CV_OK;
+}
+
+int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *disp, cv_err *err) {
+  if (!path || !cave || !disp || cave->n_walls < 1 || cave->n_walls > CV_CAVE_MAX_WALLS)
+    return cv_err_set(err, CV_ERR_INVALID, "montage: no walls");
+  /* a missing wall (NULL) takes the largest wall's size: a black cell */
+  int ws[CV_CAVE_MAX_WALLS], hs[CV_CAVE_MAX_WALLS], xs[CV_CAVE_MAX_WALLS], ys[CV_CAVE_MAX_WALLS];
+  int mw = 0, mh = 0;
+  for (int i = 0; i < cave->n_walls; i++) {
+    if (!disp[i]) continue;
+    if (disp[i]->c < 3) return cv_err_set(err, CV_ERR_INVALID, "montage: wall %d has %d channels", i, disp[i]->c);
+    if (disp[i]->w > mw) mw = disp[i]->w;
+    if (disp[i]->h > mh) mh = disp[i]->h;
+  }
+  if (!mw) return cv_err_set(err, CV_ERR_INVALID, "montage: no wall image");
+  for (int i = 0; i < cave->n_walls; i++) ws[i] = disp[i] ? disp[i]->w : mw, hs[i] = disp[i] ? disp[i]->h : mh;
+  int W, H;
+  int st = cv_montage_layout(cave, ws, hs, xs, ys, &W, &H, err);
+  if (st) return st;
   uint8_t *px = calloc((size_t)W * H * 3, 1);
   if (!px) return cv_err_set(err, CV_ERR_NOMEM, "montage: out of memory");
-  int x0 = 0;
   for (int i = 0; i < cave->n_walls; i++) {
     const cv_image *im = disp[i];
-    int ox = x0, oy = 0;
-    if (cube) {
-      int c = 0, r = 0;
-      cube_cell(cave->walls[i].name, &c, &r);
-      ox = c * cw, oy = r * ch;
-    }
-    x0 += im ? im->w : cw;
     if (!im) continue;
     for (int y = 0; y < im->h; y++)
       for (int x = 0; x < im->w; x++)
         for (int k = 0; k < 3; k++) {
           float v = cv_image_at(im, x, y)[k];
           v = v > 0 ? (v < 1 ? v : 1) : 0; /* NaN -> 0 */
-          px[((size_t)(oy + y) * W + ox + x) * 3 + k] = (uint8_t)lrintf(v * 255.0f);
+          px[((size_t)(ys[i] + y) * W + xs[i] + x) * 3 + k] = (uint8_t)lrintf(v * 255.0f);
         }
   }
-  int st = cv_png_write(path, W, H, 3, px, err);
+  st = cv_png_write(path, W, H, 3, px, err);
   free(px);
   return st;
 }

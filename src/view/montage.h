@@ -15,4 +15,13 @@
  * CV_ERR_NOMEM, the PNG writer's. */
 int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *disp, cv_err *err);
 
+/* The layout cv_montage_write uses, for walls of ws[i] x hs[i] pixels
+ * (n_walls entries each): the top-left corner (x[i], y[i]) of wall i's cell
+ * and the montage's size *W x *H; cells no wall covers stay black.  The
+ * cube layout needs every wall named after a cube face and one size for
+ * all; else the walls sit side by side, top-aligned.  Errors:
+ * CV_ERR_INVALID (no walls, a size < 1). */
+int cv_montage_layout(const cv_cave *cave, const int *ws, const int *hs, int *x, int *y, int *W, int *H,
+                      cv_err *err);
+
 #endif

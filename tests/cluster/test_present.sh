@@ -101,7 +101,7 @@ done
 for i in $(seq 1 120); do kill -0 $pid 2>/dev/null || break; sleep 0.5; done
 if kill -0 $pid 2>/dev/null; then bad "service still running 60 s after the window closed"; kill -TERM $pid; sleep 5; kill -KILL $pid 2>/dev/null; fi
 wait $pid; rc=$?
-[ $rc -eq 0 ] && grep -q "stopping: rank 4 (wall left, right eye, X display '\$DISPLAY'): window closed" w.err \
+[ $rc -eq 0 ] && grep -q "stopping: rank 4 (wall left, right eye, X display '$DISPLAY'): window closed" w.err \
   && ok "closing a window stopped every rank (exit 0): $(grep stopping w.err)" || bad "close: rc $rc, $(tail -3 w.err)"
 python3 - w <<'PY' && ok "metrics: swap skew and latency present and finite; summary with the stop reason" || bad "window metrics"
 import json, math, sys

@@ -1,4 +1,5 @@
-/* A small X client for the window tests (tests/cluster/test_present.sh):
+/* A small X client for the window tests (tests/cluster/test_present.sh,
+ * test_desktop.sh):
  *   xcheck find TITLE              prints "id x y w h" of the window whose
  *                                  title starts with TITLE (root coordinates)
  *   xcheck compare TITLE FILE.png  compares the window's pixels with a PNG of
@@ -7,6 +8,9 @@
  *   xcheck close TITLE             asks the window to close as a window
  *                                  manager does (WM_DELETE_WINDOW)
  *   xcheck grab TITLE|root OUT.png screenshot
+ *   xcheck cells TITLE NX NY       splits the window into NX x NY cells and
+ *                                  prints "col row mean max" per cell (mean
+ *                                  and max of the channel codes)
  * Exit 1 with a message when the window is missing or the PNG unreadable. */
 #include <X11/Xlib.h>
 #include <X11/Xutil.h>
@@ -51,9 +55,36 @@ static int grab(Display *d, Window w, int *W, int *H, unsigned char **rgb) {
   return 0;
 }
 
+/* Mean and max code per cell of an nx x ny grid over the window. */
+static int cells(Display *d, Window w, int nx, int ny) {
+  int W, H;
+  unsigned char *rgb;
+  if (nx < 1 || ny < 1 || grab(d, w, &W, &H, &rgb)) {
+    fprintf(stderr, "xcheck: cannot read the window's pixels (or a bad grid)\n");
+    return 1;
+  }
+  for (int cy = 0; cy < ny; cy++)
+    for (int cx = 0; cx < nx; cx++) {
+      const int x0 = cx * W / nx, x1 = (cx + 1) * W / nx, y0 = cy * H / ny, y1 = (cy + 1) * H / ny;
+      double sum = 0;
+      int mx = 0;
+      long n = 0;
+      for (int y = y0; y < y1; y++)
+        for (int x = x0; x < x1; x++)
+          for (int c = 0; c < 3; c++, n++) {
+            const int v = rgb[3 * ((size_t)y * W + x) + c];
+            sum += v;
+            if (v > mx) mx = v;
+          }
+      printf("%d %d %.2f %d\n", cx, cy, n ? sum / n : 0.0, mx);
+    }
+  free(rgb);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   if (argc < 3) {
-    fprintf(stderr, "usage: xcheck find|compare|close|grab TITLE [FILE]\n");
+    fprintf(stderr, "usage: xcheck find|compare|close|grab|cells TITLE [FILE | NX NY]\n");
     return 2;
   }
   Display *d = XOpenDisplay(NULL);
@@ -121,8 +152,10 @@ int main(int argc, char **argv) {
       cv_image_destroy(ref);
     }
     free(rgb);
+  } else if (!strcmp(cmd, "cells") && argc > 4) {
+    rc = cells(d, w, atoi(argv[3]), atoi(argv[4]));
   } else {
-    fprintf(stderr, "usage: xcheck find|compare|close|grab TITLE [FILE]\n");
+    fprintf(stderr, "usage: xcheck find|compare|close|grab|cells TITLE [FILE | NX NY]\n");
     rc = 2;
   }
   XCloseDisplay(d);

@@ -1,8 +1,9 @@
 /* Head tracking: the recorded path (interpolation against hand-computed
  * values, loop and hold, every error naming file:line), the DTrack ASCII
  * parser (good packets with two bodies, and each kind of malformed packet
- * rejected), the head pose from a body (rotation applied column-wise), and a
- * real UDP round trip on loopback. */
+ * rejected), the head pose from a body (rotation applied column-wise), a
+ * real UDP round trip on loopback, and the keyboard-and-mouse head (steps
+ * along the gaze's floor axes, turns, the box, reset). */
 #define _POSIX_C_SOURCE 200809L
 #include <setjmp.h>
 #include <stdarg.h>
@@ -332,11 +333,62 @@ static void test_udp_round_trip(void **state) {
   cv_dtrack_receiver_close(NULL);
 }
 
+static void test_head_nav(void **state) {
+  (void)state;
+  cv_head_nav n;
+  cv_err err;
+  const double pos[3] = {0, 1.2, 0}, gaze[3] = {0, 0, -2}, lo[3] = {-1.4, 0.1, -1.4}, hi[3] = {1.4, 2.9, 1.4};
+  assert_int_equal(cv_head_nav_init(&n, pos, gaze, lo, hi, 0.05, 0.25, 7.0, &err), CV_OK);
+  assert_true(n.pose.valid && n.pose.t == 7.0 && n.pose.gaze[2] == -1.0);
+  /* nothing pressed: no change */
+  cv_head_nav_input in = {0};
+  assert_int_equal(cv_head_nav_apply(&n, &in, 8.0), 0);
+  assert_true(n.pose.t == 7.0 && n.inputs == 0);
+  /* right x4, up x2 (gaze along -z: right is +x) */
+  in.right = 4, in.up = 2;
+  assert_int_equal(cv_head_nav_apply(&n, &in, 9.0), 1);
+  assert_true(fabs(n.pose.pos[0] - 0.2) < 1e-12 && fabs(n.pose.pos[1] - 1.3) < 1e-12 && n.pose.pos[2] == 0);
+  assert_true(n.pose.t == 9.0 && n.inputs == 1);
+  /* the box: 100 steps right stop at hi; against the side nothing changes */
+  memset(&in, 0, sizeof in);
+  in.right = 100;
+  assert_int_equal(cv_head_nav_apply(&n, &in, 9.5), 1);
+  assert_true(n.pose.pos[0] == 1.4 && n.pose.pos[2] == 0);
+  assert_int_equal(cv_head_nav_apply(&n, &in, 9.7), 0);
+  assert_true(n.pose.t == 9.5);
+  /* drag 360 px right = 90 degrees: the gaze looks along +x; forward is +x,
+   * back is -x */
+  memset(&in, 0, sizeof in);
+  in.drag_x = 360, in.forward = -2;
+  assert_int_equal(cv_head_nav_apply(&n, &in, 10.0), 1);
+  assert_true(fabs(n.pose.gaze[0] - 1) < 1e-12 && fabs(n.pose.gaze[2]) < 1e-12);
+  assert_true(fabs(n.pose.pos[0] - 1.3) < 1e-12 && fabs(n.pose.pos[2]) < 1e-12);
+  /* pitch is held within 85 degrees; dragging up looks up */
+  memset(&in, 0, sizeof in);
+  in.drag_y = -10000;
+  cv_head_nav_apply(&n, &in, 11.0);
+  assert_true(fabs(n.pose.gaze[1] - sin(85 * 3.14159265358979323846 / 180)) < 1e-12);
+  /* reset: home pose and gaze exactly */
+  memset(&in, 0, sizeof in);
+  in.reset = 1;
+  assert_int_equal(cv_head_nav_apply(&n, &in, 14.0), 1);
+  assert_memory_equal(n.pose.pos, pos, sizeof pos);
+  assert_true(n.pose.gaze[0] == 0 && n.pose.gaze[1] == 0 && n.pose.gaze[2] == -1);
+  /* errors */
+  const double zero[3] = {0, 0, 0}, out[3] = {5, 1, 0};
+  assert_int_equal(cv_head_nav_init(&n, pos, zero, lo, hi, 0.05, 0.25, 0, &err), CV_ERR_INVALID);
+  assert_int_equal(cv_head_nav_init(&n, out, gaze, lo, hi, 0.05, 0.25, 0, &err), CV_ERR_INVALID);
+  assert_non_null(strstr(err.msg, "outside the box"));
+  assert_int_equal(cv_head_nav_init(&n, pos, gaze, hi, lo, 0.05, 0.25, 0, &err), CV_ERR_INVALID);
+  assert_int_equal(cv_head_nav_init(&n, pos, gaze, lo, hi, 0, 0.25, 0, &err), CV_ERR_INVALID);
+}
+
 int run_tracker_tests(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_head_path_eval),   cmocka_unit_test(test_head_path_errors),
       cmocka_unit_test(test_default_head_path), cmocka_unit_test(test_dtrack_good),
       cmocka_unit_test(test_dtrack_malformed), cmocka_unit_test(test_udp_round_trip),
+      cmocka_unit_test(test_head_nav),
   };
   return cmocka_run_group_tests_name("tracker", tests, NULL, NULL);
 }
