@@ -33,7 +33,7 @@ print(' | '.join(('%.3g' % s[k]) if k in s else '-' for k in sys.argv[2:]))" "$@
 run() { local out="$1"; shift; "${MPI[@]}" -np 11 "$CAVE" run "$CFG" --scene "$SCENE" --drive "$DRIVE" --head-path "$HEAD" \
           --frames "$FRAMES" --no-idle-lcd --quiet -o "$WORK/$out" "$@" >/dev/null; }
 
-echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs); load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "machine: $(nproc --all) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs); load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo
 echo "| pixels per wall-eye | present | swap lock | fps (p50) | frame ms p50 | frame ms p99 | swap skew us p50 | p99 | max |"
 echo "|---|---|---|---|---|---|---|---|---|"
@@ -54,3 +54,23 @@ run wall240 --size 240 --present window --clock wall
 echo "| constant velocity | $(get "$WORK/wall240/metrics.jsonl" motion_to_photon_ms_p50 motion_to_photon_ms_p99 tracker_age_at_swap_ms_p50 prediction_error_mm_p50 prediction_error_mm_p99 held_pose_error_mm_p50 held_pose_error_mm_p99) |"
 run wallnp240 --size 240 --present window --clock wall --no-predict
 echo "| none | $(get "$WORK/wallnp240/metrics.jsonl" motion_to_photon_ms_p50 motion_to_photon_ms_p99 tracker_age_at_swap_ms_p50 prediction_error_mm_p50 prediction_error_mm_p99 held_pose_error_mm_p50 held_pose_error_mm_p99) |"
+
+# The swap lock's own skew, without more render ranks than cores: the front
+# wall alone (master + 2 render ranks on this 2-core machine).
+python3 - "$CFG" > "$WORK/front.json" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+c["walls"] = c["walls"][:1]
+print(json.dumps(c))
+PY
+run1() { local out="$1"; shift; "${MPI[@]}" -np 3 "$CAVE" run "$WORK/front.json" --scene "$SCENE" --drive "$DRIVE" --head-path "$HEAD" \
+          --frames "$FRAMES" --no-idle-lcd --quiet -o "$WORK/$out" "$@" >/dev/null; }
+echo
+echo "Front wall only (3 ranks: render ranks do not outnumber the cores):"
+echo
+echo "| pixels per wall-eye | present | swap lock | fps (p50) | frame ms p50 | frame ms p99 | swap skew us p50 | p99 | max |"
+echo "|---|---|---|---|---|---|---|---|---|"
+for lock in scheduled barrier; do
+  run1 front_$lock --size 240 --present window --clock sim --swap-sync $lock
+  echo "| 240 | window | $lock | $(get "$WORK/front_$lock/metrics.jsonl" fps frame_ms_p50 frame_ms_p99 swap_skew_us_p50 swap_skew_us_p99 swap_skew_us_max) |"
+done
