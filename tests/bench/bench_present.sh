@@ -14,7 +14,7 @@ FRAMES="${2:-40}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 if [ -z "${CAVE_IN_XVFB:-}" ]; then
   export CAVE_IN_XVFB=1
-  exec xvfb-run -a -s "-screen 0 1920x1080x24" bash "$0" "$@"
+  exec xvfb-run -n 141 -a -s "-screen 0 1920x1080x24" bash "$0" "$@"
 fi
 CAVE="$BUILD/cave"
 WORK="${BENCH_WORK:-/tmp/bench_present}"

@@ -17,7 +17,7 @@ CAVE="$1"; XCHECK="$2"; WORK="$3"; SRC="$4"; MPIEXEC="${5:-mpirun}"
 if [ -z "${CAVE_IN_XVFB:-}" ]; then
   command -v xvfb-run >/dev/null || { echo "FAIL: xvfb-run not installed (Debian package xvfb; cluster/setup.sh installs it)"; exit 1; }
   export CAVE_IN_XVFB=1
-  exec xvfb-run -a -s "-screen 0 1280x800x24" bash "$0" "$@"
+  exec xvfb-run -n 101 -a -s "-screen 0 1280x800x24" bash "$0" "$@"
 fi
 rm -rf "$WORK"; mkdir -p "$WORK"; cd "$WORK"
 pass=0; fail=0
