@@ -9,7 +9,7 @@ CAVE_PACKAGES=(
   libembree-dev libopenexr-dev zlib1g-dev libcglm-dev libcjson-dev libassimp-dev
   libpng-dev libcmocka-dev libopenmpi-dev openmpi-bin
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libx11-dev
-  xvfb xauth xdotool x11-utils
+  xvfb xauth xdotool x11-utils python3
   blender-data
 )
 
