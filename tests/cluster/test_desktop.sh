@@ -23,27 +23,7 @@ if [ -z "${CAVE_IN_XVFB:-}" ]; then
   export CAVE_IN_XVFB=1
   exec xvfb-run -n 121 -a -s "-screen 0 1280x800x24" bash "$0" "$@"
 fi
-rm -rf "$WORK"; mkdir -p "$WORK"; cd "$WORK"
-pass=0; fail=0
-ok()  { echo "ok: $*"; pass=$((pass + 1)); }
-bad() { echo "FAIL: $*"; fail=$((fail + 1)); }
-export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-export OMPI_MCA_rmaps_base_oversubscribe=1 OMPI_MCA_mca_base_component_disable_dlclose=1
-MPI=("$MPIEXEC" --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS -x DISPLAY -x XAUTHORITY
-     -x OMPI_MCA_mca_base_component_disable_dlclose)
-[ -n "${ASAN_OPTIONS:-}" ] && export ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0"
-for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS; do [ -n "${!v:-}" ] && MPI+=(-x "$v"); done
-CFG="$SRC/configs/caves/cave5.json"
-echo "X display $DISPLAY"
-
-"$CAVE" bake default -o scene.prt --bands 3 --rays 32 --bounces 1 --quiet >/dev/null || { echo "FAIL: bake"; exit 1; }
-cat > still.json <<'JSON'
-{"description": "standing still under forest", "loop": true, "maps": ["forest.exr"],
- "keyframes": [{"t": 0, "yaw": 30, "weights": [1]}, {"t": 10, "yaw": 30}]}
-JSON
-S=64
-COMMON=(--scene scene.prt --size $S --patches 8 --no-lcd --drive still.json --quiet)
+source "$(dirname "${BASH_SOURCE[0]}")/x11_common.sh"
 TITLE="cave desktop preview (cross)"
 
 # The newest frame line's tracker: "hx hy hz gx gy gz" (metrics of run $1).
