@@ -183,9 +183,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       else o->desktop_fps = d;
     } else if (!strcmp(a, "--gpu")) {
       NEED();
-      if (!strcmp(v, "auto")) o->gpu = CV_GPU_AUTO;
-      else if (!strcmp(v, "software")) o->gpu = CV_GPU_SOFTWARE;
-      else if (cv_parse_int(v, 0, 63, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
+      if (cv_gpu_parse(v, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
     } else if (!strcmp(a, "--clock")) {
       NEED();
       if (!strcmp(v, "wall")) o->clock = 1;

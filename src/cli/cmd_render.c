@@ -42,7 +42,7 @@ static void help(FILE *f) {
           "usage: cave render <cave.json> --scene scene.prt LIGHT [--head x,y,z --gaze x,y,z]\n"
           "                   [--frames N] [--dt S] [--size N] [--supersample 1|2]\n"
           "                   [--lum-res N] [--bg-res N] [--half] [--cull-back] [--all-frames]\n"
-          "                   -o DIR\n\n"
+          "                   [--gpu auto|software|N] -o DIR\n\n"
           "Renders every wall and eye of the CAVE configuration with the EGL/OpenGL PRT\n"
           "renderer: per frame the luminance passes of all wall-eyes, the foveal adaptation\n"
           "statistics, one Pattanaik adaptation step of --dt seconds, then the shading\n"
@@ -65,6 +65,9 @@ static void help(FILE *f) {
           "  --cull-back      cull back faces (faster; only for closed, consistently wound\n"
           "                   meshes such as the built-in cabin)\n"
           "  --all-frames     write the images of every frame (default: the last one)\n"
+          "  --gpu G          auto (default: the first hardware EGL device, else llvmpipe,\n"
+          "                   said so), software (llvmpipe) or hardware device N (0..63);\n"
+          "                   a device asked for and missing is an error, as in cave run\n"
           "  -o DIR           output folder (created if missing)\n\n"
           "Writes DIR/<wall>_<L|R>.exr (linear radiance), DIR/<wall>_<L|R>.png (Drago +\n"
           "Rec.709 transfer) and DIR/montage_L.png; with --all-frames the frame number is\n"
@@ -170,7 +173,7 @@ int cmd_render(int argc, char **argv) {
   cv_light_spec_default(&spec);
   double head[3], gaze[3], dt = 0.1;
   int have_head = 0, have_gaze = 0, frames = 1, size = 0, ss = 0, lum_res = 0, bg_res = 1024;
-  int half = 0, all_frames = 0, cull_back = 0;
+  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     int used = 0;
@@ -181,7 +184,11 @@ int cmd_render(int argc, char **argv) {
     int st = parse_light(a, argv, &i, argc, &spec, &weights, &used);
     if (st) return st;
     if (used) continue;
-    if (!strcmp(a, "--half")) {
+    if (!strcmp(a, "--gpu")) {
+      if (!val || cv_gpu_parse(val, &gpu))
+        return cli_fail("render", 2, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", val ? val : "(nothing)");
+      i++;
+    } else if (!strcmp(a, "--half")) {
       half = 1;
     } else if (!strcmp(a, "--cull-back")) {
       cull_back = 1;
@@ -292,6 +299,7 @@ int cmd_render(int argc, char **argv) {
   cv_render_default_opts(&ro);
   ro.half_transfer = half;
   ro.cull_back = cull_back;
+  ro.gpu = gpu;
   if (cv_renderer_create(prt, &ro, &r, &err)) {
     rc = cli_fail("render", 1, "%s", err.msg);
     goto done;

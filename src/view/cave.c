@@ -748,3 +748,15 @@ int cv_cave_check_eye(const cv_cave *c, const double eye[3], cv_err *err) {
   cv_err_clear(err);
   return CV_OK;
 }
+
+int cv_gpu_parse(const char *s, int *gpu) {
+  if (!s) return -1;
+  if (!strcmp(s, "auto")) return *gpu = CV_GPU_AUTO, 0;
+  if (!strcmp(s, "software")) return *gpu = CV_GPU_SOFTWARE, 0;
+  char *end;
+  errno = 0;
+  long v = strtol(s, &end, 10);
+  if (end == s || *end || errno || v < 0 || v > 63) return -1;
+  *gpu = (int)v;
+  return 0;
+}

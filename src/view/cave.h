@@ -59,6 +59,10 @@ typedef struct cv_wall {
 #define CV_GPU_SOFTWARE (-2) /* Mesa's software device (llvmpipe) */
 #define CV_GPU_UNSET (-3)    /* not given (an error in explicit outputs) */
 
+/* The --gpu option of every command: "auto", "software" or a hardware device
+ * index 0..63.  Returns 0 and sets *gpu, or -1 (nothing set). */
+int cv_gpu_parse(const char *s, int *gpu);
+
 typedef enum cv_stereo_mode {
   CV_STEREO_PASSIVE = 0,  /* one eye per output (projector pairs with polarisation) */
   CV_STEREO_QUAD,         /* both eyes, quad-buffered window (needs a stereo GL config) */

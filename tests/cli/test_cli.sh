@@ -174,6 +174,11 @@ expect_error "render: bad CAVE config" "dupcave.json" $CAVE render dupcave.json 
 expect_error "render: eye behind a screen" "front" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --head 0,1.2,-2 -o x
 expect_error "render: missing scene" "none.prt" $CAVE render "$CAVE5" --scene none.prt --sky 3,35,30 -o x
 expect_error "render: no lighting" "no lighting" $CAVE render "$CAVE5" --scene a.prt -o x
+expect_error "render: bad --gpu" "--gpu: expected auto, software" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --gpu fast -o x
+# --gpu means the same as in cave run: software names llvmpipe, a missing hardware device is an error
+expect_ok "render --gpu software" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --lum-res 8 --gpu software -o rndsw
+grep -q "^GL: .*llvmpipe" out.txt && ok "render --gpu software: says llvmpipe" || bad "render --gpu software: no llvmpipe in the GL line"
+expect_error "render --gpu 63: no such hardware device" "no hardware EGL device 63" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --gpu 63 -o rndhw
 [ ! -e x ] && ok "render: no output folder left by failures" || bad "render: a failure left output"
 
 # --- lcd ---------------------------------------------------------------------
