@@ -107,6 +107,11 @@ expect_error "reference missing PRT" "none.prt" $CAVE reference none.prt --env-c
 expect_error "reference missing map" "nosuch.exr" $CAVE reference a.prt --env nosuch.exr $RV -o y.exr
 [ ! -e y.exr ] && [ ! -e y.png ] && ok "reference failures leave no output" || bad "a failed reference left output"
 
+# One default cabin: `cave bake default` and configs/scenes/default.json bake the same mesh.
+H1=$($CAVE bake default -o d1.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')
+H2=$($CAVE bake "$ROOT/configs/scenes/default.json" -o d2.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')
+[ -n "$H1" ] && [ "$H1" = "$H2" ] && ok "one default cabin (input hash $H1)" || bad "bake default ($H1) and default.json ($H2) differ"
+
 # --- compensate --------------------------------------------------------------
 if $CAVE compensate --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help compensate"; else bad "help compensate"; fi
 wall() { # wall NAME PA PB PC REFL PATCHES
