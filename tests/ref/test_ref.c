@@ -7,7 +7,10 @@
  *  - a lone plane under a sun: (a / pi) E cos exactly;
  *  - the open box of tests/prt (window on top, constant sky): floor centre
  *    against the PRT bake of the same box (2%);
- *  - the same seed gives the same image for 1 and 2 threads; bad input. */
+ *  - the same seed gives the same image for 1 and 2 threads; bad input;
+ *  - window-light splitting (prt/scene_light): the split lights carry the
+ *    energy they remove, and on the open box under a map with a bright patch
+ *    above the window the split brings the PRT closer to the reference. */
 #include <math.h>
 #include <omp.h>
 #include <setjmp.h>
@@ -20,8 +23,10 @@
 
 #include <cmocka.h>
 
+#include "io/exr.h"
 #include "prt/bake.h"
 #include "prt/relight.h"
+#include "prt/scene_light.h"
 #include "ref/ref.h"
 
 /* n x n grid of quads over o + s e1 + t e2; normal e1 x e2. */
@@ -360,12 +365,98 @@ static void test_bad_input(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* Open box (window on top) under a map: dim sky plus a bright 20-degree patch
+ * straight above the window.  PRT floor centre at 3 bands with and without
+ * --split, against the reference with the same bounce count. */
+static void test_split_lights(void **state) {
+  (void)state;
+  const int w = 256, h = 128;
+  cv_image *img;
+  assert_int_equal(cv_image_create(w, h, 3, &img), CV_OK);
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      float *p = cv_image_at(img, x, y);
+      double th = M_PI * (y + 0.5) / h, ph = 2 * M_PI * (x + 0.5) / w;
+      /* bright patch: 10-20 degrees from the zenith on one side */
+      int hot = th > 10 * M_PI / 180 && th < 20 * M_PI / 180 && ph < M_PI / 2;
+      p[0] = p[1] = p[2] = hot ? 40.0f : 0.5f;
+    }
+  char path[512];
+  snprintf(path, sizeof path, "%s/split_map.exr", CV_TEST_TMP_DIR);
+  assert_int_equal(cv_exr_write(path, img, 0, CV_EXR_NONE, NULL), CV_OK);
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_ENV;
+  spec.n_env = 1;
+  spec.weight[0] = 1;
+  spec.extract_sun = 0;
+  snprintf(spec.env[0], sizeof spec.env[0], "%s", path);
+  const float a = 0.6f;
+  const int n = 16;
+  cv_mesh *m = box_mesh(n, a, 1);
+  cv_bake_params bp = {.bands = 3, .rays = 2048, .bounces = 1, .seed = 3,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake_tracer(tr, &bp, &prt, NULL, NULL), CV_OK);
+  cv_scene_light *sl;
+  assert_int_equal(cv_scene_light_build(&spec, 3, &sl, NULL), CV_OK);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  uint32_t centre = (uint32_t)((n / 2) * (n + 1) + n / 2);
+  cv_lighting l0 = cv_scene_light_sh(sl);
+  assert_int_equal(cv_prt_relight(prt, &l0, tr, 64, rad, NULL), CV_OK);
+  double plain = rad[3 * centre];
+  /* relight_ex without extra lights is relight */
+  float *rad2 = malloc(3 * prt->nv * sizeof(float));
+  assert_int_equal(cv_prt_relight_ex(prt, &l0, NULL, 0, tr, 64, rad2, NULL), CV_OK);
+  assert_memory_equal(rad, rad2, 3 * prt->nv * sizeof(float));
+  /* Split: the lights carry what the SH lighting lost (the DC term is the
+   * map's mean radiance times sqrt(4 pi)). */
+  assert_int_equal(cv_scene_light_split(sl, tr, 32, 64, NULL), CV_OK);
+  const cv_dir_light *ex;
+  int ne = cv_scene_light_extra(sl, &ex);
+  assert_true(ne > 0 && ne <= 32);
+  cv_lighting l1 = cv_scene_light_sh(sl);
+  double lost = (l0.sh[0] - l1.sh[0]) * sqrt(4 * M_PI), carried = 0;
+  for (int k = 0; k < ne; k++) carried += ex[k].E[0];
+  printf("split: %d lights carry %.5f, SH lost %.5f\n", ne, carried, lost);
+  assert_true(fabs(carried / lost - 1) < 1e-3);
+  assert_int_equal(cv_prt_relight_ex(prt, &l1, ex, ne, tr, 64, rad2, NULL), CV_OK);
+  double split = rad2[3 * centre];
+  /* The reference at the same point, the same bounce count. */
+  cv_ref_light *rl;
+  assert_int_equal(cv_ref_light_build(&spec, &rl, NULL), CV_OK);
+  cv_ref_scene *rs;
+  assert_int_equal(cv_ref_scene_create(m, &rs, NULL), CV_OK);
+  cv_ref_params p;
+  cv_ref_params_default(&p);
+  p.bounces = 1;
+  const double org[3] = {0.5, 0.5, 0.5}, d[3] = {0, -1, 0};
+  double ref[3], se[3];
+  assert_int_equal(cv_ref_radiance(rs, rl, &p, org, d, 100000, ref, se, NULL), CV_OK);
+  printf("floor centre: reference %.5f +- %.5f; PRT 3 bands %.5f (%.2f%%), with %d split "
+         "lights %.5f (%.2f%%)\n", ref[0], se[0], plain, 100 * (plain / ref[0] - 1), ne, split,
+         100 * (split / ref[0] - 1));
+  assert_true(fabs(split / ref[0] - 1) < fabs(plain / ref[0] - 1));
+  assert_true(fabs(split / ref[0] - 1) < 0.03);
+  cv_ref_scene_destroy(rs);
+  cv_ref_light_destroy(rl);
+  free(rad);
+  free(rad2);
+  cv_scene_light_destroy(sl);
+  cv_prt_destroy(prt);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+  cv_image_destroy(img);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_furnace),          cmocka_unit_test(test_plane_constant_sky),
       cmocka_unit_test(test_plane_hot_map),    cmocka_unit_test(test_plane_sun),
       cmocka_unit_test(test_open_box_vs_bake), cmocka_unit_test(test_determinism),
-      cmocka_unit_test(test_bad_input),
+      cmocka_unit_test(test_bad_input),        cmocka_unit_test(test_split_lights),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
