@@ -4,7 +4,8 @@
  * interior (PRT radiance) and the sky through the windows, final-gathered
  * with one bounce through a tabulated BRDF, progressively in fixed point
  * (src/lcd).  Writes the panel image (EXR), a sidecar JSON with its sample
- * count and error estimate, and optionally a tone-mapped PNG. */
+ * count, error estimate and readability figures (lcd/readability.h), a
+ * contrast-ratio heat map PNG, and optionally a tone-mapped PNG. */
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -15,9 +16,11 @@
 #include "core/outfile.h"
 #include "core/progress.h"
 #include "io/exr.h"
+#include "io/png.h"
 #include "io/tonemap_simple.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/readability.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
 
@@ -27,7 +30,8 @@ static void help(FILE *f) {
           "                [--roll DEG] [--spp N] [--rounds R] [--size WxH] [--brdf FILE]\n"
           "                [--sampling brdf|cosine|mis] [--content FILE] [--luminance CD]\n"
           "                [--lcd-config FILE] [--prt FILE] [--seed S] [--threads N]\n"
-          "                -o panel.exr [--png]\n\n"
+          "                [--black CD] [--cr-min R] [--age YEARS] [--pigment P]\n"
+          "                [--adaptation CD] [--heatmap FILE.png] -o panel.exr [--png]\n\n"
           "Final gather on the LCD panel (the scene's triangles tagged lcd): for every texel the\n"
           "eye ray from --eye gives the view direction; reflected rays are drawn from the\n"
           "panel's BRDF and traced one bounce: through a window they read the environment,\n"
@@ -50,7 +54,17 @@ static void help(FILE *f) {
           "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (see lcd_config.h)\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
-          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate).\n");
+          "Readability (docs/readability.md; each figure with its standard error):\n"
+          "  --black CD        content black luminance in cd/m^2 (default 0.002 x white)\n"
+          "  --cr-min R        required contrast ratio (default 3, ISO 15008)\n"
+          "  --age YEARS       driver's age for the CIE 146 disability glare (default 40)\n"
+          "  --pigment P       eye pigmentation 0 (dark) .. 1 (light blue) (default 0.5)\n"
+          "  --adaptation CD   adaptation luminance for the visibility level (default: the\n"
+          "                    panel background seen, black + reflection + veil)\n"
+          "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
+          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
+          "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
+          "colour bar CR 1..10 on a log scale below with the requirement marked white).\n");
 }
 
 static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, int *have,
@@ -101,7 +115,9 @@ static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, 
 }
 
 static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd_error *e,
-                         const cv_lcd_key *key, double seconds, const char *brdf, cv_err *err) {
+                         const cv_lcd_key *key, double seconds, const char *brdf,
+                         const cv_lcd_readability *rd, const cv_lcd_read_params *rp,
+                         const cv_lcd_veil_params *vp, cv_err *err) {
   cv_outfile o;
   int st = cv_outfile_open(&o, path, 1, err);
   if (st) return st;
@@ -112,21 +128,100 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
           "  \"clamped_values\": %lld, \"nonfinite_values\": %lld,\n"
           "  \"rays\": {\"interior\": %lld, \"environment\": %lld, \"lost\": %lld, \"sun_shadow\": %lld, \"sun_unblocked\": %lld},\n"
           "  \"key\": {\"eye_q\": [%d, %d, %d], \"light_hash\": \"%016llx\", \"setup_hash\": \"%016llx\"},\n"
-          "  \"brdf\": \"%s\", \"seconds\": %.3f\n}\n",
+          "  \"brdf\": \"%s\", \"seconds\": %.3f,\n",
           acc->w, acc->h, (long long)d[CV_LCD_ACC_SPP], (long long)d[CV_LCD_ACC_ROUNDS], e->rel_rms,
           e->mean_luminance, (long long)d[CV_LCD_ACC_CLAMPED], (long long)d[CV_LCD_ACC_NONFINITE],
           (long long)d[CV_LCD_ACC_HITS], (long long)d[CV_LCD_ACC_ENV], (long long)d[CV_LCD_ACC_LOST],
           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_SUNLIT], key->eye_q[0],
           key->eye_q[1], key->eye_q[2], (unsigned long long)key->light_hash,
           (unsigned long long)key->setup_hash, brdf, seconds);
+  fprintf(o.f,
+          "  \"readability\": {\"white_luminance\": %.6g, \"black_luminance\": %.6g, \"cr_min\": %.6g,\n"
+          "    \"age\": %.6g, \"pigment\": %.6g,\n"
+          "    \"contrast_ratio\": %.6g, \"contrast_ratio_se\": %.3g, \"contrast_ratio_worst\": %.6g,\n"
+          "    \"area_meeting_cr_min\": %.6g, \"area_meeting_cr_min_se\": %.3g,\n"
+          "    \"reflected_luminance\": %.6g, \"reflected_luminance_se\": %.3g,\n"
+          "    \"veiling_luminance\": %.6g, \"veiling_luminance_se\": %.3g,\n"
+          "    \"adaptation_luminance\": %.6g, \"threshold_difference\": %.6g,\n"
+          "    \"visibility_level\": %.6g, \"visibility_level_se\": %.3g}\n}\n",
+          rp->white, rp->black, rp->cr_min, vp->age, vp->pigment, rd->cr_mean.value,
+          rd->cr_mean.se, rd->cr_worst, rd->frac_ok.value, rd->frac_ok.se, rd->L_r.value,
+          rd->L_r.se, rd->L_v.value, rd->L_v.se, rd->L_a.value, rd->dL_threshold, rd->vl.value,
+          rd->vl.se);
   return cv_outfile_commit(&o, err);
+}
+
+typedef struct eye_ctx {
+  const cv_lcd_gather *g;
+  const cv_lcd_light *l;
+  float eye[3];
+} eye_ctx;
+
+static double eye_luminance(void *ctx, const double dir[3]) {
+  const eye_ctx *c = ctx;
+  const float d[3] = {(float)dir[0], (float)dir[1], (float)dir[2]};
+  float rgb[3];
+  cv_lcd_eye_radiance(c->g, c->l, c->eye, d, rgb);
+  return cv_luminance(rgb[0], rgb[1], rgb[2]);
+}
+
+/* The veil at the eye looking at the panel centre: the surroundings seen
+ * (environment through the windows, interior) plus the sun when visible.
+ * *sun_deg: the sun's glare angle (-1: no sun or hidden). */
+static int panel_veil(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                      const cv_lcd_veil_params *vp, cv_lcd_figure *lv, double *sun_deg) {
+  const cv_lcd_panel *pn = cv_lcd_gather_panel(g);
+  double gaze[3], len = 0;
+  for (int k = 0; k < 3; k++) {
+    gaze[k] = (double)pn->center[k] - eye[k];
+    len += gaze[k] * gaze[k];
+  }
+  len = sqrt(len);
+  if (!(len > 0)) return CV_ERR_INVALID;
+  for (int k = 0; k < 3; k++) gaze[k] /= len;
+  eye_ctx c = {g, l, {eye[0], eye[1], eye[2]}};
+  cv_lcd_point_source sun;
+  int nsrc = 0;
+  *sun_deg = -1;
+  if (cv_lcd_sun_visible(g, l, eye)) {
+    double sl = 0;
+    for (int k = 0; k < 3; k++) sl += (double)l->sun_dir[k] * l->sun_dir[k];
+    sl = sqrt(sl);
+    double cosg = 0;
+    for (int k = 0; k < 3; k++) {
+      sun.dir[k] = l->sun_dir[k] / sl;
+      cosg += sun.dir[k] * gaze[k];
+    }
+    sun.E = cv_luminance(l->sun_E[0], l->sun_E[1], l->sun_E[2]);
+    *sun_deg = acos(cosg > 1 ? 1 : (cosg < -1 ? -1 : cosg)) * 180 / M_PI;
+    nsrc = 1;
+  }
+  cv_rt_thread_init();
+  return cv_lcd_veil(gaze, vp, eye_luminance, &c, &sun, nsrc, lv);
+}
+
+/* Writes the CR heat map (panel over a colour bar). */
+static int write_heatmap(const char *path, const cv_lcd_readability *rd, cv_err *err) {
+  const int bar = rd->h / 12 > 8 ? rd->h / 12 : 8;
+  uint8_t *px = malloc((size_t)rd->w * (size_t)(rd->h + bar) * 3);
+  if (!px) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+  int st = cv_lcd_heatmap_rgb(rd, bar, px);
+  if (st) cv_err_set(err, st, "%s: out of memory", path);
+  else st = cv_png_write(path, rd->w, rd->h + bar, 3, px, err);
+  free(px);
+  return st;
 }
 
 int cmd_lcd(int argc, char **argv) {
   const char *in = NULL, *out = NULL, *weights = NULL, *prt_path = NULL, *cfg_path = NULL;
   const char *brdf_s = NULL, *content_s = NULL, *sampling = NULL, *size_s = NULL;
   int png = 0, have_light = 0, have_eye = 0, threads = 0, spp = -1, rounds = -1;
-  double lum = -1, eye[3] = {0, 0, 0};
+  double lum = -1, eye[3] = {0, 0, 0}, black = -1;
+  const char *heat_s = NULL;
+  cv_lcd_read_params rp;
+  cv_lcd_read_params_default(&rp);
+  cv_lcd_veil_params vp;
+  cv_lcd_veil_params_default(&vp);
   long long seed = -1;
   cv_light_spec spec;
   cv_light_spec_default(&spec);
@@ -168,6 +263,18 @@ int cmd_lcd(int argc, char **argv) {
       content_s = argv[++i];
     } else if (!strcmp(a, "--luminance")) {
       if (cli_parse_double(argv[++i], &lum) || lum < 0) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 >= 0, got '%s'", val);
+    } else if (!strcmp(a, "--black")) {
+      if (cli_parse_double(argv[++i], &black) || black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
+    } else if (!strcmp(a, "--cr-min")) {
+      if (cli_parse_double(argv[++i], &rp.cr_min) || !(rp.cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
+    } else if (!strcmp(a, "--age")) {
+      if (cli_parse_double(argv[++i], &vp.age) || !(vp.age >= 0) || vp.age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
+    } else if (!strcmp(a, "--pigment")) {
+      if (cli_parse_double(argv[++i], &vp.pigment) || !(vp.pigment >= 0 && vp.pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
+    } else if (!strcmp(a, "--adaptation")) {
+      if (cli_parse_double(argv[++i], &rp.adaptation) || !(rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
+    } else if (!strcmp(a, "--heatmap")) {
+      heat_s = argv[++i];
     } else if (!strcmp(a, "--lcd-config")) {
       cfg_path = argv[++i];
     } else if (!strcmp(a, "--prt")) {
@@ -207,6 +314,13 @@ int cmd_lcd(int argc, char **argv) {
   if (seed >= 0) lc.seed = (uint32_t)seed;
   if (sampling) lc.brdf_fraction = !strcmp(sampling, "brdf") ? 1.0 : !strcmp(sampling, "cosine") ? 0.0 : 0.9;
   if (threads > 0) omp_set_num_threads(threads);
+  rp.white = lc.content_luminance;
+  rp.black = black >= 0 ? black : 0.002 * rp.white;
+  if (cv_lcd_read_params_check(&rp, &err)) return cli_fail("lcd", 2, "%s", err.msg);
+  if (heat_s && !cli_has_ext(heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", heat_s);
+  char heatp[CV_PATH_MAX];
+  if (heat_s) snprintf(heatp, sizeof heatp, "%s", heat_s);
+  else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)(strlen(out) - 4), out);
 
   int rc = 1;
   cv_scene_config cfg;
@@ -222,6 +336,8 @@ int cmd_lcd(int argc, char **argv) {
   cv_lcd_progress prog;
   memset(&prog, 0, sizeof prog);
   cv_image *content = NULL, *img = NULL;
+  cv_lcd_readability rd;
+  memset(&rd, 0, sizeof rd);
   if (weights) {
     if (spec.kind != CV_LIGHT_ENV) return cli_fail("lcd", 2, "--weights needs --env");
     double w[CV_MAX_ENV_MAPS], sum = 0;
@@ -343,6 +459,11 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "cannot allocate a %dx%d panel", par.w, par.h);
     goto done;
   }
+  /* the content before the long work: a missing file fails here */
+  if (cv_lcd_content_load(lc.content, par.w, par.h, lc.content_luminance, &content, &err)) {
+    rc = cli_fail("lcd", 1, "content: %s", err.msg);
+    goto done;
+  }
   double setup_s = cv_now_seconds() - t0;
   t0 = cv_now_seconds();
   for (int r = 0; r < lc.rounds; r++) {
@@ -358,8 +479,11 @@ int cmd_lcd(int argc, char **argv) {
   acc = prog.acc;
   cv_lcd_error e;
   cv_lcd_accum_error(acc, &e);
-  if (cv_lcd_content_load(lc.content, par.w, par.h, lc.content_luminance, &content, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
+  cv_lcd_figure lv;
+  double sun_deg;
+  if (panel_veil(g, light, par.eye, &vp, &lv, &sun_deg) ||
+      cv_lcd_readability_compute(acc, &rp, &lv, &rd, &err)) {
+    rc = cli_fail("lcd", 1, "readability: %s", err.msg[0] ? err.msg : "the eye is at the panel centre");
     goto done;
   }
   if (cv_lcd_accum_to_image(acc, content, &img) || cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
@@ -380,14 +504,21 @@ int cmd_lcd(int argc, char **argv) {
          (long long)d[CV_LCD_ACC_SUNLIT], (long long)d[CV_LCD_ACC_SHADOW],
          (long long)d[CV_LCD_ACC_CLAMPED], (long long)d[CV_LCD_ACC_NONFINITE],
          (long long)d[CV_LCD_ACC_BEHIND]);
-  double white = lc.content_luminance, black = 0.002 * white;
-  printf("lcd: mean reflected luminance %.4g; content white %.4g, black %.4g: ambient contrast "
-         "ratio %.1f:1\n",
-         e.mean_luminance, white, black,
-         black + e.mean_luminance > 0 ? (white + e.mean_luminance) / (black + e.mean_luminance) : 0.0);
+  char sun_txt[64];
+  if (sun_deg < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
+  else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg);
+  printf("lcd: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil L_v "
+         "%.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
+         rp.white, rp.black, rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, vp.age, vp.pigment,
+         sun_txt);
+  printf("lcd: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets it "
+         "(worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+         rd.cr_mean.value, rd.cr_mean.se, rp.cr_min, 100 * rd.frac_ok.value, 100 * rd.frac_ok.se,
+         rd.cr_worst, rd.vl.value, rd.vl.se, rd.L_a.value, rd.dL_threshold);
   char side[CV_PATH_MAX + 8];
   snprintf(side, sizeof side, "%s.json", out);
-  if (write_sidecar(side, acc, &e, &key, render_s, brdf->source, &err)) {
+  if (write_sidecar(side, acc, &e, &key, render_s, brdf->source, &rd, &rp, &vp, &err) ||
+      write_heatmap(heatp, &rd, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
@@ -401,9 +532,10 @@ int cmd_lcd(int argc, char **argv) {
     }
     printf("wrote %s (exposure %.4g)\n", pngp, ps.exposure);
   }
-  printf("wrote %s and %s\n", out, side);
+  printf("wrote %s, %s and %s\n", out, side, heatp);
   rc = 0;
 done:
+  cv_lcd_readability_free(&rd);
   cv_image_destroy(img);
   cv_image_destroy(content);
   cv_lcd_progress_free(&prog);

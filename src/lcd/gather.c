@@ -1002,6 +1002,51 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
 
 /* --- content -------------------------------------------------------------- */
 
+/* --- what the eye sees ---------------------------------------------------- */
+
+/* Distance along the ray to the panel rectangle, or INFINITY. */
+static float panel_distance(const cv_lcd_panel *pn, const float o[3], const float d[3]) {
+  const float dn = dot3(d, pn->normal);
+  if (fabsf(dn) < 1e-8f) return INFINITY;
+  const float c[3] = {pn->center[0] - o[0], pn->center[1] - o[1], pn->center[2] - o[2]};
+  const float t = dot3(c, pn->normal) / dn;
+  if (!(t > 0)) return INFINITY;
+  const float q[3] = {o[0] + t * d[0] - pn->center[0], o[1] + t * d[1] - pn->center[1],
+                      o[2] + t * d[2] - pn->center[2]};
+  if (fabsf(dot3(q, pn->u)) > 0.5f * pn->size[0] || fabsf(dot3(q, pn->v)) > 0.5f * pn->size[1])
+    return INFINITY;
+  return t;
+}
+
+int cv_lcd_eye_radiance(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                        const float dir[3], float rgb[3]) {
+  rgb[0] = rgb[1] = rgb[2] = 0;
+  cv_hit h;
+  const int hit = cv_rt_intersect(g->rt, eye, dir, 0.0f, INFINITY, &h);
+  const float tp = panel_distance(&g->panel, eye, dir);
+  if (tp < INFINITY && (!hit || tp <= h.t * 1.0001f + 1e-4f)) return 1;
+  if (hit) {
+    if (l->nv != g->nv || h.tri >= g->nt) return 0;
+    const uint32_t *t = g->tri + 3 * (size_t)h.tri;
+    const float w0 = 1 - h.u - h.v;
+    for (int c = 0; c < 3; c++)
+      rgb[c] = w0 * l->vrad[3 * (size_t)t[0] + c] + h.u * l->vrad[3 * (size_t)t[1] + c] +
+               h.v * l->vrad[3 * (size_t)t[2] + c];
+    return 0;
+  }
+  if (g->has_windows) {
+    cv_hit wh;
+    if (!cv_rt_window_hit(g->rt, eye, dir, 0.0f, &wh)) return 0;
+  }
+  cv_envmap_lookup(l->env, dir, rgb);
+  return 0;
+}
+
+int cv_lcd_sun_visible(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3]) {
+  if (!l->has_sun) return 0;
+  return cv_rt_reaches_env(g->rt, eye, l->sun_dir, 0.0f);
+}
+
 static double srgb_decode(double v) {
   return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
 }

@@ -181,6 +181,21 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                         uint32_t round, cv_lcd_accum *acc);
 
+/* --- what the eye sees (for the glare integral, lcd/readability.h) -------- */
+
+/* RGB radiance the eye at `eye` sees along unit `dir`: the environment when
+ * the ray leaves through a window (or, in a mesh without windows, escapes),
+ * the PRT exit radiance interpolated at the first interior hit, black when
+ * it escapes without crossing a window.  Returns 1, with black, when the
+ * ray meets the panel rectangle first (the task, which is not glare), else
+ * 0.  Thread-safe. */
+int cv_lcd_eye_radiance(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                        const float dir[3], float rgb[3]);
+
+/* 1 when the light has a sun and the eye sees it (the ray towards it
+ * reaches the environment), else 0. */
+int cv_lcd_sun_visible(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3]);
+
 /* --- panel content ------------------------------------------------------ */
 
 /* The panel's emitted radiance: w x h x 3 linear RGB such that content

@@ -157,12 +157,37 @@ void cv_lcd_readability_free(cv_lcd_readability *r) {
   free(r->lr);
   free(r->lr_se);
   free(r->cr);
+  free(r->cr_smooth);
   memset(r, 0, sizeof *r);
 }
 
 static double contrast(double W, double B, double add) {
   const double den = B + add;
   return den > 0 ? (W + add) / den : (W > 0 ? 1e6 : 1.0); /* no light at all: capped */
+}
+
+/* Box filter of radius rad (edges clamped), separable, into out (w*h). */
+static int box_filter(const float *in, int w, int h, int rad, float *out) {
+  float *tmp = malloc((size_t)w * (size_t)h * sizeof(float));
+  if (!tmp) return CV_ERR_NOMEM;
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      double s = 0;
+      int n = 0;
+      for (int k = x - rad; k <= x + rad; k++)
+        if (k >= 0 && k < w) s += in[(size_t)y * w + k], n++;
+      tmp[(size_t)y * w + x] = (float)(s / n);
+    }
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      double s = 0;
+      int n = 0;
+      for (int k = y - rad; k <= y + rad; k++)
+        if (k >= 0 && k < h) s += tmp[(size_t)k * w + x], n++;
+      out[(size_t)y * w + x] = (float)(s / n);
+    }
+  free(tmp);
+  return CV_OK;
 }
 
 static double vl_of(double W, double B, double La) { return (W - B) / cv_tvi_ferwerda(La); }
@@ -182,13 +207,19 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
   out->lr = malloc(nt * sizeof(float));
   out->lr_se = malloc(nt * sizeof(float));
   out->cr = malloc(nt * sizeof(float));
-  if (!out->lr || !out->lr_se || !out->cr) {
+  out->cr_smooth = malloc(nt * sizeof(float));
+  /* the variance of each texel's L_r, then box means of L_r and of it */
+  float *var = malloc(nt * sizeof(float)), *var_sm = malloc(nt * sizeof(float));
+  if (!out->lr || !out->lr_se || !out->cr || !out->cr_smooth || !var || !var_sm) {
+    free(var);
+    free(var_sm);
     cv_lcd_readability_free(out);
     return cv_err_set(err, CV_ERR_NOMEM, "readability: out of memory");
   }
   const double W = p->white, B = p->black, Lv = lv->value, sv2 = lv->se * lv->se;
   double sy = 0, sse = 0, worst = INFINITY, bern = 0;
   uint64_t ok = 0;
+  out->smooth_radius = acc->w / 80 > 1 ? acc->w / 80 : 1;
   for (int y = 0; y < acc->h; y++)
     for (int x = 0; x < acc->w; x++) {
       const size_t i = (size_t)y * (size_t)acc->w + (size_t)x;
@@ -197,24 +228,43 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
       const double m = (0.2126 * (double)q[0] + 0.7152 * (double)q[1] + 0.0722 * (double)q[2]) *
                        acc->unit / (double)n;
       const double m2 = ((double)q2[0] * 0x1p40 + (double)q2[1]) * acc->unit * acc->unit / (double)n;
-      double var = m2 - m * m;
-      if (!(var > 0)) var = 0;
-      const double se2 = var / (double)n;
+      double vs = m2 - m * m; /* variance of one sample */
+      if (!(vs > 0)) vs = 0;
+      const double se2 = vs / (double)n;
       const double cr = contrast(W, B, m + Lv);
-      const double den = B + m + Lv;
-      const double cr_se = den > 0 ? (W - B) / (den * den) * sqrt(se2 + sv2) : 0;
       out->lr[i] = (float)m;
       out->lr_se[i] = (float)sqrt(se2);
       out->cr[i] = (float)cr;
+      var[i] = (float)se2;
       sy += m;
       sse += se2;
       if (cr < worst) worst = cr;
-      if (cr >= p->cr_min) ok++;
-      if (cr_se > 0) {
-        const double pi = 0.5 * erfc(-(cr - p->cr_min) / (cr_se * M_SQRT2));
-        bern += pi * (1 - pi);
-      }
     }
+  /* the area meeting the requirement on the CR of the box-filtered L_r (the
+   * contour of the heat map): single-texel noise would bias a raw count
+   * (towards 50% near the requirement, and upwards as CR is convex in L_r) */
+  const int rad = out->smooth_radius;
+  const double nbox = (double)(2 * rad + 1) * (2 * rad + 1);
+  if (box_filter(out->lr, acc->w, acc->h, rad, out->cr_smooth) ||
+      box_filter(var, acc->w, acc->h, rad, var_sm)) {
+    free(var);
+    free(var_sm);
+    cv_lcd_readability_free(out);
+    return cv_err_set(err, CV_ERR_NOMEM, "readability: out of memory");
+  }
+  for (size_t i = 0; i < nt; i++) {
+    const double lr = out->cr_smooth[i], dn = B + lr + Lv;
+    const double c = contrast(W, B, lr + Lv);
+    const double sd = dn > 0 ? (W - B) / (dn * dn) * sqrt(var_sm[i] / nbox) : 0;
+    out->cr_smooth[i] = (float)c;
+    if (c >= p->cr_min) ok++;
+    if (sd > 0) {
+      const double pi = 0.5 * erfc(-(c - p->cr_min) / (sd * M_SQRT2));
+      bern += pi * (1 - pi);
+    }
+  }
+  free(var);
+  free(var_sm);
   const double N = (double)nt;
   out->spp = (uint64_t)n;
   out->cr_min = p->cr_min;
@@ -227,7 +277,7 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
   out->cr_mean.value = contrast(W, B, add);
   out->cr_mean.se = den > 0 ? (W - B) / (den * den) * s_add : 0;
   out->frac_ok.value = (double)ok / N;
-  out->frac_ok.se = sqrt(bern) / N;
+  out->frac_ok.se = sqrt(bern * nbox) / N; /* a box's texels move together */
   if (p->adaptation > 0) {
     out->L_a.value = p->adaptation;
     out->L_a.se = 0;
@@ -260,18 +310,19 @@ static void viridis(double t, uint8_t rgb[3]) {
 
 static double cr_pos(double cr) { return cr > 0 ? log10(cr) : 0; } /* CR 1..10 -> 0..1 */
 
-void cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px) {
+int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px) {
   const int w = r->w, h = r->h;
+  const float *sm = r->cr_smooth ? r->cr_smooth : r->cr;
   for (int y = 0; y < h; y++)
     for (int x = 0; x < w; x++) {
       const size_t i = (size_t)y * (size_t)w + (size_t)x;
       uint8_t *o = px + 3 * i;
-      const int ok = r->cr[i] >= r->cr_min;
+      const int ok = sm[i] >= r->cr_min;
       int edge = 0;
-      if (x > 0) edge |= (r->cr[i - 1] >= r->cr_min) != ok;
-      if (x + 1 < w) edge |= (r->cr[i + 1] >= r->cr_min) != ok;
-      if (y > 0) edge |= (r->cr[i - (size_t)w] >= r->cr_min) != ok;
-      if (y + 1 < h) edge |= (r->cr[i + (size_t)w] >= r->cr_min) != ok;
+      if (x > 0) edge |= (sm[i - 1] >= r->cr_min) != ok;
+      if (x + 1 < w) edge |= (sm[i + 1] >= r->cr_min) != ok;
+      if (y > 0) edge |= (sm[i - (size_t)w] >= r->cr_min) != ok;
+      if (y + 1 < h) edge |= (sm[i + (size_t)w] >= r->cr_min) != ok;
       if (edge) o[0] = o[1] = o[2] = 255;
       else viridis(cr_pos(r->cr[i]), o);
     }
@@ -286,4 +337,5 @@ void cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px) {
         if (x == (int)lrint(log10((double)c) * (w - 1))) o[0] = o[1] = o[2] = 0;
       if (abs(x - mark) <= 1) o[0] = o[1] = o[2] = 255;
     }
+  return CV_OK;
 }

@@ -107,10 +107,12 @@ typedef struct cv_lcd_readability {
   float *lr;           /* w*h reflected luminance, cd/m^2 (row 0 at the top); owned */
   float *lr_se;        /* its standard error per texel; owned */
   float *cr;           /* w*h contrast ratio; owned */
+  float *cr_smooth;    /* CR of L_r box-filtered over (2 smooth_radius + 1)^2 texels; owned */
+  int smooth_radius;   /* max(1, w / 80) */
   cv_lcd_figure L_r;   /* panel mean reflected luminance */
   cv_lcd_figure L_v;   /* veiling luminance (as given) */
   cv_lcd_figure cr_mean; /* CR of the panel mean luminances */
-  cv_lcd_figure frac_ok; /* share of the panel's area with CR >= cr_min */
+  cv_lcd_figure frac_ok; /* share of the panel's area with CR >= cr_min, on cr_smooth */
   cv_lcd_figure vl;    /* visibility level */
   cv_lcd_figure L_a;   /* adaptation luminance used */
   double dL_threshold; /* dL_t(L_a) */
@@ -120,10 +122,16 @@ typedef struct cv_lcd_readability {
 } cv_lcd_readability;
 
 /* Figures of the panel from the accumulated reflection `acc` and the veil
- * `lv`.  The fraction's se treats texels as independent Bernoulli variables
- * with P(CR_i >= cr_min) from a normal error of CR_i:
- * sqrt(sum p_i (1 - p_i)) / n.  Other se by first-order propagation
- * (the reflection and the veil are independent estimates).
+ * `lv`.  The area share is counted on cr_smooth, the CR of the box-filtered
+ * L_r (per texel noise would pull a raw count towards 50% wherever CR is
+ * near the requirement, and upwards since CR is convex in L_r); its se
+ * treats each texel as a Bernoulli variable with p_i = P(CR_i >= cr_min)
+ * from a normal error of the filtered L_r (variance: box mean of the texel
+ * variances / box size), boxes moving together:
+ * sqrt(box size * sum p_i (1 - p_i)) / n (an approximation; the veil's
+ * error, common to all texels, is left out of it).  Other se by
+ * first-order propagation (the reflection and the veil are independent
+ * estimates).
  * *out is filled (free with cv_lcd_readability_free).  Errors:
  * CV_ERR_INVALID (parameters, lv not finite), CV_ERR_EMPTY (no sample),
  * CV_ERR_NOMEM. */
@@ -133,9 +141,11 @@ void cv_lcd_readability_free(cv_lcd_readability *r);
 
 /* Heat map of the CR map as 8-bit RGB: the panel (w x h) above a colour bar
  * (bar_h rows, CR from 1 to 10 left to right, log scale), colours viridis
- * over log10(CR) in [0, 1] (CR 1..10, clamped), the texels where CR crosses
- * cr_min drawn white (the threshold contour), and the bar's cr_min position
- * marked white.  px: w * (h + bar_h) * 3 bytes, row 0 at the top. */
-void cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px);
+ * over log10(CR) in [0, 1] (CR 1..10, clamped) of each texel's own CR, the
+ * threshold contour drawn white where cr_smooth (cr when NULL) crosses
+ * cr_min (so that the noise of single texels does not speckle it), and the
+ * bar's cr_min position marked white.  px: w * (h + bar_h) * 3 bytes, row 0
+ * at the top.  Returns CV_OK. */
+int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px);
 
 #endif

@@ -188,6 +188,20 @@ expect_ok "lcd tiny run" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --size 40x30
 [ -s lcd.exr ] && [ -s lcd.png ] && grep -q '"samples_per_texel": 8' lcd.exr.json \
   && ok "lcd: EXR, PNG and sidecar (8 samples per texel)" || bad "lcd outputs"
 grep -q "estimated relative RMS error" out.txt && ok "lcd: error estimate printed" || bad "lcd: no error estimate"
+grep -Eq "CR [0-9.]+ \+- [0-9.e-]+ \(required 3:1" out.txt && grep -q '"contrast_ratio_se"' lcd.exr.json \
+  && [ "$(head -c 8 lcd.cr.png | od -An -tx1 | tr -d ' ')" = 89504e470d0a1a0a ] \
+  && ok "lcd: readability printed, in the sidecar, heat map PNG" || bad "lcd: readability outputs"
+# sun high behind the driver lights the panel; high ahead it reaches neither panel nor eye
+lcd_cr() { sed -n 's/.*"contrast_ratio": \([0-9.e+-]*\),.*/\1/p' "$1"; }
+expect_ok "lcd sun behind" $CAVE lcd a.prt "${EYE[@]}" --sky 3,70,180 --size 40x24 --spp 8 -o behind.exr
+expect_ok "lcd sun ahead" $CAVE lcd a.prt "${EYE[@]}" --sky 3,70,0 --size 40x24 --spp 8 -o ahead.exr
+awk -v b="$(lcd_cr behind.exr.json)" -v a="$(lcd_cr ahead.exr.json)" 'BEGIN { exit !(b > 0 && a > b) }' \
+  && ok "lcd: CR sun behind $(lcd_cr behind.exr.json) < sun ahead $(lcd_cr ahead.exr.json)" \
+  || bad "lcd: CR sun behind $(lcd_cr behind.exr.json) not below sun ahead $(lcd_cr ahead.exr.json)"
+expect_error "lcd: white below black" "white_luminance" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --luminance 100 --black 200 -o y.exr
+expect_error "lcd: negative age" "--age" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --age -3 -o y.exr
+expect_error "lcd: missing content" "content: .*nosuch.png" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --content nosuch.png -o y.exr
+[ ! -e y.cr.png ] && ok "lcd: no heat map left by failures" || bad "lcd: a failure left a heat map"
 expect_ok "lcd 1 thread" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 1 -o l1.exr
 expect_ok "lcd 2 threads" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 2 -o l2.exr
 cmp -s l1.exr l2.exr && ok "lcd: same bytes for 1 and 2 threads" || bad "lcd: bytes differ across thread counts"

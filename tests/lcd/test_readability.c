@@ -244,16 +244,16 @@ static void test_params_and_heatmap(void **state) {
   assert_int_equal(cv_lcd_read_params_check(&rp, &err), CV_ERR_INVALID);
   assert_non_null(strstr(err.msg, "cr_min"));
 
-  /* a hand-made CR map: left half 2:1, right half 5:1, requirement 3:1 */
+  /* a hand-made CR map: left half 1:1, right half 5:1, requirement 3:1 */
   cv_lcd_readability r;
   memset(&r, 0, sizeof r);
   r.w = 10, r.h = 4, r.cr_min = 3;
   float cr[40];
-  for (int i = 0; i < 40; i++) cr[i] = i % 10 < 5 ? 2.0f : 5.0f;
+  for (int i = 0; i < 40; i++) cr[i] = i % 10 < 5 ? 1.0f : 5.0f;
   r.cr = cr;
   const int bar = 6;
   uint8_t px[10 * (4 + 6) * 3];
-  cv_lcd_heatmap_rgb(&r, bar, px);
+  assert_int_equal(cv_lcd_heatmap_rgb(&r, bar, px), CV_OK);
   for (int y = 0; y < 4; y++)
     for (int x = 0; x < 10; x++) {
       const uint8_t *o = px + 3 * (y * 10 + x);
@@ -262,6 +262,15 @@ static void test_params_and_heatmap(void **state) {
     }
   /* left (low CR) darker than right (viridis is brighter upwards) */
   assert_true(px[3 * 0 + 1] < px[3 * 9 + 1]);
+  /* the contour follows cr_smooth when given: a lone texel that only the
+   * raw map has above the requirement makes none */
+  float sm[40];
+  memcpy(sm, cr, sizeof sm);
+  cr[12] = 5.0f;
+  r.cr_smooth = sm;
+  assert_int_equal(cv_lcd_heatmap_rgb(&r, bar, px), CV_OK);
+  assert_false(px[3 * 12] == 255 && px[3 * 12 + 1] == 255 && px[3 * 12 + 2] == 255);
+  assert_true(px[3 * 12 + 1] > px[3 * 11 + 1]); /* but its colour is its own */
   /* the bar's threshold marker: CR 3 at log10(3) * 9 = 4.3 -> column 4 (+-1) */
   const uint8_t *m = px + 3 * ((4 + bar - 1) * 10 + 4);
   assert_true(m[0] == 255 && m[1] == 255 && m[2] == 255);
