@@ -44,6 +44,7 @@ typedef struct pose_rec {
 typedef struct master {
   cv_service *s;
   int bands;
+  double lcd_aspect; /* LCD panel width / height (metres), 0 when the scene has none */
   int wall_clock;         /* 1: --clock wall */
   double t_start;         /* master clock at the first frame */
   cv_head_path *path;

@@ -44,18 +44,19 @@ static void help(FILE *f) {
           "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance)\n"
           "  --spp N           samples per texel per round (default 40)\n"
           "  --rounds R        rounds (default 1)\n"
-          "  --size WxH        panel texels (default 400x300)\n"
+          "  --size WxH        panel texels (default 400 wide, height from the panel's aspect)\n"
           "  --brdf FILE       BRDF table (docs/brdf-format.md), MERL .binary, or\n"
           "                    builtin:antiglare (default)\n"
           "  --sampling S      brdf, cosine, or mis (default: mis: half the samples towards\n"
           "                    the windows, the rest 90%% BRDF / 10%% cosine)\n"
           "  --content FILE    .png (sRGB) or .exr shown on the panel (default: a test pattern)\n"
-          "  --luminance CD    content white luminance in cd/m^2 (default 250)\n"
-          "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (see lcd_config.h)\n"
+          "  --luminance CD    content white luminance in cd/m^2 (default 500)\n"
+          "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (docs/scene-config.md);\n"
+          "                    a scene.json's own \"lcd\" block is read first\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
           "Readability (docs/readability.md; each figure with its standard error):\n"
-          "  --black CD        content black luminance in cd/m^2 (default 0.002 x white)\n"
+          "  --black CD        panel black luminance in cd/m^2 (default 0.002 x white)\n"
           "  --cr-min R        required contrast ratio (default 3, ISO 15008)\n"
           "  --age YEARS       driver's age for the CIE 146 disability glare (default 40)\n"
           "  --pigment P       eye pigmentation 0 (dark) .. 1 (light blue) (default 0.5)\n"
@@ -216,7 +217,7 @@ int cmd_lcd(int argc, char **argv) {
   const char *in = NULL, *out = NULL, *weights = NULL, *prt_path = NULL, *cfg_path = NULL;
   const char *brdf_s = NULL, *content_s = NULL, *sampling = NULL, *size_s = NULL;
   int png = 0, have_light = 0, have_eye = 0, threads = 0, spp = -1, rounds = -1;
-  double lum = -1, eye[3] = {0, 0, 0}, black = -1;
+  double lum = -1, eye[3] = {0, 0, 0}, black = -1, cr_min = -1, age = -1, pigment = -1;
   const char *heat_s = NULL;
   cv_lcd_read_params rp;
   cv_lcd_read_params_default(&rp);
@@ -266,11 +267,11 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--black")) {
       if (cli_parse_double(argv[++i], &black) || black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
     } else if (!strcmp(a, "--cr-min")) {
-      if (cli_parse_double(argv[++i], &rp.cr_min) || !(rp.cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
+      if (cli_parse_double(argv[++i], &cr_min) || !(cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
     } else if (!strcmp(a, "--age")) {
-      if (cli_parse_double(argv[++i], &vp.age) || !(vp.age >= 0) || vp.age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
+      if (cli_parse_double(argv[++i], &age) || !(age >= 0) || age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
     } else if (!strcmp(a, "--pigment")) {
-      if (cli_parse_double(argv[++i], &vp.pigment) || !(vp.pigment >= 0 && vp.pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
+      if (cli_parse_double(argv[++i], &pigment) || !(pigment >= 0 && pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
     } else if (!strcmp(a, "--adaptation")) {
       if (cli_parse_double(argv[++i], &rp.adaptation) || !(rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
     } else if (!strcmp(a, "--heatmap")) {
@@ -302,6 +303,9 @@ int cmd_lcd(int argc, char **argv) {
   cv_err_clear(&err);
   cv_lcd_config lc;
   cv_lcd_config_default(&lc);
+  /* the scene config's "lcd" block, then --lcd-config, then the options */
+  if (cli_has_ext(in, ".json") && cv_lcd_config_load_scene(in, &lc, &err))
+    return cli_fail("lcd", 1, "%s", err.msg);
   if (cfg_path && cv_lcd_config_load(cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   if (spp > 0) lc.spp = spp;
   if (rounds > 0) lc.rounds = rounds;
@@ -314,8 +318,15 @@ int cmd_lcd(int argc, char **argv) {
   if (seed >= 0) lc.seed = (uint32_t)seed;
   if (sampling) lc.brdf_fraction = !strcmp(sampling, "brdf") ? 1.0 : !strcmp(sampling, "cosine") ? 0.0 : 0.9;
   if (threads > 0) omp_set_num_threads(threads);
+  if (black >= 0) lc.black_luminance = black;
+  if (cr_min >= 1) lc.cr_min = cr_min;
+  if (age >= 0) lc.age = age;
+  if (pigment >= 0) lc.pigment = pigment;
   rp.white = lc.content_luminance;
-  rp.black = black >= 0 ? black : 0.002 * rp.white;
+  rp.black = cv_lcd_config_black(&lc);
+  rp.cr_min = lc.cr_min;
+  vp.age = lc.age;
+  vp.pigment = lc.pigment;
   if (cv_lcd_read_params_check(&rp, &err)) return cli_fail("lcd", 2, "%s", err.msg);
   if (heat_s && !cli_has_ext(heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", heat_s);
   char heatp[CV_PATH_MAX];
@@ -433,6 +444,10 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "%s: %s", in, err.msg);
     goto done;
   }
+  if (lc.height < 1) { /* square texels: the panel's aspect */
+    const double hh = floor(lc.width * (double)panel.size[1] / panel.size[0] + 0.5);
+    lc.height = hh < 1 ? 1 : (hh > 16384 ? 16384 : (int)hh);
+  }
   printf("panel: %.0f x %.0f mm at %.3f %.3f %.3f, normal %.3f %.3f %.3f; %dx%d texels\n",
          1000 * panel.size[0], 1000 * panel.size[1], panel.center[0], panel.center[1],
          panel.center[2], panel.normal[0], panel.normal[1], panel.normal[2], lc.width, lc.height);
@@ -460,7 +475,8 @@ int cmd_lcd(int argc, char **argv) {
     goto done;
   }
   /* the content before the long work: a missing file fails here */
-  if (cv_lcd_content_load(lc.content, par.w, par.h, lc.content_luminance, &content, &err)) {
+  if (cv_lcd_content_load(lc.content, par.w, par.h, (double)panel.size[0] / panel.size[1], rp.white,
+                          rp.black, &content, &err)) {
     rc = cli_fail("lcd", 1, "content: %s", err.msg);
     goto done;
   }

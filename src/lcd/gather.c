@@ -1057,7 +1057,7 @@ static void builtin_pattern(cv_image *img) {
     for (int x = 0; x < w; x++) {
       float *px = cv_image_at(img, x, y);
       double fx = (x + 0.5) / w, fy = (y + 0.5) / h;
-      double r = 0.002, g = 0.002, b = 0.002; /* black level */
+      double r = 0, g = 0, b = 0; /* black (the panel's black luminance) */
       /* six lines of "text": blocks of glyph-sized bars */
       int line = (int)(fy * 12);
       if (fx > 0.06 && fx < 0.55 && line >= 2 && line < 12 && line % 2 == 0) {
@@ -1075,11 +1075,13 @@ static void builtin_pattern(cv_image *img) {
     }
 }
 
-int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_image **out,
-                        cv_err *err) {
+int cv_lcd_content_load(const char *path, int w, int h, double panel_aspect, double white,
+                        double black, cv_image **out, cv_err *err) {
   *out = NULL;
-  if (w < 1 || h < 1 || !(luminance >= 0) || !isfinite(luminance))
-    return cv_err_set(err, CV_ERR_INVALID, "content: size %dx%d, luminance %g", w, h, luminance);
+  if (w < 1 || h < 1 || !(black >= 0) || !(white >= black) || !isfinite(white) ||
+      !isfinite(panel_aspect))
+    return cv_err_set(err, CV_ERR_INVALID, "content: size %dx%d, white %g, black %g", w, h, white,
+                      black);
   cv_image *img;
   if (cv_image_create(w, h, 3, &img)) return cv_err_set(err, CV_ERR_NOMEM, "content: out of memory");
   if (!path || !path[0]) {
@@ -1107,15 +1109,24 @@ int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_ima
       }
       scale = ymax > 0 ? 1 / ymax : 1;
     }
+    /* the content's rectangle on the panel: its own aspect, as large as
+     * fits, centred (no stretch); black around it */
+    double fw = 1, fh = 1;
+    const double ca = (double)src->w / src->h;
+    if (panel_aspect > 0 && ca > panel_aspect) fh = panel_aspect / ca;
+    else if (panel_aspect > 0) fw = ca / panel_aspect;
+    const double ox = 0.5 * (1 - fw), oy = 0.5 * (1 - fh);
     /* box filter: average of a grid of nearest source pixels per texel */
-    int gx = (src->w + w - 1) / w, gy = (src->h + h - 1) / h;
+    int gx = (int)ceil(src->w / (fw * w)), gy = (int)ceil(src->h / (fh * h));
     for (int y = 0; y < h; y++)
       for (int x = 0; x < w; x++) {
         double acc[3] = {0, 0, 0};
         for (int j = 0; j < gy; j++)
           for (int i = 0; i < gx; i++) {
-            int sx = (int)(((x + (i + 0.5) / gx) / w) * src->w);
-            int sy = (int)(((y + (j + 0.5) / gy) / h) * src->h);
+            const double cu = ((x + (i + 0.5) / gx) / w - ox) / fw;
+            const double cv = ((y + (j + 0.5) / gy) / h - oy) / fh;
+            if (cu < 0 || cu >= 1 || cv < 0 || cv >= 1) continue; /* outside: black */
+            int sx = (int)(cu * src->w), sy = (int)(cv * src->h);
             if (sx >= src->w) sx = src->w - 1;
             if (sy >= src->h) sy = src->h - 1;
             const float *q = cv_image_at(src, sx, sy);
@@ -1130,7 +1141,7 @@ int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_ima
     cv_image_destroy(src);
   }
   size_t n3 = (size_t)w * h * 3;
-  for (size_t i = 0; i < n3; i++) img->px[i] = (float)(img->px[i] * luminance);
+  for (size_t i = 0; i < n3; i++) img->px[i] = (float)(black + img->px[i] * (white - black));
   *out = img;
   return CV_OK;
 }

@@ -202,6 +202,21 @@ expect_error "lcd: white below black" "white_luminance" $CAVE lcd a.prt "${EYE[@
 expect_error "lcd: negative age" "--age" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --age -3 -o y.exr
 expect_error "lcd: missing content" "content: .*nosuch.png" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --content nosuch.png -o y.exr
 [ ! -e y.cr.png ] && ok "lcd: no heat map left by failures" || bad "lcd: a failure left a heat map"
+# the scene config's "lcd" block: one LCD model (white, black, resolution) read by `cave lcd`
+printf '{ "mesh": { "source": "cabin" }, "lighting": { "sky": { "sun_elevation_deg": 40 } },\n  "lcd": { "resolution": [40, 24], "spp": 2, "content_luminance": 300, "black_luminance": 2, "age": 60 } }\n' >lcdscene.json
+expect_ok "lcd scene lcd block" $CAVE lcd lcdscene.json --prt a.prt "${EYE[@]}" -o ls.exr
+grep -q '"width": 40, "height": 24' ls.exr.json && grep -q '"white_luminance": 300, "black_luminance": 2' ls.exr.json \
+  && grep -q '"age": 60' ls.exr.json && ok "lcd: scene lcd block applied" || bad "lcd: scene lcd block not applied"
+expect_ok "lcd default size" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --spp 1 -o ld.exr
+grep -q '"width": 400, "height": 240' ld.exr.json && grep -q '"white_luminance": 500' ld.exr.json \
+  && ok "lcd: default 400 texels wide, height from the 5:3 panel, white 500" || bad "lcd: default size/white"
+printf '{ "mesh": { "source": "cabin" }, "lcd": { "content_luminance": 100, "black_luminance": 200 } }\n' >lcdbw.json
+expect_error "lcd: scene black above white" "lcd.black_luminance" $CAVE lcd lcdbw.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+printf '{ "mesh": { "source": "cabin" }, "lcd": { "age": -5 } }\n' >lcdage.json
+expect_error "lcd: scene negative age" "lcd.age" $CAVE lcd lcdage.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+printf '{ "mesh": { "source": "cabin" }, "lcd": 3 }\n' >lcdnotobj.json
+expect_error "scene: lcd not an object" "lcd: expected an object" $CAVE bake lcdnotobj.json -o y.prt
+[ ! -e y.exr ] && [ ! -e y.prt ] && ok "lcd: no output left by config failures" || bad "lcd: a config failure left output"
 expect_ok "lcd 1 thread" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 1 -o l1.exr
 expect_ok "lcd 2 threads" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 2 -o l2.exr
 cmp -s l1.exr l2.exr && ok "lcd: same bytes for 1 and 2 threads" || bad "lcd: bytes differ across thread counts"

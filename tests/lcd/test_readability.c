@@ -26,6 +26,7 @@
 #include "lcd/brdf.h"
 #include "lcd/gather.h"
 #include "lcd/readability.h"
+#include "io/png.h"
 #include "rt/rt.h"
 
 /* --- formulas ---------------------------------------------------------------- */
@@ -276,11 +277,43 @@ static void test_params_and_heatmap(void **state) {
   assert_true(m[0] == 255 && m[1] == 255 && m[2] == 255);
 }
 
+/* --- content on the panel: its own aspect, never stretched ------------------------ */
+
+static void test_content_aspect(void **state) {
+  (void)state;
+  /* a white 4:3 image on a 5:3 panel of 50 x 30 texels: 40 x 30 in the
+   * middle, black (the panel's black luminance) 5 texels on each side */
+  uint8_t px[4 * 3];
+  memset(px, 255, sizeof px);
+  cv_err err;
+  const char *path = CV_TEST_TMP_DIR "/white43.png";
+  assert_int_equal(cv_png_write(path, 4, 3, 1, px, &err), CV_OK);
+  cv_image *img;
+  assert_int_equal(cv_lcd_content_load(path, 50, 30, 5.0 / 3.0, 400, 1, &img, &err), CV_OK);
+  for (int y = 0; y < 30; y++)
+    for (int x = 0; x < 50; x++) {
+      const float *q = cv_image_at(img, x, y);
+      const double want = x < 5 || x >= 45 ? 1 : 400;
+      assert_true(fabs(q[1] - want) < 1e-3 * want);
+    }
+  cv_image_destroy(img);
+  /* a 5:3 image fills it; a taller one gets bars at the top and bottom */
+  assert_int_equal(cv_png_write(path, 3, 4, 1, px, &err), CV_OK);
+  assert_int_equal(cv_lcd_content_load(path, 50, 30, 5.0 / 3.0, 400, 1, &img, &err), CV_OK);
+  assert_true(fabs(cv_image_at(img, 25, 0)[0] - 400) < 0.4); /* full height */
+  assert_true(fabs(cv_image_at(img, 2, 15)[0] - 1) < 1e-3);  /* 3:4 -> 22.5 texels wide */
+  cv_image_destroy(img);
+  /* white below black, missing file: errors */
+  assert_int_equal(cv_lcd_content_load(path, 50, 30, 5.0 / 3.0, 1, 2, &img, &err), CV_ERR_INVALID);
+  assert_int_not_equal(cv_lcd_content_load(CV_TEST_TMP_DIR "/nosuch.png", 50, 30, 1, 400, 1, &img, &err), CV_OK);
+  assert_non_null(strstr(err.msg, "nosuch.png"));
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_glare_equation), cmocka_unit_test(test_tvi),
       cmocka_unit_test(test_matte_panel),    cmocka_unit_test(test_small_source),
-      cmocka_unit_test(test_params_and_heatmap),
+      cmocka_unit_test(test_params_and_heatmap), cmocka_unit_test(test_content_aspect),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
