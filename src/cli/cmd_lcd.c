@@ -23,6 +23,9 @@
 #include "lcd/readability.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
+#include "service/drive.h"
+#include "service/tracker.h"
+#include "view/cave.h"
 
 static void help(FILE *f) {
   fprintf(f,
@@ -31,7 +34,9 @@ static void help(FILE *f) {
           "                [--sampling brdf|cosine|mis] [--content FILE] [--luminance CD]\n"
           "                [--lcd-config FILE] [--prt FILE] [--seed S] [--threads N]\n"
           "                [--black CD] [--cr-min R] [--age YEARS] [--pigment P]\n"
-          "                [--adaptation CD] [--heatmap FILE.png] -o panel.exr [--png]\n\n"
+          "                [--adaptation CD] [--heatmap FILE.png] -o panel.exr [--png]\n"
+          "       cave lcd <scene.prt | scene.json> --drive DRIVE.json (--head-path FILE | --eye x,y,z)\n"
+          "                [--cave CAVE.json | --scene-offset x,y,z] [--dt S] [options] -o series.csv\n\n"
           "Final gather on the LCD panel (the scene's triangles tagged lcd): for every texel the\n"
           "eye ray from --eye gives the view direction; reflected rays are drawn from the\n"
           "panel's BRDF and traced one bounce: through a window they read the environment,\n"
@@ -63,6 +68,15 @@ static void help(FILE *f) {
           "  --adaptation CD   adaptation luminance for the visibility level (default: the\n"
           "                    panel background seen, black + reflection + veil)\n"
           "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
+          "A whole drive, offline (no MPI):\n"
+          "  --drive FILE      drive file (configs/drives/): lighting and car attitude over time\n"
+          "  --head-path FILE  recorded head path (t x y z gx gy gz, CAVE frame); the eye is\n"
+          "                    head + scene offset (default that of configs/caves/cave5.json)\n"
+          "  --cave FILE       take the scene offset from a CAVE config\n"
+          "  --scene-offset V  scene point = CAVE point + V (metres)\n"
+          "  --dt S            seconds between steps (default 0.5); each step renders --rounds\n"
+          "                    rounds and writes one CSV row (docs/readability.md), and\n"
+          "                    series.png is plotted with gnuplot when it is installed\n"
           "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
           "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
           "colour bar CR 1..10 on a log scale below with the requirement marked white).\n");
@@ -213,12 +227,146 @@ static int write_heatmap(const char *path, const cv_lcd_readability *rd, cv_err 
   return st;
 }
 
+/* --- a whole drive, offline ------------------------------------------------ */
+
+typedef struct drive_job {
+  const char *drive_path, *head_path, *csv;
+  double offset[3]; /* scene point = CAVE point + offset (head path -> car frame) */
+  double eye[3];    /* the eye when there is no head path */
+  double dt;        /* seconds between steps */
+} drive_job;
+
+/* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
+ * CR with its error bars against time, the requirement as a line, the steps
+ * below it marked.  Returns 1 when written. */
+static int drive_plot(const char *csv, const char *png, double cr_min) {
+  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
+  FILE *g = popen("gnuplot", "w");
+  if (!g) return 0;
+  fprintf(g,
+          "set terminal pngcairo size 1000,450 font ',10'\n"
+          "set output '%s'\n"
+          "set datafile separator ','\n"
+          "set key autotitle columnhead top right\n"
+          "set xlabel 'drive time (s)'\nset ylabel 'contrast ratio'\nset grid\n"
+          "set title 'LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
+          "misses the required %g:1 (ISO 15008)'\n"
+          "plot '%s' using 1:11:12 with yerrorbars lc rgb '#3b528b' pt 7 ps 0.6 title 'CR', "
+          "'' using 1:11 with lines lc rgb '#3b528b' notitle, "
+          "'' using 1:($11 < %g ? $11 : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' title 'unreadable', "
+          "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n",
+          png, cr_min, csv, cr_min, cr_min, cr_min);
+  return pclose(g) == 0;
+}
+
+static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
+                     const cv_lcd_gather *g, const cv_brdf *brdf, const cv_lcd_config *lc,
+                     const cv_lcd_params *par0, const cv_lcd_read_params *rp,
+                     const cv_lcd_veil_params *vp) {
+  cv_err err;
+  cv_err_clear(&err);
+  cv_drive *d = NULL;
+  cv_head_path *hp = NULL;
+  if (cv_drive_load(j->drive_path, &d, &err)) return cli_fail("lcd", 1, "--drive: %s", err.msg);
+  if (j->head_path && cv_head_path_load(j->head_path, &hp, &err)) {
+    cv_drive_destroy(d);
+    return cli_fail("lcd", 1, "--head-path: %s", err.msg);
+  }
+  const double dur = cv_drive_duration(d);
+  const int n = (int)floor(dur / j->dt + 1e-9) + (cv_drive_loops(d) ? 0 : 1);
+  cv_outfile o;
+  if (cv_outfile_open(&o, j->csv, 1, &err)) {
+    cv_drive_destroy(d);
+    cv_head_path_destroy(hp);
+    return cli_fail("lcd", 1, "%s", err.msg);
+  }
+  fprintf(o.f, "t_s,yaw_deg,eye_x,eye_y,eye_z,sun_glare_deg,L_r,L_r_se,L_v,L_v_se,CR,CR_se,"
+               "area_meeting,area_meeting_se,VL,VL_se,L_a,readable\n");
+  printf("drive: %s, %.1f s, %d steps of %.2f s; eye from %s\n", j->drive_path, dur, n < 1 ? 1 : n,
+         j->dt, j->head_path ? j->head_path : "--eye");
+  int rc = 0, n_bad = 0, worst_k = 0;
+  double worst = INFINITY;
+  const uint64_t setup = cv_lcd_setup_hash(g, par0, 0, lc->eye_tolerance, p->meta.input_hash);
+  for (int k = 0; k < (n < 1 ? 1 : n) && !rc; k++) {
+    const double t = k * j->dt;
+    cv_drive_state ds;
+    cv_drive_eval(d, t, &ds);
+    cv_light_spec spec;
+    cv_drive_to_light_spec(d, &ds, &spec);
+    cv_scene_light *sl = NULL;
+    cv_lcd_light *light = NULL;
+    cv_lcd_accum *acc = NULL;
+    cv_lcd_readability rd;
+    memset(&rd, 0, sizeof rd);
+    float eye[3];
+    if (hp) {
+      cv_head_pose hpose;
+      cv_head_path_eval(hp, t, 1, &hpose);
+      for (int a = 0; a < 3; a++) eye[a] = (float)(hpose.pos[a] + j->offset[a]);
+    } else {
+      for (int a = 0; a < 3; a++) eye[a] = (float)j->eye[a];
+    }
+    cv_lcd_params par = *par0;
+    cv_lcd_key key;
+    cv_lcd_figure lv;
+    double sun_deg = -1;
+    if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
+        cv_lcd_light_from_scene(sl, &spec, p, tr, lc->sun_samples, lc->env_width, &light, &err)) {
+      rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, err.msg);
+    } else if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
+      rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
+    } else {
+      cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
+      const double clamp = lc->clamp > 0 ? lc->clamp : cv_lcd_default_clamp(light, brdf);
+      int st = cv_lcd_accum_create(par.w, par.h, clamp, &acc);
+      for (int r = 0; r < lc->rounds && !st; r++)
+        st = cv_lcd_render_round(g, light, &par, (uint32_t)r, acc);
+      if (!st) st = panel_veil(g, light, par.eye, vp, &lv, &sun_deg);
+      if (st || cv_lcd_readability_compute(acc, rp, &lv, &rd, &err))
+        rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, st ? cv_status_str(st) : err.msg);
+    }
+    if (!rc) {
+      const int ok = rd.cr_mean.value >= rp->cr_min;
+      n_bad += !ok;
+      if (rd.cr_mean.value < worst) worst = rd.cr_mean.value, worst_k = k;
+      fprintf(o.f, "%.3f,%.2f,%.4f,%.4f,%.4f,%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d\n",
+              t, ds.yaw_deg, par.eye[0], par.eye[1], par.eye[2], sun_deg, rd.L_r.value, rd.L_r.se,
+              rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se, rd.frac_ok.value,
+              rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value, ok);
+      printf("t %6.2f s yaw %5.1f: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, L_v %.4g "
+             "cd/m2, VL %.3g +- %.2g%s\n",
+             t, ds.yaw_deg, rd.cr_mean.value, rd.cr_mean.se, 100 * rd.frac_ok.value, rp->cr_min,
+             rd.L_r.value, rd.L_v.value, rd.vl.value, rd.vl.se, ok ? "" : "  UNREADABLE");
+      fflush(stdout);
+    }
+    cv_lcd_readability_free(&rd);
+    cv_lcd_accum_destroy(acc);
+    cv_lcd_light_destroy(light);
+    cv_scene_light_destroy(sl);
+  }
+  cv_drive_destroy(d);
+  cv_head_path_destroy(hp);
+  if (rc) {
+    cv_outfile_abort(&o);
+    return rc;
+  }
+  if (cv_outfile_commit(&o, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  printf("drive: CR below %g:1 at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
+         rp->cr_min, n_bad, n < 1 ? 1 : n, n_bad * j->dt, dur, worst, worst_k * j->dt);
+  char png[CV_PATH_MAX];
+  snprintf(png, sizeof png, "%.*s.png", (int)(strlen(j->csv) - 4), j->csv);
+  if (drive_plot(j->csv, png, rp->cr_min)) printf("wrote %s and %s\n", j->csv, png);
+  else printf("wrote %s (no plot: gnuplot is not installed)\n", j->csv);
+  return 0;
+}
+
 int cmd_lcd(int argc, char **argv) {
   const char *in = NULL, *out = NULL, *weights = NULL, *prt_path = NULL, *cfg_path = NULL;
   const char *brdf_s = NULL, *content_s = NULL, *sampling = NULL, *size_s = NULL;
   int png = 0, have_light = 0, have_eye = 0, threads = 0, spp = -1, rounds = -1;
   double lum = -1, eye[3] = {0, 0, 0}, black = -1, cr_min = -1, age = -1, pigment = -1;
-  const char *heat_s = NULL;
+  const char *heat_s = NULL, *drive_s = NULL, *head_s = NULL, *cave_s = NULL;
+  double dt = 0.5, offset[3] = {-0.37, -0.18, 0}; /* configs/caves/cave5.json's scene_offset */
   cv_lcd_read_params rp;
   cv_lcd_read_params_default(&rp);
   cv_lcd_veil_params vp;
@@ -274,6 +422,16 @@ int cmd_lcd(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &pigment) || !(pigment >= 0 && pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
     } else if (!strcmp(a, "--adaptation")) {
       if (cli_parse_double(argv[++i], &rp.adaptation) || !(rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
+    } else if (!strcmp(a, "--drive")) {
+      drive_s = argv[++i];
+    } else if (!strcmp(a, "--head-path")) {
+      head_s = argv[++i];
+    } else if (!strcmp(a, "--cave")) {
+      cave_s = argv[++i];
+    } else if (!strcmp(a, "--scene-offset")) {
+      if (cli_parse_vec(argv[++i], 3, offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
+    } else if (!strcmp(a, "--dt")) {
+      if (cli_parse_double(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s, got '%s'", val);
     } else if (!strcmp(a, "--heatmap")) {
       heat_s = argv[++i];
     } else if (!strcmp(a, "--lcd-config")) {
@@ -294,11 +452,19 @@ int cmd_lcd(int argc, char **argv) {
       in = a;
     }
   }
-  if (!in || !out || !have_eye) {
+  if (!in || !out || (!have_eye && !(drive_s && head_s))) {
     help(stderr);
-    return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z and -o FILE.exr are required");
+    return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z (or --drive with --head-path) and -o FILE are required");
   }
-  if (!cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);
+  if (head_s && !drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
+  if (drive_s && !cli_has_ext(out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", out);
+  if (!drive_s && !cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);
+  if (cave_s) {
+    cv_cave cave;
+    cv_err cerr;
+    if (cv_cave_load(cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
+    memcpy(offset, cave.scene_offset, sizeof offset);
+  }
   cv_err err;
   cv_err_clear(&err);
   cv_lcd_config lc;
@@ -421,7 +587,7 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
-  if (!have_light || spec.kind == CV_LIGHT_NONE) {
+  if (!drive_s && (!have_light || spec.kind == CV_LIGHT_NONE)) {
     rc = cli_fail("lcd", 2, "no lighting: give --env, --env-constant or --sky");
     goto done;
   }
@@ -430,14 +596,6 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
     goto done;
   }
-  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
-      cv_lcd_light_from_scene(sl, &spec, p, tr, lc.sun_samples, lc.env_width, &light, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_scene_light_print(stdout, sl);
-  printf("lcd sun: %s; %llu vertex radiance values were not finite or negative (set to 0)\n",
-         light->sun_source, (unsigned long long)light->vrad_fixed);
   cv_lcd_panel panel;
   if (cv_lcd_panel_from_mesh(m, &panel, &err) ||
       cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
@@ -448,6 +606,30 @@ int cmd_lcd(int argc, char **argv) {
     const double hh = floor(lc.width * (double)panel.size[1] / panel.size[0] + 0.5);
     lc.height = hh < 1 ? 1 : (hh > 16384 ? 16384 : (int)hh);
   }
+  if (drive_s) {
+    cv_lcd_params dpar;
+    cv_lcd_params_default(&dpar);
+    dpar.w = lc.width, dpar.h = lc.height, dpar.spp = lc.spp, dpar.seed = lc.seed;
+    dpar.brdf_fraction = lc.brdf_fraction;
+    if (sampling && strcmp(sampling, "mis")) dpar.window_fraction = 0;
+    /* the content is not part of the figures, but a missing file is an error */
+    if (cv_lcd_content_load(lc.content, 1, 1, 0, rp.white, rp.black, &content, &err)) {
+      rc = cli_fail("lcd", 1, "content: %s", err.msg);
+      goto done;
+    }
+    drive_job dj = {drive_s, head_s, out, {offset[0], offset[1], offset[2]},
+                    {eye[0], eye[1], eye[2]}, dt};
+    rc = lcd_drive(&dj, p, tr, g, brdf, &lc, &dpar, &rp, &vp);
+    goto done;
+  }
+  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
+      cv_lcd_light_from_scene(sl, &spec, p, tr, lc.sun_samples, lc.env_width, &light, &err)) {
+    rc = cli_fail("lcd", 1, "%s", err.msg);
+    goto done;
+  }
+  cv_scene_light_print(stdout, sl);
+  printf("lcd sun: %s; %llu vertex radiance values were not finite or negative (set to 0)\n",
+         light->sun_source, (unsigned long long)light->vrad_fixed);
   printf("panel: %.0f x %.0f mm at %.3f %.3f %.3f, normal %.3f %.3f %.3f; %dx%d texels\n",
          1000 * panel.size[0], 1000 * panel.size[1], panel.center[0], panel.center[1],
          panel.center[2], panel.normal[0], panel.normal[1], panel.normal[2], lc.width, lc.height);

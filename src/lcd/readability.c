@@ -278,6 +278,7 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
   out->cr_mean.se = den > 0 ? (W - B) / (den * den) * s_add : 0;
   out->frac_ok.value = (double)ok / N;
   out->frac_ok.se = sqrt(bern * nbox) / N; /* a box's texels move together */
+  if (out->frac_ok.se < 1e-9) out->frac_ok.se = 0; /* certain: no rounding residue */
   if (p->adaptation > 0) {
     out->L_a.value = p->adaptation;
     out->L_a.se = 0;

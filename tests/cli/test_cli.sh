@@ -217,6 +217,21 @@ expect_error "lcd: scene negative age" "lcd.age" $CAVE lcd lcdage.json --prt a.p
 printf '{ "mesh": { "source": "cabin" }, "lcd": 3 }\n' >lcdnotobj.json
 expect_error "scene: lcd not an object" "lcd: expected an object" $CAVE bake lcdnotobj.json -o y.prt
 [ ! -e y.exr ] && [ ! -e y.prt ] && ok "lcd: no output left by config failures" || bad "lcd: a config failure left output"
+# a whole drive offline: the sun climbs ahead from 3 to 15 degrees (the roof hides it at 15)
+printf '{ "loop": false, "sky": true, "keyframes": [\n {"t": 0, "yaw": 0, "pitch": 0, "roll": 0, "turbidity": 3, "sun_elevation": 3, "sun_azimuth": 0},\n {"t": 4, "turbidity": 3, "sun_elevation": 15} ] }\n' >rise.json
+expect_ok "lcd drive" $CAVE lcd a.prt --drive rise.json --eye -0.37,1.02,0 --size 40x24 --spp 8 --dt 1 -o rise.csv
+[ "$(wc -l <rise.csv)" -eq 6 ] && head -1 rise.csv | grep -q "^t_s,.*,CR,CR_se,.*,VL,VL_se" \
+  && ok "lcd drive: CSV header and 5 steps" || bad "lcd drive: CSV"
+# the glare angle grows as the sun climbs (geometry) while it is in sight, and the sunlit
+# dashboard and the low sun in the eye bring the CR down as the sun gains strength
+awk -F, 'NR > 1 && $6 >= 0 { if (g != "" && $6 <= g) bad = 1; g = $6 } NR > 1 && NR <= 5 { if (c != "" && $11 >= c) bad = 1; c = $11 }
+  END { exit bad }' rise.csv && ok "lcd drive: glare angle rising, CR falling while the sun climbs ahead" \
+  || { bad "lcd drive: series not monotone"; cat rise.csv; }
+if command -v gnuplot >/dev/null; then [ -s rise.png ] && ok "lcd drive: plot" || bad "lcd drive: no plot"; fi
+expect_error "lcd: --head-path without --drive" "needs --drive" $CAVE lcd a.prt --head-path x.txt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+expect_error "lcd: missing drive" "--drive: .*nosuch.json" $CAVE lcd a.prt --drive nosuch.json "${EYE[@]}" -o y.csv
+expect_error "lcd: missing head path" "--head-path: .*nosuch.txt" $CAVE lcd a.prt --drive rise.json --head-path nosuch.txt -o y.csv
+[ ! -e y.csv ] && ok "lcd drive: no CSV left by failures" || bad "lcd drive: a failure left a CSV"
 expect_ok "lcd 1 thread" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 1 -o l1.exr
 expect_ok "lcd 2 threads" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 2 -o l2.exr
 cmp -s l1.exr l2.exr && ok "lcd: same bytes for 1 and 2 threads" || bad "lcd: bytes differ across thread counts"
