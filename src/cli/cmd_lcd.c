@@ -34,7 +34,7 @@ static void help(FILE *f) {
           "                [--sampling brdf|cosine|mis] [--content FILE] [--luminance CD]\n"
           "                [--lcd-config FILE] [--prt FILE] [--seed S] [--threads N]\n"
           "                [--black CD] [--cr-min R] [--age YEARS] [--pigment P]\n"
-          "                [--adaptation CD] [--heatmap FILE.png] -o panel.exr [--png]\n"
+          "                [--adaptation CD] [--glare-spc N] [--heatmap FILE.png] -o panel.exr [--png]\n"
           "       cave lcd <scene.prt | scene.json> --drive DRIVE.json (--head-path FILE | --eye x,y,z)\n"
           "                [--cave CAVE.json | --scene-offset x,y,z] [--dt S] [options] -o series.csv\n\n"
           "Final gather on the LCD panel (the scene's triangles tagged lcd): for every texel the\n"
@@ -65,6 +65,7 @@ static void help(FILE *f) {
           "  --cr-min R        required contrast ratio (default 3, ISO 15008)\n"
           "  --age YEARS       driver's age for the CIE 146 disability glare (default 40)\n"
           "  --pigment P       eye pigmentation 0 (dark) .. 1 (light blue) (default 0.5)\n"
+          "  --glare-spc N     samples per cell of the 48 x 96 glare integral (even, default 4)\n"
           "  --adaptation CD   adaptation luminance for the visibility level (default: the\n"
           "                    panel background seen, black + reflection + veil)\n"
           "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
@@ -432,6 +433,8 @@ int cmd_lcd(int argc, char **argv) {
       if (cli_parse_vec(argv[++i], 3, offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
       if (cli_parse_double(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s, got '%s'", val);
+    } else if (!strcmp(a, "--glare-spc")) {
+      if (cli_parse_int(argv[++i], 2, 4096, &vp.spc) || vp.spc % 2) return cli_fail("lcd", 2, "--glare-spc: expected an even number 2..4096, got '%s'", val);
     } else if (!strcmp(a, "--heatmap")) {
       heat_s = argv[++i];
     } else if (!strcmp(a, "--lcd-config")) {
