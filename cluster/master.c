@@ -555,6 +555,8 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "rel_rms", le.rel_rms);
       cv_metrics_uint(ml, "clamped", (uint64_t)m->prog.acc->data[CV_LCD_ACC_CLAMPED]);
     }
+    lcd_readability_update(m);
+    lcd_readability_metrics(m, ml);
     cv_metrics_object_end(ml);
   }
   if (m->disp) {
