@@ -9,6 +9,8 @@
  *  - a small uniform disc source of illuminance E at angle theta (sampled
  *    through the luminance callback) gives L_v = g(theta) E within 2%, and
  *    within 4 standard errors; a point source exactly g(theta) E cos(theta);
+ *  - what the eye sees (the panel flagged, the environment elsewhere) and
+ *    whether it sees the sun;
  *  - the fraction of area meeting the requirement, the heat map's contour,
  *    and bad parameters naming their key. */
 #include <math.h>
@@ -129,6 +131,28 @@ static void test_matte_panel(void **state) {
   cv_lcd_accum *acc;
   assert_int_equal(cv_lcd_accum_create(p.w, p.h, cv_lcd_default_clamp(l, b), &acc), CV_OK);
   for (uint32_t r = 0; r < 4; r++) assert_int_equal(cv_lcd_render_round(g, l, &p, r, acc), CV_OK);
+
+  /* what the eye sees: the panel (the task: flagged, black) or the environment */
+  float rgb[3];
+  const float to_panel[3] = {-0.05f / 0.6103f, -0.1f / 0.6103f, -0.6f / 0.6103f};
+  assert_int_equal(cv_lcd_eye_radiance(g, l, p.eye, to_panel, rgb), 1);
+  assert_true(rgb[0] == 0 && rgb[1] == 0 && rgb[2] == 0);
+  const float up[3] = {0, 1, 0};
+  assert_int_equal(cv_lcd_eye_radiance(g, l, p.eye, up, rgb), 0);
+  assert_true(fabs(rgb[1] - L) < 1e-3 * L);
+  assert_int_equal(cv_lcd_sun_visible(g, l, p.eye), 0); /* this light has no sun */
+  {
+    cv_lcd_light *ls;
+    const double sun_up[3] = {0, 1, 0}, sun_E[3] = {1e4, 1e4, 1e4};
+    assert_int_equal(cv_lcd_light_create(env, NULL, m->nv, 1, sun_up, sun_E, &ls), CV_OK);
+    assert_int_equal(cv_lcd_sun_visible(g, ls, p.eye), 1);
+    cv_lcd_light_destroy(ls);
+    /* a sun straight behind the panel as seen from the eye: hidden by it */
+    const double sun_back[3] = {to_panel[0], to_panel[1], to_panel[2]};
+    assert_int_equal(cv_lcd_light_create(env, NULL, m->nv, 1, sun_back, sun_E, &ls), CV_OK);
+    assert_int_equal(cv_lcd_sun_visible(g, ls, p.eye), 0);
+    cv_lcd_light_destroy(ls);
+  }
 
   /* the veil of the same constant surround seen from the eye */
   cv_lcd_veil_params vp;
