@@ -57,8 +57,9 @@ void cv_ref_light_background(const cv_ref_light *l, const double d[3], float rgb
 /* Solid-angle pdf with which cv_ref_light_sample draws car-frame direction d
  * (0 when the map is black or d falls in a black pixel). */
 double cv_ref_light_pdf(const cv_ref_light *l, const double d[3]);
-/* Draws a car-frame direction from two uniforms in [0, 1): fills d, the
- * map radiance there and the pdf; returns 0 when the map is black. */
+/* Draws a car-frame direction from three uniforms in [0, 1) (u1 picks the
+ * pixel through the alias table, u2 and u3 the point inside it): fills d,
+ * the map radiance there and the pdf; returns 0 when the map is black. */
 int cv_ref_light_sample(const cv_ref_light *l, double u1, double u2, double u3, double d[3],
                         double rgb[3], double *pdf);
 /* The sun in the car frame: returns 1 and fills dir and E when there is one. */
