@@ -24,6 +24,7 @@
 #include <cmocka.h>
 
 #include "io/exr.h"
+#include "mesh/clean.h"
 #include "prt/bake.h"
 #include "prt/relight.h"
 #include "prt/scene_light.h"
@@ -451,12 +452,59 @@ static void test_split_lights(void **state) {
   cv_image_destroy(img);
 }
 
+/* Material boundaries (clean step (g)): a dashboard-like plate (albedo 0.1)
+ * with an LCD-like inset (0.03) sharing its edge vertices.  After cleaning
+ * and baking, every vertex's PRT albedo equals the albedo of every triangle
+ * that uses it, and the inset's radiance under a constant sky is exactly
+ * its own albedo times L (1%), as the reference says. */
+static void test_material_boundary_albedo(void **state) {
+  (void)state;
+  cv_mesh *m;
+  assert_int_equal(cv_mesh_create(&m), CV_OK);
+  const float dash[3] = {0.1f, 0.1f, 0.1f}, lcd[3] = {0.03f, 0.03f, 0.03f};
+  uint32_t md, ml;
+  assert_int_equal(cv_mesh_add_material(m, "dashboard", dash, 0, &md), CV_OK);
+  assert_int_equal(cv_mesh_add_material(m, "lcd_panel", lcd, CV_MAT_LCD, &ml), CV_OK);
+  const float o[3] = {-1, 0, -1}, e1[3] = {0, 0, 2}, e2[3] = {2, 0, 0};
+  grid(m, o, e1, e2, 4, md); /* 4 x 4 quads; make the middle 2 x 2 the LCD */
+  for (size_t t = 0; t < m->nt; t++) {
+    size_t q = t / 2, i = q % 4, j = q / 4;
+    if (i >= 1 && i <= 2 && j >= 1 && j <= 2) m->tri_mat[t] = ml;
+  }
+  cv_clean_report rep;
+  assert_int_equal(cv_mesh_clean(m, NULL, &rep, NULL), CV_OK);
+  assert_int_equal(rep.material_splits, 8); /* the inset's 8 rim vertices */
+  cv_bake_params bp = {.bands = 2, .rays = 64, .bounces = 0, .seed = 1,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake(m, &bp, &prt, NULL, NULL), CV_OK);
+  for (size_t t = 0; t < prt->nt; t++)
+    for (int k = 0; k < 3; k++)
+      assert_memory_equal(prt->albedo + 3 * prt->tri[3 * t + k], prt->mats[prt->tri_mat[t]].albedo,
+                          3 * sizeof(float));
+  cv_lighting lt;
+  memset(&lt, 0, sizeof lt);
+  lt.bands = 2;
+  for (int c = 0; c < 3; c++) lt.sh[c] = 2.0 * sqrt(4 * M_PI);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  assert_int_equal(cv_prt_relight(prt, &lt, NULL, 0, rad, NULL), CV_OK);
+  for (size_t t = 0; t < prt->nt; t++) {
+    if (prt->tri_mat[t] != ml) continue;
+    for (int k = 0; k < 3; k++)
+      assert_true(fabs(rad[3 * prt->tri[3 * t + k]] / (2.0 * 0.03) - 1) < 0.01);
+  }
+  free(rad);
+  cv_prt_destroy(prt);
+  cv_mesh_destroy(m);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_furnace),          cmocka_unit_test(test_plane_constant_sky),
       cmocka_unit_test(test_plane_hot_map),    cmocka_unit_test(test_plane_sun),
       cmocka_unit_test(test_open_box_vs_bake), cmocka_unit_test(test_determinism),
       cmocka_unit_test(test_bad_input),        cmocka_unit_test(test_split_lights),
+      cmocka_unit_test(test_material_boundary_albedo),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
