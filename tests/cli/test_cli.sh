@@ -106,6 +106,9 @@ expect_error "reference png as -o" "linear .exr" $CAVE reference a.prt --env-con
 expect_error "reference missing PRT" "none.prt" $CAVE reference none.prt --env-constant 1,1,1 $RV -o y.exr
 expect_error "reference missing map" "nosuch.exr" $CAVE reference a.prt --env nosuch.exr $RV -o y.exr
 [ ! -e y.exr ] && [ ! -e y.png ] && ok "reference failures leave no output" || bad "a failed reference left output"
+expect_ok "shade --split" $CAVE shade a.prt --env good.exr --split 4 --split-grid 16 $RV -o split.exr
+grep -q "^split: [1-4] window-visible" out.txt && ok "shade --split reports its lights" || { bad "shade --split printed no split line"; cat out.txt; }
+expect_error "shade bad split grid" "--split-grid" $CAVE shade a.prt --env good.exr --split 4 --split-grid 7 $RV -o y.exr
 
 # One default cabin: `cave bake default` and configs/scenes/default.json bake the same mesh.
 H1=$($CAVE bake default -o d1.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')
