@@ -18,20 +18,28 @@ int cv_env_sampler_create(const cv_envmap *env, cv_env_sampler **out) {
   if (!env || !env->img || env->img->w < 1 || env->img->h < 1 || env->img->w >= 65536 ||
       env->img->h >= 65536 || env->img->c < 3)
     return CV_ERR_INVALID;
-  const int w = env->img->w, h = env->img->h, nc = env->img->c;
+  const int pw = env->img->w, ph = env->img->h, nc = env->img->c;
+  /* cells of f x f pixels: f the smallest power of two that brings the
+   * width to at most CV_ENV_SAMPLE_MAX_W while dividing both sizes */
+  int f = 1;
+  while (pw / f > CV_ENV_SAMPLE_MAX_W && pw % (2 * f) == 0 && ph % (2 * f) == 0) f *= 2;
+  const int w = pw / f, h = ph / f;
   cv_env_sampler *s = calloc(1, sizeof *s);
   if (!s) return CV_ERR_NOMEM;
   s->w = w;
   s->h = h;
+  s->f = f;
   s->marg = malloc((size_t)(h + 1) * sizeof(float));
   s->cond = malloc((size_t)h * (size_t)(w + 1) * sizeof(float));
   s->cos_edge = malloc((size_t)(h + 1) * sizeof(float));
   s->inv_sa = malloc((size_t)h * sizeof(float));
   double *row = malloc((size_t)h * sizeof(double));
   double *cum = malloc((size_t)(w + 1) * sizeof(double));
-  if (!s->marg || !s->cond || !s->cos_edge || !s->inv_sa || !row || !cum) {
+  double *cw = malloc((size_t)w * sizeof(double));
+  if (!s->marg || !s->cond || !s->cos_edge || !s->inv_sa || !row || !cum || !cw) {
     free(row);
     free(cum);
+    free(cw);
     cv_env_sampler_destroy(s);
     return CV_ERR_NOMEM;
   }
@@ -43,14 +51,20 @@ int cv_env_sampler_create(const cv_envmap *env, cv_env_sampler **out) {
     /* the solid angle of the float cell edges the sampler uses */
     const double sa = 2 * M_PI / w * ((double)s->cos_edge[y] - (double)s->cos_edge[y + 1]);
     s->inv_sa[y] = sa > 0 ? (float)(1 / sa) : 0.0f;
-    const float *px = env->img->px + (size_t)y * (size_t)w * (size_t)nc;
-    cum[0] = 0;
-    for (int x = 0; x < w; x++) {
-      const float *q = px + (size_t)x * (size_t)nc;
-      double Y = cv_luminance(q[0], q[1], q[2]);
-      if (!(Y > 0) || !isfinite(Y)) Y = 0;
-      cum[x + 1] = cum[x] + Y * sa;
+    /* a cell's weight: the sum of its pixels' Y x their solid angle */
+    for (int x = 0; x < w; x++) cw[x] = 0;
+    for (int py = y * f; py < (y + 1) * f; py++) {
+      const double psa = 2 * M_PI / pw * (cos(M_PI * py / ph) - cos(M_PI * (py + 1) / ph));
+      const float *px = env->img->px + (size_t)py * (size_t)pw * (size_t)nc;
+      for (int x = 0; x < pw; x++) {
+        const float *q = px + (size_t)x * (size_t)nc;
+        double Y = cv_luminance(q[0], q[1], q[2]);
+        if (!(Y > 0) || !isfinite(Y)) Y = 0;
+        cw[x / f] += Y * psa;
+      }
     }
+    cum[0] = 0;
+    for (int x = 0; x < w; x++) cum[x + 1] = cum[x] + cw[x];
     row[y] = cum[w];
     float *c = s->cond + (size_t)y * (size_t)(w + 1);
     for (int x = 0; x <= w; x++) c[x] = row[y] > 0 ? (float)(cum[x] / row[y]) : (float)x / (float)w;
@@ -67,6 +81,7 @@ int cv_env_sampler_create(const cv_envmap *env, cv_env_sampler **out) {
   if (total > 0) s->marg[h] = 1.0f;
   free(row);
   free(cum);
+  free(cw);
   *out = s;
   return CV_OK;
 }

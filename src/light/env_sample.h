@@ -2,12 +2,16 @@
  * sampling for the LCD final gather, lcd/gather.h; Pharr, Jakob, Humphreys,
  * PBRT 3rd ed. sec. 13.6.7 and 14.2.4).
  *
- * Cells: pixel (x, y) of a w x h map (layout of light/envmap.h: u = x / w,
- * v = y / h, theta = pi v from the zenith +Y) covers u in [x/w, (x+1)/w) and
- * cos(theta) in [cos(pi (y+1)/h), cos(pi y/h)), solid angle
+ * Cells: blocks of f x f pixels of the map (f the smallest power of two
+ * that brings the width to at most CV_ENV_SAMPLE_MAX_W while dividing both
+ * sizes: small tables stay in cache), w x h of them (layout of
+ * light/envmap.h: u = x / w, v = y / h, theta = pi v from the zenith +Y);
+ * cell (x, y) covers u in [x/w, (x+1)/w) and cos(theta) in
+ * [cos(pi (y+1)/h), cos(pi y/h)), solid angle
  * Omega_y = (2 pi / w)(cos(pi y/h) - cos(pi (y+1)/h)).  A cell is chosen
- * with probability P(x, y) proportional to Y(x, y) Omega_y (Y the pixel's
- * Rec.709 luminance, negative values counted as 0) by inverting a marginal
+ * with probability P(x, y) proportional to the sum over its pixels of
+ * Y Omega_pixel (Y the pixel's Rec.709 luminance, negative values counted
+ * as 0) by inverting a marginal
  * CDF over rows and a conditional CDF over the row's cells (continuous
  * inversion: a (0,2)-sequence keeps its stratification), and the direction
  * is uniform in (u, cos theta) within the cell: its density is the constant
@@ -23,8 +27,11 @@
 
 #include "light/envmap.h"
 
+#define CV_ENV_SAMPLE_MAX_W 256
+
 typedef struct cv_env_sampler {
-  int w, h;
+  int w, h;        /* cells */
+  int f;           /* pixels per cell side */
   float *marg;     /* h + 1: CDF over rows, marg[0] = 0, marg[h] = 1 */
   float *cond;     /* h * (w + 1): per-row CDF over its cells */
   float *cos_edge; /* h + 1: cos(pi y / h) */

@@ -73,6 +73,35 @@ static void test_cell_probabilities(void **state) {
   cv_envmap_destroy(e);
 }
 
+/* A map wider than CV_ENV_SAMPLE_MAX_W: cells of f x f pixels whose
+ * probabilities are the sums of their pixels' Y * Omega over the total. */
+static void test_block_cells(void **state) {
+  (void)state;
+  const int w = 1024, h = 512;
+  cv_envmap *e = test_map(w, h);
+  cv_env_sampler *s;
+  assert_int_equal(cv_env_sampler_create(e, &s), CV_OK);
+  assert_int_equal(s->f, 4);
+  assert_int_equal(s->w, 256);
+  assert_int_equal(s->h, 128);
+  double *cell = calloc((size_t)s->w * s->h, sizeof(double)), tot = 0, worst = 0;
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      const float *p = e->img->px + 3 * ((size_t)y * w + x);
+      const double v = cv_luminance(p[0], p[1], p[2]) * cell_sa(y, w, h);
+      cell[(size_t)(y / 4) * s->w + x / 4] += v;
+      tot += v;
+    }
+  for (int y = 0; y < s->h; y++)
+    for (int x = 0; x < s->w; x++)
+      worst = fmax(worst, fabs(cv_env_sampler_cell_prob(s, x, y) - cell[(size_t)y * s->w + x] / tot));
+  print_message("4x4-pixel cells: worst absolute error %.3g\n", worst);
+  assert_true(worst < 1e-6);
+  free(cell);
+  cv_env_sampler_destroy(s);
+  cv_envmap_destroy(e);
+}
+
 static uint64_t rng_next(uint64_t *st) { /* splitmix64 */
   uint64_t z = (*st += 0x9E3779B97F4A7C15ull);
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
@@ -192,7 +221,8 @@ static void test_black_and_invalid(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_cell_probabilities), cmocka_unit_test(test_sampling_histogram),
+      cmocka_unit_test(test_cell_probabilities), cmocka_unit_test(test_block_cells),
+      cmocka_unit_test(test_sampling_histogram),
       cmocka_unit_test(test_pdf_normalised), cmocka_unit_test(test_black_and_invalid)};
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
