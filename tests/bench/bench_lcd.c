@@ -54,7 +54,7 @@ static const strategy strategies[NSTRAT] = {
     {"BRDF sampling", 1.0, 0.0, 0.0},
     {"cosine sampling", 0.0, 0.0, 0.0},
     {"MIS BRDF + cosine (c = 0.9)", 0.9, 0.0, 0.0},
-    {"MIS BRDF + cosine + window (c = 0.9, w = 0.5; the default before env sampling)", 0.9, 0.5, 0.0},
+    {"MIS BRDF + cosine + window (c = 0.9, w = 0.5)", 0.9, 0.5, 0.0},
     {"MIS BRDF + cosine + env (c = 0.9, e = 0.25)", 0.9, 0.0, 0.25},
     {"MIS BRDF + cosine + window + env (c = 0.9, w = 0.25, e = 0.25)", 0.9, 0.25, 0.25}};
 
