@@ -751,7 +751,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   int nstr[NSTRAT];
   nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
   if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
-  nstr[STRAT_ENV] = l->env_smp->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
+  nstr[STRAT_ENV] = l->env_smp && l->env_smp->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
   if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
   nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN] - nstr[STRAT_ENV]));
   nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_BRDF];

@@ -521,6 +521,22 @@ static void test_env_mis_unbiased(void **state) {
                   mix[c][0], mix[c][1], mix[c][2], mean[c], se[c], 100 * e.rel_rms, 8 * p.spp);
     cv_lcd_accum_destroy(acc);
   }
+  { /* bad fractions: refused, nothing added */
+    cv_lcd_params p;
+    cv_lcd_params_default(&p);
+    p.w = 16, p.h = 12, p.spp = 8;
+    memcpy(p.eye, info.eye, sizeof p.eye);
+    cv_lcd_accum *acc;
+    assert_int_equal(cv_lcd_accum_create(p.w, p.h, cv_lcd_default_clamp(l, b), &acc), CV_OK);
+    const double bad[4][2] = {{0.5, 0.5}, {0.2, 1.0}, {0.0, -0.1}, {0.6, 0.6}};
+    for (int i = 0; i < 4; i++) {
+      p.window_fraction = bad[i][0];
+      p.env_fraction = bad[i][1];
+      assert_int_equal(cv_lcd_render_round(s.g, l, &p, 0, acc), CV_ERR_INVALID);
+    }
+    assert_true(acc->data[CV_LCD_ACC_SPP] == 0);
+    cv_lcd_accum_destroy(acc);
+  }
   for (int c = 1; c < 4; c++) {
     const double z = fabs(mean[c] - mean[0]) / sqrt(se[c] * se[c] + se[0] * se[0]);
     print_message("mix %d vs existing: %.2f standard errors\n", c, z);
