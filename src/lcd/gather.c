@@ -751,7 +751,14 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   int nstr[NSTRAT];
   nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
   if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
-  nstr[STRAT_ENV] = l->env_smp && l->env_smp->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
+  /* environment-light tables restricted to the panel's hemisphere (the
+   * light's own tables cover the whole sphere: half of their samples would
+   * fall behind the panel) */
+  cv_env_sampler *esr = NULL;
+  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0 &&
+      cv_env_sampler_restrict(l->env_smp, pn->normal, &esr))
+    return CV_ERR_NOMEM;
+  nstr[STRAT_ENV] = esr && esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
   if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
   nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN] - nstr[STRAT_ENV]));
   nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_BRDF];
@@ -759,7 +766,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                              nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN]};
   const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
               cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp;
-  const cv_env_sampler *esm = l->env_smp;
+  const cv_env_sampler *esm = esr;
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
@@ -1013,6 +1020,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     }
     block_buf_free(&bb);
   }
+  cv_env_sampler_destroy(esr);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;

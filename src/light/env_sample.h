@@ -44,6 +44,16 @@ typedef struct cv_env_sampler {
 int cv_env_sampler_create(const cv_envmap *env, cv_env_sampler **out);
 void cv_env_sampler_destroy(cv_env_sampler *s);
 
+/* A copy of src restricted to the cells in front of the plane with normal
+ * n (a panel's hemisphere): a cell keeps its probability (renormalised) when
+ * one of 9 probe directions (corners, edge midpoints, centre) has d.n > 0,
+ * else gets 0.  The density stays exact for what is drawn; a cell cut away
+ * that reaches the front by a sliver only loses this strategy's samples
+ * there (an MIS estimator with a strategy covering every direction stays
+ * unbiased).  total = the kept part of src's.  *out owned by the caller.
+ * Errors: CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_sampler **out);
+
 /* Probability of cell (x, y) (the difference of the stored CDFs). */
 double cv_env_sampler_cell_prob(const cv_env_sampler *s, int x, int y);
 

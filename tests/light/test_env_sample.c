@@ -110,6 +110,53 @@ static uint64_t rng_next(uint64_t *st) { /* splitmix64 */
 }
 static float rng_float(uint64_t *st) { return (float)(rng_next(st) >> 40) * 0x1p-24f; }
 
+/* Restricted to a hemisphere: kept cells keep their relative probabilities,
+ * cells wholly behind get 0, the density still integrates to 1, and drawn
+ * directions lie in front but for the cells the plane cuts. */
+static void test_restrict(void **state) {
+  (void)state;
+  const int w = 64, h = 32;
+  cv_envmap *e = test_map(w, h);
+  cv_env_sampler *s, *r;
+  assert_int_equal(cv_env_sampler_create(e, &s), CV_OK);
+  const float n[3] = {0.6f, 0.0f, 0.8f};
+  assert_int_equal(cv_env_sampler_restrict(s, n, &r), CV_OK);
+  assert_true(r->total > 0 && r->total < s->total);
+  const double keep = r->total / s->total;
+  double worst = 0;
+  int zeroed = 0;
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      const double p = cv_env_sampler_cell_prob(s, x, y), q = cv_env_sampler_cell_prob(r, x, y);
+      if (q == 0 && p > 0) {
+        zeroed++;
+        /* the cell's centre must then be behind the plane */
+        const double ct = cos(M_PI * (y + 0.5) / h), st = sqrt(1 - ct * ct);
+        const double ph = 2 * M_PI * ((x + 0.5) / w - 0.5);
+        assert_true(st * sin(ph) * n[0] + ct * n[1] - st * cos(ph) * n[2] <= 0);
+      } else if (q > 0) {
+        worst = fmax(worst, fabs(q - p / keep));
+      }
+    }
+  uint64_t rs = 7;
+  int behind = 0;
+  const int N = 200000;
+  for (int i = 0; i < N; i++) {
+    float u[2] = {rng_float(&rs), rng_float(&rs)}, d[3], pdf;
+    assert_int_equal(cv_env_sampler_sample(r, u, d, &pdf), 1);
+    behind += d[0] * n[0] + d[1] * n[1] + d[2] * n[2] <= 0;
+  }
+  print_message("restricted: kept %.1f%% of the luminance, %d cells cut, worst kept-cell error "
+                "%.3g, %.2f%% of the draws behind the plane (cut cells)\n",
+                100 * keep, zeroed, worst, 100.0 * behind / N);
+  assert_true(zeroed > 0);
+  assert_true(worst < 2e-6);
+  assert_true(behind < N / 20);
+  cv_env_sampler_destroy(r);
+  cv_env_sampler_destroy(s);
+  cv_envmap_destroy(e);
+}
+
 /* Drawn directions land in the cells with the table's frequencies, and the
  * density returned with each sample is cv_env_sampler_pdf of it. */
 static void test_sampling_histogram(void **state) {
@@ -222,7 +269,7 @@ static void test_black_and_invalid(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_cell_probabilities), cmocka_unit_test(test_block_cells),
-      cmocka_unit_test(test_sampling_histogram),
+      cmocka_unit_test(test_sampling_histogram), cmocka_unit_test(test_restrict),
       cmocka_unit_test(test_pdf_normalised), cmocka_unit_test(test_black_and_invalid)};
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
