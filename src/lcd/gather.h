@@ -25,8 +25,10 @@
  *      to weigh a sample.
  *   e: the environment map by luminance (light sampling, light/env_sample.h:
  *      a marginal and conditional CDF over the car-frame table, uniform in
- *      each cell), n_e samples; p_e is exact for any direction, and a
- *      sample counts only when its ray leaves through a window.
+ *      each cell, restricted to the cells in front of the panel, rebuilt
+ *      from the light's tables in each call that uses it, about 0.1 ms),
+ *      n_e samples; p_e is exact for any direction, and a sample counts
+ *      only when its ray leaves through a window.
  * with n_w = round(window_fraction spp), n_e = round(env_fraction spp)
  * (n_w + n_e <= spp - 1: n_e is cut first), n_b = round(brdf_fraction (spp
  * - n_w - n_e)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
