@@ -60,8 +60,13 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
                      double tol, cv_hmatrix **out, cv_hmatrix_info *info, cv_err *err);
 void cv_hmatrix_destroy(cv_hmatrix *h);
 
-/* n values: sum_j |G_ij - G~_ij| for the stored approximation G~. */
+/* n values: sum_j |G_ij - G~_ij| for the stored approximation G~
+ * (cv_hmatrix_build: exact; cv_hmatrix_build_direct: estimated, see there). */
 const double *cv_hmatrix_row_error(const cv_hmatrix *h);
+/* n values: sum_j G~_ij of the stored approximation. */
+const double *cv_hmatrix_row_sum(const cv_hmatrix *h);
+/* Patches (rows = columns). */
+size_t cv_hmatrix_size(const cv_hmatrix *h);
 
 /* g = G~ x for 3-channel vectors (x, g: 3n interleaved, distinct).
  * Deterministic: each row's sum has a fixed order whatever the threads. */
