@@ -421,19 +421,20 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
     cv_hmatrix_destroy(h);
     return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory while compressing");
   }
-  if (info) {
-    cv_hm_info(h, F->nnz, (omp_get_wtime() - t0) * 1e3, info);
-    /* relative to the rows of the source matrix */
-    info->max_rel_row_error = 0;
-    for (size_t i = 0; i < n; i++)
-      if (rowsum[i] > 0 && h->row_err[i] / rowsum[i] > info->max_rel_row_error)
-        info->max_rel_row_error = h->row_err[i] / rowsum[i];
-  }
+  cv_hm_info(h, F->nnz, (omp_get_wtime() - t0) * 1e3, &h->info);
+  /* relative to the rows of the source matrix */
+  h->info.max_rel_row_error = 0;
+  for (size_t i = 0; i < n; i++)
+    if (rowsum[i] > 0 && h->row_err[i] / rowsum[i] > h->info.max_rel_row_error)
+      h->info.max_rel_row_error = h->row_err[i] / rowsum[i];
+  if (info) *info = h->info;
   free(pos_of);
   free(rowsum);
   *out = h;
   return CV_OK;
 }
+
+void cv_hmatrix_get_info(const cv_hmatrix *h, cv_hmatrix_info *info) { *info = h->info; }
 
 /* Phase 1 of a product: t = V x[c0 .. c0 + w) of a low-rank block, for the
  * three channels (t[q], t[k + q], t[2k + q]). */
@@ -578,4 +579,27 @@ double cv_hmatrix_gather_add_active(const cv_hmatrix *h, const uint8_t *active, 
   }
   apply(h, use, g, 1);
   return h->stored ? (double)read / (double)h->stored : 0;
+}
+
+void cv_hmatrix_row_values(const cv_hmatrix *h, size_t i, double *row) {
+  memset(row, 0, h->n * sizeof *row);
+  size_t p = 0;
+  while (p < h->n && h->perm[p] != i) p++;
+  if (p == h->n) return;
+  const size_t l = leaf_of(h, p);
+  for (size_t e = h->lb_off[l]; e < h->lb_off[l + 1]; e++) {
+    const hblock *b = &h->blocks[h->lb[e]];
+    const size_t ii = p - b->r0;
+    for (size_t jj = 0; jj < b->w; jj++) {
+      double v;
+      if (b->rank == 0) {
+        v = b->vals[ii * b->w + jj];
+      } else {
+        const float *U = b->vals + ii * b->rank, *V = b->vals + (size_t)b->m * b->rank;
+        v = 0;
+        for (size_t q = 0; q < b->rank; q++) v += (double)U[q] * V[q * b->w + jj];
+      }
+      row[h->perm[b->c0 + jj]] += v;
+    }
+  }
 }

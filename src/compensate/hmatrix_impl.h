@@ -37,6 +37,7 @@ struct cv_hmatrix {
   double *xp;         /* 3n planar scratch in cluster order */
   uint8_t *bact;      /* nb: block in use in a sparse update */
   size_t *apre;       /* n + 1: prefix count of active positions */
+  cv_hmatrix_info info; /* what the build reported */
 };
 
 /* Allocates h with n patches and nc leaf clusters (perm, cstart, row_err,
