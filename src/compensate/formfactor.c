@@ -656,6 +656,7 @@ int cv_ff_kernel_create(const cv_display *d, const cv_ff_params *params, cv_ff_k
 }
 
 int cv_ff_kernel_traces(const cv_ff_kernel *k) { return k->trace; }
+const cv_display *cv_ff_kernel_display(const cv_ff_kernel *k) { return k->d; }
 
 void cv_ff_kernel_thread_init(const cv_ff_kernel *k) {
   if (k->trace) cv_rt_thread_init();

@@ -125,6 +125,7 @@ int cv_ff_kernel_create(const cv_display *d, const cv_ff_params *p, cv_ff_kernel
                         cv_err *err);
 void cv_ff_kernel_destroy(cv_ff_kernel *k);
 int cv_ff_kernel_traces(const cv_ff_kernel *k);
+const cv_display *cv_ff_kernel_display(const cv_ff_kernel *k);
 void cv_ff_kernel_thread_init(const cv_ff_kernel *k);
 /* 0 when surfaces a and b provably exchange no light (whole planar surfaces
  * behind each other's plane, or a planar surface with itself). */

@@ -154,32 +154,51 @@ typedef struct aca_scratch {
 } aca_scratch;
 
 /* Partially pivoted ACA of the block rows[0..m) x cols[0..w) of G with the
- * stopping rule of hmatrix.h.  Returns the rank (0: the block is zero as
- * far as the sampled rows show), -1 when kmax terms were not enough.
- * err[i]: the newest term's size in row i (the estimate). */
+ * stopping rule of hmatrix.h.  When the rule holds, the residual of a few
+ * check rows (check[0..nchk), e.g. the rows nearest the other cluster and
+ * the corners) is evaluated in full; a check row outside the rule becomes
+ * the next pivot.  Returns the rank (0: the block is zero as far as the
+ * sampled rows show), -1 when kmax terms were not enough.  err[i]: the
+ * newest term's size in row i (the estimate), or for a check row its
+ * residual exactly. */
 static int aca_partial(const cv_ff_kernel *K, const uint32_t *rows, size_t m,
                        const uint32_t *cols, size_t w, double tol, int kmax, aca_scratch *s,
-                       double *err) {
+                       const size_t *check, int nchk, double *err) {
   double *U = s->U, *V = s->V, *r = s->r, *sum = s->sum;
   memset(s->used, 0, m);
   for (size_t i = 0; i < m; i++) sum[i] = err[i] = 0;
-  size_t pi = m / 2;
-  int k = 0, misses = 0;
+  size_t pi = nchk > 0 ? check[0] : m / 2;
+  int k = 0, misses = 0, checking = -1; /* >= 0: index of the check row being verified */
   double scale = 0, smax = 0; /* largest pivot, largest |row sum| so far */
   for (;;) {
     s->used[pi] = 1;
     size_t pj = 0;
-    double best = -1;
+    double best = -1, rabs = 0, rsum = 0;
     for (size_t j = 0; j < w; j++) {
-      double a = cv_ff_kernel_gather(K, rows[pi], cols[j]);
+      const double g = cv_ff_kernel_gather(K, rows[pi], cols[j]);
+      double a = g;
       for (int q = 0; q < k; q++) a -= U[(size_t)q * m + pi] * V[(size_t)q * w + j];
       r[j] = a;
+      rabs += fabs(a);
+      rsum += g;
       if (fabs(a) > best) {
         best = fabs(a);
         pj = j;
       }
     }
-    if (best == 0 || best <= 1e-14 * scale) {
+    if (checking >= 0) {
+      /* a check row: its residual is known exactly */
+      if (rabs <= 0.5 * tol * fmax(rsum, 1e-6 * smax) || best <= 1e-14 * scale) {
+        err[pi] = rabs;
+        int next = checking + 1;
+        while (next < nchk && s->used[check[next]]) next++;
+        if (next >= nchk) return k;
+        checking = next;
+        pi = check[next];
+        continue;
+      }
+      checking = -1; /* failed: it becomes the next pivot */
+    } else if (best == 0 || best <= 1e-14 * scale) {
       /* this row is reproduced already: sample another one, spread over
        * the block; after 4 such rows the block is taken as done (k = 0:
        * zero) */
@@ -214,7 +233,7 @@ static int aca_partial(const cv_ff_kernel *K, const uint32_t *rows, size_t m,
       smax = fmax(smax, fabs(sum[i]));
     }
     for (size_t i = 0; i < m; i++) {
-      err[i] = fabs(u[i]) * vabs;
+      err[i] = s->used[i] ? 0 : fabs(u[i]) * vabs; /* pivot rows are exact */
       /* rows that get under 1e-6 of the block's largest row are held to
        * that floor (they matter only against their whole row) */
       if (err[i] > 0.5 * tol * fmax(fabs(sum[i]), 1e-6 * smax)) ok = 0;
@@ -223,10 +242,47 @@ static int aca_partial(const cv_ff_kernel *K, const uint32_t *rows, size_t m,
         nx = i;
       }
     }
-    if (ok) return k;
     if (nx == m) return k; /* every row was a pivot: the block is exact */
+    if (ok) {
+      int c = 0;
+      while (c < nchk && s->used[check[c]]) c++;
+      if (c >= nchk) return k;
+      checking = c;
+      pi = check[c];
+      continue;
+    }
     pi = nx;
   }
+}
+
+/* Check rows of a block: the row nearest the column cluster's box centre,
+ * the farthest, and the first and last rows (corners of the cluster). */
+static int check_rows(const cv_display *d, const uint32_t *rows, size_t m, const double *lo,
+                      const double *hi, size_t *chk) {
+  const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+  size_t near = 0, far = 0;
+  double dn = INFINITY, df = -1;
+  for (size_t i = 0; i < m; i++) {
+    const double *p = d->patches[rows[i]].c;
+    const double dd = (p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) +
+                      (p[2] - c[2]) * (p[2] - c[2]);
+    if (dd < dn) {
+      dn = dd;
+      near = i;
+    }
+    if (dd > df) {
+      df = dd;
+      far = i;
+    }
+  }
+  const size_t cand[4] = {near, far, 0, m - 1};
+  int n = 0;
+  for (int a = 0; a < 4; a++) {
+    int dup = 0;
+    for (int b = 0; b < n; b++) dup |= chk[b] == cand[a];
+    if (!dup) chk[n++] = cand[a];
+  }
+  return n;
 }
 
 /* Computes one job; returns 0, or -1 when out of memory. */
@@ -245,7 +301,10 @@ static int run_job(const cv_ff_kernel *K, const cv_hmatrix *h, const ctree *t, d
   if (!jb->dense) {
     int kmax = (int)(m * w / (2 * (m + w)));
     if (kmax > KCAP) kmax = KCAP;
-    const int k = kmax > 0 ? aca_partial(K, rows, m, cols, w, tol, kmax, s, jb->err) : -1;
+    size_t chk[4];
+    const int nchk = check_rows(cv_ff_kernel_display(K), rows, m, b->lo, b->hi, chk);
+    const int k =
+        kmax > 0 ? aca_partial(K, rows, m, cols, w, tol, kmax, s, chk, nchk, jb->err) : -1;
     if (k == 0) {
       jb->status = 2;
       return 0;
