@@ -22,9 +22,19 @@
  * (cv_hmatrix_row_error): a product then errs by at most row_error_i *
  * max|x|, and the solvers add that to their error bound.
  *
- * Not a hierarchical matrix in the strict sense: one level of clusters (a
- * flat block partition).  At 2 x 64 x 64 patches with 8 x 8 tiles that is
- * 128 clusters and enough to make the product bandwidth-light. */
+ * cv_hmatrix_build: not a hierarchical matrix in the strict sense: one level
+ * of clusters (a flat block partition) of a matrix already built.  At
+ * 2 x 64 x 64 patches with 8 x 8 tiles that is 128 clusters and enough to
+ * make the product bandwidth-light.
+ *
+ * cv_hmatrix_build_direct: hierarchical, and built from the display without
+ * the dense matrix (see there): far blocks are pairs of large clusters (up to
+ * wall quadrants), found by partially pivoted ACA on entries evaluated on
+ * demand; its per-row error is an estimate, not the exact figure above.
+ *
+ * Storage (both builds): blocks of any cluster-aligned row and column range;
+ * a product first forms V x for every low-rank block, then sums each leaf
+ * cluster's rows over the blocks that cover it in a fixed order. */
 #ifndef CV_COMPENSATE_HMATRIX_H
 #define CV_COMPENSATE_HMATRIX_H
 

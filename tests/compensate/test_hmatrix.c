@@ -323,12 +323,75 @@ static void test_direct_equals_dense(void **state) {
   cv_display_destroy(d);
 }
 
+/* A system that carries only the directly built H: the workspace uses it
+ * (storage "block low-rank (direct)"), and the bounded solve's input is
+ * that of the dense system within 2/255, judged by the dense physics. */
+static void test_solve_direct_only(void **state) {
+  (void)state;
+  fixture f;
+  make(&f, 24, 0.8);
+  const size_t n = f.s.n;
+  cv_hmatrix *h;
+  cv_err err;
+  assert_int_equal(cv_hmatrix_build_direct(f.d, NULL, NULL, &h, NULL, &err), CV_OK);
+  cv_scatter_system sd;
+  cv_display_scatter_system(f.d, NULL, &sd);
+  sd.H = h;
+  cv_scatter_workspace *wd, *wp;
+  assert_int_equal(cv_scatter_workspace_create(&sd, &wd, &err), CV_OK);
+  assert_int_equal(cv_scatter_workspace_create(&f.s, &wp, &err), CV_OK);
+  cv_scatter_model m;
+  cv_scatter_workspace_get_model(wd, &m);
+  printf("  direct-only system: %s, %.2f MB (dense %.2f MB), product error bound %.2e, rho %.4f "
+         "(dense %.4f)\n", m.storage, m.bytes / 1e6, m.source_bytes / 1e6, m.error_bound,
+         cv_scatter_workspace_rho(wd), cv_scatter_workspace_rho(wp));
+  assert_string_equal(m.storage, "block low-rank (direct)");
+  assert_true(m.error_bound > 0 && m.error_bound < 1e-3);
+  assert_true(fabs(cv_scatter_workspace_rho(wd) - cv_scatter_workspace_rho(wp)) < 2e-3);
+  float *T = malloc(3 * n * sizeof *T), *Id = malloc(3 * n * sizeof *Id),
+        *Ip = malloc(3 * n * sizeof *Ip);
+  for (size_t i = 0; i < n; i++) {
+    const cv_patch *p = cv_display_patch(f.d, i);
+    const double v = (p->surface == 1 && p->u < 4) ? 0.0 : 0.8;
+    for (int c = 0; c < 3; c++) T[3 * i + c] = (float)v;
+  }
+  cv_scatter_opts o;
+  cv_scatter_opts_default(&o);
+  cv_scatter_stats sd_st, sp_st;
+  assert_int_equal(cv_scatter_solve(wd, T, &o, Id, &sd_st, &err), CV_OK);
+  assert_int_equal(cv_scatter_solve(wp, T, &o, Ip, &sp_st, &err), CV_OK);
+  double dI = 0;
+  for (size_t p = 0; p < 3 * n; p++) dI = fmax(dI, fabs((double)Id[p] - Ip[p]));
+  double *B = malloc(3 * n * sizeof *B);
+  assert_int_equal(cv_scatter_physics(&f.s, Id, B, 1e-9, NULL), CV_OK);
+  double worst = 0;
+  for (size_t p = 0; p < 3 * n; p++)
+    if (Id[p] > 1e-6 && Id[p] < 1 - 1e-6) worst = fmax(worst, fabs(B[p] - T[p]));
+  printf("  bounded: %zu clipped patches (dense %zu), max |I_direct - I_dense| %.2e, worst "
+         "displayed error on unclipped patches %.2e (dense physics)\n",
+         sd_st.clipped_patches, sp_st.clipped_patches, dI, worst);
+  assert_true(sd_st.clipped_patches > 0);
+  assert_true(dI < 2.0 / 255);
+  assert_true(worst <= 1.0 / 255);
+  /* the physics runs on H alone too */
+  assert_int_equal(cv_scatter_physics(&sd, Id, B, 1e-9, NULL), CV_OK);
+  free(B);
+  free(T);
+  free(Id);
+  free(Ip);
+  cv_scatter_workspace_destroy(wd);
+  cv_scatter_workspace_destroy(wp);
+  cv_hmatrix_destroy(h);
+  unmake(&f);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_product_within_bound),
       cmocka_unit_test(test_bounded_solve_compressed),
       cmocka_unit_test(test_compression_not_picked),
       cmocka_unit_test(test_direct_equals_dense),
+      cmocka_unit_test(test_solve_direct_only),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
