@@ -85,12 +85,17 @@ void cv_hmatrix_destroy(cv_hmatrix *h);
  *    (Bebendorf 2000): rank one step = one evaluated row and one column of
  *    the residual, so a rank-k block of m x w costs k (m + w) entries.  It
  *    stops when for every row i of the block the newest term is within
- *    tol / 2 of the row's block sum:  |u_k(i)| sum_j |v_k(j)| <= tol/2 s~_ib.
- *    That newest term estimates the remaining error (the standard ACA
- *    criterion): the bound is ESTIMATED, not proven (the dense path's is
- *    exact); the error against the dense build is measured in
- *    tests/compensate/test_hmatrix.c and docs/benchmarks.md.  A block whose
- *    rank would exceed a quarter of its dense size (or 128) is split again.
+ *    tol / 2 of the row's block sum:  |u_k(i)| sum_j |v_k(j)| <= tol/2 s~_ib
+ *    (rows under 1e-6 of the block's largest row sum are held to that
+ *    floor), and then four check rows (nearest to and farthest from the
+ *    column cluster, first and last) meet the same rule with their residual
+ *    evaluated in full (one that fails becomes the next pivot).  The newest
+ *    term estimates the remaining error (the standard ACA criterion): the
+ *    bound is ESTIMATED, not proven (the dense path's is exact); the error
+ *    against the dense build is measured in tests/compensate/test_hmatrix.c
+ *    and docs/benchmarks.md (true errors within tol, the estimate short by
+ *    up to 4x).  A block whose factors would take more than half its dense
+ *    size (or a rank above 128) is split again; a leaf pair is then dense.
  *  - row error: per row the sum of the estimates of its blocks (plus float
  *    rounding of the factors), <= tol/2 s~_i when every block met the rule;
  *    cv_hmatrix_row_error returns it for the solvers' error bounds.
