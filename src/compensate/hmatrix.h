@@ -93,8 +93,8 @@ void cv_hmatrix_destroy(cv_hmatrix *h);
  *    term estimates the remaining error (the standard ACA criterion): the
  *    bound is ESTIMATED, not proven (the dense path's is exact); the error
  *    against the dense build is measured in tests/compensate/test_hmatrix.c
- *    and docs/benchmarks.md (true errors within tol, the estimate short by
- *    up to 4x).  A block whose factors would take more than half its dense
+ *    and docs/benchmarks.md (true errors within tol, the estimate up to
+ *    7x below them).  A block whose factors would take more than half its dense
  *    size (or a rank above 128) is split again; a leaf pair is then dense.
  *  - row error: per row the sum of the estimates of its blocks (plus float
  *    rounding of the factors), <= tol/2 s~_i when every block met the rule;
