@@ -30,6 +30,7 @@
 #include <time.h>
 
 #include "comm.h"
+#include "lcdreduce.h"
 #include "core/hash.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
@@ -57,6 +58,7 @@ static void master_free(master *m) {
   free(m->I);
   free(m->r);
   cv_mailbox_close(m->lcd_mb);
+  cv_lcd_reduce_destroy(m->lcd_red);
   cv_lcd_progress_free(&m->prog);
   free(m->seen);
   cv_image_destroy(m->lcd_content);
@@ -151,6 +153,9 @@ static int master_setup(master *m, cv_err *err) {
     m->lcd_mb = cv_mailbox_open(-1, CV_TAG_LCD, sizeof(cv_lcd_msg) + n * sizeof(int64_t));
     m->seen = calloc((size_t)s->o.lcd_budget, 1);
     if (!m->lcd_mb || !m->seen) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+    if (s->lcd_me == 0 && s->lcd_members >= 2 &&
+        cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->lcd_members, 0, &m->lcd_red))
+      return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory (LCD reduction)");
     st = cv_lcd_content_load(s->o.lcd_content, s->o.lcd_w, s->o.lcd_h, m->lcd_aspect,
                              s->o.lcd_luminance, CV_LCD_BLACK_LEVEL * s->o.lcd_luminance,
                              &m->lcd_content, err);
@@ -555,6 +560,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "rel_rms", le.rel_rms);
       cv_metrics_uint(ml, "clamped", (uint64_t)m->prog.acc->data[CV_LCD_ACC_CLAMPED]);
     }
+    lcd_reduce_metrics(m, ml, "allreduce");
     lcd_readability_update(m);
     lcd_readability_metrics(m, ml);
     cv_metrics_object_end(ml);
@@ -669,6 +675,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
       cv_lcd_error le;
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "lcd_rel_rms", le.rel_rms);
     }
+    lcd_reduce_metrics(m, ml, "lcd_allreduce");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
   cv_metrics_write(ml, m->mf);
@@ -771,6 +778,7 @@ int cv_master_run(cv_service *s) {
   }
   /* Quit: tell every rank, then the last LCD image and the summary. */
   quit_all(m, f);
+  lcd_reduce_finish(m);
   lcd_drain(m);
   if (!*s->stop) lcd_publish(m, 1);
   if (m->lcd_mb) lcd_write(m, "lcd");

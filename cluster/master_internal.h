@@ -80,6 +80,7 @@ typedef struct master {
   int comp_ok;
   /* LCD */
   cv_mailbox *lcd_mb;
+  struct cv_lcd_reduce *lcd_red; /* allreduce with the gather ranks (NULL: none) */
   uint64_t lcd_key;
   int32_t lcd_eye_q[3];
   cv_lcd_progress prog;
@@ -183,6 +184,10 @@ void master_sync_summary(master *m, cv_metrics_line *ml);
 void lcd_drain(master *m);
 void lcd_publish(master *m, int force);
 void lcd_write(master *m, const char *stem);
+/* At quit: the last allreduce epoch (bounded wait), before lcd_write. */
+void lcd_reduce_finish(master *m);
+/* The allreduce's totals as object `name` (nothing without gather ranks). */
+void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name);
 /* Recomputes the readability figures when the estimate gained rounds. */
 void lcd_readability_update(master *m);
 /* The "readability" object of a metrics line (last valid estimate, its key

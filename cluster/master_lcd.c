@@ -1,14 +1,18 @@
 /* The master's LCD aggregation: rounds from the render ranks' idle threads
- * and the gather ranks arrive in per-source messages and are summed in
- * fixed point (cv_lcd_progress), so the sum is the same bits in any arrival
- * order and for any rank count; the current image goes to the render ranks
- * (shown on the dashboard) and to lcd.exr/png at the end. */
+ * arrive in per-source messages; the gather ranks' rounds arrive as sums of
+ * a non-blocking allreduce (lcdreduce.c) that the master tests each time it
+ * drains.  Both are summed in fixed point (cv_lcd_progress), so the sum is
+ * the same bits in any arrival order and for any rank count; the current
+ * image goes to the render ranks (shown on the dashboard) and to
+ * lcd.exr/png at the end. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "comm.h"
+#include "lcdreduce.h"
 #include "io/exr.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
@@ -17,8 +21,64 @@
 
 /* ---- LCD ---------------------------------------------------------------- */
 
+/* An allreduce epoch's sum: added when it is of the current key and none of
+ * its rounds was summed before. */
+static void lcd_reduced(const cv_lcd_reduce_sum *sum, void *user) {
+  master *m = user;
+  if (sum->asked_key != m->lcd_key ||
+      (sum->consistent && cv_service_lcd_key(sum->key.eye_q, sum->key.light_hash) != m->lcd_key)) {
+    m->lcd_late += sum->rounds; /* asked for an earlier camera or lighting */
+    return;
+  }
+  int ok = sum->consistent && sum->acc->w == m->s->o.lcd_w && sum->acc->h == m->s->o.lcd_h;
+  for (int i = 0; ok && i < m->s->o.lcd_budget; i++)
+    if (sum->counts[i] < 0 || sum->counts[i] > 1 || (sum->counts[i] && m->seen[i])) ok = 0;
+  int restarted = 0;
+  if (!ok || cv_lcd_progress_submit(&m->prog, &sum->key, sum->acc, &restarted) != CV_OK) {
+    m->lcd_rejected += sum->rounds;
+    return;
+  }
+  for (int i = 0; i < m->s->o.lcd_budget; i++)
+    if (sum->counts[i]) m->seen[i] = 1;
+  m->lcd_rounds += sum->rounds;
+}
+
+/* Tests the allreduce in flight (never waits) and starts the next epoch
+ * (at most every 0.1 s), asking for the current key. */
+static void lcd_reduce_poll(master *m) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 0);
+  cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0.1, lcd_reduced, m);
+}
+
+void lcd_reduce_finish(master *m) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 1);
+  const double t0 = cv_service_now();
+  while (!cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0, lcd_reduced, m) &&
+         cv_service_now() - t0 < 10) {
+    cv_comm_progress();
+    struct timespec ts = {0, 1000000};
+    nanosleep(&ts, NULL);
+  }
+}
+
+void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_stats st;
+  cv_lcd_reduce_get_stats(m->lcd_red, &st);
+  cv_metrics_object_begin(ml, name);
+  cv_metrics_uint(ml, "members", (uint64_t)m->s->lcd_members);
+  cv_metrics_uint(ml, "epochs", st.epochs);
+  cv_metrics_uint(ml, "data_epochs", st.data_epochs);
+  cv_metrics_uint(ml, "rounds", st.rounds);
+  cv_metrics_double(ml, "epoch_ms_mean", st.mean_ms);
+  cv_metrics_object_end(ml);
+}
+
 /* Takes every LCD round that has arrived; sums those of the current key. */
 void lcd_drain(master *m) {
+  lcd_reduce_poll(m);
   if (!m->lcd_mb) return;
   const uint8_t *data;
   int from;

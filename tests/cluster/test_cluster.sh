@@ -83,6 +83,11 @@ r11=$(grep -o '"lcd_rounds":[0-9]*' l11/metrics.jsonl | tail -1 | grep -o '[0-9]
 r13=$(grep -o '"lcd_rounds":[0-9]*' l13/metrics.jsonl | tail -1 | grep -o '[0-9]*$')
 if [ $rc1 -eq 0 ] && [ $rc2 -eq 0 ] && [ "$r11" = 12 ] && [ "$r13" = 12 ] && cmp -s l11/lcd.exr l13/lcd.exr; then
   ok "LCD image bit-identical for 11 and 13 ranks (12 rounds from 10 and 12 contributors)"
+  # with 13 ranks the gather ranks' rounds (10 and 11) came by the allreduce
+  ar=$(tail -1 l13/metrics.jsonl | grep -o '"lcd_allreduce":{[^}]*}')
+  python3 -c 'import json,sys; a=json.loads(sys.argv[1]); sys.exit(not (a["members"] == 3 and a["rounds"] >= 1))' \
+    "${ar#\"lcd_allreduce\":}" 2>/dev/null && ok "13 ranks: gather ranks' rounds summed by the allreduce ($ar)" \
+    || bad "13 ranks: no allreduce rounds in the metrics: $ar"
 else
   bad "LCD 11 vs 13: rc $rc1 $rc2, rounds $r11 $r13 $(tail -2 l11.txt l13.txt)"
 fi
