@@ -37,7 +37,7 @@ int cv_gather_run(cv_service *s) {
   cv_lcd_worker *w = NULL;
   const int index = cv_service_contributor(s, s->rank);
   int st = cv_prt_read(s->o.scene_path, &prt, &err);
-  if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, &w, &err);
+  if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, 0, &w, &err);
   {
     char host[128], msg[800];
     cv_comm_host(host, sizeof host);
@@ -46,7 +46,7 @@ int cv_gather_run(cv_service *s) {
     cv_service_ready(st == CV_OK, msg);
   }
   cv_lcd_reduce *red = NULL;
-  if (s->lcd_me > 0 && cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->lcd_members,
+  if (s->lcd_me > 0 && cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->n_contributors, s->lcd_members,
                                             s->lcd_me, &red) != CV_OK)
     fprintf(stderr, "cave run: rank %d: LCD reduction: out of memory\n", s->rank);
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);

@@ -3,19 +3,19 @@
  * (cv_comm_lcd_group) and run the same epoch machine, each rank on its own
  * clock, never waiting:
  *
- *   header  MPI_Iallreduce (sum) of a small int64 vector: the master's LCD
- *           key for the next epoch and its quit flag, each contributor's
- *           LCD key and clamp in its own slot, and per round of the budget
- *           how many contributors bring it;
- *   data    only when the header counted rounds: MPI_Iallreduce (sum) of the
- *           fixed-point LCD buffers (cv_lcd_accum words; zeros from ranks
- *           that bring nothing).
+ *   header  MPI_Iallreduce (sum) of a small int64 vector: the master's
+ *           current LCD key and its quit flag; in its own slot, each
+ *           contributor's offer: the rounds it finished for its newest key
+ *           (the key, clamp, frame of the snapshot, first round, count);
+ *   data    only when something was offered: every member picks the same
+ *           offer from the header (the master's current key first, else the
+ *           newest snapshot), and MPI_Iallreduce (sum) adds the fixed-point
+ *           LCD buffers of the offers of that key (cv_lcd_accum words; zeros
+ *           from the others, whose offers go back to their pools).
  *
- * A contributor brings the rounds it finished for the key the master asked
- * for in the previous header (its pool), so every sum is of one key.  The
- * master tests the request once per poll (each frame and in its waiting
- * loops) and starts the next epoch at most every min_period seconds; the
- * gather ranks join at once.  A late gather rank delays the epoch (the sum
+ * So every sum is of one key.  The master tests the request once per poll
+ * (each frame and in its waiting loops) and starts the next epoch at most
+ * every min_period seconds; the gather ranks join at once.  A late gather rank delays the epoch (the sum
  * completes when it joins), never a frame.  The sum is of integers, so the
  * master's image is the same bits as the per-round messages gave, for any
  * rank count. */
@@ -28,47 +28,56 @@
 #include "service_internal.h"
 
 enum { PH_IDLE, PH_HEADER, PH_DATA, PH_DONE };
-enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 6 }; /* slot: flag, key (4), clamp */
+/* header: master's key, quit flag, then one slot per member: offered (1),
+ * LCD key (4 words), clamp (bits), frame of the key, first round, rounds */
+enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 10 };
+enum { S_OFFER = 0, S_KEY = 1, S_CLAMP = 5, S_FRAME = 6, S_FIRST = 7, S_N = 8 };
 _Static_assert(sizeof(cv_lcd_key) == 4 * sizeof(int64_t), "an LCD key is 4 words");
 
+/* Rounds of one key from one worker: first, first + stride, ... (n). */
+typedef struct pool {
+  cv_lcd_accum *acc;
+  cv_lcd_key key;
+  uint32_t frame, first, n;
+} pool;
+
 struct cv_lcd_reduce {
-  int w, h, budget, members, me;
+  int w, h, budget, stride, members, me;
   size_t words, hdr_n;
   int64_t *hdr, *data;
   int phase;
   double t_start;
-  uint64_t next_key;  /* asked for by the last header's result */
-  uint64_t epoch_key; /* asked for in the epoch in flight */
   int quit_epoch;
   /* master */
   uint64_t announce;
   int announce_quit;
-  /* contributor: rounds not yet brought, and those in the epoch in flight */
-  cv_lcd_accum *pool, *sent;
-  cv_lcd_key pool_key;
-  uint8_t *pool_rounds;
-  uint32_t pool_n;
+  uint32_t *rounds; /* budget: the rounds of a sum */
+  /* contributor: rounds since the offer, and the offer in flight */
+  pool pool, offer;
   /* totals */
-  uint64_t epochs, data_epochs, rounds;
+  uint64_t epochs, data_epochs, nrounds;
   double ms_sum;
 };
 
-int cv_lcd_reduce_create(int w, int h, int budget, int members, int me, cv_lcd_reduce **out) {
+int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int me,
+                         cv_lcd_reduce **out) {
   *out = NULL;
-  if (w < 1 || h < 1 || budget < 1 || members < 2 || me < 0 || me >= members) return CV_ERR_INVALID;
+  if (w < 1 || h < 1 || budget < 1 || stride < 1 || members < 2 || me < 0 || me >= members)
+    return CV_ERR_INVALID;
   cv_lcd_reduce *r = calloc(1, sizeof *r);
   if (!r) return CV_ERR_NOMEM;
   r->w = w;
   r->h = h;
   r->budget = budget;
+  r->stride = stride;
   r->members = members;
   r->me = me;
   r->words = cv_lcd_accum_words(w, h);
-  r->hdr_n = H_SLOTS + (size_t)SLOT_WORDS * (size_t)members + (size_t)budget;
+  r->hdr_n = H_SLOTS + (size_t)SLOT_WORDS * (size_t)members;
   r->hdr = calloc(r->hdr_n, sizeof *r->hdr);
   r->data = calloc(r->words, sizeof *r->data);
-  r->pool_rounds = calloc((size_t)budget, 1);
-  if (!r->hdr || !r->data || !r->pool_rounds) {
+  r->rounds = calloc((size_t)budget, sizeof *r->rounds);
+  if (!r->hdr || !r->data || !r->rounds) {
     cv_lcd_reduce_destroy(r);
     return CV_ERR_NOMEM;
   }
@@ -77,21 +86,19 @@ int cv_lcd_reduce_create(int w, int h, int budget, int members, int me, cv_lcd_r
   return CV_OK;
 }
 
-void cv_lcd_reduce_destroy(cv_lcd_reduce *r) {
-  if (!r) return;
-  cv_lcd_accum_destroy(r->pool);
-  cv_lcd_accum_destroy(r->sent);
-  free(r->hdr);
-  free(r->data);
-  free(r->pool_rounds);
-  free(r);
+static void pool_clear(pool *p) {
+  cv_lcd_accum_destroy(p->acc);
+  memset(p, 0, sizeof *p);
 }
 
-static void pool_clear(cv_lcd_reduce *r) {
-  cv_lcd_accum_destroy(r->pool);
-  r->pool = NULL;
-  r->pool_n = 0;
-  memset(r->pool_rounds, 0, (size_t)r->budget);
+void cv_lcd_reduce_destroy(cv_lcd_reduce *r) {
+  if (!r) return;
+  pool_clear(&r->pool);
+  pool_clear(&r->offer);
+  free(r->hdr);
+  free(r->data);
+  free(r->rounds);
+  free(r);
 }
 
 int cv_lcd_reduce_add_round(cv_lcd_reduce *r, const uint8_t *msg, size_t len) {
@@ -103,16 +110,20 @@ int cv_lcd_reduce_add_round(cv_lcd_reduce *r, const uint8_t *msg, size_t len) {
     return -1;
   cv_lcd_accum view = {.w = h.w, .h = h.h, .clamp = h.clamp, .unit = cv_lcd_unit_for_clamp(h.clamp),
                        .n = h.n, .data = (int64_t *)(void *)(uintptr_t)(msg + sizeof h)};
-  if (r->pool && cv_lcd_key_equal(&r->pool_key, &h.key) && r->pool->clamp == h.clamp) {
-    if (r->pool_rounds[h.round]) return 0;
-    if (cv_lcd_accum_add(r->pool, &view) != CV_OK) return 0; /* full: dropped */
-  } else {
-    pool_clear(r);
-    if (cv_lcd_accum_clone(&view, &r->pool) != CV_OK) return -1;
-    r->pool_key = h.key;
+  pool *p = &r->pool;
+  if (p->acc && cv_lcd_key_equal(&p->key, &h.key) && p->acc->clamp == h.clamp &&
+      h.round == p->first + p->n * (uint32_t)r->stride) {
+    if (cv_lcd_accum_add(p->acc, &view) != CV_OK) return 0; /* full: dropped */
+    p->n++;
+    return 0;
   }
-  r->pool_rounds[h.round] = 1;
-  r->pool_n++;
+  /* a new key (or a gap): the newest snapshot starts over */
+  pool_clear(p);
+  if (cv_lcd_accum_clone(&view, &p->acc) != CV_OK) return -1;
+  p->key = h.key;
+  p->frame = h.frame;
+  p->first = h.round;
+  p->n = 1;
   return 0;
 }
 
@@ -121,55 +132,95 @@ void cv_lcd_reduce_announce(cv_lcd_reduce *r, uint64_t key, int quit) {
   if (quit) r->announce_quit = 1;
 }
 
-static int64_t *slot(int64_t *hdr, int member) { return hdr + H_SLOTS + (size_t)SLOT_WORDS * member; }
-static int64_t *counts(const cv_lcd_reduce *r) { return r->hdr + H_SLOTS + (size_t)SLOT_WORDS * r->members; }
+static int64_t *slot(const cv_lcd_reduce *r, int member) {
+  return r->hdr + H_SLOTS + (size_t)SLOT_WORDS * (size_t)member;
+}
 
 static void start_header(cv_lcd_reduce *r, double now) {
   memset(r->hdr, 0, r->hdr_n * sizeof *r->hdr);
-  r->epoch_key = r->next_key;
   if (r->me == 0) {
     memcpy(&r->hdr[H_KEY], &r->announce, sizeof r->announce);
     r->hdr[H_QUIT] = r->announce_quit;
-  } else if (r->pool && r->pool_n > 0 && r->epoch_key != 0 &&
-             cv_service_lcd_key(r->pool_key.eye_q, r->pool_key.light_hash) == r->epoch_key) {
-    int64_t *s = slot(r->hdr, r->me);
-    s[0] = 1;
-    memcpy(s + 1, &r->pool_key, sizeof r->pool_key);
-    memcpy(s + 5, &r->pool->clamp, sizeof r->pool->clamp);
-    int64_t *c = counts(r);
-    for (int i = 0; i < r->budget; i++) c[i] = r->pool_rounds[i];
-    r->sent = r->pool; /* brought in this epoch */
-    r->pool = NULL;
-    r->pool_n = 0;
-    memset(r->pool_rounds, 0, (size_t)r->budget);
+  } else if (r->pool.acc && r->pool.n > 0) { /* offer the pool, frozen */
+    r->offer = r->pool;
+    memset(&r->pool, 0, sizeof r->pool);
+    int64_t *s = slot(r, r->me);
+    s[S_OFFER] = 1;
+    memcpy(s + S_KEY, &r->offer.key, sizeof r->offer.key);
+    memcpy(s + S_CLAMP, &r->offer.acc->clamp, sizeof(double));
+    s[S_FRAME] = r->offer.frame;
+    s[S_FIRST] = r->offer.first;
+    s[S_N] = r->offer.n;
   }
   r->t_start = now;
   r->phase = cv_comm_lcd_iallreduce(r->hdr, r->hdr_n) ? PH_IDLE : PH_HEADER;
-  if (r->phase == PH_IDLE) { /* MPI refused: the rounds are lost, try later */
-    cv_lcd_accum_destroy(r->sent);
-    r->sent = NULL;
+  if (r->phase == PH_IDLE) pool_clear(&r->offer); /* MPI refused: lost, try later */
+}
+
+/* The offer every member picks from the header (the same on all): one of
+ * the master's current key, else the newest snapshot (latest frame), the
+ * lowest member on ties.  -1: nothing offered. */
+static int chosen(const cv_lcd_reduce *r) {
+  uint64_t cur;
+  memcpy(&cur, &r->hdr[H_KEY], sizeof cur);
+  int best = -1, best_cur = 0;
+  int64_t best_frame = -1;
+  for (int m = 1; m < r->members; m++) {
+    const int64_t *s = slot(r, m);
+    if (s[S_OFFER] != 1) continue;
+    cv_lcd_key k;
+    memcpy(&k, s + S_KEY, sizeof k);
+    const int is_cur = cv_service_lcd_key(k.eye_q, k.light_hash) == cur;
+    if (best < 0 || is_cur > best_cur || (is_cur == best_cur && s[S_FRAME] > best_frame)) {
+      best = m;
+      best_cur = is_cur;
+      best_frame = s[S_FRAME];
+    }
   }
+  return best;
+}
+
+/* Does member m's offer sum with the chosen one (same key and clamp)? */
+static int matches(const cv_lcd_reduce *r, int m, int best) {
+  const int64_t *s = slot(r, m), *b = slot(r, best);
+  return s[S_OFFER] == 1 && memcmp(s + S_KEY, b + S_KEY, 5 * sizeof(int64_t)) == 0;
 }
 
 static void finish_epoch(cv_lcd_reduce *r, double now) {
   r->epochs++;
   r->ms_sum += (now - r->t_start) * 1e3;
-  cv_lcd_accum_destroy(r->sent);
-  r->sent = NULL;
+  pool_clear(&r->offer);
   r->phase = r->quit_epoch ? PH_DONE : PH_IDLE;
 }
 
+/* An offer not chosen goes back to the pool: in front of the rounds of the
+ * same key finished meanwhile; dropped when a newer key has started. */
+static void offer_back(cv_lcd_reduce *r) {
+  pool *o = &r->offer, *p = &r->pool;
+  if (!o->acc) return;
+  if (!p->acc) {
+    *p = *o;
+    memset(o, 0, sizeof *o);
+  } else if (cv_lcd_key_equal(&p->key, &o->key) && p->acc->clamp == o->acc->clamp &&
+             p->first == o->first + o->n * (uint32_t)r->stride &&
+             cv_lcd_accum_add(o->acc, p->acc) == CV_OK) {
+    o->n += p->n;
+    pool_clear(p);
+    *p = *o;
+    memset(o, 0, sizeof *o);
+  }
+  pool_clear(o);
+}
+
 static void header_done(cv_lcd_reduce *r, double now) {
-  memcpy(&r->next_key, &r->hdr[H_KEY], sizeof r->next_key);
   r->quit_epoch = r->hdr[H_QUIT] != 0;
-  const int64_t *c = counts(r);
-  int64_t n = 0;
-  for (int i = 0; i < r->budget; i++) n += c[i];
-  if (n <= 0) {
+  const int best = chosen(r);
+  if (r->me > 0 && r->offer.acc && (best < 0 || !matches(r, r->me, best))) offer_back(r);
+  if (best < 0) {
     finish_epoch(r, now);
     return;
   }
-  if (r->sent) memcpy(r->data, r->sent->data, r->words * sizeof *r->data);
+  if (r->offer.acc) memcpy(r->data, r->offer.acc->data, r->words * sizeof *r->data);
   else memset(r->data, 0, r->words * sizeof *r->data);
   if (cv_comm_lcd_iallreduce(r->data, r->words)) {
     finish_epoch(r, now);
@@ -179,40 +230,29 @@ static void header_done(cv_lcd_reduce *r, double now) {
 }
 
 static void data_done(cv_lcd_reduce *r, double now, cv_lcd_reduce_fn fn, void *user) {
-  const int64_t *c = counts(r);
-  uint32_t n = 0;
-  for (int i = 0; i < r->budget; i++) n += (uint32_t)c[i];
-  r->data_epochs++;
-  r->rounds += n;
-  if (r->me == 0 && fn) {
-    cv_lcd_reduce_sum sum;
-    memset(&sum, 0, sizeof sum);
-    sum.asked_key = r->epoch_key;
-    sum.counts = c;
-    sum.rounds = n;
-    sum.consistent = 1;
-    double clamp = 0;
-    int first = 1;
-    for (int m = 1; m < r->members; m++) {
-      const int64_t *s = slot(r->hdr, m);
-      if (s[0] == 0) continue;
-      cv_lcd_key k;
-      double cl;
-      memcpy(&k, s + 1, sizeof k);
-      memcpy(&cl, s + 5, sizeof cl);
-      if (s[0] != 1) sum.consistent = 0;
-      if (first) {
-        sum.key = k;
-        clamp = cl;
-        first = 0;
-      } else if (!cv_lcd_key_equal(&k, &sum.key) || cl != clamp) {
-        sum.consistent = 0;
-      }
+  const int best = chosen(r);
+  cv_lcd_reduce_sum sum;
+  memset(&sum, 0, sizeof sum);
+  memcpy(&sum.key, slot(r, best) + S_KEY, sizeof sum.key);
+  double clamp;
+  memcpy(&clamp, slot(r, best) + S_CLAMP, sizeof clamp);
+  sum.frame = (uint32_t)slot(r, best)[S_FRAME];
+  for (int m = 1; m < r->members; m++) {
+    if (!matches(r, m, best)) continue;
+    const int64_t *s = slot(r, m);
+    if ((uint32_t)s[S_FRAME] < sum.frame) sum.frame = (uint32_t)s[S_FRAME];
+    for (int64_t i = 0; i < s[S_N]; i++) {
+      const int64_t round = s[S_FIRST] + i * r->stride;
+      if (round >= 0 && round < r->budget && sum.rounds < (uint32_t)r->budget)
+        r->rounds[sum.rounds++] = (uint32_t)round;
     }
-    if (first || !(clamp > 0)) sum.consistent = 0;
-    cv_lcd_accum view = {.w = r->w, .h = r->h, .clamp = clamp,
-                         .unit = clamp > 0 ? cv_lcd_unit_for_clamp(clamp) : 0, .n = r->words,
-                         .data = r->data};
+  }
+  r->data_epochs++;
+  r->nrounds += sum.rounds;
+  if (r->me == 0 && fn && clamp > 0) {
+    cv_lcd_accum view = {.w = r->w, .h = r->h, .clamp = clamp, .unit = cv_lcd_unit_for_clamp(clamp),
+                         .n = r->words, .data = r->data};
+    sum.round = r->rounds;
     sum.acc = &view;
     fn(&sum, user);
   }
@@ -236,7 +276,7 @@ int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_r
     default: /* idle */
       if (r->me == 0 && !r->announce_quit && r->epochs > 0 && now - r->t_start < min_period) return 0;
       start_header(r, now);
-      return r->phase == PH_DONE;
+      return 0;
     }
   }
 }
@@ -244,6 +284,6 @@ int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_r
 void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {
   st->epochs = r->epochs;
   st->data_epochs = r->data_epochs;
-  st->rounds = r->rounds;
+  st->rounds = r->nrounds;
   st->mean_ms = r->epochs ? r->ms_sum / (double)r->epochs : 0;
 }

@@ -10,33 +10,34 @@
 
 typedef struct cv_lcd_reduce cv_lcd_reduce;
 
-/* One epoch's sum as the master receives it: the key the contributors were
- * asked for (the master's LCD key when it started the previous epoch), the
- * full LCD key and clamp of the contributions, how many times each round of
- * the budget was contributed (0 or 1 unless something is wrong), their
- * count, and the summed buffer (a view, valid during the call). */
+/* One epoch's sum as the master receives it: the LCD key of the rounds,
+ * the earliest frame whose state that key was taken from, the rounds
+ * (`rounds` entries, as the contributors declared them) and the summed
+ * buffer (a view, valid during the call). */
 typedef struct cv_lcd_reduce_sum {
-  uint64_t asked_key;
   cv_lcd_key key;
-  int consistent;          /* 0: the contributors' keys or clamps differ */
-  const int64_t *counts;   /* budget entries */
+  uint32_t frame;
+  const uint32_t *round;
   uint32_t rounds;
   const cv_lcd_accum *acc;
 } cv_lcd_reduce_sum;
 typedef void (*cv_lcd_reduce_fn)(const cv_lcd_reduce_sum *sum, void *user);
 
 /* members: the communicator's size (>= 2), me: this rank in it (0 = the
- * master).  *out owned by the caller.  Errors: CV_ERR_INVALID, CV_ERR_NOMEM. */
-int cv_lcd_reduce_create(int w, int h, int budget, int members, int me, cv_lcd_reduce **out);
+ * master); stride: the contributors' count (a worker's rounds of one key
+ * are first, first + stride, ...).  *out owned by the caller.  Errors:
+ * CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int me,
+                         cv_lcd_reduce **out);
 void cv_lcd_reduce_destroy(cv_lcd_reduce *r);
 
 /* Contributor: adds a finished round (a cv_lcd_msg and its values) to the
- * pool of the next epoch; a round of another key replaces the pool.
- * Returns 0, or -1 for a malformed message. */
+ * pool it offers the next epochs; a round of another key (a newer snapshot)
+ * replaces the pool.  Returns 0, or -1 for a malformed message. */
 int cv_lcd_reduce_add_round(cv_lcd_reduce *r, const uint8_t *msg, size_t len);
 
-/* Master: the LCD key asked for from the next epoch on; quit = 1 makes the
- * next epoch the last one for every member. */
+/* Master: its current LCD key, preferred when contributors offer several
+ * keys; quit = 1 makes the next epoch the last one for every member. */
 void cv_lcd_reduce_announce(cv_lcd_reduce *r, uint64_t key, int quit);
 
 /* Advances the epoch state machine without waiting: tests the sum in

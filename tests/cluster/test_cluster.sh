@@ -92,6 +92,32 @@ else
   bad "LCD 11 vs 13: rc $rc1 $rc2, rounds $r11 $r13 $(tail -2 l11.txt l13.txt)"
 fi
 
+# --- readability during a drive: every frame a new key (the car turns), yet
+# the frames carry lcd.readability from rounds of earlier snapshots ----------
+cat > turn.json <<'JSON'
+{"description": "turning under forest", "loop": true, "maps": ["forest.exr"],
+ "keyframes": [{"t": 0, "yaw": 0, "weights": [1]}, {"t": 10, "yaw": 300}]}
+JSON
+timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive turn.json --frames 16 --dt 0.3 \
+  --max-fps 4 --no-compensation -o turn >/dev/null 2>turn.txt; rc=$?
+python3 - turn <<'PY' && ok "readability during the drive: $(cat turn/drive_check.txt)" || bad "readability during the drive: rc $rc $(cat turn/drive_check.txt 2>/dev/null) $(tail -2 turn.txt)"
+import json, sys
+d = sys.argv[1]
+lines = [json.loads(l) for l in open(d + "/metrics.jsonl")]
+frames = [l for l in lines if l.get("type") == "frame" and l["frame"] < 16]
+keys = {l["lcd"]["key"] for l in frames}
+with_r = [l for l in frames if l["lcd"].get("readability", {}).get("rounds", 0) > 0]
+msg = "%d of %d drive frames carry readability, %d keys" % (len(with_r), len(frames), len(keys))
+if with_r:
+    r = with_r[-1]["lcd"]["readability"]
+    msg += "; frame %d: key %s of frame %d, %d rounds, age %.2f s, CR %.2f +- %.2f" % (
+        with_r[-1]["frame"], r["key"], r["frame"], r["rounds"], r["age_s"], r["contrast_ratio"], r["contrast_ratio_se"])
+open(d + "/drive_check.txt", "w").write(msg)
+ok = len(keys) >= 8 and len(with_r) >= 2 and all(
+    l["lcd"]["readability"]["frame"] <= l["frame"] and l["lcd"]["readability"]["age_s"] >= 0 for l in with_r)
+sys.exit(0 if ok else 1)
+PY
+
 # --- a stopped gather rank does not stall the frames -----------------------
 timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 \
   --timeout-ms 1500 -o stop >stop.txt 2>stoperr.txt &
