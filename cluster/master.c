@@ -564,7 +564,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     }
     lcd_reduce_metrics(m, ml, "allreduce");
     lcd_readability_update(m);
-    lcd_readability_metrics(m, ml);
+    lcd_readability_metrics(m, ml, "readability");
     cv_metrics_object_end(ml);
   }
   if (m->disp) {
@@ -678,6 +678,8 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "lcd_rel_rms", le.rel_rms);
     }
     lcd_reduce_metrics(m, ml, "lcd_allreduce");
+    lcd_readability_update(m);
+    lcd_readability_metrics(m, ml, "lcd_readability");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
   cv_metrics_write(ml, m->mf);

@@ -205,9 +205,9 @@ void lcd_reduce_finish(master *m);
 void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name);
 /* Recomputes the readability figures when the estimate gained rounds. */
 void lcd_readability_update(master *m);
-/* The "readability" object of a metrics line (last valid estimate, its key
- * and age), nothing before the first estimate. */
-void lcd_readability_metrics(master *m, cv_metrics_line *ml);
+/* The readability object `name` of a metrics line (last valid estimate,
+ * its key and age), nothing before the first estimate. */
+void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name);
 
 /* master_desktop.c */
 /* Opens the preview window (a no-op without --present desktop) sized for

@@ -243,11 +243,11 @@ void lcd_readability_update(master *m) {
   cv_lcd_readability_free(&rd);
 }
 
-void lcd_readability_metrics(master *m, cv_metrics_line *ml) {
+void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
   if (!m->lread.valid) return;
   char kb[32];
   snprintf(kb, sizeof kb, "%016llx", (unsigned long long)m->lread.key);
-  cv_metrics_object_begin(ml, "readability");
+  cv_metrics_object_begin(ml, name);
   cv_metrics_string(ml, "key", kb);
   cv_metrics_uint(ml, "rounds", m->lread.rounds);
   cv_metrics_uint(ml, "frame", m->lread.frame);

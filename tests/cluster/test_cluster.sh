@@ -92,6 +92,29 @@ else
   bad "LCD 11 vs 13: rc $rc1 $rc2, rounds $r11 $r13 $(tail -2 l11.txt l13.txt)"
 fi
 
+# --- `cave lcd` and `cave run` give the same numbers for the same pose and
+# light: the 11-rank image above (still drive, default head (0, 1.2, 0) + the
+# scene offset = eye (-0.37, 1.02, 0), 12 rounds of 4 spp at 40 x 30) against
+# `cave lcd --drive` at that eye with the service's LCD settings (eye
+# tolerance 2 cm, environment table 256 wide, 4 sun samples).  L_r within
+# 2 standard errors (the same samples give the same sum); the service's CR
+# has no veil, so it may only be higher than cave lcd's.
+echo '{"lcd": {"eye_tolerance": 0.02, "env_width": 256, "sun_samples": 4}}' > svc_lcd.json
+"$CAVE" lcd scene.prt --drive still.json --eye -0.37,1.02,0 --dt 10 --spp 4 --rounds 12 --size 40x30 \
+  --lcd-config svc_lcd.json -o same_lcd.csv >same_lcd.txt 2>&1; rc=$?
+python3 - l11/metrics.jsonl same_lcd.csv <<'PY' >same.txt && ok "cave lcd = cave run: $(cat same.txt)" || bad "cave lcd vs cave run: rc $rc $(cat same.txt) $(tail -2 same_lcd.txt)"
+import csv, json, math, sys
+s = json.loads(open(sys.argv[1]).read().strip().splitlines()[-1])["lcd_readability"]
+c = list(csv.DictReader(open(sys.argv[2])))[0]
+lr, lr_se, cr, cr_se = (float(c[k]) for k in ("L_r", "L_r_se", "CR", "CR_se"))
+se = math.hypot(s["reflected_luminance_se"], lr_se)
+print("L_r %.6g +- %.2g (run, %d rounds) vs %.6g +- %.2g (lcd); CR %.4g (run, no veil) vs %.4g +- %.2g (lcd, veil %s cd/m2)"
+      % (s["reflected_luminance"], s["reflected_luminance_se"], s["rounds"], lr, lr_se, s["contrast_ratio"], cr, cr_se, c["L_v"]))
+ok = s["rounds"] == 12 and lr > 0 and abs(s["reflected_luminance"] - lr) <= 2 * se \
+    and s["contrast_ratio"] >= cr - 3 * max(cr_se, s["contrast_ratio_se"])
+sys.exit(0 if ok else 1)
+PY
+
 # --- readability during a drive: every frame a new key (the car turns), yet
 # the frames carry lcd.readability from rounds of earlier snapshots ----------
 cat > turn.json <<'JSON'
