@@ -18,6 +18,9 @@ static size_t g_nsends, g_capsends;
 /* The render ranks' communicator and its barrier in flight (same rule). */
 static MPI_Comm g_render = MPI_COMM_NULL;
 static MPI_Request g_barrier = MPI_REQUEST_NULL;
+/* The LCD reduction's communicator and its sum in flight (same rule). */
+static MPI_Comm g_lcd = MPI_COMM_NULL;
+static MPI_Request g_lcd_req = MPI_REQUEST_NULL;
 
 static void release(pending_send *ps);
 
@@ -40,6 +43,7 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
+  if (g_lcd != MPI_COMM_NULL) MPI_Comm_free(&g_lcd);
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
     MPI_Request_free(&g_sends[i].req);
@@ -218,6 +222,34 @@ int cv_comm_render_barrier_test(void) {
   if (g_barrier == MPI_REQUEST_NULL) return 1;
   int done = 0;
   MPI_Test(&g_barrier, &done, MPI_STATUS_IGNORE);
+  return done;
+}
+
+int cv_comm_lcd_group(int member, int *size, int *rank) {
+  *size = 0;
+  *rank = -1;
+  MPI_Comm c;
+  if (MPI_Comm_split(MPI_COMM_WORLD, member ? 1 : MPI_UNDEFINED, 0, &c) != MPI_SUCCESS) return -1;
+  g_lcd = c;
+  if (c != MPI_COMM_NULL) {
+    MPI_Comm_size(c, size);
+    MPI_Comm_rank(c, rank);
+  }
+  return 0;
+}
+
+int cv_comm_lcd_iallreduce(int64_t *buf, size_t n) {
+  if (g_lcd == MPI_COMM_NULL || g_lcd_req != MPI_REQUEST_NULL || n > (size_t)INT32_MAX) return -1;
+  return MPI_Iallreduce(MPI_IN_PLACE, buf, (int)n, MPI_INT64_T, MPI_SUM, g_lcd, &g_lcd_req) ==
+                 MPI_SUCCESS
+             ? 0
+             : -1;
+}
+
+int cv_comm_lcd_test(void) {
+  if (g_lcd_req == MPI_REQUEST_NULL) return 1;
+  int done = 0;
+  MPI_Test(&g_lcd_req, &done, MPI_STATUS_IGNORE);
   return done;
 }
 

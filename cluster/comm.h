@@ -10,9 +10,13 @@
  * collects reports, patch images and LCD rounds from per-source mailboxes
  * that it polls until a deadline; what is late is skipped and counted, and
  * discarded when it arrives later (messages carry their frame number).
- * The LCD sum is an integer (fixed-point) sum done by the master, so it is
- * the same bits as MPI_Allreduce(MPI_SUM, MPI_INT64_T) would give, in any
- * arrival order. */
+ * The one collective on the data path is the LCD sum of the master and the
+ * gather-only ranks (cluster/lcdreduce.c): a non-blocking MPI_Iallreduce
+ * (MPI_SUM, MPI_INT64_T) of fixed-point images on their own communicator,
+ * which the master only tests (MPI_Test), so a late gather rank delays the
+ * sum, never a frame.  The render ranks' idle-thread rounds still come
+ * point-to-point (the render ranks must never wait in a collective).  Both
+ * are integer sums: the same bits in any order and for any rank count. */
 #ifndef CV_CLUSTER_COMM_H
 #define CV_CLUSTER_COMM_H
 
@@ -77,6 +81,17 @@ int cv_comm_render_group(int render);
  * yet.  One barrier at a time per rank. */
 int cv_comm_render_barrier_start(void);
 int cv_comm_render_barrier_test(void);
+/* The LCD reduction's communicator (the master and the gather-only ranks,
+ * cluster/lcdreduce.c): every rank calls it once after init, collectively,
+ * with member = 1 on those ranks.  *size / *rank: this rank's place in it
+ * (0 / -1 when not a member; the master is rank 0). */
+int cv_comm_lcd_group(int member, int *size, int *rank);
+/* Starts an in-place non-blocking sum of n int64 words over that
+ * communicator (MPI_Iallreduce, MPI_SUM); buf must stay untouched until
+ * cv_comm_lcd_test says done.  One at a time per rank.  0 on success. */
+int cv_comm_lcd_iallreduce(int64_t *buf, size_t n);
+/* Polls it (MPI_Test): 1 done (or none in flight), 0 not yet. */
+int cv_comm_lcd_test(void);
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);
 

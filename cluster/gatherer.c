@@ -1,18 +1,19 @@
 /* Gather-only ranks (render farm): LCD final-gather rounds, nothing else.
  * The MPI thread takes frame states (the newest wins), posts them to the
- * worker thread and sends its finished rounds to the master.  A gather rank
- * is never waited for: a slow or stopped one only contributes fewer rounds. */
+ * worker thread and pools its finished rounds for the LCD allreduce with the
+ * master and the other gather ranks (lcdreduce.c).  A gather rank is never
+ * waited for by a frame: a slow or stopped one only delays the sums. */
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 
 #include "comm.h"
+#include "lcdreduce.h"
 #include "lcdwork.h"
 #include "service_internal.h"
 
-static int send_to_master(const uint8_t *buf, size_t len, void *user) {
-  (void)user;
-  return cv_comm_send(buf, len, 0, CV_TAG_LCD);
+static int pool_round(const uint8_t *buf, size_t len, void *user) {
+  return cv_lcd_reduce_add_round(user, buf, len);
 }
 
 /* Reports set-up success ('O') or failure ('F' + message) to the master. */
@@ -36,7 +37,7 @@ int cv_gather_run(cv_service *s) {
   cv_lcd_worker *w = NULL;
   const int index = cv_service_contributor(s, s->rank);
   int st = cv_prt_read(s->o.scene_path, &prt, &err);
-  if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, &w, &err);
+  if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, 0, &w, &err);
   {
     char host[128], msg[800];
     cv_comm_host(host, sizeof host);
@@ -44,8 +45,12 @@ int cv_gather_run(cv_service *s) {
     else snprintf(msg, sizeof msg, "rank %d on %s (gather): %s", s->rank, host, err.msg);
     cv_service_ready(st == CV_OK, msg);
   }
+  cv_lcd_reduce *red = NULL;
+  if (s->lcd_me > 0 && cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->n_contributors, s->lcd_members,
+                                            s->lcd_me, &red) != CV_OK)
+    fprintf(stderr, "cave run: rank %d: LCD reduction: out of memory\n", s->rank);
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
-  double stop_since = 0;
+  double stop_since = 0, quit_since = 0;
   int rc = st ? 1 : 0;
   for (;;) {
     const uint8_t *data;
@@ -60,9 +65,13 @@ int cv_gather_run(cv_service *s) {
       if (fs.flags & CV_FS_QUIT) quit = 1;
       got = 1;
     }
-    if (quit) break;
-    if (got && w) cv_lcd_worker_post(w, &fs);
-    if (w) cv_lcd_worker_send_ready(w, send_to_master, NULL, NULL, NULL);
+    if (quit && quit_since == 0) quit_since = cv_service_now();
+    if (got && w && !quit_since) cv_lcd_worker_post(w, &fs);
+    if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+    /* After the quit, the epochs go on until the master's last one (it
+     * brings the last pooled rounds), but not for ever. */
+    const int red_done = red ? cv_lcd_reduce_poll(red, cv_service_now(), 0, NULL, NULL) : 1;
+    if (quit_since && (red_done || cv_service_now() - quit_since > 5)) break;
     cv_comm_progress();
     if (*s->stop) { /* wait for the master's quit, but not for ever */
       if (stop_since == 0) stop_since = cv_service_now();
@@ -72,6 +81,7 @@ int cv_gather_run(cv_service *s) {
     nanosleep(&ts, NULL);
   }
   cv_lcd_worker_destroy(w);
+  cv_lcd_reduce_destroy(red);
   cv_mailbox_close(mb);
   cv_prt_destroy(prt);
   cv_comm_flush(2);

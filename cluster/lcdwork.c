@@ -2,9 +2,10 @@
  * wall-eyes' idle threads: a worker thread that renders this contributor's
  * rounds (round = index + k * contributors, k = 0, 1, ...) of the current
  * key until the budget, and queues each finished round as a message for the
- * owning (MPI) thread to send.  The owner posts frame states; the worker
- * rebuilds the lighting when the light key changes and restarts its rounds
- * when the LCD key (quantised eye, lighting) changes.  Everything a round
+ * owning (MPI) thread to send.  The owner posts frame states; each round
+ * takes the newest as its snapshot: the worker rebuilds the lighting when
+ * the light key changed and restarts its rounds when the LCD key (quantised
+ * eye, lighting) changed.  Everything a round
  * depends on is a function of the key, so the master may add rounds from any
  * contributor: the sum is the same integers for any rank count. */
 #define _GNU_SOURCE 1 /* SCHED_IDLE */
@@ -30,7 +31,7 @@ typedef struct msg_node {
 struct cv_lcd_worker {
   const cv_service *s;
   const cv_prt *prt;
-  int index;
+  int index, idle;
   cv_mesh *mesh;
   cv_tracer *tr;
   cv_brdf *brdf;
@@ -74,156 +75,168 @@ static int worker_init(cv_lcd_worker *w, cv_err *err) {
   return CV_OK;
 }
 
+/* The lighting of the frame state fs (the round's snapshot), replacing *ll.
+ * Returns CV_OK or an error in err. */
+static int snapshot_lighting(cv_lcd_worker *w, const cv_frame_state *fs, cv_lcd_light **ll,
+                             cv_err *err) {
+  cv_scene_light *sl = NULL;
+  cv_light_spec spec;
+  cv_drive_to_light_spec(w->s->drive, &fs->drive, &spec);
+  cv_lcd_light *nl = NULL;
+  int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, err);
+  if (st == CV_OK) st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, 4, 256, &nl, err);
+  cv_scene_light_destroy(sl);
+  if (st) return st;
+  cv_lcd_light_destroy(*ll);
+  *ll = nl;
+  return CV_OK;
+}
+
+static void worker_error(cv_lcd_worker *w, const char *what, const char *msg) {
+  pthread_mutex_lock(&w->mu);
+  snprintf(w->error, sizeof w->error, "%s: %s", what, msg);
+  pthread_mutex_unlock(&w->mu);
+}
+
+/* Renders one round into a message and queues it for the owner. */
+static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_key *key,
+                         double clamp, uint32_t round, uint32_t frame) {
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  cv_lcd_accum *acc = NULL;
+  if (cv_lcd_accum_create(w->p.w, w->p.h, clamp, &acc) != CV_OK ||
+      cv_lcd_render_round(w->g, ll, &w->p, round, acc) != CV_OK) {
+    cv_lcd_accum_destroy(acc);
+    char m[64];
+    snprintf(m, sizeof m, "round %u failed", round);
+    worker_error(w, "LCD", m);
+    return;
+  }
+  clock_gettime(CLOCK_MONOTONIC, &t1);
+  cv_lcd_msg h;
+  memset(&h, 0, sizeof h);
+  h.key = *key;
+  h.round = round;
+  h.w = acc->w;
+  h.h = acc->h;
+  h.contributor = (uint32_t)w->index;
+  h.clamp = clamp;
+  h.n = acc->n;
+  h.frame = frame;
+  msg_node *node = malloc(sizeof *node);
+  uint8_t *buf = malloc(sizeof h + acc->n * sizeof(int64_t));
+  if (node && buf) {
+    memcpy(buf, &h, sizeof h);
+    memcpy(buf + sizeof h, acc->data, acc->n * sizeof(int64_t));
+    node->buf = buf;
+    node->len = sizeof h + acc->n * sizeof(int64_t);
+    node->next = NULL;
+    pthread_mutex_lock(&w->mu);
+    if (w->tail) w->tail->next = node;
+    else w->head = node;
+    w->tail = node;
+    w->queued++;
+    w->rounds_done++;
+    w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
+    pthread_mutex_unlock(&w->mu);
+  } else {
+    free(node);
+    free(buf);
+  }
+  cv_lcd_accum_destroy(acc);
+}
+
+/* Each round is a snapshot: before it starts, the newest posted frame state
+ * gives its lighting (rebuilt only when the light key changed) and its eye,
+ * and the round finishes with them whatever arrives meanwhile.  While the
+ * car turns every round has a key of its own (the master reports it with
+ * its key and age); while the head and the lighting hold still the rounds
+ * of one key accumulate to the budget.  At most one lighting build per
+ * round, so a turning car costs the wall-eyes no more than a held one. */
 static void *worker_main(void *arg) {
   cv_lcd_worker *w = arg;
   cv_rt_thread_init();
-  /* An idle thread, as the paper's idle CPUs: it runs when the render
-   * threads of this machine do not need the cores (SCHED_IDLE, Linux). */
-  struct sched_param sp = {.sched_priority = 0};
-  pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
+  /* A wall-eye's LCD thread is an idle thread, as the paper's idle CPUs: it
+   * runs when the render threads of this machine do not need the cores
+   * (SCHED_IDLE, Linux).  A gather rank's thread is its rank's whole job. */
+  if (w->idle) {
+    struct sched_param sp = {.sched_priority = 0};
+    pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
+  }
   uint64_t seen_seq = 0, light_key = 0;
-  int have_light = 0, have_key = 0;
+  int have_light = 0, have_key = 0, have_fs = 0;
   cv_lcd_light *ll = NULL;
   cv_lcd_key key;
   double clamp = 1;
-  uint32_t k = 0; /* next round of this contributor = index + k * count */
+  uint32_t k = 0, key_frame = 0; /* next round of this contributor = index + k * count */
   const uint32_t count = (uint32_t)w->s->n_contributors;
-  /* A new lighting is built only once it has stood for STEADY frames in a
-   * row: while the car turns every frame, rebuilding (maps, relight,
-   * background table) per frame would only take the CPU from the wall-eyes,
-   * and no round of a key could be summed before the key changes. */
-  const int STEADY = 3;
-  uint64_t last_posted_key = 0;
-  int same = 0;
   cv_frame_state fs;
   memset(&fs, 0, sizeof fs);
   for (;;) {
-    int fresh = 0;
     pthread_mutex_lock(&w->mu);
     for (;;) {
       if (w->quit) break;
       if (w->have_state && w->posted_seq != seen_seq) {
         fs = w->posted;
         seen_seq = w->posted_seq;
-        fresh = 1;
-        break;
+        have_fs = 1;
       }
-
-      /* work to do with the current key? */
-      if (have_key && (uint64_t)w->index + (uint64_t)k * count < (uint64_t)w->s->o.lcd_budget &&
-          w->queued < 4)
-        break;
+      /* work: a newer state than the key's (a new snapshot), or rounds
+       * left for the key; at most 4 rounds waiting for the owner */
+      const int newer = have_fs && (!have_key || fs.lcd_key != cv_service_lcd_key(key.eye_q, light_key));
+      const int left = have_key && (uint64_t)w->index + (uint64_t)k * count < (uint64_t)w->s->o.lcd_budget;
+      if ((newer || left) && w->queued < 4) break;
       pthread_cond_wait(&w->cv, &w->mu);
     }
     const int quit = w->quit;
     pthread_mutex_unlock(&w->mu);
     if (quit) break;
-    if (fresh) {
+    if (!have_light || fs.light_key != light_key) { /* the round's lighting */
       cv_err err;
-      if (fs.light_key == last_posted_key) {
-        same++;
-      } else {
-        last_posted_key = fs.light_key;
-        same = 1;
+      if (snapshot_lighting(w, &fs, &ll, &err) != CV_OK) {
+        worker_error(w, "LCD lighting", err.msg);
+        have_fs = 0; /* wait for the next state */
+        continue;
       }
-      if (!have_light || fs.light_key != light_key) {
-        have_key = 0; /* the old key is over: no rounds for it */
-        if (same < STEADY) continue;
-        cv_scene_light *sl = NULL;
-        cv_light_spec spec;
-        cv_drive_to_light_spec(w->s->drive, &fs.drive, &spec);
-        cv_lcd_light *nl = NULL;
-        int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, &err);
-        if (st == CV_OK) st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, 4, 256, &nl, &err);
-        cv_scene_light_destroy(sl);
-        if (st) {
-          pthread_mutex_lock(&w->mu);
-          snprintf(w->error, sizeof w->error, "LCD lighting: %s", err.msg);
-          pthread_mutex_unlock(&w->mu);
-          continue;
-        }
-        cv_lcd_light_destroy(ll);
-        ll = nl;
-        light_key = fs.light_key;
-        have_light = 1;
-        clamp = cv_lcd_default_clamp(ll, w->brdf);
-        have_key = 0;
-      }
-      float eye[3];
-      for (int a = 0; a < 3; a++) eye[a] = (float)(fs.head[a] + w->s->cave.scene_offset[a]);
-      const uint64_t setup = cv_lcd_setup_hash(w->g, &w->p, clamp, w->s->o.lcd_tolerance, 0);
-      cv_lcd_key nk;
-      if (cv_lcd_key_make(eye, w->s->o.lcd_tolerance, light_key, setup, &nk) != CV_OK) continue;
-      if (!have_key || !cv_lcd_key_equal(&nk, &key) ||
-          cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) {
-        if (cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) continue; /* not the master's */
-        key = nk;
-        have_key = 1;
-        k = 0;
-        cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
-      }
+      light_key = fs.light_key;
+      have_light = 1;
+      clamp = cv_lcd_default_clamp(ll, w->brdf);
+      have_key = 0;
+    }
+    float eye[3];
+    for (int a = 0; a < 3; a++) eye[a] = (float)(fs.head[a] + w->s->cave.scene_offset[a]);
+    const uint64_t setup = cv_lcd_setup_hash(w->g, &w->p, clamp, w->s->o.lcd_tolerance, 0);
+    cv_lcd_key nk;
+    if (cv_lcd_key_make(eye, w->s->o.lcd_tolerance, light_key, setup, &nk) != CV_OK ||
+        cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) { /* not the master's key */
+      have_fs = 0;
       continue;
     }
-    if (!have_key) continue;
+    if (!have_key || !cv_lcd_key_equal(&nk, &key)) {
+      key = nk;
+      have_key = 1;
+      k = 0;
+      key_frame = fs.frame;
+      cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
+    }
     const uint32_t round = (uint32_t)w->index + k * count;
     if (round >= (uint32_t)w->s->o.lcd_budget) continue;
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    cv_lcd_accum *acc = NULL;
-    if (cv_lcd_accum_create(w->p.w, w->p.h, clamp, &acc) != CV_OK ||
-        cv_lcd_render_round(w->g, ll, &w->p, round, acc) != CV_OK) {
-      cv_lcd_accum_destroy(acc);
-      pthread_mutex_lock(&w->mu);
-      snprintf(w->error, sizeof w->error, "LCD round %u failed", round);
-      pthread_mutex_unlock(&w->mu);
-      k++;
-      continue;
-    }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    cv_lcd_msg h;
-    memset(&h, 0, sizeof h);
-    h.key = key;
-    h.round = round;
-    h.w = acc->w;
-    h.h = acc->h;
-    h.contributor = (uint32_t)w->index;
-    h.clamp = clamp;
-    h.n = acc->n;
-    msg_node *node = malloc(sizeof *node);
-    uint8_t *buf = malloc(sizeof h + acc->n * sizeof(int64_t));
-    if (node && buf) {
-      memcpy(buf, &h, sizeof h);
-      memcpy(buf + sizeof h, acc->data, acc->n * sizeof(int64_t));
-      node->buf = buf;
-      node->len = sizeof h + acc->n * sizeof(int64_t);
-      node->next = NULL;
-      pthread_mutex_lock(&w->mu);
-      if (w->tail) w->tail->next = node;
-      else w->head = node;
-      w->tail = node;
-      w->queued++;
-      w->rounds_done++;
-      w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
-      pthread_mutex_unlock(&w->mu);
-    } else {
-      free(node);
-      free(buf);
-    }
-    cv_lcd_accum_destroy(acc);
+    render_round(w, ll, &key, clamp, round, key_frame);
     k++;
   }
   cv_lcd_light_destroy(ll);
   return NULL;
 }
 
-int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, cv_lcd_worker **out,
-                         cv_err *err) {
+int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, int idle,
+                         cv_lcd_worker **out, cv_err *err) {
   *out = NULL;
   cv_lcd_worker *w = calloc(1, sizeof *w);
   if (!w) return cv_err_set(err, CV_ERR_NOMEM, "LCD worker: out of memory");
   w->s = s;
   w->prt = prt;
   w->index = index;
+  w->idle = idle;
   pthread_mutex_init(&w->mu, NULL);
   pthread_cond_init(&w->cv, NULL);
   int st = worker_init(w, err);

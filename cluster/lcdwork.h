@@ -11,10 +11,11 @@
 typedef struct cv_lcd_worker cv_lcd_worker;
 
 /* Builds the tracer, BRDF and gather for prt (borrowed: must outlive the
- * worker) and starts the thread; index = cv_service_contributor of the rank.
+ * worker) and starts the thread; index = cv_service_contributor of the rank;
+ * idle = 1: the thread runs at SCHED_IDLE (a wall-eye's spare cycles).
  * *out owned by the caller. */
-int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, cv_lcd_worker **out,
-                         cv_err *err);
+int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, int idle,
+                         cv_lcd_worker **out, cv_err *err);
 /* Posts the newest frame state (copied). */
 void cv_lcd_worker_post(cv_lcd_worker *w, const cv_frame_state *fs);
 /* Hands every finished round to send(buf, len, user) (called on the calling

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds, bakes the built-in car cabin
-# (configs/scenes/default.json) and runs the CAVE render service with 11 MPI
-# ranks on this machine: the 5-wall CAVE (configs/caves/cave5.json), the car
+# (configs/scenes/default.json) and runs the CAVE render service with 12 MPI
+# ranks on this machine (master, 10 render ranks, 1 LCD gather rank): the 5-wall CAVE (configs/caves/cave5.json), the car
 # driving through blender-data's HDR maps (configs/drives/default.json), a
 # recorded head path (configs/heads/default.txt), a bounded number of frames
 # at a modest resolution.  Leaves montage PNGs, per wall-eye EXR/PNG frames,
@@ -9,7 +9,10 @@
 # last line) in OUT (default out/main-job).
 #   bash cluster/main-job.sh [OUT]
 # Environment: FRAMES (default 48), SIZE (pixels per wall-eye, default 240),
-# RANKS (default 11; more add LCD gather ranks).
+# RANKS (default 12: 11 is the minimum, each rank above it is an LCD gather
+# rank; with 11 the LCD has only the render ranks' idle threads, which get no
+# core while ten renderers share this machine's two, so the drive would have
+# no readability figures until the held frames after it).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 cave_install_packages
@@ -18,12 +21,12 @@ CAVE="$CAVE_ROOT/build/cave"
 OUT="${1:-$CAVE_ROOT/out/main-job}"
 FRAMES="${FRAMES:-48}"
 SIZE="${SIZE:-240}"
-RANKS="${RANKS:-11}"
+RANKS="${RANKS:-12}"
 mkdir -p "$OUT"
 
 "$CAVE" bake "$CAVE_ROOT/configs/scenes/default.json" -o "$OUT/default.prt"
 
-# 11 ranks on one machine: one thread each (OpenMP, llvmpipe), oversubscribed.
+# 12 ranks on one machine: one thread each (OpenMP, llvmpipe), oversubscribed.
 export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
 # Ctrl-C / SIGTERM: mpirun forwards SIGTERM and sends SIGKILL after this many
 # seconds (default 1); 10 lets the ranks finish their frame and the master
@@ -33,8 +36,10 @@ export OMPI_MCA_odls_base_sigkill_timeout=10
 MPI=(mpirun --oversubscribe -np "$RANKS" -x OMP_NUM_THREADS -x LP_NUM_THREADS)
 if [ "$(id -u)" -eq 0 ]; then MPI+=(--allow-run-as-root); fi
 # dt 0.3 s: 48 frames cover 14 s of the 20 s drive (the car turns through
-# sunrise, forest and city light); the LCD image of the last pose is then
-# summed to its budget of 16 rounds (640 samples per texel).
+# sunrise, forest and city light); during the drive every LCD round is a
+# snapshot of the head and lighting it started with, so readability figures
+# appear in metrics.jsonl with their key and age; the LCD image of the last
+# pose is then summed to its budget of 16 rounds (640 samples per texel).
 "${MPI[@]}" "$CAVE" run "$CAVE_ROOT/configs/caves/cave5.json" \
   --scene "$OUT/default.prt" \
   --drive "$CAVE_ROOT/configs/drives/default.json" \

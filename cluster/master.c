@@ -30,6 +30,7 @@
 #include <time.h>
 
 #include "comm.h"
+#include "lcdreduce.h"
 #include "core/hash.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
@@ -57,8 +58,11 @@ static void master_free(master *m) {
   free(m->I);
   free(m->r);
   cv_mailbox_close(m->lcd_mb);
+  cv_lcd_reduce_destroy(m->lcd_red);
   cv_lcd_progress_free(&m->prog);
   free(m->seen);
+  cv_lcd_progress_free(&m->mot.prog);
+  free(m->mot.seen);
   cv_image_destroy(m->lcd_content);
   if (m->rep_mb)
     for (int k = 0; k < m->s->n_render; k++) cv_mailbox_close(m->rep_mb[k]);
@@ -71,6 +75,7 @@ static void master_free(master *m) {
   if (m->mf) fclose(m->mf);
   cv_metrics_line_destroy(m->ml);
   free(m->frame_ms);
+  free(m->frame_t);
   free(m->overhead_ms);
 }
 
@@ -150,7 +155,12 @@ static int master_setup(master *m, cv_err *err) {
     size_t n = cv_lcd_accum_words(s->o.lcd_w, s->o.lcd_h);
     m->lcd_mb = cv_mailbox_open(-1, CV_TAG_LCD, sizeof(cv_lcd_msg) + n * sizeof(int64_t));
     m->seen = calloc((size_t)s->o.lcd_budget, 1);
-    if (!m->lcd_mb || !m->seen) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+    m->mot.seen = calloc((size_t)s->o.lcd_budget, 1);
+    if (!m->lcd_mb || !m->seen || !m->mot.seen) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+    if (s->lcd_me == 0 && s->lcd_members >= 2 &&
+        cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->n_contributors,
+                             s->lcd_members, 0, &m->lcd_red))
+      return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory (LCD reduction)");
     st = cv_lcd_content_load(s->o.lcd_content, s->o.lcd_w, s->o.lcd_h, m->lcd_aspect,
                              s->o.lcd_luminance, CV_LCD_BLACK_LEVEL * s->o.lcd_luminance,
                              &m->lcd_content, err);
@@ -158,8 +168,9 @@ static int master_setup(master *m, cv_err *err) {
   }
   m->cap = s->o.frames > 0 ? (size_t)s->o.frames + 64 : 1u << 16;
   m->frame_ms = calloc(m->cap, sizeof *m->frame_ms);
+  m->frame_t = calloc(m->cap, sizeof *m->frame_t);
   m->overhead_ms = calloc(m->cap, sizeof *m->overhead_ms);
-  if (!m->frame_ms || !m->overhead_ms) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+  if (!m->frame_ms || !m->overhead_ms || !m->frame_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   if ((st = master_sync_setup(m, err))) return st;
   /* Metrics. */
   char mp[CV_PATHLEN + 32];
@@ -330,11 +341,7 @@ static void frame_lcd_key(master *m, cv_frame_state *fs) {
   if (cv_lcd_key_make(eye, s->o.lcd_tolerance, m->light_key, 0, &k) == CV_OK) {
     const uint64_t key = cv_service_lcd_key(k.eye_q, m->light_key);
     if (key != m->lcd_key) {
-      cv_lcd_progress_free(&m->prog);
-      memset(&m->prog, 0, sizeof m->prog);
-      memset(m->seen, 0, (size_t)s->o.lcd_budget);
-      m->lcd_rounds = m->lcd_sent_rounds = 0;
-      m->lcd_key = key;
+      lcd_key_change(m, key, fs->frame);
       memcpy(m->lcd_eye_q, k.eye_q, sizeof k.eye_q);
     }
   }
@@ -555,8 +562,9 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "rel_rms", le.rel_rms);
       cv_metrics_uint(ml, "clamped", (uint64_t)m->prog.acc->data[CV_LCD_ACC_CLAMPED]);
     }
+    lcd_reduce_metrics(m, ml, "allreduce");
     lcd_readability_update(m);
-    lcd_readability_metrics(m, ml);
+    lcd_readability_metrics(m, ml, "readability");
     cv_metrics_object_end(ml);
   }
   if (m->disp) {
@@ -669,6 +677,9 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
       cv_lcd_error le;
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "lcd_rel_rms", le.rel_rms);
     }
+    lcd_reduce_metrics(m, ml, "lcd_allreduce");
+    lcd_readability_update(m);
+    lcd_readability_metrics(m, ml, "lcd_readability");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
   cv_metrics_write(ml, m->mf);
@@ -711,6 +722,7 @@ int cv_master_run(cv_service *s) {
     frame_times t;
     memset(&t, 0, sizeof t);
     t.tf0 = cv_service_now();
+    if (f < m->cap) m->frame_t[f] = t.tf0;
     cv_frame_state fs;
     memset(&fs, 0, sizeof fs);
     fs.frame = f;
@@ -771,6 +783,7 @@ int cv_master_run(cv_service *s) {
   }
   /* Quit: tell every rank, then the last LCD image and the summary. */
   quit_all(m, f);
+  lcd_reduce_finish(m);
   lcd_drain(m);
   if (!*s->stop) lcd_publish(m, 1);
   if (m->lcd_mb) lcd_write(m, "lcd");

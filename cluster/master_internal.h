@@ -80,10 +80,20 @@ typedef struct master {
   int comp_ok;
   /* LCD */
   cv_mailbox *lcd_mb;
+  struct cv_lcd_reduce *lcd_red; /* allreduce with the gather ranks (NULL: none) */
   uint64_t lcd_key;
   int32_t lcd_eye_q[3];
   cv_lcd_progress prog;
   uint8_t *seen;          /* budget flags: round already summed */
+  uint32_t lcd_key_frame; /* frame the current key started */
+  /* the newest estimate of an earlier key (rounds that finished after the
+   * head or the lighting moved on: each round is a snapshot) */
+  struct {
+    cv_lcd_progress prog;
+    uint64_t key;
+    uint32_t frame, rounds;
+    uint8_t *seen;
+  } mot;
   uint32_t lcd_rounds;
   uint64_t lcd_rejected, lcd_late;
   double lcd_last_send;
@@ -94,6 +104,7 @@ typedef struct master {
     int valid;
     uint64_t key;         /* camera/lighting key of the estimate */
     uint32_t rounds;      /* rounds it holds */
+    uint32_t frame;       /* frame whose head and lighting it is of */
     double t;             /* service time it was computed */
     cv_lcd_figure L_r, cr, area, vl;
     double L_a, cr_min;
@@ -150,6 +161,7 @@ typedef struct master {
   FILE *mf;
   cv_metrics_line *ml;
   double *frame_ms, *overhead_ms;
+  double *frame_t;        /* cap: service time each frame started */
   size_t cap;             /* entries of the per-frame histories */
   size_t nframes_done;
 } master;
@@ -181,13 +193,21 @@ void master_sync_summary(master *m, cv_metrics_line *ml);
 
 /* master_lcd.c */
 void lcd_drain(master *m);
+/* The current LCD key becomes `key` at frame `frame`: the image of the old
+ * key becomes the earlier-key estimate (when it has rounds), and that
+ * estimate's rounds start the new image when they are of the new key. */
+void lcd_key_change(master *m, uint64_t key, uint32_t frame);
 void lcd_publish(master *m, int force);
 void lcd_write(master *m, const char *stem);
+/* At quit: the last allreduce epoch (bounded wait), before lcd_write. */
+void lcd_reduce_finish(master *m);
+/* The allreduce's totals as object `name` (nothing without gather ranks). */
+void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name);
 /* Recomputes the readability figures when the estimate gained rounds. */
 void lcd_readability_update(master *m);
-/* The "readability" object of a metrics line (last valid estimate, its key
- * and age), nothing before the first estimate. */
-void lcd_readability_metrics(master *m, cv_metrics_line *ml);
+/* The readability object `name` of a metrics line (last valid estimate,
+ * its key and age), nothing before the first estimate. */
+void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name);
 
 /* master_desktop.c */
 /* Opens the preview window (a no-op without --present desktop) sized for

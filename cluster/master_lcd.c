@@ -1,14 +1,18 @@
 /* The master's LCD aggregation: rounds from the render ranks' idle threads
- * and the gather ranks arrive in per-source messages and are summed in
- * fixed point (cv_lcd_progress), so the sum is the same bits in any arrival
- * order and for any rank count; the current image goes to the render ranks
- * (shown on the dashboard) and to lcd.exr/png at the end. */
+ * arrive in per-source messages; the gather ranks' rounds arrive as sums of
+ * a non-blocking allreduce (lcdreduce.c) that the master tests each time it
+ * drains.  Both are summed in fixed point (cv_lcd_progress), so the sum is
+ * the same bits in any arrival order and for any rank count; the current
+ * image goes to the render ranks (shown on the dashboard) and to
+ * lcd.exr/png at the end. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "comm.h"
+#include "lcdreduce.h"
 #include "io/exr.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
@@ -17,8 +21,131 @@
 
 /* ---- LCD ---------------------------------------------------------------- */
 
+/* Sums rounds (n, listed; acc holds their sum) of one key, taken at frame:
+ * into the current image when the key is the current one, else into the
+ * estimate of an earlier key when they are of its key or of a newer
+ * snapshot (each round completes with the head and lighting it started
+ * with).  Rounds summed before are rejected, older snapshots counted late. */
+static void lcd_take(master *m, const cv_lcd_key *key, uint32_t frame, const uint32_t *round,
+                     uint32_t n, const cv_lcd_accum *acc) {
+  const int budget = m->s->o.lcd_budget;
+  const uint64_t sk = cv_service_lcd_key(key->eye_q, key->light_hash);
+  int ok = n > 0 && acc->w == m->s->o.lcd_w && acc->h == m->s->o.lcd_h &&
+           acc->n == cv_lcd_accum_words(acc->w, acc->h) && acc->clamp > 0 && isfinite(acc->clamp);
+  if (sk == m->lcd_key) {
+    for (uint32_t i = 0; ok && i < n; i++)
+      if (round[i] >= (uint32_t)budget || m->seen[round[i]]) ok = 0;
+    if (!ok || cv_lcd_progress_submit(&m->prog, key, acc, NULL) != CV_OK) {
+      m->lcd_rejected += n;
+      return;
+    }
+    for (uint32_t i = 0; i < n; i++) m->seen[round[i]] = 1;
+    m->lcd_rounds += n;
+    return;
+  }
+  if (m->mot.prog.acc && !cv_lcd_key_equal(&m->mot.prog.key, key)) {
+    if (frame < m->mot.frame) {
+      m->lcd_late += n; /* an older snapshot than the estimate held */
+      return;
+    }
+    cv_lcd_progress_free(&m->mot.prog); /* a newer snapshot starts over */
+    memset(m->mot.seen, 0, (size_t)budget);
+    m->mot.rounds = 0;
+  }
+  for (uint32_t i = 0; ok && i < n; i++)
+    if (round[i] >= (uint32_t)budget || m->mot.seen[round[i]]) ok = 0;
+  if (!ok || cv_lcd_progress_submit(&m->mot.prog, key, acc, NULL) != CV_OK) {
+    m->lcd_rejected += n;
+    return;
+  }
+  for (uint32_t i = 0; i < n; i++) m->mot.seen[round[i]] = 1;
+  m->mot.rounds += n;
+  m->mot.key = sk;
+  if (m->mot.rounds == n || frame > m->mot.frame) m->mot.frame = frame;
+}
+
+void lcd_key_change(master *m, uint64_t key, uint32_t frame) {
+  const size_t budget = (size_t)m->s->o.lcd_budget;
+  const int back = m->mot.prog.acc && m->mot.key == key; /* an earlier key again */
+  if (m->prog.acc && m->lcd_rounds > 0) { /* the old image: prog <-> mot */
+    cv_lcd_progress t = m->mot.prog;
+    m->mot.prog = m->prog;
+    m->prog = t;
+    uint64_t mk = m->mot.key;
+    uint32_t mf = m->mot.frame, mr = m->mot.rounds;
+    m->mot.key = m->lcd_key;
+    m->mot.frame = m->lcd_key_frame;
+    m->mot.rounds = m->lcd_rounds;
+    for (size_t i = 0; i < budget; i++) {
+      uint8_t v = m->mot.seen[i];
+      m->mot.seen[i] = m->seen[i];
+      m->seen[i] = v;
+    }
+    m->lcd_key = mk; /* what prog now holds */
+    m->lcd_key_frame = mf;
+    m->lcd_rounds = mr;
+  } else if (back) {
+    cv_lcd_progress_free(&m->prog);
+    m->prog = m->mot.prog;
+    memset(&m->mot.prog, 0, sizeof m->mot.prog);
+    memcpy(m->seen, m->mot.seen, budget);
+    memset(m->mot.seen, 0, budget);
+    m->lcd_rounds = m->mot.rounds;
+    m->mot.rounds = 0;
+    m->mot.key = 0;
+    m->lcd_key = key;
+  }
+  if (m->lcd_key != key || !back) { /* a new image */
+    cv_lcd_progress_free(&m->prog);
+    memset(m->seen, 0, budget);
+    m->lcd_rounds = 0;
+  }
+  m->lcd_key = key;
+  m->lcd_key_frame = frame;
+  m->lcd_sent_rounds = 0;
+}
+
+/* An allreduce epoch's sum. */
+static void lcd_reduced(const cv_lcd_reduce_sum *sum, void *user) {
+  lcd_take(user, &sum->key, sum->frame, sum->round, sum->rounds, sum->acc);
+}
+
+/* Tests the allreduce in flight (never waits) and starts the next epoch
+ * (at most every 0.1 s), asking for the current key. */
+static void lcd_reduce_poll(master *m) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 0);
+  cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0.1, lcd_reduced, m);
+}
+
+void lcd_reduce_finish(master *m) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 1);
+  const double t0 = cv_service_now();
+  while (!cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0, lcd_reduced, m) &&
+         cv_service_now() - t0 < 10) {
+    cv_comm_progress();
+    struct timespec ts = {0, 1000000};
+    nanosleep(&ts, NULL);
+  }
+}
+
+void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
+  if (!m->lcd_red) return;
+  cv_lcd_reduce_stats st;
+  cv_lcd_reduce_get_stats(m->lcd_red, &st);
+  cv_metrics_object_begin(ml, name);
+  cv_metrics_uint(ml, "members", (uint64_t)m->s->lcd_members);
+  cv_metrics_uint(ml, "epochs", st.epochs);
+  cv_metrics_uint(ml, "data_epochs", st.data_epochs);
+  cv_metrics_uint(ml, "rounds", st.rounds);
+  cv_metrics_double(ml, "epoch_ms_mean", st.mean_ms);
+  cv_metrics_object_end(ml);
+}
+
 /* Takes every LCD round that has arrived; sums those of the current key. */
 void lcd_drain(master *m) {
+  lcd_reduce_poll(m);
   if (!m->lcd_mb) return;
   const uint8_t *data;
   int from;
@@ -35,31 +162,17 @@ void lcd_drain(master *m) {
       m->lcd_rejected++;
       continue;
     }
-    if (cv_service_lcd_key(h.key.eye_q, h.key.light_hash) != m->lcd_key) {
-      m->lcd_late++; /* rendered for an earlier camera or lighting */
-      continue;
-    }
-    if (h.round >= (uint32_t)m->s->o.lcd_budget || m->seen[h.round]) {
-      m->lcd_rejected++;
-      continue;
-    }
     if (h.n != cv_lcd_accum_words(h.w, h.h) || !(h.clamp > 0) || !isfinite(h.clamp)) {
       m->lcd_rejected++;
       continue;
     }
-    /* A view of the message (the values start 64 bytes into a malloc'ed
-     * buffer: 8-byte aligned); the sum adds in place, the first round of a
-     * key is copied. */
+    /* A view of the message (the values start sizeof h, a multiple of 8,
+     * bytes into a malloc'ed buffer: 8-byte aligned); the sum adds in place,
+     * the first round of a key is copied. */
     cv_lcd_accum view = {.w = h.w, .h = h.h, .clamp = h.clamp,
                          .unit = cv_lcd_unit_for_clamp(h.clamp), .n = h.n,
                          .data = (int64_t *)(void *)(uintptr_t)(data + sizeof h)};
-    int restarted = 0;
-    if (cv_lcd_progress_submit(&m->prog, &h.key, &view, &restarted) == CV_OK) {
-      m->seen[h.round] = 1;
-      m->lcd_rounds++;
-    } else {
-      m->lcd_rejected++;
-    }
+    lcd_take(m, &h.key, h.frame, &h.round, 1, &view);
     (void)from;
   }
 }
@@ -93,8 +206,18 @@ void lcd_publish(master *m, int force) {
  * traced (cave lcd does it), which the master, holding no geometry, does
  * not; the adaptation is the shared (Pattanaik) one. */
 void lcd_readability_update(master *m) {
-  if (!m->prog.acc || (m->lread.valid && m->lread.key == m->lcd_key &&
-                       m->lread.rounds == m->lcd_rounds))
+  /* the current key's estimate when it has rounds, else the newest
+   * snapshot of an earlier key (while the head or the lighting moves) */
+  const cv_lcd_accum *acc = m->prog.acc;
+  uint64_t key = m->lcd_key;
+  uint32_t rounds = m->lcd_rounds, frame = m->lcd_key_frame;
+  if (!acc || rounds == 0) {
+    acc = m->mot.prog.acc;
+    key = m->mot.key;
+    rounds = m->mot.rounds;
+    frame = m->mot.frame;
+  }
+  if (!acc || rounds == 0 || (m->lread.valid && m->lread.key == key && m->lread.rounds == rounds))
     return;
   cv_lcd_read_params rp;
   cv_lcd_read_params_default(&rp);
@@ -104,11 +227,13 @@ void lcd_readability_update(master *m) {
   const cv_lcd_figure no_veil = {0, 0};
   cv_lcd_readability rd;
   cv_err err;
-  if (cv_lcd_readability_compute(m->prog.acc, &rp, &no_veil, &rd, &err) != CV_OK) return;
+  if (cv_lcd_readability_compute(acc, &rp, &no_veil, &rd, &err) != CV_OK) return;
   m->lread.valid = 1;
-  m->lread.key = m->lcd_key;
-  m->lread.rounds = m->lcd_rounds;
-  m->lread.t = cv_service_now();
+  m->lread.key = key;
+  m->lread.rounds = rounds;
+  m->lread.frame = frame;
+  /* its age: since the frame whose head and lighting it is of started */
+  m->lread.t = frame < m->cap && m->frame_t[frame] > 0 ? m->frame_t[frame] : cv_service_now();
   m->lread.L_r = rd.L_r;
   m->lread.cr = rd.cr_mean;
   m->lread.area = rd.frac_ok;
@@ -118,13 +243,14 @@ void lcd_readability_update(master *m) {
   cv_lcd_readability_free(&rd);
 }
 
-void lcd_readability_metrics(master *m, cv_metrics_line *ml) {
+void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
   if (!m->lread.valid) return;
   char kb[32];
   snprintf(kb, sizeof kb, "%016llx", (unsigned long long)m->lread.key);
-  cv_metrics_object_begin(ml, "readability");
+  cv_metrics_object_begin(ml, name);
   cv_metrics_string(ml, "key", kb);
   cv_metrics_uint(ml, "rounds", m->lread.rounds);
+  cv_metrics_uint(ml, "frame", m->lread.frame);
   cv_metrics_double(ml, "age_s", cv_service_now() - m->lread.t);
   cv_metrics_bool(ml, "current", m->lread.key == m->lcd_key);
   cv_metrics_double(ml, "reflected_luminance", m->lread.L_r.value);

@@ -551,6 +551,12 @@ int cmd_run(int argc, char **argv) {
     fprintf(stderr, "cave run: rank %d: cannot create the render ranks' communicator\n", s.rank);
     cv_comm_abort(1, NULL);
   }
+  /* The LCD allreduce: the master and the gather-only ranks (lcdreduce.c). */
+  const int lcd_member = s.o.lcd && s.n_gather > 0 && role.role != CV_ROLE_RENDER;
+  if (cv_comm_lcd_group(lcd_member, &s.lcd_members, &s.lcd_me)) {
+    fprintf(stderr, "cave run: rank %d: cannot create the LCD reduction's communicator\n", s.rank);
+    cv_comm_abort(1, NULL);
+  }
   int rc;
   if (role.role == CV_ROLE_MASTER) rc = cv_master_run(&s);
   else if (role.role == CV_ROLE_RENDER) rc = cv_walleye_run(&s);

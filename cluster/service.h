@@ -96,6 +96,7 @@ typedef struct cv_service {
   int n_walls, n_walleyes, n_gather;
   int n_render;        /* render ranks 1..n_render (one per output; n_walleyes views) */
   int n_contributors;  /* LCD: wall-eye idle threads (if on) + gather ranks */
+  int lcd_members, lcd_me; /* LCD allreduce group (master + gather ranks): size, this rank (-1) */
   cv_cave cave;
   cv_drive *drive;
   volatile sig_atomic_t *stop; /* set by SIGINT / SIGTERM */

@@ -38,6 +38,8 @@ typedef struct cv_lcd_msg {
   uint32_t contributor;
   double clamp;
   uint64_t n;
+  uint32_t frame;   /* the frame whose state the round's key was taken from */
+  uint32_t pad;
 } cv_lcd_msg;
 _Static_assert(sizeof(cv_lcd_msg) % 8 == 0, "LCD values must stay 8-byte aligned after the header");
 

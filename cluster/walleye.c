@@ -195,7 +195,7 @@ static int walleye_setup(walleye *we, cv_err *err) {
   }
   const int index = cv_service_contributor(s, s->rank);
   if (index >= 0) {
-    st = cv_lcd_worker_create(s, we->prt, index, &we->lw, err);
+    st = cv_lcd_worker_create(s, we->prt, index, 1, &we->lw, err);
     if (st) return st;
   }
   we->state_mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);

@@ -83,9 +83,63 @@ r11=$(grep -o '"lcd_rounds":[0-9]*' l11/metrics.jsonl | tail -1 | grep -o '[0-9]
 r13=$(grep -o '"lcd_rounds":[0-9]*' l13/metrics.jsonl | tail -1 | grep -o '[0-9]*$')
 if [ $rc1 -eq 0 ] && [ $rc2 -eq 0 ] && [ "$r11" = 12 ] && [ "$r13" = 12 ] && cmp -s l11/lcd.exr l13/lcd.exr; then
   ok "LCD image bit-identical for 11 and 13 ranks (12 rounds from 10 and 12 contributors)"
+  # with 13 ranks the gather ranks' rounds (10 and 11) came by the allreduce
+  ar=$(tail -1 l13/metrics.jsonl | grep -o '"lcd_allreduce":{[^}]*}')
+  python3 -c 'import json,sys; a=json.loads(sys.argv[1]); sys.exit(not (a["members"] == 3 and a["rounds"] >= 1))' \
+    "${ar#\"lcd_allreduce\":}" 2>/dev/null && ok "13 ranks: gather ranks' rounds summed by the allreduce ($ar)" \
+    || bad "13 ranks: no allreduce rounds in the metrics: $ar"
 else
   bad "LCD 11 vs 13: rc $rc1 $rc2, rounds $r11 $r13 $(tail -2 l11.txt l13.txt)"
 fi
+
+# --- `cave lcd` and `cave run` give the same numbers for the same pose and
+# light: the 11-rank image above (still drive, default head (0, 1.2, 0) + the
+# scene offset = eye (-0.37, 1.02, 0), 12 rounds of 4 spp at 40 x 30) against
+# `cave lcd --drive` at that eye with the service's LCD settings (eye
+# tolerance 2 cm, environment table 256 wide, 4 sun samples).  L_r within
+# 2 standard errors (the same samples give the same sum); the service's CR
+# has no veil, so it may only be higher than cave lcd's.
+echo '{"lcd": {"eye_tolerance": 0.02, "env_width": 256, "sun_samples": 4}}' > svc_lcd.json
+"$CAVE" lcd scene.prt --drive still.json --eye -0.37,1.02,0 --dt 10 --spp 4 --rounds 12 --size 40x30 \
+  --lcd-config svc_lcd.json -o same_lcd.csv >same_lcd.txt 2>&1; rc=$?
+python3 - l11/metrics.jsonl same_lcd.csv <<'PY' >same.txt && ok "cave lcd = cave run: $(cat same.txt)" || bad "cave lcd vs cave run: rc $rc $(cat same.txt) $(tail -2 same_lcd.txt)"
+import csv, json, math, sys
+s = json.loads(open(sys.argv[1]).read().strip().splitlines()[-1])["lcd_readability"]
+c = list(csv.DictReader(open(sys.argv[2])))[0]
+lr, lr_se, cr, cr_se = (float(c[k]) for k in ("L_r", "L_r_se", "CR", "CR_se"))
+se = math.hypot(s["reflected_luminance_se"], lr_se)
+print("L_r %.6g +- %.2g (run, %d rounds) vs %.6g +- %.2g (lcd); CR %.4g (run, no veil) vs %.4g +- %.2g (lcd, veil %s cd/m2)"
+      % (s["reflected_luminance"], s["reflected_luminance_se"], s["rounds"], lr, lr_se, s["contrast_ratio"], cr, cr_se, c["L_v"]))
+ok = s["rounds"] == 12 and lr > 0 and abs(s["reflected_luminance"] - lr) <= 2 * se \
+    and s["contrast_ratio"] >= cr - 3 * max(cr_se, s["contrast_ratio_se"])
+sys.exit(0 if ok else 1)
+PY
+
+# --- readability during a drive: every frame a new key (the car turns), yet
+# the frames carry lcd.readability from rounds of earlier snapshots ----------
+cat > turn.json <<'JSON'
+{"description": "turning under forest", "loop": true, "maps": ["forest.exr"],
+ "keyframes": [{"t": 0, "yaw": 0, "weights": [1]}, {"t": 10, "yaw": 300}]}
+JSON
+timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive turn.json --frames 16 --dt 0.3 \
+  --max-fps 4 --no-compensation -o turn >/dev/null 2>turn.txt; rc=$?
+python3 - turn <<'PY' && ok "readability during the drive: $(cat turn/drive_check.txt)" || bad "readability during the drive: rc $rc $(cat turn/drive_check.txt 2>/dev/null) $(tail -2 turn.txt)"
+import json, sys
+d = sys.argv[1]
+lines = [json.loads(l) for l in open(d + "/metrics.jsonl")]
+frames = [l for l in lines if l.get("type") == "frame" and l["frame"] < 16]
+keys = {l["lcd"]["key"] for l in frames}
+with_r = [l for l in frames if l["lcd"].get("readability", {}).get("rounds", 0) > 0]
+msg = "%d of %d drive frames carry readability, %d keys" % (len(with_r), len(frames), len(keys))
+if with_r:
+    r = with_r[-1]["lcd"]["readability"]
+    msg += "; frame %d: key %s of frame %d, %d rounds, age %.2f s, CR %.2f +- %.2f" % (
+        with_r[-1]["frame"], r["key"], r["frame"], r["rounds"], r["age_s"], r["contrast_ratio"], r["contrast_ratio_se"])
+open(d + "/drive_check.txt", "w").write(msg)
+ok = len(keys) >= 8 and len(with_r) >= 2 and all(
+    l["lcd"]["readability"]["frame"] <= l["frame"] and l["lcd"]["readability"]["age_s"] >= 0 for l in with_r)
+sys.exit(0 if ok else 1)
+PY
 
 # --- a stopped gather rank does not stall the frames -----------------------
 timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 \

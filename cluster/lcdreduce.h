@@ -1,0 +1,59 @@
+/* LCD rounds summed by a non-blocking allreduce among the master and the
+ * gather-only ranks (see lcdreduce.c). */
+#ifndef CV_CLUSTER_LCDREDUCE_H
+#define CV_CLUSTER_LCDREDUCE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "lcd/accum.h"
+
+typedef struct cv_lcd_reduce cv_lcd_reduce;
+
+/* One epoch's sum as the master receives it: the LCD key of the rounds,
+ * the earliest frame whose state that key was taken from, the rounds
+ * (`rounds` entries, as the contributors declared them) and the summed
+ * buffer (a view, valid during the call). */
+typedef struct cv_lcd_reduce_sum {
+  cv_lcd_key key;
+  uint32_t frame;
+  const uint32_t *round;
+  uint32_t rounds;
+  const cv_lcd_accum *acc;
+} cv_lcd_reduce_sum;
+typedef void (*cv_lcd_reduce_fn)(const cv_lcd_reduce_sum *sum, void *user);
+
+/* members: the communicator's size (>= 2), me: this rank in it (0 = the
+ * master); stride: the contributors' count (a worker's rounds of one key
+ * are first, first + stride, ...).  *out owned by the caller.  Errors:
+ * CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int me,
+                         cv_lcd_reduce **out);
+void cv_lcd_reduce_destroy(cv_lcd_reduce *r);
+
+/* Contributor: adds a finished round (a cv_lcd_msg and its values) to the
+ * pool it offers the next epochs; a round of another key (a newer snapshot)
+ * replaces the pool.  Returns 0, or -1 for a malformed message. */
+int cv_lcd_reduce_add_round(cv_lcd_reduce *r, const uint8_t *msg, size_t len);
+
+/* Master: its current LCD key, preferred when contributors offer several
+ * keys; quit = 1 makes the next epoch the last one for every member. */
+void cv_lcd_reduce_announce(cv_lcd_reduce *r, uint64_t key, int quit);
+
+/* Advances the epoch state machine without waiting: tests the sum in
+ * flight (MPI_Test), hands a finished sum to fn (master; may be NULL),
+ * starts the next epoch when the last one is over and, on the master, at
+ * least min_period seconds have passed since it started.  Returns 1 once
+ * the quit epoch has finished (nothing more will be started), else 0. */
+int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
+                       void *user);
+
+/* Totals: epochs finished, those that carried rounds, and the mean time
+ * from an epoch's start to its sum on this rank (ms). */
+typedef struct cv_lcd_reduce_stats {
+  uint64_t epochs, data_epochs, rounds;
+  double mean_ms;
+} cv_lcd_reduce_stats;
+void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st);
+
+#endif
