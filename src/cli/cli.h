@@ -7,6 +7,7 @@
 
 #include "io/scene_config.h"
 #include "mesh/mesh.h"
+#include "mesh/place.h"
 
 /* Subcommands: each returns the process exit status. */
 int cmd_cabin(int argc, char **argv);
@@ -31,6 +32,10 @@ int cli_parse_vec(const char *s, int n, double *out);
 
 /* 1 if path ends with ext (case-insensitive, ext includes the dot). */
 int cli_has_ext(const char *path, const char *ext);
+
+/* Prints the placement (units, up, where they came from) and the bounding box
+ * in metres, with a warning when the size is implausible for a car. */
+void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says);
 
 /* Builds the scene's mesh from the config: the parametric cabin or an
  * imported file, material overrides, then geometry cleaning (report printed

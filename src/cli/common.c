@@ -32,6 +32,19 @@ int cli_has_ext(const char *path, const char *ext) {
   return n >= e && strcasecmp(path + n - e, ext) == 0;
 }
 
+void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says) {
+  fprintf(f, "scene: units %g m (%s%s%s), up %c (%s)\n", r->unit_m, r->unit_from,
+          file_says && !strcmp(r->unit_from, "file") ? ": " : "",
+          file_says && !strcmp(r->unit_from, "file") ? file_says : "", r->up, r->up_from);
+  fprintf(f, "scene: bounding box %.3f x %.3f x %.3f m (x %.3f..%.3f, y %.3f..%.3f, z %.3f..%.3f)\n",
+          r->size[0], r->size[1], r->size[2], (double)r->lo[0], (double)r->hi[0],
+          (double)r->lo[1], (double)r->hi[1], (double)r->lo[2], (double)r->hi[2]);
+  if (r->implausible_car)
+    fprintf(f, "warning: a car is %g..%g m long, this model's largest extent is %.3g m: check "
+               "\"units\" and \"up\"\n", CV_CAR_MIN_EXTENT_M, CV_CAR_MAX_EXTENT_M,
+            fmax(r->size[0], fmax(r->size[1], r->size[2])));
+}
+
 int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err) {
   *out = NULL;
   cv_mesh *m = NULL;
@@ -49,11 +62,18 @@ int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, c
       fprintf(report, "scene: built-in cabin, tess %d: %zu vertices, %zu triangles\n", cp.tess,
               m->nv, m->nt);
   } else {
-    st = cv_mesh_import(c->mesh_path, NULL, &m, err);
+    cv_import_stats is;
+    st = cv_mesh_import_ex(c->mesh_path, NULL, &m, &is, err);
     if (st) return st;
     if (report)
       fprintf(report, "scene: %s: %zu vertices, %zu triangles, %zu materials\n", c->mesh_path,
               m->nv, m->nt, m->nm);
+    cv_placement_report pr;
+    if ((st = cv_mesh_place(m, &c->place, &is.frame, &pr, err))) {
+      cv_err_prefix(err, "%s", c->mesh_path);
+      goto fail;
+    }
+    if (report) cli_print_placement(report, &pr, is.frame.source);
   }
   if ((st = cv_scene_apply_overrides(c, m, err))) goto fail;
   if (c->clean_enabled) {

@@ -35,6 +35,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->spread = 0.5;
   c->window_sampling = 1;
   c->error_budget = 0.05;
+  cv_placement_default(&c->place);
   cv_light_spec_default(&c->light);
 }
 
@@ -158,8 +159,43 @@ static void resolve_rel(const char *base, const char *p, char out[CV_PATH_MAX]) 
     snprintf(out, CV_PATH_MAX, "%s/%s", base, p);
 }
 
+static int get_vec3(ctx *x, const cJSON *obj, const char *key, const char *path, double out[3]) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+  if (!v) return CV_OK;
+  char field[256];
+  snprintf(field, sizeof field, "%s.%s", path, key);
+  return get_rgb(x, v, field, -1e9, 1e9, out);
+}
+
+/* mesh.units / mesh.up / mesh.transform (see mesh/place.h). */
+static int parse_placement(ctx *x, const cJSON *o, cv_placement *p) {
+  const cJSON *u = cJSON_GetObjectItemCaseSensitive(o, "units");
+  cv_err e;
+  if (cJSON_IsNumber(u)) {
+    if (!(isfinite(u->valuedouble) && u->valuedouble > 0))
+      return fail(x, "mesh.units", "expected %s", cv_units_expected());
+    p->unit_m = u->valuedouble;
+  } else if (u) {
+    if (!cJSON_IsString(u) || cv_parse_units(u->valuestring, &p->unit_m, &e))
+      return fail(x, "mesh.units", "%.200s", cJSON_IsString(u) ? e.msg : "expected a string or a number");
+  }
+  const cJSON *up = cJSON_GetObjectItemCaseSensitive(o, "up");
+  if (up && (!cJSON_IsString(up) || cv_parse_up(up->valuestring, &p->up, &e)))
+    return fail(x, "mesh.up", "%.200s", cJSON_IsString(up) ? e.msg : "expected \"y\" or \"z\"");
+  const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "transform");
+  if (!t) return CV_OK;
+  static const char *const keys[] = {"translate", "rotate_deg", "scale", NULL};
+  int st = only_keys(x, t, "mesh.transform", keys);
+  if (st) return st;
+  if ((st = get_vec3(x, t, "translate", "mesh.transform", p->translate))) return st;
+  if ((st = get_vec3(x, t, "rotate_deg", "mesh.transform", p->rotate_deg))) return st;
+  if ((st = get_num(x, t, "scale", "mesh.transform", 1e-9, 1e9, &p->scale))) return st;
+  return CV_OK;
+}
+
 static int parse_mesh(ctx *x, const cJSON *o, const char *base, cv_scene_config *c) {
-  static const char *const keys[] = {"source", "path", "tess", "length", "width", "height", NULL};
+  static const char *const keys[] = {"source", "path", "tess", "length", "width", "height",
+                                     "units", "up", "transform", NULL};
   int st = only_keys(x, o, "mesh", keys);
   if (st) return st;
   const cJSON *src = cJSON_GetObjectItemCaseSensitive(o, "source");
@@ -172,8 +208,17 @@ static int parse_mesh(ctx *x, const cJSON *o, const char *base, cv_scene_config 
     if (!cJSON_IsString(path) || !path->valuestring[0])
       return fail(x, "mesh.path", "expected the mesh file's path (OBJ, PLY or glTF)%s", "");
     resolve_rel(base, path->valuestring, c->mesh_path);
+    if ((st = parse_placement(x, o, &c->place))) return st;
   } else if (path) {
     return fail(x, "mesh.path", "not allowed with \"source\": \"cabin\"%s", "");
+  } else {
+    static const char *const file_only[] = {"units", "up", "transform", NULL};
+    for (int i = 0; file_only[i]; i++)
+      if (cJSON_GetObjectItemCaseSensitive(o, file_only[i])) {
+        char field[64];
+        snprintf(field, sizeof field, "mesh.%s", file_only[i]);
+        return fail(x, field, "only for a mesh file (the cabin is built in metres, Y up)%s", "");
+      }
   }
   if ((st = get_int(x, o, "tess", "mesh", 1, 64, &c->cabin_tess))) return st;
   if ((st = get_num(x, o, "length", "mesh", 1.5, 5.0, &c->cabin_length))) return st;

@@ -10,6 +10,7 @@
 
 #include "core/status.h"
 #include "mesh/mesh.h"
+#include "mesh/place.h"
 
 #define CV_PATH_MAX 1024
 #define CV_MAX_ENV_MAPS 8
@@ -44,6 +45,7 @@ typedef struct cv_scene_config {
   char source[CV_PATH_MAX]; /* the config file, or "(built-in)" */
   int mesh_is_cabin;        /* 1: parametric cabin, 0: mesh_path */
   char mesh_path[CV_PATH_MAX];
+  cv_placement place;       /* mesh.units / up / transform (file meshes only) */
   double cabin_length, cabin_width, cabin_height; /* 0 = generator default */
   int cabin_tess;
   cv_scene_material *overrides;

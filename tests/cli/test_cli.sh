@@ -86,6 +86,20 @@ printf '{ "prt": { "bands": 12 } }\n' >range.json
 expect_error "JSON range" "prt.bands" $CAVE bake range.json -o x.prt
 printf '{ "materials": [ { "name": "no_such_material", "albedo": [0.5, 0.5, 0.5] } ] }\n' >mat.json
 expect_error "unknown material" "no_such_material" $CAVE bake mat.json -o x.prt --rays 4 --bands 2
+# units / up (assimp-testmodels' regr01.obj: centimetres, Z up)
+R01=/usr/share/assimp/models/OBJ/regr01.obj
+if [ -r $R01 ]; then
+  expect_ok "bake cm z-up obj" $CAVE bake $R01 --units cm --up z -o house.prt --bands 2 --rays 4 --bounces 0 --quiet
+  grep -q "bounding box 16.363 x 3.375 x 11.721 m" out.txt && ok "bounding box in metres" || { bad "bounding box"; grep scene out.txt; }
+  grep -q "^warning: a car" out.txt && bad "warned about a plausible size" || ok "no size warning for 16 m"
+  expect_ok "bake obj without units" $CAVE bake $R01 -o house2.prt --bands 2 --rays 4 --bounces 0 --quiet
+  grep -q "^warning: a car is 0.5..20 m long, this model's largest extent is 1.64e+03 m" out.txt && ok "implausible size warned" || bad "no size warning for 1636 m"
+  printf '{ "mesh": { "path": "%s", "units": "furlong" } }\n' $R01 >units.json
+  expect_error "unknown unit in config" "mesh.units: unknown unit 'furlong'" $CAVE bake units.json -o x.prt
+  expect_error "unknown unit option" "--units: unknown unit 'parsec'" $CAVE bake $R01 --units parsec -o x.prt
+else
+  bad "assimp-testmodels missing (cluster/setup.sh installs it)"
+fi
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
