@@ -13,6 +13,7 @@
 int cmd_cabin(int argc, char **argv);
 int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
+int cmd_materials(int argc, char **argv);
 int cmd_compensate(int argc, char **argv);
 int cmd_lcd(int argc, char **argv);
 int cmd_render(int argc, char **argv);
@@ -37,6 +38,32 @@ int cli_has_ext(const char *path, const char *ext);
  * in metres, with a warning when the size is implausible for a car. */
 void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says);
 
+/* The placement options shared by commands that load a mesh: --units U,
+ * --up y|z, --model-scale S, --rotate X,Y,Z (degrees), --translate X,Y,Z (m). */
+typedef struct cli_place_opts {
+  cv_placement p;
+  int given; /* bit per option seen */
+} cli_place_opts;
+#define CLI_PLACE_HELP                                                                     \
+  "  --units U       file units: mm, cm, m, in, ft or metres per unit (default:\n"         \
+  "                  what the file says - glTF metres, FBX UnitScaleFactor - else m)\n"    \
+  "  --up y|z        the file's up axis (default: from the file, else y)\n"                \
+  "  --model-scale S uniform scale after units (default 1)\n"                              \
+  "  --rotate X,Y,Z  degrees about X, then Y, then Z, after units and up\n"                \
+  "  --translate X,Y,Z  metres, applied last\n"
+/* argv[*i] is a placement option: parses it (and its value, advancing *i)
+ * and returns 1; 0 when it is not one; -1 on a bad value (*rc = 2, the
+ * message printed). */
+int cli_place_option(const char *cmd, char **argv, int argc, int *i, cli_place_opts *o, int *rc);
+/* Copies the given options into c->place; returns 2 (message printed) when
+ * they are given for the built-in cabin, else 0. */
+int cli_place_apply(const char *cmd, const cli_place_opts *o, cv_scene_config *c);
+
+/* "window", "lcd", "window+lcd" or "none" for CV_MAT_* flags. */
+const char *cli_tag_name(uint32_t flags);
+/* The scene's mesh before cleaning: the cabin or the imported, placed file,
+ * with the config's material overrides (a line per pattern to `report`). */
+int cli_import_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err);
 /* Builds the scene's mesh from the config: the parametric cabin or an
  * imported file, material overrides, then geometry cleaning (report printed
  * to `report` when non-NULL).  *out owned by the caller. */

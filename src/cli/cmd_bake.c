@@ -36,12 +36,7 @@ static void help(FILE *f) {
           "  --threads N     OpenMP threads (default: all cores)\n"
           "  --force         bake even if the output already matches the inputs\n"
           "  --quiet         no progress bar\n"
-          "  --units U       file units: mm, cm, m, in, ft or metres per unit (default:\n"
-          "                  what the file says - glTF metres, FBX UnitScaleFactor - else m)\n"
-          "  --up y|z        the file's up axis (default: from the file, else y)\n"
-          "  --model-scale S uniform scale after units (default 1)\n"
-          "  --rotate X,Y,Z  degrees about X, then Y, then Z, after units and up\n"
-          "  --translate X,Y,Z  metres, applied last\n"
+          CLI_PLACE_HELP
           "The bake prints the model's bounding box in metres and warns when it is\n"
           "implausible for a car (largest extent under 0.5 m or over 20 m).\n\n"
           "examples:\n"
@@ -55,15 +50,16 @@ int cmd_bake(int argc, char **argv) {
              *budget_s = NULL, *tess_s = NULL;
   int force = 0, quiet = 0, threads = 0, cosine_only = -1;
   double spread = -1;
-  cv_placement place;
-  cv_placement_default(&place);
-  int place_given = 0;
-  cv_err perr;
+  cli_place_opts place = {.given = 0};
+  cv_placement_default(&place.p);
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    int pr, prc = 0;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
+    } else if ((pr = cli_place_option("bake", argv, argc, &i, &place, &prc)) != 0) {
+      if (pr < 0) return prc;
     } else if (!strcmp(a, "--force")) {
       force = 1;
     } else if (!strcmp(a, "--quiet")) {
@@ -87,26 +83,6 @@ int cmd_bake(int argc, char **argv) {
       budget_s = argv[++i];
     } else if (!strcmp(a, "--tess") && v) {
       tess_s = argv[++i];
-    } else if (!strcmp(a, "--units") && v) {
-      if (cv_parse_units(argv[++i], &place.unit_m, &perr))
-        return cli_fail("bake", 2, "--units: %s", perr.msg);
-      place_given = 1;
-    } else if (!strcmp(a, "--up") && v) {
-      if (cv_parse_up(argv[++i], &place.up, &perr))
-        return cli_fail("bake", 2, "--up: %s", perr.msg);
-      place_given = 1;
-    } else if (!strcmp(a, "--model-scale") && v) {
-      if (cli_parse_double(argv[++i], &place.scale) || !(place.scale > 0))
-        return cli_fail("bake", 2, "--model-scale: expected a positive number, got '%s'", v);
-      place_given |= 1;
-    } else if (!strcmp(a, "--rotate") && v) {
-      if (cli_parse_vec(argv[++i], 3, place.rotate_deg))
-        return cli_fail("bake", 2, "--rotate: expected X,Y,Z in degrees, got '%s'", v);
-      place_given |= 3;
-    } else if (!strcmp(a, "--translate") && v) {
-      if (cli_parse_vec(argv[++i], 3, place.translate))
-        return cli_fail("bake", 2, "--translate: expected X,Y,Z in metres, got '%s'", v);
-      place_given |= 5;
     } else if (!strcmp(a, "--threads") && v) {
       if (cli_parse_int(argv[++i], 1, 1024, &threads))
         return cli_fail("bake", 2, "--threads: expected 1..1024, got '%s'", v);
@@ -177,19 +153,8 @@ int cmd_bake(int argc, char **argv) {
     rc = cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", tess_s);
     goto done;
   }
-  if (place_given) {
-    if (cfg.mesh_is_cabin) {
-      rc = cli_fail("bake", 2, "--units/--up/--model-scale/--rotate/--translate apply to a mesh "
-                               "file, not to the built-in cabin");
-      goto done;
-    }
-    /* options replace what the config says, one field at a time */
-    if (place.unit_m > 0) cfg.place.unit_m = place.unit_m;
-    if (place.up) cfg.place.up = place.up;
-    if (place.scale != 1) cfg.place.scale = place.scale;
-    if (place_given & 2) memcpy(cfg.place.rotate_deg, place.rotate_deg, sizeof place.rotate_deg);
-    if (place_given & 4) memcpy(cfg.place.translate, place.translate, sizeof place.translate);
-  }
+  if ((rc = cli_place_apply("bake", &place, &cfg)) != 0) goto done;
+  rc = 1;
   if (threads > 0) omp_set_num_threads(threads);
   if (spread >= 0) cfg.spread = spread;
   if (cosine_only >= 0) cfg.window_sampling = !cosine_only;

@@ -17,6 +17,7 @@ static const struct {
 } commands[] = {
     {"cabin", cmd_cabin, "write the built-in parametric car cabin as OBJ + MTL"},
     {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
+    {"materials", cmd_materials, "list a model's materials: triangles, area, tag, albedo"},
     {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
     {"compensate", cmd_compensate, "cancel the light that screens scatter onto each other"},
     {"lcd", cmd_lcd, "what the driver sees on the LCD panel: BRDF final gather, progressive"},

@@ -201,6 +201,8 @@ static void read_frame(const char *path, const struct aiScene *sc, cv_file_frame
     fr->unit_m = 1.0, fr->up = 'y', fr->source = "glTF specification (metres, Y up)";
   } else if (ends_with_ci(path, ".dae")) {
     fr->unit_m = 1.0, fr->up = 'y', fr->source = "COLLADA <unit>/<up_axis>, applied by assimp";
+  } else if (ends_with_ci(path, ".ifc")) {
+    fr->unit_m = 1.0, fr->up = 'y', fr->source = "IFC units and Z up, converted by assimp";
   } else if (ends_with_ci(path, ".fbx") && meta_number(sc, "UnitScaleFactor", &usf)) {
     if (isfinite(usf) && usf > 0) fr->unit_m = usf * 0.01; /* FBX: centimetres per unit */
     meta_number(sc, "UpAxisSign", &sign);

@@ -61,7 +61,7 @@ typedef struct cv_import_stats {
   size_t overrides_unused;  /* overrides whose name matched no kept material */
   cv_file_frame frame;      /* units and up axis the file declares (glTF: metres, Y up by
                                its specification; FBX: UnitScaleFactor (cm) and UpAxis
-                               metadata; COLLADA: <unit>/<up_axis>, applied by assimp, so
+                               metadata; COLLADA and IFC: converted by assimp, so
                                metres and Y up); zeros where the format says nothing.
                                Coordinates are NOT converted here: see cv_mesh_place. */
 } cv_import_stats;

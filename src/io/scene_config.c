@@ -5,6 +5,7 @@
 
 #include <cjson/cJSON.h>
 #include <errno.h>
+#include <fnmatch.h>
 #include <libgen.h>
 #include <math.h>
 #include <stdio.h>
@@ -243,7 +244,7 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
     char field[96];
     snprintf(field, sizeof field, "%s.name", path);
     if (!cJSON_IsString(name) || !name->valuestring[0] || strlen(name->valuestring) > 63)
-      return fail(x, field, "expected a material name (1..63 characters)%s", "");
+      return fail(x, field, "expected a material name or glob pattern (1..63 characters)%s", "");
     snprintf(ov->name, sizeof ov->name, "%s", name->valuestring);
     const cJSON *alb = cJSON_GetObjectItemCaseSensitive(o, "albedo");
     if (alb) {
@@ -438,14 +439,33 @@ int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
 }
 
 int cv_scene_apply_overrides(const cv_scene_config *c, cv_mesh *m, cv_err *err) {
+  return cv_scene_apply_overrides_ex(c, m, NULL, err);
+}
+
+int cv_scene_apply_overrides_ex(const cv_scene_config *c, cv_mesh *m,
+                                cv_override_count *counts, cv_err *err) {
+  /* check every pattern first, so that nothing is changed when one fails */
+  for (int i = 0; i < c->n_overrides; i++) {
+    int any = 0;
+    for (size_t k = 0; k < m->nm && !any; k++)
+      any = fnmatch(c->overrides[i].name, m->mats[k].name, 0) == 0;
+    if (!any)
+      return cv_err_set(err, CV_ERR_CONFIG,
+                        "%s: materials[%d].name: pattern '%s' matches none of the mesh's %zu "
+                        "materials (cave materials lists them)",
+                        c->source, i, c->overrides[i].name, m->nm);
+  }
   for (int i = 0; i < c->n_overrides; i++) {
     const cv_scene_material *ov = &c->overrides[i];
-    int k = cv_mesh_find_material(m, ov->name);
-    if (k < 0)
-      return cv_err_set(err, CV_ERR_CONFIG, "%s: materials[%d].name: the mesh has no material '%s'",
-                        c->source, i, ov->name);
-    if (ov->has_albedo) memcpy(m->mats[k].albedo, ov->albedo, sizeof ov->albedo);
-    if (ov->has_tag) m->mats[k].flags = ov->flags;
+    cv_override_count n = {0, 0};
+    for (size_t k = 0; k < m->nm; k++) {
+      if (fnmatch(ov->name, m->mats[k].name, 0) != 0) continue;
+      n.materials++;
+      if (ov->has_albedo) memcpy(m->mats[k].albedo, ov->albedo, sizeof ov->albedo);
+      if (ov->has_tag) m->mats[k].flags = ov->flags;
+      for (size_t t = 0; t < m->nt; t++) n.triangles += m->tri_mat[t] == k;
+    }
+    if (counts) counts[i] = n;
   }
   return CV_OK;
 }

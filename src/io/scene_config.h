@@ -34,7 +34,7 @@ typedef struct cv_light_spec {
 } cv_light_spec;
 
 typedef struct cv_scene_material {
-  char name[64];
+  char name[64]; /* a glob pattern (fnmatch) over material names */
   int has_albedo;
   float albedo[3];
   int has_tag;
@@ -83,7 +83,18 @@ void cv_scene_config_free(cv_scene_config *c);
  * (may be NULL), else in CAVE_BLENDER_WORLD_DIR.  CV_ERR_NOT_FOUND otherwise. */
 int cv_resolve_env_path(const char *name, const char *base_dir, char out[CV_PATH_MAX],
                         cv_err *err);
-/* Applies material overrides by exact name; unknown names are an error. */
+/* Applies the material overrides in order (a later entry wins); each name is
+ * a glob pattern (fnmatch(3): *, ?, [..], backslash escapes; an exact name
+ * matches itself) applied to EVERY matching material.  A pattern that
+ * matches no material is an error (CV_ERR_CONFIG naming materials[i].name),
+ * checked before anything is changed. */
 int cv_scene_apply_overrides(const cv_scene_config *c, cv_mesh *m, cv_err *err);
+/* What one override entry matched. */
+typedef struct cv_override_count {
+  size_t materials, triangles;
+} cv_override_count;
+/* As above; counts (c->n_overrides entries, may be NULL) gets what each matched. */
+int cv_scene_apply_overrides_ex(const cv_scene_config *c, cv_mesh *m,
+                                cv_override_count *counts, cv_err *err);
 
 #endif

@@ -34,7 +34,7 @@ expect_ok() {
 }
 
 # --- help on every command --------------------------------------------------
-for c in "" cabin bake shade; do
+for c in "" cabin bake shade materials; do
   if $CAVE $c --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help $c"; else bad "help $c"; fi
 done
 expect_error "unknown command" "not a command" $CAVE frobnicate
@@ -97,9 +97,26 @@ if [ -r $R01 ]; then
   printf '{ "mesh": { "path": "%s", "units": "furlong" } }\n' $R01 >units.json
   expect_error "unknown unit in config" "mesh.units: unknown unit 'furlong'" $CAVE bake units.json -o x.prt
   expect_error "unknown unit option" "--units: unknown unit 'parsec'" $CAVE bake $R01 --units parsec -o x.prt
+  # materials: the IFC house has nine materials named "Glas"
+  HAUS=/usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc
+  expect_ok "materials of an IFC" $CAVE materials $HAUS
+  [ "$(grep -c ' none .* Glas$' out.txt)" = 9 ] && ok "nine Glas materials listed" || bad "Glas rows: $(grep -c 'Glas$' out.txt)"
+  grep -q "^177 materials, 35906 triangles" out.txt && ok "material totals" || { bad "material totals"; tail -1 out.txt; }
+  printf '{ "mesh": { "path": "%s" }, "materials": [ { "name": "Glas*", "tag": "window" } ] }\n' $HAUS >haus.json
+  expect_ok "materials with a glob override" $CAVE materials haus.json
+  grep -q "^materials\[0\] 'Glas\*': 9 materials, 820 triangles, tag window" out.txt && ok "count per pattern" || bad "count per pattern"
+  [ "$(grep -c ' window .* Glas$' out.txt)" = 9 ] && ok "window tag on every Glas" || bad "window tags: $(grep -c ' window .* Glas$' out.txt)"
+  printf '{ "mesh": { "path": "%s" }, "materials": [ { "name": "*window*", "tag": "window" } ] }\n' $HAUS >haus2.json
+  expect_error "pattern with no match" "materials\[0\].name: pattern '\*window\*' matches none" $CAVE materials haus2.json
 else
   bad "assimp-testmodels missing (cluster/setup.sh installs it)"
 fi
+# areas in square metres after units: a 100 x 100 cm quad and a 50 x 100 cm one
+printf 'mtllib q.mtl\nv 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nv 0 0 10\nv 50 0 10\nv 50 100 10\nusemtl seat\nf 1 2 3 4\nusemtl window_a\nf 5 6 7\n' >q.obj
+printf 'newmtl seat\nKd 0.5 0.4 0.3\nnewmtl window_a\nKd 0 0 0\n' >q.mtl
+expect_ok "materials of an OBJ in cm" $CAVE materials q.obj --units cm
+grep -Eq "^ +0 +2 +1.0000  none .*seat$" out.txt && grep -Eq "^ +1 +1 +0.2500  window .*window_a$" out.txt && ok "triangles, area and tag per material" || { bad "area per material"; cat out.txt; }
+expect_error "materials: missing argument" "missing the model" $CAVE materials
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply

@@ -3,7 +3,8 @@
  * Debian's assimp-testmodels (installed by cluster/setup.sh): regr01.obj is
  * a house in centimetres with Z up, box.fbx carries UnitScaleFactor 100, a
  * glTF is metres and Y up by specification.  Also the scene config keys
- * mesh.units / mesh.up / mesh.transform and their errors. */
+ * mesh.units / mesh.up / mesh.transform and their errors, and material
+ * overrides by glob pattern on the IFC house with nine materials "Glas". */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -197,11 +198,55 @@ static void test_scene_config_keys(void **state) {
   }
 }
 
+/* The issue's case: an IFC house with nine materials named "Glas" got the
+ * window tag on the first one only. */
+static void test_glob_overrides(void **state) {
+  (void)state;
+  cv_mesh *m;
+  cv_err e;
+  assert_int_equal(cv_mesh_import(need_model("IFC/AC14-FZK-Haus.ifc"), NULL, &m, &e), CV_OK);
+  size_t glas = 0, glas_tris = 0, kiefer = 0;
+  for (size_t k = 0; k < m->nm; k++) {
+    glas += !strcmp(m->mats[k].name, "Glas");
+    kiefer += !strncmp(m->mats[k].name, "Kiefer", 6);
+  }
+  for (size_t t = 0; t < m->nt; t++) glas_tris += !strcmp(m->mats[m->tri_mat[t]].name, "Glas");
+  assert_int_equal(glas, 9);
+  cv_scene_config c;
+  cv_scene_config_default(&c);
+  snprintf(c.source, sizeof c.source, "haus.json");
+  cv_scene_material ov[3] = {{.name = "Glas", .has_tag = 1, .flags = CV_MAT_WINDOW},
+                             {.name = "*iefer*", .has_albedo = 1, .albedo = {0.1f, 0.2f, 0.3f}},
+                             {.name = "Kiefer", .has_albedo = 1, .albedo = {0.9f, 0.9f, 0.9f}}};
+  c.overrides = ov;
+  c.n_overrides = 3;
+  cv_override_count n[3];
+  assert_int_equal(cv_scene_apply_overrides_ex(&c, m, n, &e), CV_OK);
+  assert_int_equal(n[0].materials, 9);
+  assert_int_equal(n[0].triangles, glas_tris);
+  assert_int_equal(n[1].materials, kiefer);
+  for (size_t k = 0; k < m->nm; k++) {
+    const cv_material *mt = &m->mats[k];
+    assert_int_equal(mt->flags == CV_MAT_WINDOW, !strcmp(mt->name, "Glas"));
+    if (!strcmp(mt->name, "Kiefer")) assert_true(mt->albedo[0] == 0.9f); /* later entry wins */
+    if (!strcmp(mt->name, "Kiefer,glänzend")) assert_true(mt->albedo[0] == 0.1f);
+  }
+  /* a pattern with no match: an error naming it, and nothing changed */
+  cv_scene_material none[2] = {{.name = "Anstrich", .has_tag = 1, .flags = CV_MAT_LCD},
+                               {.name = "*window*", .has_tag = 1, .flags = CV_MAT_WINDOW}};
+  c.overrides = none;
+  c.n_overrides = 2;
+  assert_int_equal(cv_scene_apply_overrides(&c, m, &e), CV_ERR_CONFIG);
+  assert_non_null(strstr(e.msg, "materials[1].name: pattern '*window*' matches none"));
+  for (size_t k = 0; k < m->nm; k++) assert_false(m->mats[k].flags & CV_MAT_LCD);
+  cv_mesh_destroy(m);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_parse_units),  cmocka_unit_test(test_transform_order),
       cmocka_unit_test(test_obj_cm_zup),   cmocka_unit_test(test_file_frames),
-      cmocka_unit_test(test_scene_config_keys),
+      cmocka_unit_test(test_scene_config_keys), cmocka_unit_test(test_glob_overrides),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
