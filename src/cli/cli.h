@@ -31,6 +31,14 @@ int cli_parse_int(const char *s, int lo, int hi, int *out);
 /* "x,y,z" (n values) into out; 0 on success. */
 int cli_parse_vec(const char *s, int n, double *out);
 
+/* --illuminance: lux in (0, 1e7] or "auto" (CV_ILLUMINANCE_AUTO); 0 on success. */
+int cli_parse_illuminance(const char *s, double *lux);
+#define CLI_ILLUMINANCE_HELP                                                                 \
+  "  --illuminance LUX|auto  calibrate the env map(s): the horizontal illuminance of\n"     \
+  "                  the upper hemisphere becomes LUX (pixels then in cd/m^2); auto:\n"     \
+  "                  each blender-data map at its documented daylight level (forest\n"     \
+  "                  10000 lx, ...: docs/scene-config.md); not with --scale\n"
+
 /* 1 if path ends with ext (case-insensitive, ext includes the dot). */
 int cli_has_ext(const char *path, const char *ext);
 

@@ -34,7 +34,8 @@ static void help(FILE *f) {
           "elsewhere the PRT radiance of the hit triangle; the sun is added where it reaches the\n"
           "panel.  The panel's content (--content image, --luminance cd/m^2 for white) is added.\n"
           "Rounds of --spp samples per texel accumulate in fixed point (same result for any split).\n\n"
-          "LIGHT is one of --env FILE[,FILE...] [--weights w,..] [--scale S] [--no-sun],\n"
+          "LIGHT is one of --env FILE[,FILE...] [--weights w,..] [--scale S |\n"
+          "--illuminance LUX|auto] [--no-sun],\n"
           "--env-constant R,G,B, --sky TURBIDITY,ELEVATION,AZIMUTH (as cave shade); a\n"
           "scene.json's own lighting is used when none is given.\n\n"
           "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance)\n"
@@ -75,6 +76,9 @@ static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, 
   } else if (!strcmp(a, "--scale")) {
     if (cli_parse_double(argv[++*i], &spec->scale) || spec->scale < 0)
       return cli_fail("lcd", 2, "--scale: expected a non-negative number, got '%s'", val);
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(argv[++*i], &spec->illuminance))
+      return cli_fail("lcd", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
     if (cli_parse_vec(argv[++*i], 3, spec->constant) || spec->constant[0] < 0 ||
@@ -142,7 +146,7 @@ int cmd_lcd(int argc, char **argv) {
     } else if (a[0] == '-' && !val) {
       help(stderr);
       return cli_fail("lcd", 2, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") ||
+    } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") || !strcmp(a, "--illuminance") ||
                !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
                !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
       int rc = parse_light(a, argv, &i, &spec, &have_light, &weights);

@@ -48,7 +48,9 @@ static void help(FILE *f) {
           "statistics, one Pattanaik adaptation step of --dt seconds, then the shading\n"
           "passes tone-mapped with Drago at the adapted luminance.\n\n"
           "LIGHT is one of (as in `cave shade`)\n"
-          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S] [--no-sun]\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
+          "                       [--no-sun]\n"
+          CLI_ILLUMINANCE_HELP
           "  --env-constant R,G,B\n"
           "  --sky T,ELEV,AZIM    Preetham sky: turbidity 2..10, sun elevation, azimuth (deg)\n"
           "  [--yaw DEG] [--pitch DEG] [--roll DEG]   car orientation\n\n"
@@ -90,6 +92,7 @@ static int parse_light(const char *a, char **argv, int *i, int argc, cv_light_sp
     return 0;
   }
   if (strcmp(a, "--env") && strcmp(a, "--weights") && strcmp(a, "--scale") &&
+      strcmp(a, "--illuminance") &&
       strcmp(a, "--env-constant") && strcmp(a, "--sky") && strcmp(a, "--yaw") &&
       strcmp(a, "--pitch") && strcmp(a, "--roll")) {
     *consumed = 0;
@@ -116,6 +119,9 @@ static int parse_light(const char *a, char **argv, int *i, int argc, cv_light_sp
   } else if (!strcmp(a, "--scale")) {
     if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
       return cli_fail("render", 2, "--scale: expected a non-negative number, got '%s'", val);
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(val, &spec->illuminance))
+      return cli_fail("render", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
     if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||

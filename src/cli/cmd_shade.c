@@ -21,9 +21,11 @@ static void help(FILE *f) {
           "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
           "                  [--fov DEG] [--size WxH] [--exposure E] -o view.exr|view.png\n\n"
           "LIGHT is one of\n"
-          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S] [--no-sun]\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
+          "                       [--no-sun]\n"
           "                       lat-long HDR maps (blended); a bare name such as forest.exr\n"
           "                       is looked up in blender-data's studio lights\n"
+          CLI_ILLUMINANCE_HELP
           "  --env-constant R,G,B constant environment radiance\n"
           "  --sky T,ELEV,AZIM    Preetham sky: turbidity 2..10, sun elevation and azimuth\n"
           "                       (degrees, azimuth clockwise from straight ahead)\n\n"
@@ -136,6 +138,9 @@ int cmd_shade(int argc, char **argv) {
     } else if (!strcmp(a, "--scale")) {
       if (cli_parse_double(argv[++i], &spec.scale) || spec.scale < 0)
         return cli_fail("shade", 2, "--scale: expected a non-negative number, got '%s'", val);
+    } else if (!strcmp(a, "--illuminance")) {
+      if (cli_parse_illuminance(argv[++i], &spec.illuminance))
+        return cli_fail("shade", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
     } else if (!strcmp(a, "--env-constant")) {
       spec.kind = CV_LIGHT_CONSTANT;
       if (cli_parse_vec(argv[++i], 3, spec.constant) || spec.constant[0] < 0 ||

@@ -27,6 +27,17 @@ int cli_parse_double(const char *s, double *out) { return cv_parse_double(s, out
 int cli_parse_int(const char *s, int lo, int hi, int *out) { return cv_parse_int(s, lo, hi, out); }
 int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n, out); }
 
+int cli_parse_illuminance(const char *s, double *lux) {
+  if (s && !strcmp(s, "auto")) {
+    *lux = CV_ILLUMINANCE_AUTO;
+    return 0;
+  }
+  double v;
+  if (!s || cli_parse_double(s, &v) || !(v > 0) || v > 1e7) return -1;
+  *lux = v;
+  return 0;
+}
+
 int cli_has_ext(const char *path, const char *ext) {
   size_t n = strlen(path), e = strlen(ext);
   return n >= e && strcasecmp(path + n - e, ext) == 0;

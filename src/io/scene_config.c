@@ -321,8 +321,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
                              cv_light_spec *l, cv_err *err) {
   const cJSON *o = json;
   ctx x = {file, err};
-  static const char *const keys[] = {"env", "weights", "scale", "sun", "sky", "constant",
-                                     "yaw_deg", "pitch_deg", "roll_deg", NULL};
+  static const char *const keys[] = {"env", "weights", "scale", "illuminance", "sun", "sky",
+                                     "constant", "yaw_deg", "pitch_deg", "roll_deg", NULL};
   int st = only_keys(&x, o, "lighting", keys);
   if (st) return st;
   const cJSON *env = cJSON_GetObjectItemCaseSensitive(o, "env");
@@ -371,6 +371,14 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
       l->extract_sun = strcmp(sun->valuestring, "auto") == 0;
     }
     if ((st = get_num(&x, o, "scale", "lighting", 0, 1e9, &l->scale))) return st;
+    const cJSON *lux = cJSON_GetObjectItemCaseSensitive(o, "illuminance");
+    if (lux && cJSON_GetObjectItemCaseSensitive(o, "scale"))
+      return fail(&x, "lighting.illuminance", "not together with \"scale\" (both set the level)%s", "");
+    if (cJSON_IsString(lux) && !strcmp(lux->valuestring, "auto")) {
+      l->illuminance = CV_ILLUMINANCE_AUTO;
+    } else if (lux && (st = get_num(&x, o, "illuminance", "lighting", 1e-6, 1e7, &l->illuminance))) {
+      return fail(&x, "lighting.illuminance", "expected lux in [1e-6, 1e7] or \"auto\"%s", "");
+    }
   } else if (sky) {
     l->kind = CV_LIGHT_SKY;
     static const char *const skeys[] = {"turbidity", "sun_elevation_deg", "sun_azimuth_deg",
@@ -386,6 +394,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
     l->kind = CV_LIGHT_CONSTANT;
     if ((st = get_rgb(&x, cst, "lighting.constant", 0, 1e9, l->constant))) return st;
   }
+  if (l->kind != CV_LIGHT_ENV && cJSON_GetObjectItemCaseSensitive(o, "illuminance"))
+    return fail(&x, "lighting.illuminance", "only for \"env\" maps (the sky is absolute)%s", "");
   if ((st = get_num(&x, o, "yaw_deg", "lighting", -360, 360, &l->yaw_deg))) return st;
   if ((st = get_num(&x, o, "pitch_deg", "lighting", -90, 90, &l->pitch_deg))) return st;
   return get_num(&x, o, "roll_deg", "lighting", -180, 180, &l->roll_deg);

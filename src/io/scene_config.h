@@ -15,6 +15,8 @@
 #define CV_PATH_MAX 1024
 #define CV_MAX_ENV_MAPS 8
 
+#define CV_ILLUMINANCE_AUTO (-1.0)
+
 typedef enum { CV_LIGHT_NONE = 0, CV_LIGHT_ENV, CV_LIGHT_SKY, CV_LIGHT_CONSTANT } cv_light_kind;
 
 /* Lighting description shared by the scene config and the command line. */
@@ -24,6 +26,10 @@ typedef struct cv_light_spec {
   double weight[CV_MAX_ENV_MAPS];
   int n_env;
   double scale;                 /* radiance multiplier for env maps (default 1) */
+  double illuminance;           /* env maps: lux of the upper hemisphere's horizontal
+                                   illuminance (light/calibrate.h); 0 = not calibrated
+                                   (scale applies), CV_ILLUMINANCE_AUTO = each
+                                   blender-data map at its documented default */
   int extract_sun;              /* env maps: split a sun out when one is found (default 1) */
   double turbidity;             /* sky, 2..10 (default 3) */
   double sun_elevation_deg;     /* sky (default 35) */

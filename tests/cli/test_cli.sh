@@ -117,6 +117,17 @@ printf 'newmtl seat\nKd 0.5 0.4 0.3\nnewmtl window_a\nKd 0 0 0\n' >q.mtl
 expect_ok "materials of an OBJ in cm" $CAVE materials q.obj --units cm
 grep -Eq "^ +0 +2 +1.0000  none .*seat$" out.txt && grep -Eq "^ +1 +1 +0.2500  window .*window_a$" out.txt && ok "triangles, area and tag per material" || { bad "area per material"; cat out.txt; }
 expect_error "materials: missing argument" "missing the model" $CAVE materials
+# light levels: --illuminance LUX|auto
+expect_ok "shade --illuminance auto" $CAVE shade a.prt --env forest.exr --illuminance auto -o lux.ply
+grep -q "blender-data default illuminance (.*forest.exr: 10000 lux)" out.txt && ok "auto level printed" || { bad "auto level"; cat out.txt; }
+expect_ok "shade --illuminance 5000" $CAVE shade a.prt --env forest.exr --illuminance 5000 -o lux.ply
+grep -q "calibrated to 5000 lux horizontal illuminance" out.txt && ok "calibration printed" || bad "calibration line"
+expect_ok "shade relative map" $CAVE shade a.prt --env forest.exr -o lux.ply
+grep -q "^note: .*forest.exr is relative" out.txt && ok "relative map noted" || bad "no note for a relative map"
+expect_error "bad illuminance" "--illuminance: expected lux" $CAVE shade a.prt --env forest.exr --illuminance -5 -o x.ply
+expect_error "scale and illuminance" "give one" $CAVE shade a.prt --env forest.exr --illuminance 100 --scale 3 -o x.ply
+printf '{ "lighting": { "env": "forest.exr", "scale": 2, "illuminance": 100 } }\n' >lux.json
+expect_error "config scale and illuminance" "lighting.illuminance: not together" $CAVE bake lux.json -o x.prt
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
