@@ -61,7 +61,7 @@ int cv_gather_run(cv_service *s) {
       got = 1;
     }
     if (quit) break;
-    if (got && w) cv_lcd_worker_post(w, &fs);
+    if (got && w && !(fs.flags & CV_FS_MEASURE)) cv_lcd_worker_post(w, &fs);
     if (w) cv_lcd_worker_send_ready(w, send_to_master, NULL, NULL, NULL);
     cv_comm_progress();
     if (*s->stop) { /* wait for the master's quit, but not for ever */

@@ -177,7 +177,7 @@ int cv_frame_state_unpack(const uint8_t *buf, size_t len, cv_frame_state *out, c
   s.lcd_rounds = get_u32(&r);
   if (r.off != CV_FRAME_STATE_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
-  if (s.flags & ~(CV_FS_QUIT | CV_FS_WRITE | CV_FS_NEW_LIGHT | CV_FS_HOLD | CV_FS_PREVIEW))
+  if (s.flags & ~(CV_FS_QUIT | CV_FS_WRITE | CV_FS_NEW_LIGHT | CV_FS_HOLD | CV_FS_PREVIEW | CV_FS_MEASURE))
     return cv_err_set(err, CV_ERR_FORMAT, "%s: unknown flags 0x%x", what, (unsigned)s.flags);
   if (s.bands < 0 || s.bands > 8)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: bands %d outside [0, 8]", what, (int)s.bands);

@@ -35,6 +35,10 @@
 #define CV_FS_NEW_LIGHT 4u /* lighting changed (light_key differs from the last frame) */
 #define CV_FS_HOLD 8u      /* time held after the drive (--lcd-wait): the LCD converges */
 #define CV_FS_PREVIEW 16u  /* send the desktop preview image of this frame (--present desktop) */
+#define CV_FS_MEASURE 32u  /* adaptation priming before frame 0: render and report the
+                              luminance statistics only (no present, write, LCD or
+                              compensation); frame number CV_FRAME_MEASURE */
+#define CV_FRAME_MEASURE 0xFFFFFFFFu
 
 #define CV_FRAME_STATE_MAGIC 0x53465643u /* "CVFS" in little-endian bytes */
 #define CV_FRAME_STATE_VERSION 1u

@@ -58,7 +58,7 @@ if [ $rc -eq 0 ]; then ok "11-rank run"; else bad "11-rank run rc $rc: $(tail -5
 nexr=$(ls r11/frame00003_*.exr 2>/dev/null | wc -l)
 [ "$nexr" -eq 10 ] && ok "10 wall-eye EXRs for the last frame" || bad "wall-eye EXRs: $nexr"
 [ -s r11/montage00003_L.png ] && ok "montage written" || bad "no montage"
-python3 - r11 <<'PY' && ok "metrics: every frame on time, one adaptation state, finite" || bad "metrics"
+python3 - r11 <<'PY' && ok "metrics: every frame on time, one adaptation state from frame 0's luminance, finite" || bad "metrics"
 import json, math, sys
 lines = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
 frames = [l for l in lines if l["type"] == "frame"]
@@ -69,6 +69,10 @@ for f in frames:
     assert f["state_mismatch"] == 0, f
     a = f["adaptation"]
     assert a["lwa"] is not None and math.isfinite(a["lwa"]) and a["lwa"] > 0, a
+# adaptation starts from frame 0's own luminance (the priming round), not
+# 1 cd/m2: standing still, frame 0 and frame 1 are adapted alike
+l0, l1 = frames[0]["adaptation"]["lwa"], frames[1]["adaptation"]["lwa"]
+assert abs(l0 - 1.0) > 1e-3 and abs(l0 / l1 - 1) < 0.1, (l0, l1)
 print("lwa per frame:", [round(f["adaptation"]["lwa"], 4) for f in frames],
       "master p99 ms:", summary[0].get("master_ms_p99"))
 PY
