@@ -23,6 +23,7 @@ static const struct {
     {"lcd", cmd_lcd, "what the driver sees on the LCD panel: BRDF final gather, progressive"},
     {"render", cmd_render, "render every wall-eye of a CAVE on the GPU with shared adaptation"},
     {"tonemap", cmd_tonemap, "Drago tone mapping of an HDR image (EXR or PNG out)"},
+    {"tracker", cmd_tracker, "print DTrack head poses in CAVE coordinates (check a calibration)"},
     {"cluster", cmd_cluster, "write the Open MPI rankfile/hostfile of a multi-host CAVE"},
 #ifdef CAVE_HAVE_CLUSTER
     {"run", cmd_run, "the CAVE render service under mpirun (master, wall-eyes, LCD gather)"},

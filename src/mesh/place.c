@@ -7,6 +7,8 @@
 #include <string.h>
 #include <strings.h>
 
+static void rotation(const double deg[3], double R[3][3]);
+
 void cv_placement_default(cv_placement *p) {
   memset(p, 0, sizeof *p);
   p->scale = 1.0;
@@ -58,6 +60,13 @@ int cv_placement_check(const cv_placement *p, cv_err *err) {
     if (!isfinite(p->rotate_deg[k]) || !isfinite(p->translate[k]))
       return cv_err_set(err, CV_ERR_INVALID, "transform: expected finite numbers");
   return CV_OK;
+}
+
+void cv_rotation_xyz_deg(const double deg[3], double out[9]) {
+  double R[3][3];
+  rotation(deg, R);
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) out[3 * i + j] = R[i][j];
 }
 
 /* R = Rz * Ry * Rx, row-major. */

@@ -65,6 +65,9 @@ int cv_placement_check(const cv_placement *p, cv_err *err);
  * NULL).  CV_ERR_NONFINITE if a coordinate overflows. */
 int cv_mesh_place(cv_mesh *m, const cv_placement *p, const cv_file_frame *ff,
                   cv_placement_report *r, cv_err *err);
+/* R = Rz Ry Rx for angles in degrees about X, Y, Z (rotate about X first),
+ * right-handed, row-major 3x3 (also the tracker's room-to-CAVE rotation). */
+void cv_rotation_xyz_deg(const double deg[3], double R[9]);
 /* Bounding box of m (metres) into r->lo/hi/size and the plausibility flag. */
 void cv_placement_measure(const cv_mesh *m, cv_placement_report *r);
 

@@ -34,7 +34,7 @@ expect_ok() {
 }
 
 # --- help on every command --------------------------------------------------
-for c in "" cabin bake shade materials; do
+for c in "" cabin bake shade materials tracker; do
   if $CAVE $c --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help $c"; else bad "help $c"; fi
 done
 expect_error "unknown command" "not a command" $CAVE frobnicate
@@ -128,6 +128,26 @@ expect_error "bad illuminance" "--illuminance: expected lux" $CAVE shade a.prt -
 expect_error "scale and illuminance" "give one" $CAVE shade a.prt --env forest.exr --illuminance 100 --scale 3 -o x.ply
 printf '{ "lighting": { "env": "forest.exr", "scale": 2, "illuminance": 100 } }\n' >lux.json
 expect_error "config scale and illuminance" "lighting.illuminance: not together" $CAVE bake lux.json -o x.prt
+# tracker: recorded DTrack packets over loopback UDP, poses in CAVE metres
+printf '{"units": "mm", "body_id": 3, "room_to_cave": {"rotate_deg": [0, 90, 0], "translate": [0, 0, 1]},\n "eye_offset": [0, -0.1, -0.08], "ipd": 0.064, "udp": {"bind": "127.0.0.1"}}\n' >trk.json
+$CAVE tracker trk.json --listen --port 0 --count 2 --seconds 20 >trk.out 2>trk.err &
+tpid=$!
+for _ in $(seq 100); do grep -q "^listening on" trk.out 2>/dev/null && break; sleep 0.1; done
+tport=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' trk.out)
+python3 - "$tport" <<'PY'
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+body = lambda fr, pos: ("fr %d\r\n6d 1 [3 1.000][%s 0 0 0][1 0 0 0 1 0 0 0 1]\r\n" % (fr, pos)).encode()
+for p in (body(1, "1000 1500 -500"), body(2, "nan 0 0"), b"fr 3\r\n6d 0\r\n", body(4, "1000 1500 -500")):
+    s.sendto(p, ("127.0.0.1", int(sys.argv[1]))); time.sleep(0.05)
+PY
+wait $tpid; trc=$?
+[ $trc -eq 0 ] && grep -q "^frame 1 marker -0.5000 1.5000 0.0000 left -0.5800 1.4000 0.0320 right -0.5800 1.4000 -0.0320 gaze -1.0000 0.0000 0.0000 yaw -90.00 pitch 0.00 roll 0.00" trk.out \
+  && ok "tracker --listen: eyes in CAVE metres" || { bad "tracker --listen rc $trc"; cat trk.out trk.err; }
+grep -q "^2 poses, 4 packets, 1 malformed, 1 without body 3" trk.out && grep -q "^warning: 1 malformed" trk.err \
+  && ok "tracker: NaN and missing body counted, pose held" || { bad "tracker counts"; cat trk.out trk.err; }
+expect_error "tracker: unknown unit" "units: unknown unit 'furlong'" $CAVE tracker <(echo '{"units": "furlong"}') --listen
+expect_error "tracker: missing --listen" "missing --listen" $CAVE tracker trk.json
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
