@@ -119,7 +119,11 @@ static int master_setup(master *m, cv_err *err) {
     st = cv_head_path_load(s->o.head_path, &m->path, err);
     if (st) return st;
   }
-  if (s->o.dtrack_port > 0) {
+  if (s->o.tracker_path[0]) {
+    if ((st = cv_tracker_config_load(s->o.tracker_path, &m->tcal, err))) return st;
+    if ((st = cv_tracker_open(&m->tcal, -1, &m->dtr, err))) return st;
+    m->has_tcal = 1;
+  } else if (s->o.dtrack_port > 0) {
     st = cv_dtrack_receiver_open(s->o.dtrack_host, s->o.dtrack_port, s->o.dtrack_body, &m->dtr, err);
     if (st) return st;
   }
@@ -526,14 +530,16 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
   cv_metrics_bool(ml, "new_light", (fs->flags & CV_FS_NEW_LIGHT) != 0);
   cv_metrics_object_end(ml);
   cv_metrics_object_begin(ml, "tracker");
-  cv_metrics_string(ml, "source", m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
+  cv_metrics_string(ml, "source", m->has_tcal ? "dtrack-calibrated" : m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
   cv_metrics_doubles(ml, "head", fs->head, 3);
   cv_metrics_doubles(ml, "gaze", fs->gaze, 3);
   cv_metrics_double(ml, "age_s", fs->tracker_age);
   if (m->dtr) {
     cv_metrics_uint(ml, "packets", m->trk.packets);
     cv_metrics_uint(ml, "malformed", m->trk.malformed);
+    cv_metrics_uint(ml, "no_body", m->trk.no_body);
   }
+  if (fs->has_eyes) cv_metrics_doubles(ml, "eyes", &fs->eyes[0][0], 6);
   cv_metrics_object_end(ml);
   master_sync_metrics(m, ml);
   master_desktop_metrics(m, ml);
@@ -747,6 +753,11 @@ int cv_master_run(cv_service *s) {
     master_head(m, now, fs.time, fs.head, fs.gaze, &t_sample, &t_target);
     fs.tracker_age = now - t_sample;
     master_pose_record(m, f, t_sample, t_target, fs.head);
+    if (m->have_eyes) { /* calibrated: the (predicted) midpoint plus the newest eye offsets */
+      fs.has_eyes = 1;
+      for (int e = 0; e < 2; e++)
+        for (int k = 0; k < 3; k++) fs.eyes[e][k] = fs.head[k] + m->eye_rel[e][k];
+    }
     if (f == 0 && !m->have_adapt) {
       cv_frame_state pf = fs;
       frame_adaptation(m, f, &pf); /* 1 cd/m2: only the luminance pass is used */

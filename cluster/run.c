@@ -17,6 +17,7 @@
 #include "prt/prt.h"
 #include "service.h"
 #include "service_internal.h"
+#include "service/tracker_calib.h"
 
 static volatile sig_atomic_t g_stop;
 
@@ -45,6 +46,9 @@ static void help(FILE *f) {
           "  --dtrack PORT        live ART DTrack ASCII head tracking on this UDP port\n"
           "  --dtrack-host ADDR   bind address (default 127.0.0.1)\n"
           "  --dtrack-body ID     the head's body id (default 1)\n"
+          "  --tracker FILE       calibrated DTrack head tracking as the tracker config says\n"
+          "                       (units, room-to-CAVE transform, body, eye offset, IPD, roll,\n"
+          "                       unicast or multicast: docs/tracker.md); not with --dtrack\n"
           "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
           "  --dt S               simulated seconds per frame (default 1/30)\n"
           "  --size N             N x N pixels per wall-eye (default: the config's)\n"
@@ -233,6 +237,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "-o")) {
       NEED();
       PATH(out_dir);
+    } else if (!strcmp(a, "--tracker")) {
+      NEED();
+      PATH(tracker_path);
     } else if (!strcmp(a, "--dtrack-host")) {
       NEED();
       snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
@@ -429,8 +436,16 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     if (cv_head_path_load(o->head_path, &hp, &err)) problem(pb, "--head-path: %s", err.msg);
     else cv_head_path_destroy(hp);
   }
+  if (o->tracker_path[0]) {
+    cv_tracker_config tc;
+    if (cv_tracker_config_load(o->tracker_path, &tc, &err)) problem(pb, "--tracker: %s", err.msg);
+    else if (o->dtrack_port > 0) problem(pb, "--tracker and --dtrack: give one head source");
+    else if (!o->head_path[0]) o->dtrack_port = tc.port; /* the master opens it as configured */
+  }
   if (o->head_path[0] && o->dtrack_port > 0)
     problem(pb, "--head-path and --dtrack: give one head source");
+  if (o->head_path[0] && o->tracker_path[0])
+    problem(pb, "--head-path and --tracker: give one head source");
   if (o->display_path[0] && !o->compensate)
     problem(pb, "--display and --no-compensation contradict each other");
   if (o->lcd_content[0] && !file_readable(o->lcd_content))

@@ -325,7 +325,10 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
   cv_service *s = we->s;
   const cv_wall *W = &s->cave.walls[we->wall];
   double eyes[2][3];
-  cv_head_eyes(fs->head, fs->gaze, s->cave.eye_separation, eyes[0], eyes[1]);
+  if (fs->has_eyes)
+    memcpy(eyes, fs->eyes, sizeof eyes); /* a calibrated tracker: IPD and roll */
+  else
+    cv_head_eyes(fs->head, fs->gaze, s->cave.eye_separation, eyes[0], eyes[1]);
   cv_render_view rv;
   memset(&rv, 0, sizeof rv);
   const int vst = cv_offaxis_compute(W->pa, W->pb, W->pc, eyes[v->eye], s->cave.near, s->cave.far, &rv.proj);

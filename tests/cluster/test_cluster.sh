@@ -79,6 +79,43 @@ PY
 "$CAVE" tonemap r11/frame00003_front_L.exr -o front.png >tm.txt 2>&1 && grep -q "invalid 0\|0 invalid" tm.txt \
   && ok "front wall EXR finite" || bad "front EXR: $(cat tm.txt)"
 
+# --- calibrated tracker: DTrack packets on loopback -> both eyes per frame ---
+TPORT=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+cat > trk.json <<JSON
+{"units": "mm", "body_id": 3, "room_to_cave": {"rotate_deg": [0, 90, 0], "translate": [0, 0, 1]},
+ "eye_offset": [0, -0.1, -0.08], "ipd": 0.064, "udp": {"port": $TPORT, "bind": "127.0.0.1"}}
+JSON
+printf '{"units": "furlong"}\n' >badtrk.json
+"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --tracker badtrk.json >out.txt 2>err.txt; rc=$?
+[ $rc -ne 0 ] && grep -q "\-\-tracker: badtrk.json: units: unknown unit 'furlong'" err.txt && ok "bad tracker config listed" || bad "bad tracker config: $(cat err.txt)"
+python3 - "$TPORT" <<'PY' &
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+ok = b"fr %d\r\n6d 1 [3 1.000][1000 1500 -500 0 0 0][1 0 0 0 1 0 0 0 1]\r\n"
+t0 = time.time(); n = 0
+while time.time() - t0 < 60:
+    n += 1
+    for p in (ok % n, b"fr 0\r\n6d 1 [3 1.000][nan 0 0 0 0 0][1 0 0 0 1 0 0 0 1]\r\n", b"fr 0\r\n6d 0\r\n"):
+        s.sendto(p, ("127.0.0.1", int(sys.argv[1])))
+    time.sleep(0.02)
+PY
+spid=$!
+timeout 300 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 12 --max-fps 8 \
+  --no-compensation --tracker trk.json -o rt >outrt.txt 2>errrt.txt; rc=$?
+kill $spid 2>/dev/null; wait $spid 2>/dev/null
+python3 - rt <<'PY' && ok "tracker config: calibrated eyes in every frame after the first packet, NaN and missing body counted" || bad "calibrated tracker (rc $rc): $(tail -3 errrt.txt)"
+import json, sys
+frames = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
+frames = [f for f in frames if f["type"] == "frame"]
+t = frames[-1]["tracker"]
+assert t["source"] == "dtrack-calibrated", t
+want = [-0.58, 1.4, 0.032, -0.58, 1.4, -0.032]
+assert all(abs(a - b) < 1e-9 for a, b in zip(t["eyes"], want)), t["eyes"]
+assert all(abs(a - b) < 1e-9 for a, b in zip(t["head"], [-0.58, 1.4, 0.0])), t["head"]
+assert t["malformed"] >= 1 and t["no_body"] >= 1, t
+print("eyes", t["eyes"], "packets", t["packets"], "malformed", t["malformed"], "no_body", t["no_body"])
+PY
+
 # --- LCD: bit-identical for 11 and 13 ranks at one budget -------------------
 L=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation)
 timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" "${L[@]}" -o l11 >/dev/null 2>l11.txt; rc1=$?
