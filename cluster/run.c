@@ -50,7 +50,7 @@ static void help(FILE *f) {
           "                       (units, room-to-CAVE transform, body, eye offset, IPD, roll,\n"
           "                       unicast or multicast: docs/tracker.md); not with --dtrack\n"
           "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
-          "  --dt S               simulated seconds per frame (default 1/30)\n"
+          "  --dt S               simulated seconds per frame, 0.0333 or 1/30 (default 1/30)\n"
           "  --size N             N x N pixels per wall-eye (default: the config's)\n"
           "  --max-fps F          pace the frames to at most F per second (default: free;\n"
           "                       the idle LCD threads use what the renderers leave)\n"
@@ -257,7 +257,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (cv_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
     } else if (!strcmp(a, "--dt")) {
       NEED();
-      if (cv_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
+      if (cv_parse_seconds(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '%s'", v);
       else o->dt = d;
     } else if (!strcmp(a, "--max-fps")) {
       NEED();

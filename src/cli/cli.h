@@ -23,6 +23,10 @@ int cmd_cluster(int argc, char **argv);
 /* The MPI service; implemented in cluster/run.c (the only code with MPI). */
 int cmd_run(int argc, char **argv);
 
+/* Prints a command's usage lines (its help text up to the first blank line)
+ * to stderr: before the one-line error of a missing or bad argument, so the
+ * error stays the last line and the whole help is not repeated. */
+void cli_print_usage(void (*help)(FILE *));
 /* Prints "cave <cmd>: message" to stderr and returns 2 (usage) or 1. */
 int cli_fail(const char *cmd, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
@@ -32,6 +36,10 @@ int cli_parse_int(const char *s, int lo, int hi, int *out);
 /* "x,y,z" (n values) into out; 0 on success. */
 int cli_parse_vec(const char *s, int n, double *out);
 
+/* Checks before any work that the folder of an output path exists and is
+ * writable; prints "cave <cmd>: <opt>: cannot write ..." and returns 1 if
+ * not, else 0. */
+int cli_check_output(const char *cmd, const char *opt, const char *path);
 /* --illuminance: lux in (0, 1e7] or "auto" (CV_ILLUMINANCE_AUTO); 0 on success. */
 int cli_parse_illuminance(const char *s, double *lux);
 #define CLI_ILLUMINANCE_HELP                                                                 \

@@ -87,7 +87,7 @@ int cmd_bake(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 1, 1024, &threads))
         return cli_fail("bake", 2, "--threads: expected 1..1024, got '%s'", v);
     } else if (a[0] == '-' && a[1]) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("bake", 2, "unknown or incomplete option '%s'", a);
     } else if (!in) {
       in = a;
@@ -96,9 +96,10 @@ int cmd_bake(int argc, char **argv) {
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("bake", 2, "an input and -o FILE.prt are required");
   }
+  if (cli_check_output("bake", "-o", out)) return 1;
   cv_scene_config cfg;
   cv_err err;
   cv_err_clear(&err);

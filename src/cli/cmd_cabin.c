@@ -47,12 +47,12 @@ int cmd_cabin(int argc, char **argv) {
       else p.height = d;
       i++;
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("cabin", 2, "unknown or incomplete option '%s'", a);
     }
   }
   if (!out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("cabin", 2, "-o FILE.obj is required");
   }
   cv_mesh *m;

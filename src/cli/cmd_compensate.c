@@ -148,7 +148,7 @@ int cmd_compensate(int argc, char **argv) {
       else if (!strcmp(v, "low-rank")) half = 0, compress = 2;
       else return cli_fail("compensate", 2, "--storage: expected auto, float, half or low-rank, got '%s'", v);
     } else if (!v) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "--display")) {
       display_path = argv[++i];
@@ -179,17 +179,18 @@ int cmd_compensate(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &drop) || drop < 0 || drop >= 1)
         return cli_fail("compensate", 2, "--drop: expected 0 <= F < 1, got '%s'", v);
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown option '%s'", a);
     }
   }
   if (!display_path || !out || n_img == 0) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("compensate", 2, "--display, at least one --image and -o are required");
   }
   if (n_right && n_right != n_img)
     return cli_fail("compensate", 2, "--right: %d images for %d --image", n_right, n_img);
   if (!cli_has_ext(out, ".exr")) return cli_fail("compensate", 2, "-o: expected an .exr path, got '%s'", out);
+  if (cli_check_output("compensate", "-o", out)) return 1; /* before minutes of work */
 
   int rc = 1;
   cv_err err;

@@ -144,7 +144,7 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--no-sun")) {
       spec.extract_sun = 0;
     } else if (a[0] == '-' && !val) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("lcd", 2, "option '%s' needs a value", a);
     } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") || !strcmp(a, "--illuminance") ||
                !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
@@ -183,7 +183,7 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--threads")) {
       if (cli_parse_int(argv[++i], 1, 1024, &threads)) return cli_fail("lcd", 2, "--threads: expected 1..1024, got '%s'", val);
     } else if (a[0] == '-') {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("lcd", 2, "unknown option '%s'", a);
     } else {
       if (in) return cli_fail("lcd", 2, "more than one input ('%s' and '%s')", in, a);
@@ -191,7 +191,7 @@ int cmd_lcd(int argc, char **argv) {
     }
   }
   if (!in || !out || !have_eye) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z and -o FILE.exr are required");
   }
   if (!cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);

@@ -52,7 +52,7 @@ int cmd_materials(int argc, char **argv) {
     } else if ((pr = cli_place_option("materials", argv, argc, &i, &place, &prc)) != 0) {
       if (pr < 0) return prc;
     } else if (a[0] == '-' && a[1]) {
-      fprintf(stderr, "usage: cave materials <scene.json | mesh> [placement options]\n");
+      cli_print_usage(help);
       return cli_fail("materials", 2, "unknown option '%s'", a);
     } else if (!in) {
       in = a;
@@ -61,7 +61,7 @@ int cmd_materials(int argc, char **argv) {
     }
   }
   if (!in) {
-    fprintf(stderr, "usage: cave materials <scene.json | mesh> [placement options]\n");
+    cli_print_usage(help);
     return cli_fail("materials", 2, "missing the model (a scene config or a mesh file)");
   }
   cv_scene_config cfg;

@@ -26,6 +26,7 @@
 #include <time.h>
 
 #include "cli/cli.h"
+#include "core/parse.h"
 #include "io/exr.h"
 #include "io/png.h"
 #include "prt/scene_light.h"
@@ -57,7 +58,7 @@ static void help(FILE *f) {
           "  --head x,y,z     tracked head position, CAVE coordinates (default: the config's)\n"
           "  --gaze x,y,z     gaze direction (default: the config's)\n"
           "  --frames N       frames to simulate (default 1)\n"
-          "  --dt S           seconds per frame for the adaptation (default 0.1)\n"
+          "  --dt S           seconds per frame for the adaptation, 0.0333 or 1/30 (default 0.1)\n"
           "  --size N         render every wall at N pixels on its longer side (default: the\n"
           "                   config's resolution)\n"
           "  --supersample K  1 or 2 (default: the config's)\n"
@@ -204,7 +205,7 @@ int cmd_render(int argc, char **argv) {
       if (cfg) return cli_fail("render", 2, "more than one CAVE config ('%s' and '%s')", cfg, a);
       cfg = a;
     } else if (!val) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("render", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "-o")) {
       outdir = argv[++i];
@@ -221,8 +222,8 @@ int cmd_render(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 1, 1000000, &frames))
         return cli_fail("render", 2, "--frames: expected 1..1000000, got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
-      if (cli_parse_double(argv[++i], &dt) || dt < 0 || dt > 3600)
-        return cli_fail("render", 2, "--dt: expected seconds in [0, 3600], got '%s'", val);
+      if (cv_parse_seconds(argv[++i], &dt) || dt < 0 || dt > 3600)
+        return cli_fail("render", 2, "--dt: expected seconds in [0, 3600] (0.0333 or 1/30), got '%s'", val);
     } else if (!strcmp(a, "--size")) {
       if (cli_parse_int(argv[++i], 1, CV_CAVE_MAX_RES, &size))
         return cli_fail("render", 2, "--size: expected 1..%d pixels, got '%s'", CV_CAVE_MAX_RES, val);
@@ -236,12 +237,12 @@ int cmd_render(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 2, 16384, &bg_res))
         return cli_fail("render", 2, "--bg-res: expected 2..16384, got '%s'", val);
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("render", 2, "unknown option '%s'", a);
     }
   }
   if (!cfg || !scene || !outdir) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("render", 2, "a CAVE config, --scene FILE.prt and -o DIR are required");
   }
   if (spec.kind == CV_LIGHT_NONE)

@@ -113,7 +113,7 @@ int cmd_shade(int argc, char **argv) {
       spec.extract_sun = 0;
     } else if (!val) {
       if (a[0] == '-') {
-        help(stderr);
+        cli_print_usage(help);
         return cli_fail("shade", 2, "option '%s' needs a value", a);
       }
       if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
@@ -181,7 +181,7 @@ int cmd_shade(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
         return cli_fail("shade", 2, "--exposure: expected a positive number, got '%s'", val);
     } else if (a[0] == '-') {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("shade", 2, "unknown option '%s'", a);
     } else {
       if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
@@ -189,9 +189,10 @@ int cmd_shade(int argc, char **argv) {
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("shade", 2, "a .prt input and -o FILE are required");
   }
+  if (cli_check_output("shade", "-o", out)) return 1;
   if (spec.kind == CV_LIGHT_NONE)
     return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
   if (weights) {

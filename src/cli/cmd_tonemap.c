@@ -47,7 +47,7 @@ int cmd_tonemap(int argc, char **argv) {
       if (in) return cli_fail("tonemap", 2, "more than one input ('%s' and '%s')", in, a);
       in = a;
     } else if (!v) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("tonemap", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "-o")) {
       out = argv[++i];
@@ -66,12 +66,12 @@ int cmd_tonemap(int argc, char **argv) {
         return cli_fail("tonemap", 2, "--lmax: expected a positive number, got '%s'", v);
       have_lmax = 1;
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("tonemap", 2, "unknown option '%s'", a);
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("tonemap", 2, "an input image and -o are required");
   }
   int png = cli_has_ext(out, ".png");

@@ -67,7 +67,7 @@ int cmd_tracker(int argc, char **argv) {
       listen = 1;
     } else if (!strcmp(a, "--count") || !strcmp(a, "--seconds") || !strcmp(a, "--port")) {
       if (!v) {
-        fprintf(stderr, "usage: cave tracker [tracker.json] --listen [--count N] [--seconds S] [--port P]\n");
+        cli_print_usage(help);
         return cli_fail("tracker", 2, "%s: missing value", a);
       }
       i++;
@@ -76,7 +76,7 @@ int cmd_tracker(int argc, char **argv) {
           (!strcmp(a, "--seconds") && (cli_parse_double(v, &seconds) || !(seconds > 0))))
         return cli_fail("tracker", 2, "%s: bad value '%s'", a, v);
     } else if (a[0] == '-' && a[1]) {
-      fprintf(stderr, "usage: cave tracker [tracker.json] --listen [--count N] [--seconds S] [--port P]\n");
+      cli_print_usage(help);
       return cli_fail("tracker", 2, "unknown option '%s'", a);
     } else if (!cfg_path) {
       cfg_path = a;
@@ -85,7 +85,7 @@ int cmd_tracker(int argc, char **argv) {
     }
   }
   if (!listen) {
-    fprintf(stderr, "usage: cave tracker [tracker.json] --listen [--count N] [--seconds S] [--port P]\n");
+    cli_print_usage(help);
     return cli_fail("tracker", 2, "missing --listen");
   }
   cv_tracker_config c;

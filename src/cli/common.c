@@ -6,12 +6,31 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <libgen.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli/cli.h"
 #include "core/parse.h"
 #include "io/mesh_import.h"
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
+
+void cli_print_usage(void (*help)(FILE *)) {
+  char *buf = NULL;
+  size_t n = 0;
+  FILE *m = open_memstream(&buf, &n);
+  if (!m) {
+    help(stderr);
+    return;
+  }
+  help(m);
+  fclose(m);
+  char *end = strstr(buf, "\n\n"); /* the usage block ends at the first blank line */
+  if (end) end[1] = '\0';
+  fputs(buf, stderr);
+  free(buf);
+}
 
 int cli_fail(const char *cmd, int code, const char *fmt, ...) {
   va_list ap;
@@ -26,6 +45,21 @@ int cli_fail(const char *cmd, int code, const char *fmt, ...) {
 int cli_parse_double(const char *s, double *out) { return cv_parse_double(s, out); }
 int cli_parse_int(const char *s, int lo, int hi, int *out) { return cv_parse_int(s, lo, hi, out); }
 int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n, out); }
+
+int cli_check_output(const char *cmd, const char *opt, const char *path) {
+  char dir[4096];
+  if (strlen(path) >= sizeof dir) return cli_fail(cmd, 2, "%s: path too long", opt);
+  snprintf(dir, sizeof dir, "%s", path);
+  const char *d = dirname(dir);
+  struct stat stt;
+  if (stat(d, &stt) != 0)
+    return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
+  if (!S_ISDIR(stt.st_mode))
+    return cli_fail(cmd, 1, "%s: cannot write %s: %s is not a folder", opt, path, d);
+  if (access(d, W_OK) != 0)
+    return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
+  return 0;
+}
 
 int cli_parse_illuminance(const char *s, double *lux) {
   if (s && !strcmp(s, "auto")) {

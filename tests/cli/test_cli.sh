@@ -169,6 +169,10 @@ grep -q "luminance compensated" out.txt && grep -q "spectral radius" out.txt && 
 expect_ok "compensate exact" $CAVE compensate --display two.json --image white.exr --image white.exr --solver exact -o ex.exr --report
 expect_ok "compensate bounded stereo" $CAVE compensate --display two.json --image white.exr --image band.exr --right band.exr --right white.exr --solver bounded -o st.exr
 [ -s st_left_left.exr ] && [ -s st_right_right.exr ] && ok "stereo outputs per eye" || bad "stereo outputs"
+# output folder checked before any work
+start=$(date +%s.%N)
+expect_error "compensate: missing output folder" "-o: cannot write nodir/I.exr: folder nodir" $CAVE compensate --display two.json --image white.exr --image band.exr -o nodir/I.exr
+awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { exit !(b - a < 5) }' && ok "failed before the solve" || bad "missing folder reported late"
 expect_ok "compensate jacobi" $CAVE compensate --display two.json --image white.exr --image white.exr --solver jacobi --levels 3 -o jc.exr
 printf '{"surfaces": [%s, %s], "projectors": "ideal"}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0.3]" 0.5 "[4,4]")" "$R" >skew.json
 expect_error "non-rectangular corners" "corners" $CAVE compensate --display skew.json --image white.exr --image white.exr -o x.exr
@@ -208,6 +212,27 @@ h2=$(pct)
 awk -v a="$h1" -v b="$h2" 'BEGIN { exit !(b >= 6 && b <= 12 && b - a >= 0.3 && b - a <= 2) }' \
   && ok "paper's figures: $h2% compensated overall (paper ~9%), +$(awk -v a="$h1" -v b="$h2" 'BEGIN{printf "%.2f", b-a}') from level 2 (paper ~1%)" \
   || bad "paper's figures: level 1 $h1%, level 2 $h2%"
+
+# --- one interface: --dt as a fraction, short usage on a missing argument ----
+expect_ok "render --dt 1/30" $CAVE render "$ROOT/configs/caves/two-sided-wall.json" --scene a.prt --env-constant 1,1,1 --size 8 --frames 2 --dt 1/30 -o rnddt
+expect_error "render --dt 1/0" "--dt: expected seconds" $CAVE render "$ROOT/configs/caves/two-sided-wall.json" --scene a.prt --env-constant 1,1,1 --dt 1/0 -o rnddt
+if $CAVE --help | grep -q "^  run "; then
+  expect_ok "run --check --dt 1/30" $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/30
+  $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/0 >out.txt 2>err.txt
+  grep -q "^--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '1/0'" err.txt && ok "run --dt 1/0 refused" || { bad "run --dt 1/0"; cat err.txt; }
+fi
+for c in bake shade materials tracker lcd compensate tonemap; do
+  $CAVE $c >out.txt 2>err.txt; rc=$?
+  n=$(wc -l <err.txt) nh=$($CAVE $c --help | wc -l)
+  # the usage synopsis (up to 7 lines) and one error line, not the whole help
+  if [ $rc -eq 2 ] && head -1 err.txt | grep -q "^usage: cave $c" && tail -1 err.txt | grep -q "^cave $c: " \
+     && [ "$n" -le 8 ] && [ "$nh" -gt $((n + 4)) ]; then
+    ok "$c without arguments: usage ($((n - 1)) lines of $nh in --help) + one error line"
+  else
+    bad "$c without arguments: rc $rc, $n lines"; cat err.txt
+  fi
+done
+expect_error "bake: no folder for -o" "-o: cannot write nodir/x.prt" $CAVE bake default -o nodir/x.prt
 
 # --- tonemap -----------------------------------------------------------------
 if $CAVE tonemap --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help tonemap"; else bad "help tonemap"; fi
