@@ -88,6 +88,25 @@ static void help(FILE *f) {
           "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n");
 }
 
+/* Input images are display values in [0, 1]: say how many lie outside (an
+ * HDR render, not yet tone-mapped?) instead of only reporting a large error. */
+static void warn_range(const char *path, const cv_image *im) {
+  size_t n = (size_t)im->w * im->h * im->c, out = 0;
+  double lo = 0, hi = 1;
+  for (size_t i = 0; i < n; i++) {
+    double v = im->px[i];
+    if (v >= 0 && v <= 1) continue;
+    out++;
+    if (v < lo) lo = v;
+    if (v > hi) hi = v;
+  }
+  if (out)
+    fprintf(stderr,
+            "warning: %s: %zu of %zu values outside [0, 1] (min %.4g, max %.4g); the displays "
+            "cannot show them (tone-map HDR images first: cave tonemap)\n",
+            path, out, n, lo, hi);
+}
+
 /* Output path: base without ".exr" + suffix + ".exr". */
 static void out_path(const char *o, const char *suffix, char *buf, size_t n) {
   size_t l = strlen(o);
@@ -234,6 +253,8 @@ int cmd_compensate(int argc, char **argv) {
         rc = cli_fail("compensate", 1, "%s", err.msg);
         goto done;
       }
+  for (int e = 0; e < eyes; e++)
+    for (int k = 0; k < n_img; k++) warn_range(e ? right_path[k] : img_path[k], imgs[e][k]);
   /* Per surface views into the inputs (atlas: equal-width columns). */
   int w0 = imgs[0][0]->w, h0 = imgs[0][0]->h;
   if (atlas && w0 % (int)ns) {

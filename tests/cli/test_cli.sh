@@ -173,6 +173,9 @@ expect_ok "compensate bounded stereo" $CAVE compensate --display two.json --imag
 start=$(date +%s.%N)
 expect_error "compensate: missing output folder" "-o: cannot write nodir/I.exr: folder nodir" $CAVE compensate --display two.json --image white.exr --image band.exr -o nodir/I.exr
 awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { exit !(b - a < 5) }' && ok "failed before the solve" || bad "missing folder reported late"
+expect_ok "compensate HDR input" $CAVE compensate --display two.json --image white.exr --image bright.exr -o hdr.exr
+grep -q "^warning: bright.exr: 16128 of 18432 values outside \[0, 1\] (min 0, max 4.6[0-9]*)" err.txt && ! grep -q "white.exr" err.txt \
+  && ok "inputs outside [0, 1] warned" || { bad "no warning for an HDR input"; cat err.txt; }
 expect_ok "compensate jacobi" $CAVE compensate --display two.json --image white.exr --image white.exr --solver jacobi --levels 3 -o jc.exr
 printf '{"surfaces": [%s, %s], "projectors": "ideal"}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0.3]" 0.5 "[4,4]")" "$R" >skew.json
 expect_error "non-rectangular corners" "corners" $CAVE compensate --display skew.json --image white.exr --image white.exr -o x.exr
