@@ -13,7 +13,9 @@
 
 #include <cmocka.h>
 
+#include "io/exr.h"
 #include "light/calibrate.h"
+#include "prt/lightmix.h"
 #include "prt/scene_light.h"
 
 static void test_constant_and_lower(void **state) {
@@ -91,11 +93,50 @@ static void test_scene_light_calibrated(void **state) {
   assert_non_null(strstr(err.msg, "give one"));
 }
 
+/* The service's map drives (prt/lightmix): each map calibrated alike, so
+ * a blend keeps the level. */
+static void test_lightmix_calibrated(void **state) {
+  (void)state;
+  char f[1024], c[1024];
+  snprintf(f, sizeof f, "%s/forest.exr", CAVE_BLENDER_WORLD_DIR);
+  snprintf(c, sizeof c, "%s/city.exr", CAVE_BLENDER_WORLD_DIR);
+  const char *paths[2] = {f, c};
+  cv_lightmix *m;
+  cv_err err;
+  assert_int_equal(cv_lightmix_create_calibrated(paths, 2, 1.0, 8000, 3, &m, &err), CV_OK);
+  const double w[3][2] = {{1, 0}, {0, 1}, {0.3, 0.7}};
+  for (int k = 0; k < 3; k++) {
+    cv_image *bg;
+    assert_int_equal(cv_lightmix_background(m, w[k], 0, 0, 0, 512, &bg), CV_OK);
+    cv_envmap *e;
+    assert_int_equal(cv_envmap_from_image(bg, &e, &err), CV_OK);
+    double E = cv_envmap_horizontal_illuminance(e);
+    if (fabs(E / 8000 - 1) > 0.02) fail_msg("blend %d: E_h %g lux, expected 8000", k, E);
+    cv_envmap_destroy(e);
+    cv_image_destroy(bg);
+  }
+  cv_lightmix_destroy(m);
+  /* someone else's forest.exr has no documented level */
+  char own[1024];
+  snprintf(own, sizeof own, "%s/forest.exr", CV_TEST_TMP_DIR);
+  cv_image *im;
+  assert_int_equal(cv_image_create(16, 8, 3, &im), CV_OK);
+  for (size_t i = 0; i < 16 * 8 * 3; i++) im->px[i] = 1.0f;
+  assert_int_equal(cv_exr_write(own, im, 0, CV_EXR_ZIP, &err), CV_OK);
+  cv_image_destroy(im);
+  const char *other[1] = {own};
+  assert_int_equal(cv_lightmix_create_calibrated(other, 1, 1.0, CV_ILLUMINANCE_AUTO, 3, &m, &err),
+                   CV_ERR_CONFIG);
+  assert_non_null(strstr(err.msg, "not a blender-data map"));
+  assert_int_equal(cv_lightmix_create_calibrated(paths, 1, 2.0, 100, 3, &m, &err), CV_ERR_INVALID);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_constant_and_lower),
       cmocka_unit_test(test_blender_defaults),
       cmocka_unit_test(test_scene_light_calibrated),
+      cmocka_unit_test(test_lightmix_calibrated),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
