@@ -108,7 +108,11 @@ static void help(FILE *f) {
           "                       rank layout, without MPI\n\n"
           "Under Open MPI as root add --allow-run-as-root; more ranks than cores need\n"
           "--oversubscribe.  SIGINT/SIGTERM to rank 0 (or mpirun) end the run after the\n"
-          "current frame with every file whole.\n");
+          "current frame with every file whole.\n"
+          "\nexamples:\n"
+          "  cave run --check --ranks 11 configs/caves/cave5.json --scene scene.prt\n"
+          "  mpirun -np 11 cave run configs/caves/cave5.json --scene scene.prt --frames 60 --dt 1/30 -o out\n"
+          "  mpirun -np 11 cave run configs/caves/cave5.json --scene scene.prt --tracker configs/trackers/dtrack.json --present window\n");
 }
 
 /* Problems, one per line, collected for rank 0 to print. */

@@ -40,7 +40,7 @@ static void help(FILE *f) {
           "The bake prints the model's bounding box in metres and warns when it is\n"
           "implausible for a car (largest extent under 0.5 m or over 20 m).\n\n"
           "examples:\n"
-          "  cave bake configs/scenes/cabin.json -o cabin.prt\n"
+          "  cave bake configs/scenes/default.json -o cabin.prt\n"
           "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");
 }
 

@@ -85,7 +85,10 @@ static void help(FILE *f) {
           "  -o I.exr          output: atlas in, atlas out; otherwise I_<surface>.exr per\n"
           "                    surface (stereo: _left / _right)\n"
           "  --report          displayed error, luminance compensated overall and within\n"
-          "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n");
+          "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n"
+          "\nexamples:\n"
+          "  cave compensate --display configs/caves/cave5.json --image atlas.exr -o I.exr --report\n"
+          "  cave compensate --display configs/displays/dome.json --image R.exr -o I.exr\n");
 }
 
 /* Input images are display values in [0, 1]: say how many lie outside (an

@@ -51,7 +51,10 @@ static void help(FILE *f) {
           "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (see lcd_config.h)\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
-          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate).\n");
+          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate).\n"
+          "\nexamples:\n"
+          "  cave lcd scene.prt --eye -0.37,1.1,0.3 --env forest.exr --illuminance auto -o panel.exr --png\n"
+          "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
 }
 
 static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, int *have,

@@ -21,7 +21,7 @@ static void help(FILE *f) {
           "how many materials and triangles it matched.\n\n" CLI_PLACE_HELP
           "\nexamples:\n"
           "  cave materials /usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc\n"
-          "  cave materials configs/scenes/cabin.json\n");
+          "  cave materials configs/scenes/default.json\n");
 }
 
 /* Triangle count and area per material. */

@@ -79,7 +79,10 @@ static void help(FILE *f) {
           "eye) on the walls it touches gives the target log-average luminance; the first\n"
           "frame starts adapted to it (steady state), each later frame steps the Pattanaik\n"
           "model by --dt.  An empty cone keeps the state.  Drago's Lwmax is the maximum\n"
-          "luminance of all walls' luminance passes.\n");
+          "luminance of all walls' luminance passes.\n"
+          "\nexamples:\n"
+          "  cave render configs/caves/cave5.json --scene scene.prt --env forest.exr --illuminance auto -o out\n"
+          "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");
 }
 
 /* Same option syntax as cmd_shade.c. */

@@ -32,7 +32,10 @@ static void help(FILE *f) {
           "A sun found in a map (or the sky's sun) is split out of the SH lighting and\n"
           "added as a directional light with ray-traced visibility through the windows.\n"
           "The PLY holds float x y z and float red green blue = linear exit radiance.\n"
-          "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n");
+          "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
+          "\nexamples:\n"
+          "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
 }
 
 typedef struct {

@@ -30,7 +30,10 @@ static void help(FILE *f) {
           "Prints one line: lwa, lmax, invalid (NaN/Inf/negative) pixels set to 0, and\n"
           "saturated pixels (a channel above 1 after the colour ratio, clamped).\n"
           "Input EXRs with NaN or Inf are refused by the reader; negative values are\n"
-          "clamped to 0 by the reader and counted.\n");
+          "clamped to 0 by the reader and counted.\n"
+          "\nexamples:\n"
+          "  cave tonemap frame00003_front_L.exr -o front.png\n"
+          "  cave tonemap in.exr --lwa 2000 --lmax 2e5 -o out.png\n");
 }
 
 int cmd_tonemap(int argc, char **argv) {

@@ -224,6 +224,12 @@ if $CAVE --help | grep -q "^  run "; then
   $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/0 >out.txt 2>err.txt
   grep -q "^--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '1/0'" err.txt && ok "run --dt 1/0 refused" || { bad "run --dt 1/0"; cat err.txt; }
 fi
+for c in cabin bake shade materials render lcd compensate tonemap tracker run; do
+  $CAVE --help | grep -q "^  $c " || continue
+  $CAVE $c --help >out.txt 2>&1
+  grep -q "^examples:" out.txt && tail -1 out.txt | grep -Eq "^  (mpirun .*)?cave $c " \
+    && ok "$c --help ends with examples" || { bad "$c --help has no examples at the end"; tail -3 out.txt; }
+done
 for c in bake shade materials tracker lcd compensate tonemap; do
   $CAVE $c >out.txt 2>err.txt; rc=$?
   n=$(wc -l <err.txt) nh=$($CAVE $c --help | wc -l)
