@@ -1,0 +1,147 @@
+#!/usr/bin/env python3
+"""JSON Schemas of the config formats (configs/schema/, docs/*.md): every
+shipped config validates against its schema, and the C parsers reject what
+the schemas reject (and accept the valid samples).  Uses python3-jsonschema
+(Debian; installed by cluster/setup.sh).
+
+Usage: test_schemas.py CAVE SOURCE_ROOT WORKDIR"""
+import glob, json, os, shutil, subprocess, sys
+
+import jsonschema
+
+CAVE, ROOT, WORK = sys.argv[1:4]
+shutil.rmtree(WORK, ignore_errors=True)
+os.makedirs(WORK)
+os.chdir(WORK)
+passed = failed = 0
+
+
+def ok(msg):
+    global passed
+    passed += 1
+    print("ok:", msg)
+
+
+def bad(msg):
+    global failed
+    failed += 1
+    print("FAIL:", msg)
+
+
+def run(args, timeout=120):
+    p = subprocess.run([CAVE] + args, capture_output=True, text=True, errors="replace", timeout=timeout)
+    return p.returncode, p.stdout + p.stderr
+
+
+HAVE_RUN = any(l.startswith("  run ") for l in run(["--help"])[1].splitlines())
+if HAVE_RUN:
+    rc, out = run(["bake", "default", "-o", "s.prt", "--bands", "2", "--rays", "4", "--bounces", "0", "--quiet"])
+    assert rc == 0, out
+
+
+def c_check(kind, path):
+    """(accepted, output) of the C parser for one config file."""
+    if kind == "scene":
+        rc, out = run(["materials", path])
+    elif kind == "tracker":
+        rc, out = run(["tracker", path, "--listen", "--seconds", "0.05", "--port", "0"])
+    else:
+        rc, out = run(["run", "--check", "--ranks", "11", ROOT + "/configs/caves/cave5.json",
+                       "--scene", "s.prt", "--drive", path])
+    return rc == 0, out
+
+
+R01 = "/usr/share/assimp/models/OBJ/regr01.obj"
+SAMPLES = {
+    "scene": {
+        "valid": [
+            {"mesh": {"path": R01, "units": "cm", "up": "z", "transform": {"rotate_deg": [0, 90, 0]}},
+             "materials": [{"name": "*", "albedo": [0.5, 0.5, 0.5]}]},
+            {"lighting": {"env": "forest.exr", "illuminance": "auto"}, "prt": {"bands": "auto"}},
+            {"mesh": {"source": "cabin", "tess": 1}, "lighting": {"sky": {"turbidity": 4}}},
+        ],
+        "invalid": [
+            {"mesh": {"source": "cabin", "units": "cm"}},
+            {"mesh": {"path": "x.obj", "units": "furlong"}},
+            {"mesh": {"path": "x.obj", "units": -1}},
+            {"mesh": {"path": "x.obj", "up": "x"}},
+            {"mesh": {"path": "x.obj", "transform": {"scale": 0}}},
+            {"mesh": {"path": "x.obj", "transform": {"rotate": [0, 0, 0]}}},
+            {"materials": [{"albedo": [0.5, 0.5, 0.5]}]},
+            {"materials": [{"name": "a", "tag": "glass"}]},
+            {"prt": {"bands": 9}},
+            {"prt": {"rays": "many"}},
+            {"lighting": {"env": "forest.exr", "scale": 2, "illuminance": 100}},
+            {"lighting": {"sky": {}, "illuminance": 100}},
+            {"lighting": {"env": "forest.exr", "sky": {}}},
+            {"lighting": {"env": "forest.exr", "illuminance": "bright"}},
+            {"colour": 1},
+        ],
+    },
+    "tracker": {
+        "valid": [{"units": 0.001, "body_id": 2, "udp": {"bind": "127.0.0.1"}},
+                  {"units": "cm", "eye_offset": [0, -0.05, 0.1], "ipd": 0.06}],
+        "invalid": [{"units": "furlong"}, {"ipd": 0.2}, {"udp": {"port": 0}}, {"body_id": 1.5},
+                    {"eye_offset": [0, 0]}, {"room_to_cave": {"rotate": [0, 0, 0]}}, {"extra": 1}],
+    },
+    "drive": {
+        "valid": [{"maps": ["forest.exr"], "illuminance": "auto", "keyframes": [{"t": 0}]},
+                  {"sky": True, "keyframes": [{"t": 0, "turbidity": 3}]}],
+        "invalid": [
+            {"maps": ["forest.exr"], "scale": 2, "illuminance": 5, "keyframes": [{"t": 0}]},
+            {"sky": True, "maps": ["forest.exr"], "keyframes": [{"t": 0}]},
+            {"maps": ["forest.exr"], "keyframes": []},
+            {"maps": ["forest.exr"], "keyframes": [{"t": 0, "turbidity": 3}]},
+            {"sky": True, "keyframes": [{"t": 0, "weights": [1]}]},
+            {"maps": ["forest.exr"], "keyframes": [{"t": 0}], "speed": 1},
+            {"sky": True, "illuminance": "auto", "keyframes": [{"t": 0}]},
+        ],
+    },
+}
+SHIPPED = {"scene": "scenes", "tracker": "trackers", "drive": "drives"}
+
+for kind, folder in SHIPPED.items():
+    schema = json.load(open(f"{ROOT}/configs/schema/{kind}.schema.json"))
+    jsonschema.Draft7Validator.check_schema(schema)
+    v = jsonschema.Draft7Validator(schema)
+    can_c = kind != "drive" or HAVE_RUN
+    for f in sorted(glob.glob(f"{ROOT}/configs/{folder}/*.json")):
+        errs = [e.message for e in v.iter_errors(json.load(open(f)))]
+        name = os.path.relpath(f, ROOT)
+        if errs:
+            bad(f"{name} does not validate: {errs[0]}")
+            continue
+        if can_c:
+            acc, out = c_check(kind, f)
+            if not acc:
+                bad(f"{name} validates but the C parser refuses it: {out.strip().splitlines()[-1]}")
+                continue
+        ok(f"{name} validates against {kind}.schema.json")
+    for i, s in enumerate(SAMPLES[kind]["valid"]):
+        path = f"{kind}_valid{i}.json"
+        json.dump(s, open(path, "w"))
+        errs = [e.message for e in v.iter_errors(s)]
+        acc, out = c_check(kind, path) if can_c else (True, "")
+        if errs or not acc:
+            bad(f"{kind} valid sample {i}: schema {errs[:1]}, C {'accepts' if acc else out.strip()[-200:]}")
+        else:
+            ok(f"{kind} valid sample {i}: schema and C accept")
+    for i, s in enumerate(SAMPLES[kind]["invalid"]):
+        path = f"{kind}_invalid{i}.json"
+        json.dump(s, open(path, "w"))
+        schema_rejects = not v.is_valid(s)
+        if not can_c:
+            (ok if schema_rejects else bad)(f"{kind} invalid sample {i}: schema rejects (no cave run)")
+            continue
+        acc, out = c_check(kind, path)
+        lines = out.strip().splitlines()
+        named = [l for l in lines if path in l]
+        last = named[0] if named else (lines[-1] if lines else "")
+        if schema_rejects and not acc and path in out:
+            ok(f"{kind} invalid sample {i}: schema and C reject: {last}")
+        else:
+            bad(f"{kind} invalid sample {i} {json.dumps(s)}: schema {'rejects' if schema_rejects else 'ACCEPTS'}, "
+                f"C {'ACCEPTS' if acc else 'rejects'}: {last}")
+
+print(f"{passed} passed, {failed} failed")
+sys.exit(1 if failed else 0)
