@@ -233,9 +233,9 @@ done
 for c in bake shade materials tracker lcd compensate tonemap; do
   $CAVE $c >out.txt 2>err.txt; rc=$?
   n=$(wc -l <err.txt) nh=$($CAVE $c --help | wc -l)
-  # the usage synopsis (up to 7 lines) and one error line, not the whole help
+  # the usage synopsis (up to 9 lines) and one error line, not the whole help
   if [ $rc -eq 2 ] && head -1 err.txt | grep -q "^usage: cave $c" && tail -1 err.txt | grep -q "^cave $c: " \
-     && [ "$n" -le 8 ] && [ "$nh" -gt $((n + 4)) ]; then
+     && [ "$n" -le 10 ] && [ "$nh" -gt $((n + 4)) ]; then
     ok "$c without arguments: usage ($((n - 1)) lines of $nh in --help) + one error line"
   else
     bad "$c without arguments: rc $rc, $n lines"; cat err.txt

@@ -34,15 +34,17 @@ def run(args, timeout=120):
 
 
 HAVE_RUN = any(l.startswith("  run ") for l in run(["--help"])[1].splitlines())
-if HAVE_RUN:
-    rc, out = run(["bake", "default", "-o", "s.prt", "--bands", "2", "--rays", "4", "--bounces", "0", "--quiet"])
-    assert rc == 0, out
+rc, out = run(["bake", "default", "-o", "s.prt", "--bands", "2", "--rays", "4", "--bounces", "0", "--quiet"])
+assert rc == 0, out
 
 
 def c_check(kind, path):
     """(accepted, output) of the C parser for one config file."""
     if kind == "scene":
         rc, out = run(["materials", path])
+        if rc == 0 and "lcd" in json.load(open(path)):  # the lcd block is read by cave lcd
+            rc, out = run(["lcd", path, "--prt", "s.prt", "--eye", "-0.37,1.1,0.3", "--env-constant",
+                           "1,1,1", "--spp", "1", "--size", "8x6", "-o", "lcdcheck.exr"])
     elif kind == "tracker":
         rc, out = run(["tracker", path, "--listen", "--seconds", "0.05", "--port", "0"])
     else:
@@ -58,7 +60,8 @@ SAMPLES = {
             {"mesh": {"path": R01, "units": "cm", "up": "z", "transform": {"rotate_deg": [0, 90, 0]}},
              "materials": [{"name": "*", "albedo": [0.5, 0.5, 0.5]}]},
             {"lighting": {"env": "forest.exr", "illuminance": "auto"}, "prt": {"bands": "auto"}},
-            {"mesh": {"source": "cabin", "tess": 1}, "lighting": {"sky": {"turbidity": 4}}},
+            {"mesh": {"source": "cabin", "tess": 1}, "lighting": {"sky": {"turbidity": 4}},
+             "lcd": {"resolution": [200, 150], "cr_min": 3, "age": 60}},
         ],
         "invalid": [
             {"mesh": {"source": "cabin", "units": "cm"}},
@@ -76,6 +79,8 @@ SAMPLES = {
             {"lighting": {"env": "forest.exr", "sky": {}}},
             {"lighting": {"env": "forest.exr", "illuminance": "bright"}},
             {"colour": 1},
+            {"lcd": {"resolution": [400, 0]}},
+            {"lcd": {"cr_min": 0.5}},
         ],
     },
     "tracker": {
