@@ -47,6 +47,8 @@ def c_check(kind, path):
                            "1,1,1", "--spp", "1", "--size", "8x6", "-o", "lcdcheck.exr"])
     elif kind == "tracker":
         rc, out = run(["tracker", path, "--listen", "--seconds", "0.05", "--port", "0"])
+    elif kind == "cave":
+        rc, out = run(["run", "--check", "--ranks", "64", path, "--scene", "s.prt"])
     else:
         rc, out = run(["run", "--check", "--ranks", "11", ROOT + "/configs/caves/cave5.json",
                        "--scene", "s.prt", "--drive", path])
@@ -103,13 +105,33 @@ SAMPLES = {
         ],
     },
 }
-SHIPPED = {"scene": "scenes", "tracker": "trackers", "drive": "drives"}
+WALL = {"name": "f", "pa": [-1, 0, -1], "pb": [1, 0, -1], "pc": [-1, 2, -1], "res": [64, 64]}
+SAMPLES["cave"] = {
+    "valid": [{"walls": [WALL]},
+              {"walls": [WALL], "eye_separation": 0.06, "screens": {"reflectance": 0.7},
+               "outputs": [{"wall": "f", "eye": "left", "gpu": "software"},
+                           {"wall": "f", "eye": "right", "gpu": "software"}]}],
+    "invalid": [
+        {"walls": []},
+        {"walls": [{k: v for k, v in WALL.items() if k != "res"}]},
+        {"walls": [WALL], "eye_separation": 0.5},
+        {"walls": [WALL], "supersample": 3},
+        {"walls": [WALL], "rate": 0},
+        {"walls": [WALL], "screens": {"reflectance": 1}},
+        {"walls": [WALL], "outputs": [{"wall": "f", "eye": "both", "stereo": "quad"}]},
+        {"walls": [WALL], "outputs": [{"wall": "f", "eye": "middle", "gpu": "auto"}]},
+        {"walls": [WALL], "outputs": [{"wall": "f", "gpu": "auto"}]},
+        {"walls": [WALL], "colour": 1},
+        {"walls": [WALL], "outputs": [{"wall": "f", "eye": "both", "gpu": "auto"}]},
+    ],
+}
+SHIPPED = {"scene": "scenes", "tracker": "trackers", "drive": "drives", "cave": "caves"}
 
 for kind, folder in SHIPPED.items():
     schema = json.load(open(f"{ROOT}/configs/schema/{kind}.schema.json"))
     jsonschema.Draft7Validator.check_schema(schema)
     v = jsonschema.Draft7Validator(schema)
-    can_c = kind != "drive" or HAVE_RUN
+    can_c = kind not in ("drive", "cave") or HAVE_RUN
     for f in sorted(glob.glob(f"{ROOT}/configs/{folder}/*.json")):
         errs = [e.message for e in v.iter_errors(json.load(open(f)))]
         name = os.path.relpath(f, ROOT)
