@@ -51,7 +51,8 @@ static void help(FILE *f) {
           "                       unicast or multicast: docs/tracker.md); not with --dtrack\n"
           "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
           "  --dt S               simulated seconds per frame, 0.0333 or 1/30 (default 1/30)\n"
-          "  --size N             N x N pixels per wall-eye (default: the config's)\n"
+          "  --size N             every wall at N pixels on its longer side, aspect kept, as in\n"
+          "                       cave render (default: the config's res)\n"
           "  --max-fps F          pace the frames to at most F per second (default: free;\n"
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
@@ -395,6 +396,7 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
   } else if (cave_problems(o->cave_path, &s->cave, pb)) {
     /* every problem of the file listed */
   } else {
+    cv_cave_fit_res(&s->cave, o->size); /* --size: longer side, aspect kept (as cave render) */
     s->n_walls = s->cave.n_walls;
     s->n_walleyes = 2 * s->n_walls;
     s->n_render = s->cave.n_outputs;

@@ -144,8 +144,8 @@ static int walleye_setup(walleye *we, cv_err *err) {
   we->o = &s->cave.outputs[role.output];
   we->wall = we->o->wall;
   const cv_wall *W = &s->cave.walls[we->wall];
-  we->w = s->o.size > 0 ? s->o.size : W->res[0];
-  we->h = s->o.size > 0 ? s->o.size : W->res[1];
+  we->w = W->res[0]; /* --size already applied, aspect kept (cv_cave_fit_res) */
+  we->h = W->res[1];
   we->swap_frame = 0xffffffffu;
   cv_rec709_lut_init(&we->lut);
   const int window = (s->o.present & CV_PRESENT_WINDOW) != 0;

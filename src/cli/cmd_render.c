@@ -275,12 +275,7 @@ int cmd_render(int argc, char **argv) {
   }
   if (ss) cave.supersample = ss;
   if (lum_res) cave.lum_res = lum_res;
-  if (size)
-    for (int i = 0; i < cave.n_walls; i++) {
-      int *r = cave.walls[i].res, big = r[0] > r[1] ? r[0] : r[1];
-      int w = (int)lround((double)r[0] * size / big), h = (int)lround((double)r[1] * size / big);
-      r[0] = w < 1 ? 1 : w, r[1] = h < 1 ? 1 : h;
-    }
+  cv_cave_fit_res(&cave, size);
   double eyes[2][3];
   cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
   static const char *eye_name[2] = {"L", "R"};

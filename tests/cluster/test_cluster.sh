@@ -197,5 +197,17 @@ dt=$(( $(date +%s) - t0 ))
   && ok "a killed rank ends the job in ${dt} s, naming it: $(grep -o 'process rank 5[^(]*' deatherr.txt | head -1)" \
   || bad "killed rank: rc $rc after ${dt} s: $(grep -i rank deatherr.txt | tail -2)"
 
+# --- --size keeps each wall's aspect (as in cave render) ----------------------
+sed 's/"res": \[720, 720\]/"res": [1440, 720]/g' "$SRC/configs/caves/two-sided-wall.json" > wide.json
+timeout 300 "${MPI[@]}" -np 5 "$CAVE" run wide.json --scene scene.prt --size 32 --frames 1 --no-compensation \
+  --lcd-size 8x6 --quiet -o wide >/dev/null 2>wideerr.txt; rc=$?
+"$CAVE" tonemap wide/frame00000_front_L.exr -o wide.png >/dev/null 2>&1
+python3 - wide.png <<'PY' && [ $rc -eq 0 ] && ok "--size 32 on 1440x720 walls renders 32x16" || bad "--size aspect (rc $rc): $(tail -2 wideerr.txt)"
+import struct, sys
+b = open(sys.argv[1], "rb").read(24)
+w, h = struct.unpack(">II", b[16:24])
+assert (w, h) == (32, 16), (w, h)
+PY
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
