@@ -15,6 +15,7 @@ int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
 int cmd_materials(int argc, char **argv);
 int cmd_tracker(int argc, char **argv);
+int cmd_reference(int argc, char **argv);
 int cmd_compensate(int argc, char **argv);
 int cmd_lcd(int argc, char **argv);
 int cmd_render(int argc, char **argv);

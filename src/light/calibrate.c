@@ -24,6 +24,20 @@ double cv_envmap_horizontal_illuminance(const cv_envmap *env) {
   return E;
 }
 
+int cv_envmap_calibration(const char *path, const cv_envmap *env, double illuminance,
+                          double *factor, cv_err *err) {
+  double lux = illuminance < 0 ? cv_blender_map_default_lux(path) : illuminance;
+  if (!(lux > 0))
+    return cv_err_set(err, CV_ERR_CONFIG, "illuminance auto: %s is not a blender-data map with "
+                      "a documented level; give the illuminance in lux", path);
+  double E = cv_envmap_horizontal_illuminance(env);
+  if (!(E > 0))
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: the upper hemisphere is black, cannot calibrate "
+                      "its illuminance", path);
+  *factor = lux / E;
+  return CV_OK;
+}
+
 /* Representative values for the scenes the maps show (not measurements of
  * the original scenes): overcast to sunny daylight outdoors, a lit room,
  * a street at night, golden hour. */

@@ -24,4 +24,11 @@ double cv_envmap_horizontal_illuminance(const cv_envmap *env);
  * path is not one of them in CAVE_BLENDER_WORLD_DIR. */
 double cv_blender_map_default_lux(const char *path);
 
+/* The multiplier that brings map env (loaded from path) to `illuminance`
+ * lux (> 0), or for illuminance < 0 (CV_ILLUMINANCE_AUTO) to its
+ * blender-data default.  CV_ERR_CONFIG (err names the path) when auto meets
+ * a map without a documented level or the upper hemisphere is black. */
+int cv_envmap_calibration(const char *path, const cv_envmap *env, double illuminance,
+                          double *factor, cv_err *err);
+
 #endif

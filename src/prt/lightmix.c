@@ -38,21 +38,6 @@ int cv_lightmix_create(const char *const *paths, int n, double scale, int bands,
   return cv_lightmix_create_calibrated(paths, n, scale, 0.0, bands, out, err);
 }
 
-/* The multiplier that brings map env (from path) to `illuminance` lux. */
-static int calibration(const char *path, const cv_envmap *env, double illuminance, double *f,
-                       cv_err *err) {
-  double lux = illuminance == CV_ILLUMINANCE_AUTO ? cv_blender_map_default_lux(path) : illuminance;
-  if (!(lux > 0))
-    return cv_err_set(err, CV_ERR_CONFIG, "illuminance auto: %s is not a blender-data map with "
-                      "a documented level; give the illuminance in lux", path);
-  double E = cv_envmap_horizontal_illuminance(env);
-  if (!(E > 0))
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: the upper hemisphere is black, cannot calibrate "
-                      "its illuminance", path);
-  *f = lux / E;
-  return CV_OK;
-}
-
 int cv_lightmix_create_calibrated(const char *const *paths, int n, double scale,
                                   double illuminance, int bands, cv_lightmix **out, cv_err *err) {
   *out = NULL;
@@ -77,7 +62,7 @@ int cv_lightmix_create_calibrated(const char *const *paths, int n, double scale,
       return st;
     }
     double f = scale;
-    if (illuminance != 0 && (st = calibration(paths[i], mm->env, illuminance, &f, err))) {
+    if (illuminance != 0 && (st = cv_envmap_calibration(paths[i], mm->env, illuminance, &f, err))) {
       cv_lightmix_destroy(m);
       return st;
     }
