@@ -12,5 +12,7 @@ set title "LCD final gather: error against time"
 plot "docs/bench_lcd.dat" index 0 using 2:3 with linespoints lw 2 title "BRDF sampling", \
      "docs/bench_lcd.dat" index 1 using 2:3 with linespoints lw 2 title "cosine sampling", \
      "docs/bench_lcd.dat" index 2 using 2:3 with linespoints lw 2 title "MIS BRDF + cosine", \
-     "docs/bench_lcd.dat" index 3 using 2:3 with linespoints lw 2 title "MIS + window (default)", \
+     "docs/bench_lcd.dat" index 3 using 2:3 with linespoints lw 2 title "MIS + window", \
+     "docs/bench_lcd.dat" index 4 using 2:3 with linespoints lw 2 title "MIS + env light", \
+     "docs/bench_lcd.dat" index 5 using 2:3 with linespoints lw 2 title "MIS + window + env light", \
      0.01 with lines lc rgb "black" dt 3 title "1%"

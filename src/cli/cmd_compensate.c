@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli/cli.h"
 #include "compensate/display.h"
@@ -48,12 +49,21 @@ static int is_cave_config(const char *path) {
   return cave;
 }
 
+/* 1 when the dense form-factor build of n patches would take more than half
+ * the physical memory: about 20 bytes per ordered pair at its peak (the
+ * upper-triangle lists, the CSR copy and the final matrix). */
+static int dense_too_big(size_t n) {
+  const long pages = sysconf(_SC_PHYS_PAGES), psize = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || psize <= 0) return 0;
+  return 20.0 * (double)n * (double)n > 0.5 * (double)pages * (double)psize;
+}
+
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave compensate --display FILE.json --image R.exr [--image ...]\n"
           "                       [--right R.exr ...] [--solver auto|jacobi|exact|bounded]\n"
           "                       [--levels H] [--time-ms T] [--threshold T] [--drop F]\n"
-          "                       [--storage auto|float|half|low-rank] -o I.exr [--report]\n"
+          "                       [--storage auto|float|half|low-rank|direct] -o I.exr [--report]\n"
           "                       [--seam-budget E|off] [--quiet]\n\n"
           "Computes projector images that cancel the light the screens scatter onto each\n"
           "other, so that every surface shows what its image shows without scattering.\n\n"
@@ -73,8 +83,13 @@ static void help(FILE *f) {
           "  --storage S       how K is kept for the products: low-rank (dense near-field and\n"
           "                    low-rank far-field blocks of 8x8-patch tiles, each row within\n"
           "                    1e-3 of its sum), half (half precision, good to about 1e-4),\n"
-          "                    float, or auto (default: low-rank where it takes at most half\n"
-          "                    the bytes, else float); --half = --storage half\n"
+          "                    float, direct (the low-rank form built from the display\n"
+          "                    without the dense form factors: clusters up to whole wall\n"
+          "                    quadrants, rows within an estimated 1e-3 of their sum; for\n"
+          "                    displays whose dense build does not fit in memory), or auto\n"
+          "                    (default: direct when the dense build would take more than\n"
+          "                    half the physical memory, else low-rank where it takes at\n"
+          "                    most half the bytes, else float); --half = --storage half\n"
           "  --seam-budget E   RMS error of the up-sampled correction allowed within 0.5 m\n"
           "                    of a seam, as estimated from the patch solution (default\n"
           "                    0.01, about the Weber threshold); above it the patches are\n"
@@ -168,7 +183,8 @@ int cmd_compensate(int argc, char **argv) {
       else if (!strcmp(v, "float")) half = 0, compress = 0;
       else if (!strcmp(v, "half")) half = 1, compress = 0;
       else if (!strcmp(v, "low-rank")) half = 0, compress = 2;
-      else return cli_fail("compensate", 2, "--storage: expected auto, float, half or low-rank, got '%s'", v);
+      else if (!strcmp(v, "direct")) half = 0, compress = 3;
+      else return cli_fail("compensate", 2, "--storage: expected auto, float, half, low-rank or direct, got '%s'", v);
     } else if (!v) {
       cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
@@ -219,6 +235,7 @@ int cmd_compensate(int argc, char **argv) {
   cv_err_clear(&err);
   cv_display *d = NULL;
   cv_ffmatrix *F = NULL;
+  cv_hmatrix *H = NULL;
   cv_scatter_workspace *ws = NULL;
   cv_image *imgs[2][MAX_IMAGES] = {{0}};
   double *R[2] = {NULL, NULL}, *T = NULL, *B = NULL, *delta = NULL;
@@ -294,12 +311,28 @@ refine_again:
   fp.quiet = quiet;
   if (drop >= 0) fp.drop_budget = drop;
   cv_ff_report frep;
-  if (cv_formfactors_build(d, &fp, &F, &frep, &err)) {
-    rc = cli_fail("compensate", 1, "%s", err.msg);
-    goto done;
-  }
+  memset(&frep, 0, sizeof frep);
+  const int direct = compress == 3 || (compress == 1 && !half && dense_too_big(n));
   cv_scatter_system sys;
-  cv_display_scatter_system(d, F, &sys);
+  if (direct) {
+    cv_hmatrix_direct_params hp;
+    cv_hmatrix_direct_params_default(&hp);
+    hp.quiet = quiet;
+    const double t_ff = cv_now_seconds();
+    if (cv_hmatrix_build_direct(d, &fp, &hp, &H, NULL, &err)) {
+      rc = cli_fail("compensate", 1, "%s", err.msg);
+      goto done;
+    }
+    frep.seconds = cv_now_seconds() - t_ff;
+    cv_display_scatter_system(d, NULL, &sys);
+    sys.H = H;
+  } else {
+    if (cv_formfactors_build(d, &fp, &F, &frep, &err)) {
+      rc = cli_fail("compensate", 1, "%s", err.msg);
+      goto done;
+    }
+    cv_display_scatter_system(d, F, &sys);
+  }
   if (cv_scatter_workspace_create_ex(&sys, (half ? CV_SCATTER_WS_HALF : 0) | (compress ? CV_SCATTER_WS_COMPRESS : 0), &ws, &err)) {
     rc = cli_fail("compensate", 1, "%s", err.msg);
     goto done;
@@ -370,6 +403,8 @@ refine_again:
         ws = NULL;
         cv_ffmatrix_destroy(F);
         F = NULL;
+        cv_hmatrix_destroy(H);
+        H = NULL;
         goto refine_again;
       }
     }
@@ -421,7 +456,12 @@ refine_again:
       if (!quiet) printf("wrote %s\n", path);
     }
   }
-  if (!quiet)
+  if (!quiet && direct)
+    printf("compensate: %zu patches, form factors built compressed (%.1f MB, %.1f s), solver %s, "
+           "%d iterations, %.2f ms; %llu pixel channels clamped by equation 7\n",
+           n, model.bytes / 1e6, frep.seconds, cv_scatter_solver_name(st.solver), st.iterations,
+           st.ms, (unsigned long long)clamped);
+  else if (!quiet)
     printf("compensate: %zu patches, %zu form factors (%.2f%% of the energy dropped), solver %s, "
            "%d iterations, %.2f ms; %llu pixel channels clamped by equation 7\n",
            n, frep.nnz, 100 * frep.dropped_total, cv_scatter_solver_name(st.solver), st.iterations,
@@ -479,8 +519,13 @@ refine_again:
              refine_round ? "graded towards the seams" : "not needed", seam_est.seam_rms, seam_budget);
     printf("  storage of K: %s, %.2f MB read per product (plain %.2f MB), product error <= %.2e x max|x|\n",
            model.storage, model.bytes / 1e6, model.source_bytes / 1e6, model.error_bound);
-    printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
-           frep.nnz, frep.nnz_full, 100 * frep.dropped_total, 100 * frep.dropped_max, frep.seconds);
+    if (direct)
+      printf("  form factors: built compressed from the display (no dense matrix), %.2f s; "
+             "row error estimated <= %.2e of the row\n",
+             frep.seconds, model.compress_info.max_rel_row_error);
+    else
+      printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
+             frep.nnz, frep.nnz_full, 100 * frep.dropped_total, 100 * frep.dropped_max, frep.seconds);
   }
   rc = 0;
   goto done;
@@ -499,6 +544,7 @@ done:
   free(delta);
   cv_scatter_workspace_destroy(ws);
   cv_ffmatrix_destroy(F);
+  cv_hmatrix_destroy(H);
   cv_display_destroy(d);
   return rc;
 }

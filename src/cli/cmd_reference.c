@@ -301,11 +301,10 @@ int cmd_reference(int argc, char **argv) {
          "%llu samples non-finite (set to 0); %llu pixels saw neither geometry nor a window\n",
          100 * st.median_rel_se, 100 * st.p90_rel_se, (unsigned long long)st.nonfinite,
          (unsigned long long)st.blocked_view);
-  /* Uncompressed: OpenEXR Core's ZIP encoder corrupts a chunk whose deflated
-   * size equals its raw size (openexr issue #2306, fixed upstream in PR
-   * #2307, present in Debian 12's library), which noisy float images hit. */
-  if (cv_exr_write(out, img, 0, CV_EXR_NONE, &err) ||
-      (err_out && cv_exr_write(err_out, se, 0, CV_EXR_NONE, &err))) {
+  /* ZIP: cv_exr_write guards against OpenEXR issue #2306 (a chunk whose
+   * deflated size equals its raw size was stored wrongly; noisy images hit it). */
+  if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err) ||
+      (err_out && cv_exr_write(err_out, se, 0, CV_EXR_ZIP, &err))) {
     rc = cli_fail("reference", 1, "%s", err.msg);
     goto done;
   }

@@ -570,52 +570,69 @@ static void surface_corners(const cv_display_surface *s, double q[4][3]) {
   }
 }
 
-int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffmatrix **F_gather,
-                         cv_ff_report *rep, cv_err *err) {
-  *F_gather = NULL;
-  cv_ff_params p;
+/* The parameters' checks shared by the dense build and the kernel. */
+static int check_params(const cv_ff_params *params, cv_ff_params *p, cv_err *err) {
   if (params)
-    p = *params;
+    *p = *params;
   else
-    cv_ff_params_default(&p);
-  if (!(p.rel_threshold >= 0 && p.rel_threshold < 1))
+    cv_ff_params_default(p);
+  if (!(p->rel_threshold >= 0 && p->rel_threshold < 1))
     return cv_err_set(err, CV_ERR_INVALID, "form factors: rel_threshold %g is outside [0, 1)",
-                      p.rel_threshold);
-  if (!(p.drop_budget >= 0 && p.drop_budget < 1))
+                      p->rel_threshold);
+  if (!(p->drop_budget >= 0 && p->drop_budget < 1))
     return cv_err_set(err, CV_ERR_INVALID, "form factors: drop_budget %g is outside [0, 1)",
-                      p.drop_budget);
-  if (p.visibility != CV_FF_VIS_AUTO && p.visibility != CV_FF_VIS_NONE &&
-      p.visibility != CV_FF_VIS_RAYS)
+                      p->drop_budget);
+  if (p->visibility != CV_FF_VIS_AUTO && p->visibility != CV_FF_VIS_NONE &&
+      p->visibility != CV_FF_VIS_RAYS)
     return cv_err_set(err, CV_ERR_INVALID, "form factors: unknown visibility mode %d",
-                      (int)p.visibility);
-  const double t_start = cv_now_seconds();
+                      (int)p->visibility);
+  return CV_OK;
+}
+
+struct cv_ff_kernel {
+  const cv_display *d;
+  int trace;
+  vis_ctx vis;
+  unsigned char *skip; /* ns x ns: 1 = the two surfaces exchange no light */
+};
+
+void cv_ff_kernel_destroy(cv_ff_kernel *k) {
+  if (!k) return;
+  cv_rt_destroy(k->vis.rt);
+  free(k->skip);
+  free(k);
+}
+
+int cv_ff_kernel_create(const cv_display *d, const cv_ff_params *params, cv_ff_kernel **out,
+                        cv_err *err) {
+  *out = NULL;
+  cv_ff_params p;
+  int st = check_params(params, &p, err);
+  if (st) return st;
   const size_t n = d->n_patches;
   if (n == 0 || n >= UINT32_MAX)
     return cv_err_set(err, CV_ERR_INVALID, "form factors: %zu patches", n);
-
-  const int trace =
-      p.visibility == CV_FF_VIS_RAYS || (p.visibility == CV_FF_VIS_AUTO && may_occlude(d));
-  vis_ctx vis = {0};
-  if (trace) {
-    double diag = 0;
-    int st = build_rt(d, &vis.rt, &diag, err);
-    if (st) return st;
-    vis.eps = 1e-5 * diag;
-  }
-
-  /* Planar surfaces entirely behind (or in) the plane of another planar
-   * surface never exchange light: skip whole blocks of senders. */
+  cv_ff_kernel *k = calloc(1, sizeof *k);
   const size_t ns = d->n_surfaces;
-  unsigned char *skip = calloc(ns * ns, 1);
-  upper_row *up = calloc(n, sizeof *up);
-  size_t *off = calloc(n + 1, sizeof *off);
-  if (!skip || !up || !off) {
-    free(skip);
-    free(up);
-    free(off);
-    cv_rt_destroy(vis.rt);
+  if (k) k->skip = calloc(ns * ns, 1);
+  if (!k || !k->skip) {
+    cv_ff_kernel_destroy(k);
     return cv_err_set(err, CV_ERR_NOMEM, "form factors: out of memory");
   }
+  k->d = d;
+  k->trace =
+      p.visibility == CV_FF_VIS_RAYS || (p.visibility == CV_FF_VIS_AUTO && may_occlude(d));
+  if (k->trace) {
+    double diag = 0;
+    st = build_rt(d, &k->vis.rt, &diag, err);
+    if (st) {
+      cv_ff_kernel_destroy(k);
+      return st;
+    }
+    k->vis.eps = 1e-5 * diag;
+  }
+  /* Planar surfaces entirely behind (or in) the plane of another planar
+   * surface never exchange light: skip whole blocks of senders. */
   for (size_t a = 0; a < ns; a++)
     for (size_t b = 0; b < ns; b++) {
       const cv_display_surface *sa = &d->surfaces[a], *sb = &d->surfaces[b];
@@ -631,9 +648,56 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
       memcpy(qb.c, pb->c, sizeof qb.c);
       memcpy(qb.n, pb->n, sizeof qb.n);
       double tol = 1e-9 * (dist3(sa->pa, sa->pb) + dist3(sb->pa, sb->pb));
-      skip[a * ns + b] =
+      k->skip[a * ns + b] =
           (unsigned char)(behind_plane(&qb, &qa, tol) || behind_plane(&qa, &qb, tol));
     }
+  *out = k;
+  return CV_OK;
+}
+
+int cv_ff_kernel_traces(const cv_ff_kernel *k) { return k->trace; }
+const cv_display *cv_ff_kernel_display(const cv_ff_kernel *k) { return k->d; }
+
+void cv_ff_kernel_thread_init(const cv_ff_kernel *k) {
+  if (k->trace) cv_rt_thread_init();
+}
+
+int cv_ff_kernel_surfaces_exchange(const cv_ff_kernel *k, size_t a, size_t b) {
+  return !k->skip[a * k->d->n_surfaces + b];
+}
+
+double cv_ff_kernel_gather(const cv_ff_kernel *k, size_t i, size_t j) {
+  const cv_display *d = k->d;
+  if (i == j || i >= d->n_patches || j >= d->n_patches) return 0;
+  const cv_patch *pi = &d->patches[i], *pj = &d->patches[j];
+  if (k->skip[pi->surface * d->n_surfaces + pj->surface]) return 0;
+  const double f = pair_value(d, j, i, k->trace ? &k->vis : NULL, NULL);
+  return f > 0 ? f * (pj->area / pi->area) : 0.0;
+}
+
+int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffmatrix **F_gather,
+                         cv_ff_report *rep, cv_err *err) {
+  *F_gather = NULL;
+  cv_ff_params p;
+  int kst = check_params(params, &p, err);
+  if (kst) return kst;
+  const double t_start = cv_now_seconds();
+  const size_t n = d->n_patches;
+  cv_ff_kernel *kern = NULL;
+  kst = cv_ff_kernel_create(d, &p, &kern, err);
+  if (kst) return kst;
+  const int trace = kern->trace;
+  const vis_ctx vis = kern->vis;
+  const unsigned char *skip = kern->skip;
+  const size_t ns = d->n_surfaces;
+  upper_row *up = calloc(n, sizeof *up);
+  size_t *off = calloc(n + 1, sizeof *off);
+  if (!up || !off) {
+    free(up);
+    free(off);
+    cv_ff_kernel_destroy(kern);
+    return cv_err_set(err, CV_ERR_NOMEM, "form factors: out of memory");
+  }
 
   cv_progress *prog = NULL;
   if (n >= 2048)
@@ -703,8 +767,7 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
   }
   cv_progress_finish(prog);
   cv_progress_destroy(prog);
-  cv_rt_destroy(vis.rt);
-  free(skip);
+  cv_ff_kernel_destroy(kern);
 
   /* Pass 2: the full gather rows (lower part = transposed upper lists),
    * columns ascending; zero entries are not stored. */

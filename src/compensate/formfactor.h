@@ -110,6 +110,30 @@ double cv_ff_point_to_point(const cv_patch *sender, const cv_patch *receiver);
  * visibility (j == i gives 0). */
 double cv_ff_patch_pair(const cv_display *d, size_t j, size_t i);
 
+/* One entry of the gather matrix on demand (for builds that never hold the
+ * whole matrix: hmatrix.h cv_hmatrix_build_direct).  The kernel holds what
+ * the dense build decides once: the visibility mode (the ray-traced mesh
+ * when "rays", or "auto" cannot prove that no surface occludes another) and
+ * the planar surface pairs that never exchange light.  Entries are exactly
+ * what cv_formfactors_build computes before sparsification and its rounding
+ * to float.  Evaluation is thread-safe; when cv_ff_kernel_traces() is 1,
+ * every thread calls cv_ff_kernel_thread_init() once before evaluating.
+ * The kernel borrows d.  Errors: CV_ERR_INVALID (bad parameters or no
+ * patches), CV_ERR_NOMEM, CV_ERR_BACKEND (ray tracer). */
+typedef struct cv_ff_kernel cv_ff_kernel;
+int cv_ff_kernel_create(const cv_display *d, const cv_ff_params *p, cv_ff_kernel **out,
+                        cv_err *err);
+void cv_ff_kernel_destroy(cv_ff_kernel *k);
+int cv_ff_kernel_traces(const cv_ff_kernel *k);
+const cv_display *cv_ff_kernel_display(const cv_ff_kernel *k);
+void cv_ff_kernel_thread_init(const cv_ff_kernel *k);
+/* 0 when surfaces a and b provably exchange no light (whole planar surfaces
+ * behind each other's plane, or a planar surface with itself). */
+int cv_ff_kernel_surfaces_exchange(const cv_ff_kernel *k, size_t a, size_t b);
+/* G_ij = (A_j / A_i) F_ji, the gather entry of row i (receiver), column j
+ * (sender), in double (0 for i == j). */
+double cv_ff_kernel_gather(const cv_ff_kernel *k, size_t i, size_t j);
+
 /* Builds the gather matrix of the display: row i (receiver) holds
  * (j, G_ij = (A_j / A_i) F_ji) for every sender j != i that survives
  * sparsification, columns ascending (F_ji as in cv_ff_patch_pair; G_ij =

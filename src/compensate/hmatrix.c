@@ -6,61 +6,167 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct hblock {
-  uint32_t col;   /* column cluster */
-  uint32_t rank;  /* 0: dense m x w; else U (m x rank) then V (rank x w) */
-  size_t off;     /* into the row cluster's vals */
-} hblock;
-
-typedef struct hrow {
-  uint32_t nblocks;
-  hblock *blocks;
-  float *vals;
-  size_t nvals;
-} hrow;
-
-struct cv_hmatrix {
-  size_t n, nc;
-  uint32_t *perm;    /* n: patch at each position of the cluster order */
-  size_t *cstart;    /* nc + 1: positions of each cluster */
-  hrow *rows;        /* nc */
-  double *row_err;   /* n, by patch index */
-  size_t stored;
-  size_t max_m;
-  int max_rank;
-  double *xp;        /* 3n planar scratch in cluster order */
-  uint8_t *cact;     /* nc */
-};
+#include "compensate/hmatrix_impl.h"
 
 void cv_hmatrix_destroy(cv_hmatrix *h) {
   if (!h) return;
-  if (h->rows)
-    for (size_t r = 0; r < h->nc; r++) {
-      free(h->rows[r].blocks);
-      free(h->rows[r].vals);
-    }
-  free(h->rows);
+  for (size_t b = 0; b < h->nb; b++) free(h->blocks[b].vals);
+  free(h->blocks);
+  free(h->lb_off);
+  free(h->lb);
+  free(h->low);
+  free(h->t);
   free(h->perm);
   free(h->cstart);
   free(h->row_err);
+  free(h->row_sum);
   free(h->xp);
-  free(h->cact);
+  free(h->bact);
+  free(h->apre);
   free(h);
 }
 
 const double *cv_hmatrix_row_error(const cv_hmatrix *h) { return h ? h->row_err : NULL; }
+const double *cv_hmatrix_row_sum(const cv_hmatrix *h) { return h ? h->row_sum : NULL; }
+size_t cv_hmatrix_size(const cv_hmatrix *h) { return h ? h->n : 0; }
 
-/* Growable float array of a row cluster. */
-static int vals_reserve(hrow *hr, size_t *cap, size_t extra) {
-  if (hr->nvals + extra <= *cap) return 0;
-  size_t nc = *cap ? *cap : 4096;
-  while (nc < hr->nvals + extra) nc *= 2;
-  float *v = realloc(hr->vals, nc * sizeof *v);
-  if (!v) return -1;
-  hr->vals = v;
-  *cap = nc;
+cv_hmatrix *cv_hm_alloc(size_t n, size_t nc) {
+  cv_hmatrix *h = calloc(1, sizeof *h);
+  if (!h) return NULL;
+  h->n = n;
+  h->nc = nc;
+  h->perm = malloc(n * sizeof *h->perm);
+  h->cstart = calloc(nc + 1, sizeof *h->cstart);
+  h->row_err = calloc(n, sizeof *h->row_err);
+  h->row_sum = calloc(n, sizeof *h->row_sum);
+  h->xp = malloc(3 * n * sizeof *h->xp);
+  h->apre = malloc((n + 1) * sizeof *h->apre);
+  if (!h->perm || !h->cstart || !h->row_err || !h->row_sum || !h->xp || !h->apre) {
+    cv_hmatrix_destroy(h);
+    return NULL;
+  }
+  return h;
+}
+
+static int cmp_block(const void *a, const void *b) {
+  const hblock *x = a, *y = b;
+  if (x->r0 != y->r0) return x->r0 < y->r0 ? -1 : 1;
+  if (x->c0 != y->c0) return x->c0 < y->c0 ? -1 : 1;
   return 0;
 }
+
+/* Leaf cluster holding position p (binary search in cstart). */
+static size_t leaf_of(const cv_hmatrix *h, size_t p) {
+  size_t lo = 0, hi = h->nc;
+  while (hi - lo > 1) {
+    const size_t mid = (lo + hi) / 2;
+    if (h->cstart[mid] <= p)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  return lo;
+}
+
+int cv_hm_finish(cv_hmatrix *h) {
+  /* Row ranges and column ranges never overlap twice for one (row, column),
+   * so (r0, c0) orders the blocks uniquely. */
+  qsort(h->blocks, h->nb, sizeof *h->blocks, cmp_block);
+  h->lb_off = calloc(h->nc + 1, sizeof *h->lb_off);
+  h->bact = calloc(h->nb + 1, 1);
+  if (!h->lb_off || !h->bact) return CV_ERR_NOMEM;
+  size_t tlen = 0, nlow = 0, stored = 0;
+  for (size_t b = 0; b < h->nb; b++) {
+    hblock *bl = &h->blocks[b];
+    const size_t l0 = leaf_of(h, bl->r0), l1 = leaf_of(h, bl->r0 + bl->m - 1);
+    for (size_t l = l0; l <= l1; l++) h->lb_off[l + 1]++;
+    if (bl->m > h->max_m) h->max_m = bl->m;
+    if (bl->rank) {
+      bl->toff = tlen;
+      tlen += 3 * (size_t)bl->rank;
+      nlow++;
+      if ((int)bl->rank > h->max_rank) h->max_rank = (int)bl->rank;
+      stored += (size_t)bl->rank * (bl->m + bl->w);
+    } else {
+      stored += (size_t)bl->m * bl->w;
+    }
+  }
+  for (size_t l = 0; l < h->nc; l++) {
+    const size_t sz = h->cstart[l + 1] - h->cstart[l];
+    if (sz > h->max_m) h->max_m = sz;
+    h->lb_off[l + 1] += h->lb_off[l];
+  }
+  h->lb = malloc((h->lb_off[h->nc] + 1) * sizeof *h->lb);
+  h->low = malloc((nlow + 1) * sizeof *h->low);
+  h->t = malloc((tlen + 1) * sizeof *h->t);
+  size_t *cur = malloc((h->nc + 1) * sizeof *cur);
+  if (!h->lb || !h->low || !h->t || !cur) {
+    free(cur);
+    return CV_ERR_NOMEM;
+  }
+  memcpy(cur, h->lb_off, h->nc * sizeof *cur);
+  nlow = 0;
+  for (size_t b = 0; b < h->nb; b++) {
+    const hblock *bl = &h->blocks[b];
+    const size_t l0 = leaf_of(h, bl->r0), l1 = leaf_of(h, bl->r0 + bl->m - 1);
+    for (size_t l = l0; l <= l1; l++) h->lb[cur[l]++] = (uint32_t)b;
+    if (bl->rank) h->low[nlow++] = (uint32_t)b;
+  }
+  free(cur);
+  h->nlow = nlow;
+  h->stored = stored;
+  /* Row sums of what is stored (in double, from the float values). */
+  memset(h->row_sum, 0, h->n * sizeof *h->row_sum);
+  for (size_t b = 0; b < h->nb; b++) {
+    const hblock *bl = &h->blocks[b];
+    for (size_t ii = 0; ii < bl->m; ii++) {
+      double s = 0;
+      if (bl->rank == 0) {
+        for (size_t jj = 0; jj < bl->w; jj++) s += bl->vals[ii * bl->w + jj];
+      } else {
+        const float *U = bl->vals, *V = bl->vals + (size_t)bl->m * bl->rank;
+        for (size_t q = 0; q < bl->rank; q++) {
+          double vs = 0;
+          for (size_t jj = 0; jj < bl->w; jj++) vs += V[q * bl->w + jj];
+          s += (double)U[ii * bl->rank + q] * vs;
+        }
+      }
+      h->row_sum[h->perm[bl->r0 + ii]] += s;
+    }
+  }
+  return CV_OK;
+}
+
+void cv_hm_info(const cv_hmatrix *h, size_t source_nnz, double build_ms, cv_hmatrix_info *info) {
+  memset(info, 0, sizeof *info);
+  info->n_clusters = h->nc;
+  info->n_blocks = h->nb;
+  size_t rank_sum = 0;
+  for (size_t b = 0; b < h->nb; b++) {
+    if (h->blocks[b].rank) {
+      info->n_lowrank++;
+      rank_sum += h->blocks[b].rank;
+    } else {
+      info->n_dense++;
+    }
+  }
+  info->stored_values = h->stored;
+  info->source_nnz = source_nnz;
+  info->max_rank = h->max_rank;
+  info->mean_rank = info->n_lowrank ? (double)rank_sum / (double)info->n_lowrank : 0;
+  for (size_t i = 0; i < h->n; i++) {
+    if (h->row_err[i] > info->max_row_error) info->max_row_error = h->row_err[i];
+    if (h->row_sum[i] > 0 && h->row_err[i] / h->row_sum[i] > info->max_rel_row_error)
+      info->max_rel_row_error = h->row_err[i] / h->row_sum[i];
+  }
+  info->build_ms = build_ms;
+}
+
+/* The blocks of one row cluster while building from a CSR matrix. */
+typedef struct hrow {
+  uint32_t nblocks;
+  hblock *blocks;
+} hrow;
 
 /* Scratch for one block's cross approximation. */
 typedef struct aca_ws {
@@ -128,73 +234,58 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
   if (!(tol > 0 && tol < 0.5))
     return cv_err_set(err, CV_ERR_INVALID, "hmatrix: tolerance %g, expected in (0, 0.5)", tol);
   const size_t n = F->n, nc = n_clusters;
-  cv_hmatrix *h = calloc(1, sizeof *h);
-  if (!h) return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
-  h->n = n;
-  h->nc = nc;
-  h->perm = malloc(n * sizeof *h->perm);
-  h->cstart = calloc(nc + 1, sizeof *h->cstart);
-  h->rows = calloc(nc, sizeof *h->rows);
-  h->row_err = calloc(n, sizeof *h->row_err);
-  h->xp = malloc(3 * n * sizeof *h->xp);
-  h->cact = calloc(nc, 1);
+  cv_hmatrix *h = cv_hm_alloc(n, nc);
   uint32_t *pos_of = malloc(n * sizeof *pos_of);
   double *rowsum = malloc(n * sizeof *rowsum);
-  if (!h->perm || !h->cstart || !h->rows || !h->row_err || !h->xp || !h->cact || !pos_of ||
-      !rowsum) {
+  hrow *rows = calloc(nc, sizeof *rows);
+  if (!h || !pos_of || !rowsum || !rows) {
     free(pos_of);
     free(rowsum);
+    free(rows);
     cv_hmatrix_destroy(h);
     return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory (%zu patches)", n);
   }
-  for (size_t i = 0; i < n; i++) {
-    if (cluster[i] >= nc) {
-      free(pos_of);
-      free(rowsum);
-      cv_hmatrix_destroy(h);
-      return cv_err_set(err, CV_ERR_INVALID, "hmatrix: patch %zu has cluster %u, expected < %zu",
-                        i, cluster[i], nc);
-    }
-    h->cstart[cluster[i] + 1]++;
+  int st = CV_OK;
+  for (size_t i = 0; i < n && !st; i++) {
+    if (cluster[i] >= nc)
+      st = cv_err_set(err, CV_ERR_INVALID, "hmatrix: patch %zu has cluster %u, expected < %zu", i,
+                      cluster[i], nc);
+    else
+      h->cstart[cluster[i] + 1]++;
   }
-  for (size_t c = 0; c < nc; c++) {
+  size_t maxm = 0;
+  for (size_t c = 0; c < nc && !st; c++) {
     const size_t sz = h->cstart[c + 1];
-    if (sz == 0 || sz > 4096) {
-      free(pos_of);
-      free(rowsum);
-      cv_hmatrix_destroy(h);
-      return cv_err_set(err, CV_ERR_INVALID, "hmatrix: cluster %zu has %zu patches, expected 1..4096",
-                        c, sz);
-    }
-    if (sz > h->max_m) h->max_m = sz;
+    if (sz == 0 || sz > 4096)
+      st = cv_err_set(err, CV_ERR_INVALID, "hmatrix: cluster %zu has %zu patches, expected 1..4096",
+                      c, sz);
+    if (sz > maxm) maxm = sz;
     h->cstart[c + 1] += h->cstart[c];
   }
-  {
-    size_t *cur = malloc(nc * sizeof *cur);
-    if (!cur) {
-      free(pos_of);
-      free(rowsum);
-      cv_hmatrix_destroy(h);
-      return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
-    }
-    memcpy(cur, h->cstart, nc * sizeof *cur);
-    for (size_t i = 0; i < n; i++) {
-      const size_t p = cur[cluster[i]]++;
-      h->perm[p] = (uint32_t)i;
-      pos_of[i] = (uint32_t)p;
-    }
-    free(cur);
+  size_t *cur = st ? NULL : malloc(nc * sizeof *cur);
+  if (!st && !cur) st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
+  if (st) {
+    free(pos_of);
+    free(rowsum);
+    free(rows);
+    cv_hmatrix_destroy(h);
+    return st;
   }
+  memcpy(cur, h->cstart, nc * sizeof *cur);
+  for (size_t i = 0; i < n; i++) {
+    const size_t p = cur[cluster[i]]++;
+    h->perm[p] = (uint32_t)i;
+    pos_of[i] = (uint32_t)p;
+  }
+  free(cur);
   for (size_t i = 0; i < n; i++) {
     double s = 0;
     for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) s += F->val[k];
     rowsum[i] = s;
   }
 
-  int fail = 0, max_rank = 0;
-  size_t n_blocks = 0, n_low = 0, n_dense = 0, rank_sum = 0;
-  const size_t maxm = h->max_m;
-#pragma omp parallel reduction(+ : n_blocks, n_low, n_dense, rank_sum) reduction(max : max_rank)
+  int fail = 0;
+#pragma omp parallel
   {
     /* Per thread: the row cluster's slab (m x n, cluster-ordered columns),
      * one block in double and the cross-approximation scratch. */
@@ -226,9 +317,8 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
       }
       size_t nb = 0;
       for (size_t c = 0; c < nc; c++) nb += nzc[c];
-      hrow *hr = &h->rows[r];
+      hrow *hr = &rows[r];
       hr->blocks = malloc((nb ? nb : 1) * sizeof *hr->blocks);
-      size_t cap = 0;
       if (!hr->blocks) {
         ok = 0;
 #pragma omp atomic write
@@ -251,15 +341,26 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
         /* Low rank only when the factors take at most half the dense block. */
         const int kmax = (int)(m * wdt / (2 * (m + wdt)));
         int k = kmax > 0 ? aca(A, m, wdt, kmax, &s) : -1;
+        if (k == 0) {
+          /* All of the block is within the budget as zero: drop it, count
+           * its whole content as error. */
+          for (size_t ii = 0; ii < m; ii++) h->row_err[h->perm[r0 + ii]] += sblk[ii];
+          continue;
+        }
         hblock *b = &hr->blocks[hr->nblocks++];
-        b->col = (uint32_t)c;
-        b->off = hr->nvals;
+        memset(b, 0, sizeof *b);
+        b->r0 = (uint32_t)r0;
+        b->m = (uint32_t)m;
+        b->c0 = (uint32_t)c0;
+        b->w = (uint32_t)wdt;
+        b->vals = malloc((k > 0 ? (size_t)k * (m + wdt) : m * wdt) * sizeof *b->vals);
+        if (!b->vals) {
+          hr->nblocks--;
+          ok = 0;
+          break;
+        }
         if (k > 0) {
-          if (vals_reserve(hr, &cap, (size_t)k * (m + wdt))) {
-            ok = 0;
-            break;
-          }
-          float *U = hr->vals + hr->nvals, *V = U + m * (size_t)k;
+          float *U = b->vals, *V = U + m * (size_t)k;
           for (size_t ii = 0; ii < m; ii++)
             for (int q = 0; q < k; q++) U[ii * (size_t)k + q] = (float)s.U[ii * (size_t)kmax + q];
           for (int q = 0; q < k; q++)
@@ -277,29 +378,10 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
             h->row_err[h->perm[r0 + ii]] += e;
           }
           b->rank = (uint32_t)k;
-          hr->nvals += (size_t)k * (m + wdt);
-          n_low++;
-          rank_sum += (size_t)k;
-          if (k > max_rank) max_rank = k;
-        } else if (k == 0) {
-          /* All of the block is within the budget as zero: drop it, count
-           * its whole content as error. */
-          for (size_t ii = 0; ii < m; ii++) h->row_err[h->perm[r0 + ii]] += sblk[ii];
-          hr->nblocks--;
-          continue;
         } else {
-          if (vals_reserve(hr, &cap, m * wdt)) {
-            ok = 0;
-            break;
-          }
-          float *D = hr->vals + hr->nvals;
           for (size_t ii = 0; ii < m; ii++)
-            memcpy(D + ii * wdt, slab + ii * n + c0, wdt * sizeof *D);
-          b->rank = 0;
-          hr->nvals += m * wdt;
-          n_dense++;
+            memcpy(b->vals + ii * wdt, slab + ii * n + c0, wdt * sizeof *b->vals);
         }
-        n_blocks++;
       }
       if (!ok) {
 #pragma omp atomic write
@@ -317,47 +399,72 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
     free(sblk);
     free(nzc);
   }
+  /* Gather the blocks of all row clusters into h. */
+  size_t total = 0;
+  for (size_t r = 0; r < nc; r++) total += rows[r].nblocks;
+  h->blocks = malloc((total + 1) * sizeof *h->blocks);
+  if (!h->blocks) fail = 1;
+  for (size_t r = 0; r < nc; r++) {
+    for (uint32_t b = 0; b < rows[r].nblocks; b++) {
+      if (h->blocks)
+        h->blocks[h->nb++] = rows[r].blocks[b];
+      else
+        free(rows[r].blocks[b].vals);
+    }
+    free(rows[r].blocks);
+  }
+  free(rows);
+  if (!fail && cv_hm_finish(h)) fail = 1;
   if (fail) {
     free(pos_of);
     free(rowsum);
     cv_hmatrix_destroy(h);
     return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory while compressing");
   }
-  size_t stored = 0;
-  for (size_t r = 0; r < nc; r++) stored += h->rows[r].nvals;
-  h->stored = stored;
-  h->max_rank = max_rank;
-  if (info) {
-    memset(info, 0, sizeof *info);
-    info->n_clusters = nc;
-    info->n_blocks = n_blocks;
-    info->n_lowrank = n_low;
-    info->n_dense = n_dense;
-    info->stored_values = stored;
-    info->source_nnz = F->nnz;
-    info->max_rank = max_rank;
-    info->mean_rank = n_low ? (double)rank_sum / (double)n_low : 0;
-    for (size_t i = 0; i < n; i++) {
-      if (h->row_err[i] > info->max_row_error) info->max_row_error = h->row_err[i];
-      if (rowsum[i] > 0 && h->row_err[i] / rowsum[i] > info->max_rel_row_error)
-        info->max_rel_row_error = h->row_err[i] / rowsum[i];
-    }
-    info->build_ms = (omp_get_wtime() - t0) * 1e3;
-  }
+  cv_hm_info(h, F->nnz, (omp_get_wtime() - t0) * 1e3, &h->info);
+  /* relative to the rows of the source matrix */
+  h->info.max_rel_row_error = 0;
+  for (size_t i = 0; i < n; i++)
+    if (rowsum[i] > 0 && h->row_err[i] / rowsum[i] > h->info.max_rel_row_error)
+      h->info.max_rel_row_error = h->row_err[i] / rowsum[i];
+  if (info) *info = h->info;
   free(pos_of);
   free(rowsum);
   *out = h;
   return CV_OK;
 }
 
-/* acc (3m, planar by channel: acc[c * m + i]) += block b times the planar
- * cluster-ordered vector xp (columns c0 .. c0 + w). */
-static void block_apply(const hrow *hr, const hblock *b, size_t m, size_t w, const double *xr,
-                        const double *xg, const double *xb, double *acc, double *t) {
-  const float *v = hr->vals + b->off;
+void cv_hmatrix_get_info(const cv_hmatrix *h, cv_hmatrix_info *info) { *info = h->info; }
+
+/* Phase 1 of a product: t = V x[c0 .. c0 + w) of a low-rank block, for the
+ * three channels (t[q], t[k + q], t[2k + q]). */
+static void block_vx(const hblock *b, const double *xr, const double *xg, const double *xb,
+                     double *t) {
+  const size_t k = b->rank, w = b->w;
+  const float *V = b->vals + (size_t)b->m * k;
+  for (size_t q = 0; q < k; q++) {
+    const float *vr = V + q * w;
+    double a0 = 0, a1 = 0, a2 = 0;
+    for (size_t j = 0; j < w; j++) {
+      const double f = vr[j];
+      a0 += f * xr[j];
+      a1 += f * xg[j];
+      a2 += f * xb[j];
+    }
+    t[q] = a0;
+    t[k + q] = a1;
+    t[2 * k + q] = a2;
+  }
+}
+
+/* Phase 2: acc (3m, planar by channel: acc[c * m + i]) += rows ii0 ..
+ * ii0 + m of block b times x (dense) or U t (low rank). */
+static void block_rows(const cv_hmatrix *h, const hblock *b, size_t ii0, size_t m,
+                       const double *xr, const double *xg, const double *xb, double *acc) {
   if (b->rank == 0) {
+    const size_t w = b->w;
     for (size_t i = 0; i < m; i++) {
-      const float *row = v + i * w;
+      const float *row = b->vals + (ii0 + i) * w;
       double a0 = 0, a1 = 0, a2 = 0;
       for (size_t j = 0; j < w; j++) {
         const double f = row[j];
@@ -372,22 +479,9 @@ static void block_apply(const hrow *hr, const hblock *b, size_t m, size_t w, con
     return;
   }
   const size_t k = b->rank;
-  const float *U = v, *V = v + m * k;
-  for (size_t q = 0; q < k; q++) {
-    const float *vr = V + q * w;
-    double a0 = 0, a1 = 0, a2 = 0;
-    for (size_t j = 0; j < w; j++) {
-      const double f = vr[j];
-      a0 += f * xr[j];
-      a1 += f * xg[j];
-      a2 += f * xb[j];
-    }
-    t[q] = a0;
-    t[k + q] = a1;
-    t[2 * k + q] = a2;
-  }
+  const double *t = h->t + b->toff;
   for (size_t i = 0; i < m; i++) {
-    const float *ur = U + i * k;
+    const float *ur = b->vals + (ii0 + i) * k;
     double a0 = 0, a1 = 0, a2 = 0;
     for (size_t q = 0; q < k; q++) {
       const double u = ur[q];
@@ -401,26 +495,31 @@ static void block_apply(const hrow *hr, const hblock *b, size_t m, size_t w, con
   }
 }
 
-/* Shared body of the two products: only blocks whose column cluster is
- * flagged in use (NULL: all) are applied; add = 1 adds to g. */
+/* Shared body of the two products: only blocks flagged in use (NULL: all)
+ * are applied; add = 1 adds to g.  Phase 1 forms V x of every low-rank
+ * block, phase 2 sums each leaf cluster's rows over the blocks covering it
+ * in a fixed order, so the result does not depend on the threads. */
 static void apply(const cv_hmatrix *h, const uint8_t *use, double *g, int add) {
   const size_t n = h->n;
   const double *xr = h->xp, *xg = h->xp + n, *xb = h->xp + 2 * n;
 #pragma omp parallel
   {
+#pragma omp for schedule(dynamic, 4)
+    for (size_t q = 0; q < h->nlow; q++) {
+      const hblock *b = &h->blocks[h->low[q]];
+      if (use && !use[h->low[q]]) continue;
+      block_vx(b, xr + b->c0, xg + b->c0, xb + b->c0, h->t + b->toff);
+    }
     double *acc = malloc(3 * h->max_m * sizeof *acc);
-    double *t = malloc(3 * ((size_t)h->max_rank + 1) * sizeof *t);
 #pragma omp for schedule(dynamic, 1)
     for (size_t r = 0; r < h->nc; r++) {
-      if (!acc || !t) continue; /* cannot happen in practice; g keeps its value */
+      if (!acc) continue; /* cannot happen in practice; g keeps its value */
       const size_t r0 = h->cstart[r], m = h->cstart[r + 1] - r0;
       memset(acc, 0, 3 * m * sizeof *acc);
-      const hrow *hr = &h->rows[r];
-      for (uint32_t bi = 0; bi < hr->nblocks; bi++) {
-        const hblock *b = &hr->blocks[bi];
-        if (use && !use[b->col]) continue;
-        const size_t c0 = h->cstart[b->col], w = h->cstart[b->col + 1] - c0;
-        block_apply(hr, b, m, w, xr + c0, xg + c0, xb + c0, acc, t);
+      for (size_t e = h->lb_off[r]; e < h->lb_off[r + 1]; e++) {
+        if (use && !use[h->lb[e]]) continue;
+        const hblock *b = &h->blocks[h->lb[e]];
+        block_rows(h, b, r0 - b->r0, m, xr + b->c0, xg + b->c0, xb + b->c0, acc);
       }
       for (size_t ii = 0; ii < m; ii++) {
         double *gi = g + 3 * (size_t)h->perm[r0 + ii];
@@ -436,7 +535,6 @@ static void apply(const cv_hmatrix *h, const uint8_t *use, double *g, int add) {
       }
     }
     free(acc);
-    free(t);
   }
 }
 
@@ -457,34 +555,51 @@ double cv_hmatrix_gather_add_active(const cv_hmatrix *h, const uint8_t *active, 
                                     double *g) {
   const size_t n = h->n;
   double *xp = h->xp;
-  uint8_t *use = h->cact;
-  size_t any = 0;
-#pragma omp parallel for schedule(static) reduction(+ : any)
-  for (size_t c = 0; c < h->nc; c++) {
-    uint8_t u = 0;
-    for (size_t p = h->cstart[c]; p < h->cstart[c + 1]; p++) {
-      const size_t i = h->perm[p];
-      if (active[i]) {
-        u = 1;
-        xp[p] = d[3 * i];
-        xp[n + p] = d[3 * i + 1];
-        xp[2 * n + p] = d[3 * i + 2];
-      } else {
-        xp[p] = xp[n + p] = xp[2 * n + p] = 0;
-      }
+  size_t *pre = h->apre;
+#pragma omp parallel for schedule(static)
+  for (size_t p = 0; p < n; p++) {
+    const size_t i = h->perm[p];
+    if (active[i]) {
+      xp[p] = d[3 * i];
+      xp[n + p] = d[3 * i + 1];
+      xp[2 * n + p] = d[3 * i + 2];
+    } else {
+      xp[p] = xp[n + p] = xp[2 * n + p] = 0;
     }
-    use[c] = u;
-    any += u;
   }
-  if (!any) return 0;
-  apply(h, use, g, 1);
+  pre[0] = 0;
+  for (size_t p = 0; p < n; p++) pre[p + 1] = pre[p] + (active[h->perm[p]] != 0);
+  if (!pre[n]) return 0;
+  uint8_t *use = h->bact;
   size_t read = 0;
-  for (size_t r = 0; r < h->nc; r++)
-    for (uint32_t bi = 0; bi < h->rows[r].nblocks; bi++) {
-      const hblock *b = &h->rows[r].blocks[bi];
-      if (!use[b->col]) continue;
-      const size_t m = h->cstart[r + 1] - h->cstart[r], w = h->cstart[b->col + 1] - h->cstart[b->col];
-      read += b->rank ? b->rank * (m + w) : m * w;
-    }
+  for (size_t b = 0; b < h->nb; b++) {
+    const hblock *bl = &h->blocks[b];
+    use[b] = pre[bl->c0 + bl->w] > pre[bl->c0];
+    if (use[b]) read += bl->rank ? (size_t)bl->rank * (bl->m + bl->w) : (size_t)bl->m * bl->w;
+  }
+  apply(h, use, g, 1);
   return h->stored ? (double)read / (double)h->stored : 0;
+}
+
+void cv_hmatrix_row_values(const cv_hmatrix *h, size_t i, double *row) {
+  memset(row, 0, h->n * sizeof *row);
+  size_t p = 0;
+  while (p < h->n && h->perm[p] != i) p++;
+  if (p == h->n) return;
+  const size_t l = leaf_of(h, p);
+  for (size_t e = h->lb_off[l]; e < h->lb_off[l + 1]; e++) {
+    const hblock *b = &h->blocks[h->lb[e]];
+    const size_t ii = p - b->r0;
+    for (size_t jj = 0; jj < b->w; jj++) {
+      double v;
+      if (b->rank == 0) {
+        v = b->vals[ii * b->w + jj];
+      } else {
+        const float *U = b->vals + ii * b->rank, *V = b->vals + (size_t)b->m * b->rank;
+        v = 0;
+        for (size_t q = 0; q < b->rank; q++) v += (double)U[q] * V[q * b->w + jj];
+      }
+      row[h->perm[b->c0 + jj]] += v;
+    }
+  }
 }

@@ -66,6 +66,7 @@ struct cv_scatter_workspace {
   /* CV_SCATTER_WS_COMPRESS, when it paid: the block low-rank form of F that
    * every product then uses; ek = max_i,c M_i sum_j |F_ji - F~_ji|. */
   cv_hmatrix *hm;
+  int hm_borrowed;      /* 1: hm is s->H (system without F) */
   cv_hmatrix_info hinfo;
   double ek;
   cv_scatter_model model;
@@ -97,6 +98,8 @@ void cv_scatter_opts_default(cv_scatter_opts *o) {
 /* ---- Physics and reference products ------------------------------------ */
 
 static int system_ok(const cv_scatter_system *s) {
+  if (s && !s->F && s->H)
+    return s->n > 0 && cv_hmatrix_size(s->H) == s->n && s->refl && s->proj && s->env;
   return s && s->n > 0 && s->F && s->F->n == s->n && s->F->row_off && s->refl &&
          s->proj && s->env && (s->F->nnz == 0 || (s->F->col && s->F->val));
 }
@@ -151,6 +154,7 @@ int cv_scatter_physics(const cv_scatter_system *s, const float *I, double *B,
 void cv_scatter_apply_KT(const cv_scatter_system *s, const double *x, double *y) {
   const cv_ffmatrix *F = s->F;
   memset(y, 0, 3 * s->n * sizeof *y);
+  if (!F) return; /* not available for a compressed-only system (documented) */
   for (size_t i = 0; i < s->n; i++) {
     const double x0 = s->refl[3 * i] * x[3 * i], x1 = s->refl[3 * i + 1] * x[3 * i + 1],
                  x2 = s->refl[3 * i + 2] * x[3 * i + 2];
@@ -426,16 +430,45 @@ void cv_scatter_workspace_destroy(cv_scatter_workspace *w) {
   free(w->hval);
   free(w->hcval);
   free(w->h2f);
-  cv_hmatrix_destroy(w->hm);
+  if (!w->hm_borrowed) cv_hmatrix_destroy(w->hm);
   free(w);
+}
+
+/* The per-patch arrays of a system: proj >= 0, refl in [0, 1], env >= 0. */
+static int validate_arrays(const cv_scatter_system *s, cv_err *err) {
+  for (size_t i = 0; i < s->n; i++) {
+    if (!isfinite(s->proj[i]) || s->proj[i] < 0)
+      return cv_err_set(err, isfinite(s->proj[i]) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
+                        "scatter system: proj[%zu] = %g, expected a finite value >= 0", i,
+                        (double)s->proj[i]);
+    for (int c = 0; c < 3; c++) {
+      const float m = s->refl[3 * i + c], e = s->env[3 * i + c];
+      if (!isfinite(m) || m < 0 || m > 1)
+        return cv_err_set(err, isfinite(m) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
+                          "scatter system: refl of patch %zu channel %d = %g, expected [0, 1]", i,
+                          c, (double)m);
+      if (!isfinite(e) || e < 0)
+        return cv_err_set(err, isfinite(e) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
+                          "scatter system: env of patch %zu channel %d = %g, expected >= 0", i, c,
+                          (double)e);
+    }
+  }
+  return CV_OK;
 }
 
 static int validate(const cv_scatter_system *s, cv_err *err) {
   if (!s) return cv_err_set(err, CV_ERR_INVALID, "scatter system: NULL");
   if (s->n == 0) return cv_err_set(err, CV_ERR_INVALID, "scatter system: n = 0 patches");
-  if (!s->F || !s->refl || !s->proj || !s->env)
-    return cv_err_set(err, CV_ERR_INVALID, "scatter system: F, refl, proj or env is NULL");
+  if ((!s->F && !s->H) || !s->refl || !s->proj || !s->env)
+    return cv_err_set(err, CV_ERR_INVALID, "scatter system: F (and H), refl, proj or env is NULL");
+  if (!s->F && cv_hmatrix_size(s->H) != s->n)
+    return cv_err_set(err, CV_ERR_INVALID, "scatter system: H has %zu rows, expected n = %zu",
+                      cv_hmatrix_size(s->H), s->n);
+  if (s->n >= UINT32_MAX)
+    return cv_err_set(err, CV_ERR_INVALID, "scatter system: n = %zu patches, at most 2^32 - 2",
+                      s->n);
   const cv_ffmatrix *F = s->F;
+  if (!F) return validate_arrays(s, err);
   if (F->n != s->n)
     return cv_err_set(err, CV_ERR_INVALID, "scatter system: F has %zu rows, expected n = %zu",
                       F->n, s->n);
@@ -462,24 +495,7 @@ static int validate(const cv_scatter_system *s, cv_err *err) {
                           i, (unsigned)F->col[k], (double)F->val[k]);
     }
   }
-  for (size_t i = 0; i < s->n; i++) {
-    if (!isfinite(s->proj[i]) || s->proj[i] < 0)
-      return cv_err_set(err, isfinite(s->proj[i]) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
-                        "scatter system: proj[%zu] = %g, expected a finite value >= 0", i,
-                        (double)s->proj[i]);
-    for (int c = 0; c < 3; c++) {
-      const float m = s->refl[3 * i + c], e = s->env[3 * i + c];
-      if (!isfinite(m) || m < 0 || m > 1)
-        return cv_err_set(err, isfinite(m) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
-                          "scatter system: refl of patch %zu channel %d = %g, expected [0, 1]", i,
-                          c, (double)m);
-      if (!isfinite(e) || e < 0)
-        return cv_err_set(err, isfinite(e) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
-                          "scatter system: env of patch %zu channel %d = %g, expected >= 0", i, c,
-                          (double)e);
-    }
-  }
-  return CV_OK;
+  return validate_arrays(s, err);
 }
 
 /* The plain storage of F: runs of consecutive senders per row, a transposed
@@ -617,7 +633,7 @@ int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, 
   cv_scatter_workspace *w = calloc(1, sizeof *w);
   if (!w) return cv_err_set(err, CV_ERR_NOMEM, "scatter workspace: out of memory");
   const cv_ffmatrix *F = s->F;
-  const size_t n = s->n, n3 = 3 * n, nnz = F->nnz;
+  const size_t n = s->n, n3 = 3 * n, nnz = F ? F->nnz : 0;
   w->s = *s;
   w->n = n;
   w->nnz = nnz;
@@ -645,7 +661,21 @@ int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, 
   w->model.storage = (flags & CV_SCATTER_WS_HALF) ? "half" : "float";
   w->model.bytes = (double)nnz * ((flags & CV_SCATTER_WS_HALF) ? 2 : 4);
   w->model.source_bytes = w->model.bytes;
-  if ((flags & CV_SCATTER_WS_COMPRESS) && s->cluster && s->n_clusters > 0 && nnz > 0) {
+  if (!F) {
+    /* Only the compressed form exists (built from the display directly):
+     * the plain figures are what a dense float matrix would take. */
+    w->hm = (cv_hmatrix *)s->H; /* borrowed; products only write its scratch */
+    w->hm_borrowed = 1;
+    cv_hmatrix_get_info(w->hm, &w->hinfo);
+    w->model.storage = "block low-rank (direct)";
+    w->model.bytes = 4.0 * (double)w->hinfo.stored_values;
+    w->model.source_bytes = 4.0 * (double)w->hinfo.source_nnz;
+    w->model.compressed_bytes = w->model.bytes;
+    const double *re = cv_hmatrix_row_error(w->hm);
+    for (size_t i = 0; i < n; i++)
+      for (int c = 0; c < 3; c++)
+        if (re[i] * s->refl[3 * i + c] > w->ek) w->ek = re[i] * s->refl[3 * i + c];
+  } else if ((flags & CV_SCATTER_WS_COMPRESS) && s->cluster && s->n_clusters > 0 && nnz > 0) {
     /* Block low-rank form, kept only when it takes at most half the bytes of
      * the plain storage (else the products would not get faster). */
     st = cv_hmatrix_build(F, s->cluster, s->n_clusters, tol, &w->hm, &w->hinfo, err);
@@ -682,9 +712,13 @@ int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, 
 
   /* a = F M, e = E M, ||K||_inf = max_i M_i sum_j F_ji. */
   double qinf = 0;
+  const double *hsum = F ? NULL : cv_hmatrix_row_sum(w->hm);
   for (size_t i = 0; i < n; i++) {
     double rs = 0;
-    for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) rs += F->val[k];
+    if (F)
+      for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) rs += F->val[k];
+    else
+      rs = hsum[i] > 0 ? hsum[i] : 0;
     for (int c = 0; c < 3; c++) {
       const size_t p = 3 * i + c;
       w->a[p] = (double)s->proj[i] * s->refl[p];
@@ -695,7 +729,7 @@ int cv_scatter_workspace_create_tol(const cv_scatter_system *s, unsigned flags, 
   w->qinf = qinf;
   /* rho decides whether the paper's iteration may run (limit 0.5) and is
    * reported: 1e-7 relative stability (at most 150 products) is plenty. */
-  w->rho = nnz ? power_rho(n, ws_apply_K_ctx, w, 150, 1e-7, w->T, w->T2) : 0;
+  w->rho = (nnz || !F) ? power_rho(n, ws_apply_K_ctx, w, 150, 1e-7, w->T, w->T2) : 0;
   if (w->rho < 0) w->rho = qinf; /* cannot happen for validated input */
   *out = w;
   return CV_OK;

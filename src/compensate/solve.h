@@ -62,7 +62,8 @@ int cv_scatter_physics(const cv_scatter_system *s, const float *I, double *B,
 double cv_scatter_spectral_radius(const cv_scatter_system *s, int iters);
 
 /* y = K^T x for 3-channel vectors (x, y: 3n, distinct), i.e.
- * y_j = sum_i M_i F_ji x_i.  Serial scatter; a reference for adjoint uses. */
+ * y_j = sum_i M_i F_ji x_i.  Serial scatter; a reference for adjoint uses.
+ * Needs F: a system with only H gets y = 0. */
 void cv_scatter_apply_KT(const cv_scatter_system *s, const double *x, double *y);
 
 /* ---- Solvers ----------------------------------------------------------- */
@@ -157,7 +158,8 @@ typedef struct cv_scatter_workspace cv_scatter_workspace;
 
 /* Which storage of K the workspace picked, and what it costs. */
 typedef struct cv_scatter_model {
-  const char *storage;       /* "float", "half" or "block low-rank" */
+  const char *storage;       /* "float", "half", "block low-rank" or "block
+                                low-rank (direct)" (the system has only H) */
   double bytes;              /* bytes of matrix values a product reads */
   double source_bytes;       /* the same for the plain (float or half) storage */
   int compress_tried;        /* CV_SCATTER_WS_COMPRESS and clusters given */

@@ -3,6 +3,7 @@
 
 #include <stdlib.h>
 
+#include "compensate/hmatrix.h"
 #include "core/status.h"
 
 int cv_ffmatrix_alloc(size_t n, size_t nnz, cv_ffmatrix **out) {
@@ -32,6 +33,12 @@ void cv_ffmatrix_destroy(cv_ffmatrix *m) {
 
 void cv_scatter_apply_K(const cv_scatter_system *s, const double *x, double *y) {
   const cv_ffmatrix *F = s->F;
+  if (!F) {
+    cv_hmatrix_gather(s->H, x, y);
+#pragma omp parallel for schedule(static)
+    for (size_t p = 0; p < 3 * s->n; p++) y[p] *= s->refl[p];
+    return;
+  }
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < s->n; i++) {
     double a0 = 0, a1 = 0, a2 = 0;

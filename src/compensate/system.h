@@ -37,9 +37,15 @@ typedef struct cv_ffmatrix {
 int cv_ffmatrix_alloc(size_t n, size_t nnz, cv_ffmatrix **out);
 void cv_ffmatrix_destroy(cv_ffmatrix *m);
 
+struct cv_hmatrix;
+
 typedef struct cv_scatter_system {
   size_t n;                /* patches */
-  const cv_ffmatrix *F;    /* gather form factors F_ji (borrowed) */
+  const cv_ffmatrix *F;    /* gather form factors F_ji (borrowed); may be NULL when H is set */
+  /* Optional (NULL: none): the gather matrix already compressed (hmatrix.h,
+   * e.g. built directly from the display); used for every product when F
+   * is NULL (borrowed). */
+  const struct cv_hmatrix *H;
   const float *refl;       /* 3n: M_i (r, g, b) in [0, 1] */
   const float *proj;       /* n: F_i projector-to-patch factor (> 0) */
   const float *env;        /* 3n: E_i (r, g, b) >= 0 */
@@ -50,7 +56,8 @@ typedef struct cv_scatter_system {
   size_t n_clusters;
 } cv_scatter_system;
 
-/* y = K x for 3-channel vectors (x, y: 3n, interleaved per patch). */
+/* y = K x for 3-channel vectors (x, y: 3n, interleaved per patch, distinct);
+ * from F, or from H when F is NULL. */
 void cv_scatter_apply_K(const cv_scatter_system *s, const double *x, double *y);
 
 #endif

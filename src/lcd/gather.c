@@ -113,6 +113,7 @@ int cv_lcd_panel_from_mesh(const cv_mesh *m, cv_lcd_panel *out, cv_err *err) {
 void cv_lcd_light_destroy(cv_lcd_light *l) {
   if (!l) return;
   cv_envmap_destroy(l->env);
+  cv_env_sampler_destroy(l->env_smp);
   free(l->vrad);
   free(l);
 }
@@ -130,6 +131,11 @@ static int light_finish(cv_envmap *env, float *vrad, size_t nv, int has_sun, con
   l->env = env;
   l->vrad = vrad;
   l->nv = nv;
+  int st = cv_env_sampler_create(env, &l->env_smp);
+  if (st) {
+    cv_lcd_light_destroy(l);
+    return st;
+  }
   snprintf(l->sun_source, sizeof l->sun_source, "none");
   if (has_sun) {
     double len = sqrt(sd[0] * sd[0] + sd[1] * sd[1] + sd[2] * sd[2]);
@@ -350,6 +356,7 @@ void cv_lcd_params_default(cv_lcd_params *p) {
   p->spp = 40;
   p->brdf_fraction = 0.9;
   p->window_fraction = CV_LCD_WINDOW_FRACTION;
+  p->env_fraction = CV_LCD_ENV_FRACTION;
   p->seed = 1;
   p->sun = 1;
 }
@@ -377,6 +384,7 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
   h = cv_hash64_u64(h, (uint64_t)p->spp);
   h = cv_hash64_double(h, p->brdf_fraction);
   h = cv_hash64_double(h, p->window_fraction);
+  if (p->env_fraction != 0) h = cv_hash64_double(h, p->env_fraction); /* keys without it unchanged */
   h = cv_hash64_u64(h, p->seed);
   h = cv_hash64_u64(h, (uint64_t)p->sun);
   h = cv_hash64_double(h, clamp);
@@ -421,7 +429,7 @@ static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t
 }
 
 /* Strategies (gather.h). */
-enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, NSTRAT };
+enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, NSTRAT };
 
 /* Per-texel state of a block. */
 typedef struct texel_state {
@@ -453,7 +461,8 @@ typedef struct block_buf {
   float *fc;             /* f cos (RGB) and the interior MIS denominator c_b p_b + c_c p_c;
                             window-strategy rays: the local direction and -1 (f and p_b are
                             evaluated only if the ray leaves through a window) */
-  uint32_t *tex;         /* texel in the block; | TEX_WIN for window-strategy rays */
+  uint32_t *tex;         /* texel in the block; | TEX_WIN for window- and environment-strategy
+                            rays */
   uint16_t *key;
   uint32_t *ord, *tmp;
   /* the rays permuted into direction order (traced and shaded in order) */
@@ -730,6 +739,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       p->x0 + acc->w > p->w || p->y0 + acc->h > p->h || p->spp < 1 ||
       l->nv != g->nv || !(p->brdf_fraction >= 0 && p->brdf_fraction <= 1) ||
       !(p->window_fraction >= 0 && p->window_fraction < 1) ||
+      !(p->env_fraction >= 0 && p->env_fraction < 1) || !(p->window_fraction + p->env_fraction < 1) ||
       !isfinite(p->eye[0]) || !isfinite(p->eye[1]) || !isfinite(p->eye[2]))
     return CV_ERR_INVALID;
   if (acc->data[CV_LCD_ACC_SPP] + p->spp > CV_LCD_MAX_SPP) return CV_ERR_RANGE;
@@ -741,11 +751,22 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   int nstr[NSTRAT];
   nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
   if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
-  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN]));
-  nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_BRDF];
-  const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS]};
+  /* environment-light tables restricted to the panel's hemisphere (the
+   * light's own tables cover the whole sphere: half of their samples would
+   * fall behind the panel) */
+  cv_env_sampler *esr = NULL;
+  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0 &&
+      cv_env_sampler_restrict(l->env_smp, pn->normal, &esr))
+    return CV_ERR_NOMEM;
+  nstr[STRAT_ENV] = esr && esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
+  if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
+  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN] - nstr[STRAT_ENV]));
+  nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_BRDF];
+  const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS],
+                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN]};
   const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
-              cw = (float)nstr[STRAT_WIN] / (float)spp;
+              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp;
+  const cv_env_sampler *esm = esr;
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
@@ -834,7 +855,9 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           float uu[CHUNK_SPP][4];
           uint8_t sj[CHUNK_SPP];
           for (int j = j0; j < j0 + nj; j++) {
-            const int st = j >= first[STRAT_WIN] ? STRAT_WIN : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
+            const int st = j >= first[STRAT_ENV] ? STRAT_ENV
+                           : j >= first[STRAT_WIN] ? STRAT_WIN
+                           : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
             sj[j - j0] = (uint8_t)st;
             const uint32_t idx = round * (uint32_t)nstr[st] + (uint32_t)(j - first[st]);
             cv_sobol_owen_tab(&g->sobol, idx, T->seed[st], T->dseed[st], 4, uu[j - j0]);
@@ -861,7 +884,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                 }
               }
             }
-            float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, f[3] = {0, 0, 0};
+            float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, pe = 0, f[3] = {0, 0, 0};
             int live = 0;
             if (st == STRAT_BRDF) {
               live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
@@ -872,9 +895,10 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                 cv_cosine_sample(u, wl);
                 for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
                 live = 1;
-              } else if (window_sample(pn, &wr, u, rd)) {
+              } else if (st == STRAT_ENV ? cv_env_sampler_sample(esm, u, rd, &pe)
+                                         : window_sample(pn, &wr, u, rd)) {
                 /* f and p_b wait until the ray is known to leave: only
-                 * then does a window sample count */
+                 * then does a window or environment sample count */
                 wl[0] = dot3(rd, T->tn);
                 wl[1] = dot3(rd, T->bn);
                 wl[2] = dot3(rd, pn->normal);
@@ -888,8 +912,9 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                 cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
               }
             }
-            const float dint = st == STRAT_WIN ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI;
-            if (!(live && wl[2] > 0 && (dint > 0 || st == STRAT_WIN))) {
+            const int defer = st >= STRAT_WIN;
+            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI;
+            if (!(live && wl[2] > 0 && (dint > 0 || defer))) {
               /* no ray: the sample is the sun term alone */
               if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, clamp, inv_unit, T->s, T->s2, cnt);
               continue;
@@ -898,10 +923,10 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             for (int k = 0; k < 3; k++) {
               ro[k] = o[k];
               rdir[k] = rd[k];
-              rf[k] = st == STRAT_WIN ? wl[k] : f[k] * wl[2]; /* window: the local direction */
+              rf[k] = defer ? wl[k] : f[k] * wl[2]; /* window, environment: the local direction */
             }
             rf[3] = dint;
-            bb.tex[n] = (uint32_t)i | (st == STRAT_WIN ? TEX_WIN : 0u);
+            bb.tex[n] = (uint32_t)i | (defer ? TEX_WIN : 0u);
             bb.key[n] = dir_key(rd);
             if (p->ray_log && round == 0 && T->in_tile) {
               float *rl = p->ray_log + 6 * (T->aix * (size_t)spp + (size_t)j);
@@ -963,7 +988,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
             cnt[CV_LCD_ACC_ENV]++;
             if (win) {
-              /* the deferred f cos and interior denominator of a window sample */
+              /* the deferred f cos and interior denominator of a window or
+               * environment sample */
               const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(atan2f(rf[1], rf[0]));
               const float pb = cb > 0 ? cv_brdf_pdf_cs(smp, T->kb, T->tb, rf[2], rf[0] * rf[0] + rf[1] * rf[1], th, ph) : 0.0f;
               cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, fc);
@@ -972,7 +998,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             } else {
               memcpy(fc, rf, sizeof fc);
             }
-            const float den = dint + (cw > 0 ? cw * window_pdf(pn, &wr, bb.sdir + 3 * q) : 0.0f);
+            const float den = dint + (cw > 0 ? cw * window_pdf(pn, &wr, bb.sdir + 3 * q) : 0.0f) +
+                              (ce > 0 ? ce * cv_env_sampler_pdf(esm, bb.sdir + 3 * q) : 0.0f);
             if (den > 0)
               for (int c = 0; c < 3; c++) v[c] += fc[c] / den * L[c];
           } else {
@@ -993,6 +1020,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     }
     block_buf_free(&bb);
   }
+  cv_env_sampler_destroy(esr);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;

@@ -23,16 +23,25 @@
  *      opening's vertices as seen from the texel's block; p_w is exact for
  *      any direction (rectangle membership), so no window crossing is needed
  *      to weigh a sample.
- * with n_w = round(window_fraction spp), n_b = round(brdf_fraction (spp -
- * n_w)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
+ *   e: the environment map by luminance (light sampling, light/env_sample.h:
+ *      a marginal and conditional CDF over the car-frame table, uniform in
+ *      each cell, restricted to the cells in front of the panel, rebuilt
+ *      from the light's tables in each call that uses it, about 0.1 ms),
+ *      n_e samples; p_e is exact for any direction, and a sample counts
+ *      only when its ray leaves through a window.
+ * with n_w = round(window_fraction spp), n_e = round(env_fraction spp)
+ * (n_w + n_e <= spp - 1: n_e is cut first), n_b = round(brdf_fraction (spp
+ * - n_w - n_e)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
  * into what the interior returns and what the environment sends through a
  * window, and each part is its own MIS integral: the environment part over
- * all three strategies, the interior part over b and c only (the window
- * strategy's weight is 0 there, so its samples that hit the interior add
- * nothing and no other sample needs p_w):
- *   L = f cos L_int / (c_b p_b + c_c p_c)             (interior hit)
- *     = f cos L_env / (c_b p_b + c_c p_c + c_w p_w)   (through a window)
- *     + f(s, w_o) cos(theta_s) E_sun V(s)            (sun, every sample)
+ * four strategies, the interior part over b and c only (the window and
+ * environment strategies' weights are 0 there, so their samples that hit
+ * the interior add nothing and no other sample needs p_w or p_e):
+ *   L = f cos L_int / (c_b p_b + c_c p_c)                        (interior hit)
+ *     = f cos L_env / (c_b p_b + c_c p_c + c_w p_w + c_e p_e)    (through a window)
+ *     + f(s, w_o) cos(theta_s) E_sun V(s)                       (sun, every sample)
+ * The sun is a delta light: only next-event estimation can reach it, so it
+ * takes no MIS weight.
  * The window strategy puts samples where the sky is, which dominates the
  * error under BRDF sampling (the diffuse and haze lobes see it through the
  * windows); BRDF sampling alone is brdf_fraction 1, window_fraction 0.
@@ -65,6 +74,7 @@
 #include "io/scene_config.h"
 #include "lcd/accum.h"
 #include "lcd/brdf_sample.h"
+#include "light/env_sample.h"
 #include "light/envmap.h"
 #include "mesh/mesh.h"
 #include "prt/bake.h"
@@ -97,6 +107,7 @@ typedef struct cv_lcd_light {
   uint64_t vrad_fixed;/* vertex radiance channels that were NaN/Inf or negative, set to 0 */
   uint64_t hash;      /* FNV-1a of env, sun and vrad: the lighting-state key */
   char sun_source[64];/* "sky", "extracted from the environment", "none", ... */
+  cv_env_sampler *env_smp; /* luminance sampling tables of env (environment strategy); owned */
 } cv_lcd_light;
 
 /* From explicit data (copied): env_car is the car-frame background, vrad
@@ -144,6 +155,9 @@ typedef struct cv_lcd_params {
                             cosine-weighted (default 0.9; 1 = BRDF sampling, 0 = cosine) */
   double window_fraction;/* share of the samples drawn towards the window openings, in [0, 1)
                             (default CV_LCD_WINDOW_FRACTION; ignored without windows) */
+  double env_fraction;   /* share of the samples drawn from the environment map by luminance,
+                            in [0, 1), window_fraction + env_fraction < 1 (default
+                            CV_LCD_ENV_FRACTION; ignored for a black map) */
   uint32_t seed;         /* sequence seed (default 1) */
   int sun;               /* 1: sun next-event estimation (default 1) */
   int threads;           /* OpenMP threads, 0 = OpenMP's default */
@@ -155,6 +169,8 @@ typedef struct cv_lcd_params {
 
 /* Default window_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_WINDOW_FRACTION 0.5
+/* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
+#define CV_LCD_ENV_FRACTION 0.0
 /* Openings (window materials) the window strategy aims at. */
 #define CV_LCD_MAX_OPENINGS 16
 
@@ -175,7 +191,7 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
  * split of rounds over calls, threads or processes sums to the same
  * integers.  Errors: CV_ERR_INVALID (sizes, tile outside the panel,
  * spp < 1, light for another mesh, brdf_fraction outside [0, 1],
- * window_fraction outside [0, 1)),
+ * window_fraction or env_fraction outside [0, 1), or their sum >= 1),
  * CV_ERR_RANGE (the buffer would exceed CV_LCD_MAX_SPP or the sample index
  * 2^32). */
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,

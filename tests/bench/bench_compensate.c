@@ -1,12 +1,22 @@
 /* Benchmark of the scattering compensation (speed against error).
  *
- *   bench_compensate [--sizes 16,32,64] [--reps N]
+ *   bench_compensate [--sizes 16,32,64] [--storage float,half,low-rank,direct]
+ *                    [--display wall|cave|both] [--eta E] [--no-check] [--reps N]
+ *
+ * "direct" builds the compressed K from the display without the dense
+ * matrix (hmatrix.h cv_hmatrix_build_direct) and prints, on stderr and in a
+ * second table, its build time, peak memory and the machine's load, and
+ * where the dense build fits too (at most 4e8 pairs), the true per-row error
+ * against it (rows sampled when there are more than 4096; --no-check skips
+ * it).
  *
  * For the two-sided wall (reflectance 0.475) and the 5-wall CAVE
  * (reflectance 0.8), each patch resolution, float and half storage, and each
  * solver (exact, the paper's Jacobi for H = 1..7 where rho < 0.5, bounded,
  * auto): solves per second (median of N timed solves, warm workspace, RGB
  * batched) and the displayed RMS / max error through the display physics,
+ * (in parentheses: 2 / the median CPU seconds of a solve, what two otherwise
+ * idle cores would give if the solve scaled perfectly; the machine is shared)
  * on a white image with a black band at the corner (clipping) and a smooth
  * gradient image (no clipping).  Stereo is one solve on the pair's average
  * (cv_scatter_solve_stereo), so it costs one solve plus an average. */
@@ -19,8 +29,11 @@
 
 #include "compensate/display.h"
 #include "compensate/formfactor.h"
+#include "compensate/hmatrix.h"
 #include "compensate/solve.h"
 #include "core/progress.h"
+
+#include <sys/resource.h>
 
 typedef struct {
   cv_scatter_solver s;
@@ -78,8 +91,171 @@ static void errors(const cv_scatter_system *s, const float *I, const float *T, d
   free(B);
 }
 
+
+static double cpu_seconds(void) {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + 1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+static double peak_rss_gb(void) {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return ru.ru_maxrss / 1048576.0; /* kB on Linux */
+}
+
+/* Error table row of the direct build: true per-row error against the dense
+ * build without sparsification (rows sampled with a stride). */
+static void direct_error(const cv_display *d, const cv_hmatrix *h, double *worst, double *mean,
+                         double *est_worst, double *short_by, size_t *rows) {
+  cv_ff_params fp;
+  cv_ff_params_default(&fp);
+  fp.quiet = 1;
+  fp.drop_budget = 0;
+  cv_ffmatrix *F;
+  cv_err err;
+  *worst = *mean = *est_worst = *short_by = -1;
+  *rows = 0;
+  if (cv_formfactors_build(d, &fp, &F, NULL, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return;
+  }
+  const size_t n = F->n, stride = n > 4096 ? (n + 4095) / 4096 : 1;
+  const double *est = cv_hmatrix_row_error(h);
+  double *row = malloc(n * sizeof *row), *dense = calloc(n, sizeof *dense);
+  double w = 0, sum = 0, ew = 0, sb = 0;
+  size_t cnt = 0;
+  for (size_t i = 0; i < n; i += stride) {
+    cv_hmatrix_row_values(h, i, row);
+    double rs = 0, e = 0;
+    for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) {
+      dense[F->col[k]] = F->val[k];
+      rs += F->val[k];
+    }
+    for (size_t j = 0; j < n; j++) e += fabs(row[j] - dense[j]);
+    for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) dense[F->col[k]] = 0;
+    if (!(rs > 0)) continue;
+    w = fmax(w, e / rs);
+    ew = fmax(ew, est[i] / rs);
+    sb = fmax(sb, (e - est[i]) / rs);
+    sum += e / rs;
+    cnt++;
+  }
+  *worst = w;
+  *mean = cnt ? sum / (double)cnt : 0;
+  *est_worst = ew;
+  *short_by = sb;
+  *rows = cnt;
+  free(row);
+  free(dense);
+  cv_ffmatrix_destroy(F);
+}
+
+/* The direct path: build, memory, time, error, then solves with K~. */
+static double direct_eta = 1.0;
+static int direct_check = 1;
+
+static int bench_direct(int cave, int np, int reps, char *err_table, size_t err_cap) {
+  char *json = display_json(cave, np);
+  cv_display *d;
+  cv_err err;
+  if (cv_display_parse(json, cave ? "cave5" : "two-sided-wall", &d, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    free(json);
+    return 1;
+  }
+  free(json);
+  const char *dname = cave ? "cave5" : "two-sided wall";
+  double load[3] = {0, 0, 0};
+  cv_hmatrix_direct_params hp;
+  cv_hmatrix_direct_params_default(&hp);
+  hp.quiet = 1;
+  hp.eta = direct_eta;
+  cv_hmatrix *h;
+  cv_hmatrix_info info;
+  const double t0 = cv_now_seconds(), c0 = cpu_seconds();
+  if (cv_hmatrix_build_direct(d, NULL, &hp, &h, &info, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  const double secs = cv_now_seconds() - t0, cpu = cpu_seconds() - c0, rss = peak_rss_gb();
+  getloadavg(load, 3);
+  fprintf(stderr, "%s %d direct: %zu patches, %.2fG pairs, built in %.1f s (%.1f CPU s, load %.2f), peak RSS %.2f GB, "
+          "%zu blocks (%zu low-rank, mean rank %.1f, max %d; %zu dense), %.1f MB (dense float %.0f MB)\n",
+          dname, np, cv_display_patch_count(d), info.source_nnz / 1e9, secs, cpu, load[0], rss,
+          info.n_blocks, info.n_lowrank, info.mean_rank, info.max_rank, info.n_dense,
+          4e-6 * info.stored_values, 4e-6 * info.source_nnz);
+  double worst = -1, mean = -1, ew = -1, sb = -1;
+  size_t rows = 0;
+  if (direct_check && info.source_nnz <= 400000000u)
+    direct_error(d, h, &worst, &mean, &ew, &sb, &rows);
+  char line[512];
+  if (worst >= 0)
+    snprintf(line, sizeof line, "| %s | %d | %.3g | %.1f | %.1f | %.2f | %.2f | %.0f | %.1f | %zu | %.2e | %.2e | %.2e | %.2e |\n",
+             dname, np, info.source_nnz / 1e9, secs, cpu, load[0], rss, 4e-6 * info.stored_values,
+             info.mean_rank, rows, worst, mean, ew, sb);
+  else
+    snprintf(line, sizeof line, "| %s | %d | %.3g | %.1f | %.1f | %.2f | %.2f | %.0f | %.1f | - | not checked | | | |\n",
+             dname, np, info.source_nnz / 1e9, secs, cpu, load[0], rss, 4e-6 * info.stored_values,
+             info.mean_rank);
+  strncat(err_table, line, err_cap - strlen(err_table) - 1);
+  cv_scatter_system sys;
+  cv_display_scatter_system(d, NULL, &sys);
+  sys.H = h;
+  cv_scatter_workspace *ws;
+  if (cv_scatter_workspace_create_ex(&sys, 0, &ws, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  const size_t n = sys.n;
+  float *T = malloc(3 * n * sizeof(float)), *I = malloc(3 * n * sizeof(float));
+  const cv_scatter_solver solvers[2] = {CV_SCATTER_EXACT, CV_SCATTER_AUTO};
+  for (int r = 0; r < 2; r++)
+    for (int band = 1; band >= 0; band--) {
+      targets(d, band, T);
+      cv_scatter_opts o;
+      cv_scatter_opts_default(&o);
+      o.solver = solvers[r];
+      cv_scatter_stats st;
+      double t[64];
+      int k, ok = 1;
+      double tc[64];
+      for (k = 0; k < reps && k < 64; k++) {
+        double ts = cv_now_seconds(), cs = cpu_seconds();
+        if (cv_scatter_solve(ws, T, &o, I, &st, &err)) {
+          ok = 0;
+          break;
+        }
+        t[k] = cv_now_seconds() - ts;
+        tc[k] = cpu_seconds() - cs;
+      }
+      if (!ok) {
+        fprintf(stderr, "%s\n", err.msg);
+        continue;
+      }
+      double rms, mx;
+      errors(&sys, I, T, &rms, &mx); /* judged with K~ (no dense K here) */
+      char sname[40];
+      if (o.solver == CV_SCATTER_AUTO)
+        snprintf(sname, sizeof sname, "auto (%s)", cv_scatter_solver_name(st.solver));
+      else
+        snprintf(sname, sizeof sname, "%s", cv_scatter_solver_name(o.solver));
+      printf("| %s | %d | direct (%.1f) | %s | %s | %.0f (%.0f) | %d | %zu | %.5f | %.5f |\n", dname, np,
+             4e-6 * info.stored_values, sname,
+             band ? "band" : "smooth", 1.0 / bench_median(t, k), 2.0 / bench_median(tc, k), st.iterations,
+             st.clipped_patches, rms, mx);
+      fflush(stdout);
+    }
+  free(T);
+  free(I);
+  cv_scatter_workspace_destroy(ws);
+  cv_hmatrix_destroy(h);
+  cv_display_destroy(d);
+  return 0;
+}
+
 int main(int argc, char **argv) {
-  int sizes[8] = {16, 32, 64}, nsizes = 3, reps = 7, storage_mask = 7;
+  int sizes[8] = {16, 32, 64}, nsizes = 3, reps = 7, storage_mask = 7, cave_lo = 0, cave_hi = 2;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--sizes") && i + 1 < argc) {
       nsizes = 0;
@@ -87,18 +263,35 @@ int main(int argc, char **argv) {
     } else if (!strcmp(argv[i], "--storage") && i + 1 < argc) {
       storage_mask = 0;
       for (char *t = strtok(argv[++i], ","); t; t = strtok(NULL, ","))
-        storage_mask |= !strcmp(t, "float") ? 1 : !strcmp(t, "half") ? 2 : !strcmp(t, "low-rank") ? 4 : 0;
+        storage_mask |= !strcmp(t, "float") ? 1 : !strcmp(t, "half") ? 2 : !strcmp(t, "low-rank") ? 4 : !strcmp(t, "direct") ? 8 : 0;
+    } else if (!strcmp(argv[i], "--display") && i + 1 < argc) {
+      i++;
+      cave_lo = !strcmp(argv[i], "cave") ? 1 : 0;
+      cave_hi = !strcmp(argv[i], "wall") ? 1 : 2;
+    } else if (!strcmp(argv[i], "--no-check")) {
+      direct_check = 0;
+    } else if (!strcmp(argv[i], "--eta") && i + 1 < argc) {
+      direct_eta = atof(argv[++i]);
     } else if (!strcmp(argv[i], "--reps") && i + 1 < argc) {
       reps = atoi(argv[++i]);
     } else {
-      fprintf(stderr, "usage: bench_compensate [--sizes 16,32,64] [--storage float,half,low-rank] [--reps N]\n");
+      fprintf(stderr, "usage: bench_compensate [--sizes 16,32,64] [--storage float,half,low-rank,direct] [--display wall|cave|both] [--eta E] [--no-check] [--reps N]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
   printf("| display | patches/surface | storage | solver | image | solves/s | iterations | clipped patches | RMS error | max error |\n");
   printf("|---|---|---|---|---|---|---|---|---|---|\n");
-  for (int cave = 0; cave < 2; cave++)
+  static char err_table[8192];
+  if (storage_mask & 8)
+    snprintf(err_table, sizeof err_table,
+             "| display | patches/surface | pairs (G) | build s | build CPU s | load | peak RSS GB | MB stored | mean rank | rows checked | max row error | mean row error | max estimate | estimate short by |\n"
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (int cave = cave_lo; cave < cave_hi; cave++)
     for (int si = 0; si < nsizes; si++) {
+      if (storage_mask & 8) {
+        if (bench_direct(cave, sizes[si], reps, err_table, sizeof err_table)) return 1;
+        if (!(storage_mask & 7)) continue;
+      }
       {
         /* The form factors are built dense before compression: 8 bytes a pair. */
         const double np2 = (double)sizes[si] * sizes[si];
@@ -187,13 +380,15 @@ int main(int argc, char **argv) {
             cv_scatter_stats st;
             double t[64];
             int k, ok = 1;
+            double tc[64];
             for (k = 0; k < reps && k < 64; k++) {
-              double t0 = cv_now_seconds();
+              double t0 = cv_now_seconds(), c0 = cpu_seconds();
               if (cv_scatter_solve(ws, T, &o, I, &st, &err)) {
                 ok = 0;
                 break;
               }
               t[k] = cv_now_seconds() - t0;
+              tc[k] = cpu_seconds() - c0;
             }
             char name[32];
             if (runs[r].levels) snprintf(name, sizeof name, "jacobi H=%d", runs[r].levels);
@@ -205,9 +400,10 @@ int main(int argc, char **argv) {
             }
             double rms, mx;
             errors(&sys, I, T, &rms, &mx);
-            printf("| %s | %d | %s | %s | %s | %.0f | %d | %zu | %.5f | %.5f |\n",
+            printf("| %s | %d | %s | %s | %s | %.0f (%.0f) | %d | %zu | %.5f | %.5f |\n",
                    cave ? "cave5" : "two-sided wall", sizes[si], storage, name,
-                   band ? "band" : "smooth", 1.0 / bench_median(t, k), st.iterations, st.clipped_patches, rms, mx);
+                   band ? "band" : "smooth", 1.0 / bench_median(t, k), 2.0 / bench_median(tc, k),
+                   st.iterations, st.clipped_patches, rms, mx);
             fflush(stdout);
           }
         cv_scatter_workspace_destroy(ws);
@@ -217,5 +413,6 @@ int main(int argc, char **argv) {
       cv_ffmatrix_destroy(F);
       cv_display_destroy(d);
     }
+  if (storage_mask & 8) printf("\nDirect build against the dense build (row errors relative to the row's sum):\n\n%s", err_table);
   return 0;
 }

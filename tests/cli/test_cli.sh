@@ -220,6 +220,20 @@ expect_error "missing display" "nodisplay.json" $CAVE compensate --display nodis
 W5=(--image white.exr --image white.exr --image white.exr --image white.exr --image white.exr)
 expect_ok "compensate with the CAVE config" $CAVE compensate --display "$ROOT/configs/caves/cave5.json" "${W5[@]}" -o cave5.exr --report
 grep -q "compensate: 2880 patches" out.txt && ok "CAVE config as display (5 walls x 24^2 patches from screens): $(grep -m1 "displayed RMS error" out.txt | tail -1)" || { bad "CAVE config display report"; cat out.txt; }
+# The compressed form factors built without the dense matrix: the same
+# displayed error as the dense build (the report judges with K~ there).
+B5=(--image white.exr --image band.exr --image white.exr --image band.exr --image white.exr)
+expect_ok "compensate band, dense build" $CAVE compensate --display "$ROOT/configs/caves/cave5.json" "${B5[@]}" -o cave5b.exr --report
+rms_dense=$(grep "^  compensated " out.txt | sed -n 's/.*RMS error \([0-9.]*\).*/\1/p')
+expect_ok "compensate --storage direct" $CAVE compensate --display "$ROOT/configs/caves/cave5.json" "${B5[@]}" --storage direct -o cave5d.exr --report
+rms_direct=$(grep "^  compensated " out.txt | sed -n 's/.*RMS error \([0-9.]*\).*/\1/p')
+if grep -q "built compressed from the display" out.txt && grep -q "storage of K: block low-rank (direct)" out.txt &&
+   awk -v a="$rms_dense" -v b="$rms_direct" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(a != "" && b != "" && d <= 2e-3) }'; then
+  ok "direct build: displayed RMS $rms_direct against $rms_dense dense"
+else
+  bad "direct build report (RMS '$rms_direct' against '$rms_dense')"; cat out.txt
+fi
+expect_error "unknown storage" "direct" $CAVE compensate --display two.json --image white.exr --image white.exr --storage sparse -o x.exr
 printf '{"walls": [{"name": "front", "pa": [-1.5,0,-1.5], "pb": [1.5,0,-1.5], "pc": [-1.5,3,-1.5], "res": [64,64]}], "screens": {"reflectance": 2}}\n' >badcave.json
 expect_error "CAVE config with a bad screen" "screens.reflectance" $CAVE compensate --display badcave.json --image white.exr -o x.exr
 

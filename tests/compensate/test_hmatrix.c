@@ -212,11 +212,186 @@ static void test_compression_not_picked(void **state) {
   unmake(&f);
 }
 
+/* The 5-wall CAVE (3 m cube without its back wall) at np x np per wall. */
+static cv_display *cave5(int np) {
+  char json[4096];
+  snprintf(json, sizeof json,
+           "{\"surfaces\": ["
+           "{\"name\":\"front\",\"corners\":[[-1.5,0,-1.5],[1.5,0,-1.5],[-1.5,3,-1.5]],\"patches\":[%d,%d],\"reflectance\":[0.8,0.8,0.8]},"
+           "{\"name\":\"left\",\"corners\":[[-1.5,0,1.5],[-1.5,0,-1.5],[-1.5,3,1.5]],\"patches\":[%d,%d],\"reflectance\":[0.8,0.8,0.8]},"
+           "{\"name\":\"right\",\"corners\":[[1.5,0,-1.5],[1.5,0,1.5],[1.5,3,-1.5]],\"patches\":[%d,%d],\"reflectance\":[0.8,0.8,0.8]},"
+           "{\"name\":\"floor\",\"corners\":[[-1.5,0,1.5],[1.5,0,1.5],[-1.5,0,-1.5]],\"patches\":[%d,%d],\"reflectance\":[0.8,0.8,0.8]},"
+           "{\"name\":\"ceiling\",\"corners\":[[-1.5,3,-1.5],[1.5,3,-1.5],[-1.5,3,1.5]],\"patches\":[%d,%d],\"reflectance\":[0.8,0.8,0.8]}],"
+           "\"projectors\":\"ideal\"}",
+           np, np, np, np, np, np, np, np, np, np);
+  cv_display *d;
+  cv_err err;
+  if (cv_display_parse(json, "cave5", &d, &err)) fail_msg("%s", err.msg);
+  return d;
+}
+
+/* Direct build against the dense build without sparsification: the whole
+ * approximated matrix (column by column through products with unit
+ * vectors) errs per row by at most tol of the row's sum, and the row error
+ * estimate is checked against the true error. */
+static void check_direct(cv_display *d, const char *name, double tol) {
+  cv_ff_params fp;
+  cv_ff_params_default(&fp);
+  fp.quiet = 1;
+  fp.drop_budget = 0;
+  cv_ffmatrix *F;
+  cv_err err;
+  assert_int_equal(cv_formfactors_build(d, &fp, &F, NULL, &err), CV_OK);
+  cv_hmatrix_direct_params hp;
+  cv_hmatrix_direct_params_default(&hp);
+  hp.tol = tol;
+  hp.quiet = 1;
+  cv_hmatrix *h;
+  cv_hmatrix_info info;
+  assert_int_equal(cv_hmatrix_build_direct(d, &fp, &hp, &h, &info, &err), CV_OK);
+  const size_t n = F->n;
+  assert_int_equal(cv_hmatrix_size(h), n);
+  /* dense copy of G and of G~ (column j = G~ e_j) */
+  double *G = calloc(n * n, sizeof *G), *x = calloc(3 * n, sizeof *x), *g = malloc(3 * n * sizeof *g);
+  double *rerr = calloc(n, sizeof *rerr), *rsum = calloc(n, sizeof *rsum);
+  for (size_t i = 0; i < n; i++)
+    for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) {
+      G[i * n + F->col[k]] = F->val[k];
+      rsum[i] += F->val[k];
+    }
+  for (size_t j = 0; j < n; j++) {
+    x[3 * j] = 1;
+    cv_hmatrix_gather(h, x, g);
+    x[3 * j] = 0;
+    for (size_t i = 0; i < n; i++) rerr[i] += fabs(g[3 * i] - G[i * n + j]);
+  }
+  /* the row read-out agrees with the product */
+  for (size_t i = 0; i < n; i += 97) {
+    double e = 0;
+    cv_hmatrix_row_values(h, i, g);
+    for (size_t j = 0; j < n; j++) e += fabs(g[j] - G[i * n + j]);
+    assert_true(fabs(e - rerr[i]) <= 1e-9 + 1e-6 * rerr[i]);
+  }
+  const double *est = cv_hmatrix_row_error(h);
+  const double *hs = cv_hmatrix_row_sum(h);
+  double worst = 0, worst_est = 0, under = 0, sum_dev = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (!(rsum[i] > 0)) continue;
+    worst = fmax(worst, rerr[i] / rsum[i]);
+    worst_est = fmax(worst_est, est[i] / rsum[i]);
+    under = fmax(under, (rerr[i] - est[i]) / rsum[i]);
+    sum_dev = fmax(sum_dev, fabs(hs[i] - rsum[i]) / rsum[i]);
+  }
+  printf("  %s direct: %zu leaves, %zu blocks (%zu low-rank, mean rank %.2f, max %d; %zu dense), "
+         "%zu values for %zu pairs (%.1fx), %.0f ms\n"
+         "    true max row error %.3e of the row, estimated %.3e, estimate short by <= %.3e; "
+         "row sums within %.2e\n",
+         name, info.n_clusters, info.n_blocks, info.n_lowrank, info.mean_rank, info.max_rank,
+         info.n_dense, info.stored_values, info.source_nnz,
+         (double)info.source_nnz / (double)info.stored_values, info.build_ms, worst, worst_est,
+         under, sum_dev);
+  assert_true(info.n_lowrank > 0 && info.n_dense > 0);
+  assert_true(info.stored_values < info.source_nnz);
+  assert_true(worst <= tol);     /* the per-row target holds */
+  assert_true(worst_est <= tol); /* and so does the estimate the solvers use */
+  assert_true(sum_dev <= tol);
+  free(G);
+  free(x);
+  free(g);
+  free(rerr);
+  free(rsum);
+  cv_hmatrix_destroy(h);
+  cv_ffmatrix_destroy(F);
+}
+
+static void test_direct_equals_dense(void **state) {
+  (void)state;
+  fixture f;
+  make(&f, 24, 0.5);
+  check_direct(f.d, "2 x 24 x 24", 1e-3);
+  unmake(&f);
+  cv_display *d = cave5(16);
+  check_direct(d, "5 x 16 x 16", 1e-3);
+  cv_err err;
+  cv_hmatrix *h;
+  cv_hmatrix_direct_params hp;
+  cv_hmatrix_direct_params_default(&hp);
+  hp.tol = 0.7;
+  assert_int_equal(cv_hmatrix_build_direct(d, NULL, &hp, &h, NULL, &err), CV_ERR_INVALID);
+  printf("  bad tolerance: %s\n", err.msg);
+  assert_null(h);
+  cv_display_destroy(d);
+}
+
+/* A system that carries only the directly built H: the workspace uses it
+ * (storage "block low-rank (direct)"), and the bounded solve's input is
+ * that of the dense system within 2/255, judged by the dense physics. */
+static void test_solve_direct_only(void **state) {
+  (void)state;
+  fixture f;
+  make(&f, 24, 0.8);
+  const size_t n = f.s.n;
+  cv_hmatrix *h;
+  cv_err err;
+  assert_int_equal(cv_hmatrix_build_direct(f.d, NULL, NULL, &h, NULL, &err), CV_OK);
+  cv_scatter_system sd;
+  cv_display_scatter_system(f.d, NULL, &sd);
+  sd.H = h;
+  cv_scatter_workspace *wd, *wp;
+  assert_int_equal(cv_scatter_workspace_create(&sd, &wd, &err), CV_OK);
+  assert_int_equal(cv_scatter_workspace_create(&f.s, &wp, &err), CV_OK);
+  cv_scatter_model m;
+  cv_scatter_workspace_get_model(wd, &m);
+  printf("  direct-only system: %s, %.2f MB (dense %.2f MB), product error bound %.2e, rho %.4f "
+         "(dense %.4f)\n", m.storage, m.bytes / 1e6, m.source_bytes / 1e6, m.error_bound,
+         cv_scatter_workspace_rho(wd), cv_scatter_workspace_rho(wp));
+  assert_string_equal(m.storage, "block low-rank (direct)");
+  assert_true(m.error_bound > 0 && m.error_bound < 1e-3);
+  assert_true(fabs(cv_scatter_workspace_rho(wd) - cv_scatter_workspace_rho(wp)) < 2e-3);
+  float *T = malloc(3 * n * sizeof *T), *Id = malloc(3 * n * sizeof *Id),
+        *Ip = malloc(3 * n * sizeof *Ip);
+  for (size_t i = 0; i < n; i++) {
+    const cv_patch *p = cv_display_patch(f.d, i);
+    const double v = (p->surface == 1 && p->u < 4) ? 0.0 : 0.8;
+    for (int c = 0; c < 3; c++) T[3 * i + c] = (float)v;
+  }
+  cv_scatter_opts o;
+  cv_scatter_opts_default(&o);
+  cv_scatter_stats sd_st, sp_st;
+  assert_int_equal(cv_scatter_solve(wd, T, &o, Id, &sd_st, &err), CV_OK);
+  assert_int_equal(cv_scatter_solve(wp, T, &o, Ip, &sp_st, &err), CV_OK);
+  double dI = 0;
+  for (size_t p = 0; p < 3 * n; p++) dI = fmax(dI, fabs((double)Id[p] - Ip[p]));
+  double *B = malloc(3 * n * sizeof *B);
+  assert_int_equal(cv_scatter_physics(&f.s, Id, B, 1e-9, NULL), CV_OK);
+  double worst = 0;
+  for (size_t p = 0; p < 3 * n; p++)
+    if (Id[p] > 1e-6 && Id[p] < 1 - 1e-6) worst = fmax(worst, fabs(B[p] - T[p]));
+  printf("  bounded: %zu clipped patches (dense %zu), max |I_direct - I_dense| %.2e, worst "
+         "displayed error on unclipped patches %.2e (dense physics)\n",
+         sd_st.clipped_patches, sp_st.clipped_patches, dI, worst);
+  assert_true(sd_st.clipped_patches > 0);
+  assert_true(dI < 2.0 / 255);
+  assert_true(worst <= 1.0 / 255);
+  /* the physics runs on H alone too */
+  assert_int_equal(cv_scatter_physics(&sd, Id, B, 1e-9, NULL), CV_OK);
+  free(B);
+  free(T);
+  free(Id);
+  free(Ip);
+  cv_scatter_workspace_destroy(wd);
+  cv_scatter_workspace_destroy(wp);
+  cv_hmatrix_destroy(h);
+  unmake(&f);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_product_within_bound),
       cmocka_unit_test(test_bounded_solve_compressed),
       cmocka_unit_test(test_compression_not_picked),
+      cmocka_unit_test(test_direct_equals_dense),
+      cmocka_unit_test(test_solve_direct_only),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
