@@ -66,7 +66,7 @@ int cv_gather_run(cv_service *s) {
       got = 1;
     }
     if (quit && quit_since == 0) quit_since = cv_service_now();
-    if (got && w && !quit_since) cv_lcd_worker_post(w, &fs);
+    if (got && w && !quit_since && !(fs.flags & CV_FS_MEASURE)) cv_lcd_worker_post(w, &fs);
     if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
      * brings the last pooled rounds), but not for ever. */

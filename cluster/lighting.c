@@ -145,7 +145,8 @@ int cv_service_lightmix(const cv_service *s, int bands, cv_lightmix **out, cv_er
   cv_drive_eval(s->drive, 0, &st0);
   cv_light_spec spec;
   cv_drive_to_light_spec(s->drive, &st0, &spec);
-  return cv_lightmix_create(paths, n, spec.scale > 0 ? spec.scale : 1.0, bands, out, err);
+  return cv_lightmix_create_calibrated(paths, n, spec.scale > 0 ? spec.scale : 1.0,
+                                       spec.illuminance, bands, out, err);
 }
 
 int cv_service_lighting(const cv_service *s, const cv_lightmix *mix, const cv_drive_state *q,

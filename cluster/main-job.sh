@@ -50,5 +50,8 @@ if [ "$(id -u)" -eq 0 ]; then MPI+=(--allow-run-as-root); fi
 echo
 echo "main job done; results in $OUT:"
 ls "$OUT" | grep -E "montage|lcd|metrics" || true
-echo "per wall-eye frames: $(ls "$OUT"/frame*.png 2>/dev/null | wc -l) PNG, $(ls "$OUT"/frame*.exr 2>/dev/null | wc -l) EXR"
+nf=$(grep -c '"type":"frame"' "$OUT/metrics.jsonl" 2>/dev/null || echo 0)
+echo "frames: $nf rendered: $FRAMES of the drive, $((nf > FRAMES ? nf - FRAMES : 0)) more at the last pose while the LCD image was summed to its budget"
+echo "images (every 12th frame and the last, one per wall-eye and frame): $(ls "$OUT"/frame*.exr 2>/dev/null | wc -l) EXR," \
+  "$(ls "$OUT"/frame*.png 2>/dev/null | grep -vc uncompensated) PNG, $(ls "$OUT"/frame*_uncompensated.png 2>/dev/null | wc -l) uncompensated PNG"
 echo "summary: $(tail -1 "$OUT/metrics.jsonl")"

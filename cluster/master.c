@@ -21,8 +21,11 @@
  * the previous frame's luminance passes, so a frame needs one round trip to
  * the master instead of two.  One frame (33 ms) is small against the
  * neural time constants (80 ms cones, 150 ms rods).  Frame 0 starts from the
- * CAVE's first report: the state is initialised in steady state at the
- * first measured foveal luminance (frame 0 itself uses 1 cd/m2). */
+ * CAVE's first luminance: before frame 0 a priming round (CV_FS_MEASURE,
+ * master_prime_adaptation) has every wall-eye render frame 0's luminance
+ * passes and report their foveal statistics only, and the state is
+ * initialised in steady state at that luminance, so frame 0 is tone-mapped
+ * for its own light instead of 1 cd/m2. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -127,7 +130,11 @@ static int master_setup(master *m, cv_err *err) {
     st = cv_head_path_load(s->o.head_path, &m->path, err);
     if (st) return st;
   }
-  if (s->o.dtrack_port > 0) {
+  if (s->o.tracker_path[0]) {
+    if ((st = cv_tracker_config_load(s->o.tracker_path, &m->tcal, err))) return st;
+    if ((st = cv_tracker_open(&m->tcal, -1, &m->dtr, err))) return st;
+    m->has_tcal = 1;
+  } else if (s->o.dtrack_port > 0) {
     st = cv_dtrack_receiver_open(s->o.dtrack_host, s->o.dtrack_port, s->o.dtrack_body, &m->dtr, err);
     if (st) return st;
   }
@@ -423,7 +430,7 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
   /* Frame 0 also pays every rank's first lighting (relight, shadow map,
    * background from the maps): allow it the start-up time. */
   const double deadline =
-      t_sent + (f == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s) : s->o.timeout_ms * 1e-3);
+      t_sent + (f == 0 || f == CV_FRAME_MEASURE ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s) : s->o.timeout_ms * 1e-3);
   while (ngot < s->n_walleyes) {
     int progressed = 0;
     for (int i = 0; i < s->n_render; i++) {
@@ -537,14 +544,16 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
   cv_metrics_bool(ml, "new_light", (fs->flags & CV_FS_NEW_LIGHT) != 0);
   cv_metrics_object_end(ml);
   cv_metrics_object_begin(ml, "tracker");
-  cv_metrics_string(ml, "source", m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
+  cv_metrics_string(ml, "source", m->has_tcal ? "dtrack-calibrated" : m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
   cv_metrics_doubles(ml, "head", fs->head, 3);
   cv_metrics_doubles(ml, "gaze", fs->gaze, 3);
   cv_metrics_double(ml, "age_s", fs->tracker_age);
   if (m->dtr) {
     cv_metrics_uint(ml, "packets", m->trk.packets);
     cv_metrics_uint(ml, "malformed", m->trk.malformed);
+    cv_metrics_uint(ml, "no_body", m->trk.no_body);
   }
+  if (fs->has_eyes) cv_metrics_doubles(ml, "eyes", &fs->eyes[0][0], 6);
   cv_metrics_object_end(ml);
   master_sync_metrics(m, ml);
   master_desktop_metrics(m, ml);
@@ -685,6 +694,38 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_write(ml, m->mf);
 }
 
+/* Priming round before frame 0 (see the top of this file): the wall-eyes
+ * render frame 0's state flagged CV_FS_MEASURE and report; the merged foveal
+ * statistics become the first adaptation target.  Patch images and swap data
+ * of the round are discarded.  Returns the wall-eyes that reported. */
+static int master_prime_adaptation(master *m, cv_frame_state fs) {
+  fs.frame = CV_FRAME_MEASURE;
+  fs.flags = CV_FS_MEASURE;
+  if (send_state(m, &fs)) return 0;
+  cv_lumstats acc;
+  double lwmax;
+  const int ngot = collect_reports(m, CV_FRAME_MEASURE, cv_service_now(), &acc, &lwmax);
+  if (acc.weight > 0) {
+    m->stats = acc;
+    m->have_stats = 1;
+    m->lwmax = lwmax;
+  }
+  for (int w = 0; m->disp && w < m->s->n_walls; w++) {
+    const cv_display_surface *S = cv_display_surface_at(m->disp, (size_t)w);
+    memset(m->walls[w].r, 0, 3 * (size_t)S->nu * S->nv * sizeof(double));
+    m->walls[w].got = 0;
+  }
+  double lwa = 0;
+  if (!m->s->o.quiet) {
+    if (m->have_stats && cv_lumstats_lwa(&m->stats, &lwa) == 1)
+      printf("cave run: adaptation primed at %.4g cd/m2 (frame 0's foveal luminance, %d of %d "
+             "wall-eyes)\n", lwa, ngot, m->s->n_walleyes);
+    else
+      printf("cave run: adaptation priming got no foveal luminance; frame 0 starts at 1 cd/m2\n");
+  }
+  return ngot;
+}
+
 int cv_master_run(cv_service *s) {
   master M;
   memset(&M, 0, sizeof M);
@@ -733,6 +774,16 @@ int cv_master_run(cv_service *s) {
     master_head(m, now, fs.time, fs.head, fs.gaze, &t_sample, &t_target);
     fs.tracker_age = now - t_sample;
     master_pose_record(m, f, t_sample, t_target, fs.head);
+    if (m->have_eyes) { /* calibrated: the (predicted) midpoint plus the newest eye offsets */
+      fs.has_eyes = 1;
+      for (int e = 0; e < 2; e++)
+        for (int k = 0; k < 3; k++) fs.eyes[e][k] = fs.head[k] + m->eye_rel[e][k];
+    }
+    if (f == 0 && !m->have_adapt) {
+      cv_frame_state pf = fs;
+      frame_adaptation(m, f, &pf); /* 1 cd/m2: only the luminance pass is used */
+      master_prime_adaptation(m, pf);
+    }
     frame_adaptation(m, f, &fs);
     frame_lcd_key(m, &fs);
     const int last = nframes > 0 && f + 1 == (uint32_t)nframes;

@@ -31,12 +31,9 @@
 #define DESK_DEG_PER_PX 0.25   /* gaze turn per pixel of drag */
 #define DESK_MARGIN_M 0.10     /* the head keeps this far from the screens */
 
-static int wall_w(const master *m, int w) {
-  return m->s->o.size > 0 ? m->s->o.size : m->s->cave.walls[w].res[0];
-}
-static int wall_h(const master *m, int w) {
-  return m->s->o.size > 0 ? m->s->o.size : m->s->cave.walls[w].res[1];
-}
+/* the rendered size: --size already applied to res (cv_cave_fit_res) */
+static int wall_w(const master *m, int w) { return m->s->cave.walls[w].res[0]; }
+static int wall_h(const master *m, int w) { return m->s->cave.walls[w].res[1]; }
 
 /* The composed image's layout: the montage's cross, or the one wall. */
 static int desktop_layout(master *m, cv_err *err) {

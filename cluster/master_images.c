@@ -33,7 +33,7 @@ int master_images_setup(master *m, cv_err *err) {
   m->mont_unc = calloc((size_t)s->n_walls, sizeof *m->mont_unc);
   if (!m->img_mb || !m->mont || !m->mont_unc) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   for (int w = 0; w < s->n_walls; w++) {
-    const int px = s->o.size > 0 ? s->o.size * s->o.size : s->cave.walls[w].res[0] * s->cave.walls[w].res[1];
+    const int px = s->cave.walls[w].res[0] * s->cave.walls[w].res[1]; /* --size applied */
     m->img_mb[w] = cv_mailbox_open(cv_cave_walleye_rank(&s->cave, w, 0), CV_TAG_IMAGE,
                                    sizeof(cv_patch_msg) + 2 * sizeof(int32_t) + 2 * 3 * (size_t)px * sizeof(float));
     if (!m->img_mb[w]) return cv_err_set(err, CV_ERR_NOMEM, "master: cannot post receives");

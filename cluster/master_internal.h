@@ -20,6 +20,7 @@
 #include "render/desktop.h"
 #include "service/clocksync.h"
 #include "service/metrics.h"
+#include "service/tracker_calib.h"
 #include "service_internal.h"
 #include "tonemap/adapt.h"
 #include "tonemap/drago.h"
@@ -50,6 +51,10 @@ typedef struct master {
   double t_start;         /* master clock at the first frame */
   cv_head_path *path;
   cv_dtrack_receiver *dtr;
+  int has_tcal;            /* --tracker: calibrated eyes */
+  cv_tracker_config tcal;
+  double eye_rel[2][3];    /* newest calibrated eyes minus their midpoint (IPD, roll) */
+  int have_eyes;
   cv_head_pose pose;      /* newest tracker sample */
   double pose_time;       /* its sample time (master clock) */
   cv_head_pose prev_pose; /* the one before (prediction) */

@@ -233,7 +233,21 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
   cv_service *s = m->s;
   if (m->dtr) {
     cv_head_pose p = m->pose;
-    if (cv_dtrack_receiver_poll(m->dtr, now, &p, &m->trk) == 1) {
+    cv_dtrack_frame fr;
+    cv_tracked_head th;
+    int got = cv_dtrack_receiver_poll_frame(m->dtr, now, &p, &fr, &m->trk);
+    if (got == 1 && m->has_tcal) { /* calibrated: the eyes' midpoint and gaze, CAVE frame */
+      if (cv_tracker_head(&m->tcal, &fr, &th) == CV_OK) {
+        memcpy(p.pos, th.center, sizeof p.pos);
+        memcpy(p.gaze, th.gaze, sizeof p.gaze);
+        for (int e = 0; e < 2; e++)
+          for (int k = 0; k < 3; k++) m->eye_rel[e][k] = th.eye[e][k] - th.center[k];
+        m->have_eyes = 1;
+      } else {
+        got = 0;
+      }
+    }
+    if (got == 1) {
       m->prev_pose = m->pose;
       m->prev_pose_time = m->pose_time;
       m->pose = p;

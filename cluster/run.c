@@ -17,6 +17,7 @@
 #include "prt/prt.h"
 #include "service.h"
 #include "service_internal.h"
+#include "service/tracker_calib.h"
 
 static volatile sig_atomic_t g_stop;
 
@@ -45,9 +46,13 @@ static void help(FILE *f) {
           "  --dtrack PORT        live ART DTrack ASCII head tracking on this UDP port\n"
           "  --dtrack-host ADDR   bind address (default 127.0.0.1)\n"
           "  --dtrack-body ID     the head's body id (default 1)\n"
+          "  --tracker FILE       calibrated DTrack head tracking as the tracker config says\n"
+          "                       (units, room-to-CAVE transform, body, eye offset, IPD, roll,\n"
+          "                       unicast or multicast: docs/tracker.md); not with --dtrack\n"
           "  --frames N           frames to render (default 30; 0 = until SIGINT/SIGTERM)\n"
-          "  --dt S               simulated seconds per frame (default 1/30)\n"
-          "  --size N             N x N pixels per wall-eye (default: the config's)\n"
+          "  --dt S               simulated seconds per frame, 0.0333 or 1/30 (default 1/30)\n"
+          "  --size N             every wall at N pixels on its longer side, aspect kept, as in\n"
+          "                       cave render (default: the config's res)\n"
           "  --max-fps F          pace the frames to at most F per second (default: free;\n"
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
@@ -104,7 +109,11 @@ static void help(FILE *f) {
           "                       rank layout, without MPI\n\n"
           "Under Open MPI as root add --allow-run-as-root; more ranks than cores need\n"
           "--oversubscribe.  SIGINT/SIGTERM to rank 0 (or mpirun) end the run after the\n"
-          "current frame with every file whole.\n");
+          "current frame with every file whole.\n"
+          "\nexamples:\n"
+          "  cave run --check --ranks 11 configs/caves/cave5.json --scene scene.prt\n"
+          "  mpirun -np 11 cave run configs/caves/cave5.json --scene scene.prt --frames 60 --dt 1/30 -o out\n"
+          "  mpirun -np 11 cave run configs/caves/cave5.json --scene scene.prt --tracker configs/trackers/dtrack.json --present window\n");
 }
 
 /* Problems, one per line, collected for rank 0 to print. */
@@ -233,6 +242,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "-o")) {
       NEED();
       PATH(out_dir);
+    } else if (!strcmp(a, "--tracker")) {
+      NEED();
+      PATH(tracker_path);
     } else if (!strcmp(a, "--dtrack-host")) {
       NEED();
       snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
@@ -250,7 +262,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (cv_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
     } else if (!strcmp(a, "--dt")) {
       NEED();
-      if (cv_parse_double(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10, got '%s'", v);
+      if (cv_parse_seconds(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '%s'", v);
       else o->dt = d;
     } else if (!strcmp(a, "--max-fps")) {
       NEED();
@@ -384,6 +396,7 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
   } else if (cave_problems(o->cave_path, &s->cave, pb)) {
     /* every problem of the file listed */
   } else {
+    cv_cave_fit_res(&s->cave, o->size); /* --size: longer side, aspect kept (as cave render) */
     s->n_walls = s->cave.n_walls;
     s->n_walleyes = 2 * s->n_walls;
     s->n_render = s->cave.n_outputs;
@@ -429,8 +442,16 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     if (cv_head_path_load(o->head_path, &hp, &err)) problem(pb, "--head-path: %s", err.msg);
     else cv_head_path_destroy(hp);
   }
+  if (o->tracker_path[0]) {
+    cv_tracker_config tc;
+    if (cv_tracker_config_load(o->tracker_path, &tc, &err)) problem(pb, "--tracker: %s", err.msg);
+    else if (o->dtrack_port > 0) problem(pb, "--tracker and --dtrack: give one head source");
+    else if (!o->head_path[0]) o->dtrack_port = tc.port; /* the master opens it as configured */
+  }
   if (o->head_path[0] && o->dtrack_port > 0)
     problem(pb, "--head-path and --dtrack: give one head source");
+  if (o->head_path[0] && o->tracker_path[0])
+    problem(pb, "--head-path and --tracker: give one head source");
   if (o->display_path[0] && !o->compensate)
     problem(pb, "--display and --no-compensation contradict each other");
   if (o->lcd_content[0] && !file_readable(o->lcd_content))

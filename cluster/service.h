@@ -53,6 +53,7 @@ typedef struct cv_run_opts {
   int dtrack_port;               /* > 0: live DTrack on this UDP port */
   char dtrack_host[64];          /* bind address, default 127.0.0.1 */
   int dtrack_body;               /* body id of the head, default 1 */
+  char tracker_path[CV_PATHLEN]; /* tracker config (docs/tracker.md); "" = none */
   int frames;                    /* frames to render (0 = until SIGINT/SIGTERM) */
   double dt;                     /* simulated seconds per frame (default 1/30) */
   double max_fps;                /* > 0: frames paced to at most this rate (default 0: free) */

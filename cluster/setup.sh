@@ -11,7 +11,7 @@ CAVE_PACKAGES=(
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libx11-dev
   xvfb xauth xdotool x11-utils python3
   gnuplot-nox
-  blender-data
+  blender-data assimp-testmodels python3-jsonschema
 )
 
 cave_install_packages() {

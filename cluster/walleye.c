@@ -144,8 +144,8 @@ static int walleye_setup(walleye *we, cv_err *err) {
   we->o = &s->cave.outputs[role.output];
   we->wall = we->o->wall;
   const cv_wall *W = &s->cave.walls[we->wall];
-  we->w = s->o.size > 0 ? s->o.size : W->res[0];
-  we->h = s->o.size > 0 ? s->o.size : W->res[1];
+  we->w = W->res[0]; /* --size already applied, aspect kept (cv_cave_fit_res) */
+  we->h = W->res[1];
   we->swap_frame = 0xffffffffu;
   cv_rec709_lut_init(&we->lut);
   const int window = (s->o.present & CV_PRESENT_WINDOW) != 0;
@@ -325,7 +325,10 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
   cv_service *s = we->s;
   const cv_wall *W = &s->cave.walls[we->wall];
   double eyes[2][3];
-  cv_head_eyes(fs->head, fs->gaze, s->cave.eye_separation, eyes[0], eyes[1]);
+  if (fs->has_eyes)
+    memcpy(eyes, fs->eyes, sizeof eyes); /* a calibrated tracker: IPD and roll */
+  else
+    cv_head_eyes(fs->head, fs->gaze, s->cave.eye_separation, eyes[0], eyes[1]);
   cv_render_view rv;
   memset(&rv, 0, sizeof rv);
   const int vst = cv_offaxis_compute(W->pa, W->pb, W->pc, eyes[v->eye], s->cave.near, s->cave.far, &rv.proj);
@@ -590,6 +593,27 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
            cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU");
 }
 
+/* The master's adaptation priming (CV_FS_MEASURE): every eye rendered and
+ * reported (its foveal statistics), nothing presented, written or sent to
+ * the LCD worker. */
+static void measure_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0) {
+  cv_frame_timing tm;
+  memset(&tm, 0, sizeof tm);
+  relight_if_needed(we, fs, &tm);
+  for (int k = 0; k < we->n_eyes; k++) {
+    cv_walleye_report rep;
+    memset(&rep, 0, sizeof rep);
+    rep.frame = fs->frame;
+    rep.rank = we->s->rank;
+    rep.wall = we->wall;
+    rep.eye = we->ev[k].eye;
+    rep.state_hash = state_hash;
+    render_eye(we, &we->ev[k], fs, &tm, &rep);
+    rep.ms_total = (cv_service_now() - t0) * 1e3;
+    send_report(we, &we->ev[k], &rep);
+  }
+}
+
 int cv_walleye_run(cv_service *s) {
   walleye WE;
   memset(&WE, 0, sizeof WE);
@@ -618,6 +642,10 @@ int cv_walleye_run(cv_service *s) {
   uint64_t state_hash = 0;
   while (next_state(we, &fs, &state_hash)) {
     const double t0 = cv_service_now();
+    if (fs.flags & CV_FS_MEASURE) { /* adaptation priming: luminance reports only */
+      measure_frame(we, &fs, state_hash, t0);
+      continue;
+    }
     if (we->lw) cv_lcd_worker_post(we->lw, &fs);
     cv_frame_timing tm;
     memset(&tm, 0, sizeof tm);

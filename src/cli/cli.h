@@ -7,11 +7,14 @@
 
 #include "io/scene_config.h"
 #include "mesh/mesh.h"
+#include "mesh/place.h"
 
 /* Subcommands: each returns the process exit status. */
 int cmd_cabin(int argc, char **argv);
 int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
+int cmd_materials(int argc, char **argv);
+int cmd_tracker(int argc, char **argv);
 int cmd_reference(int argc, char **argv);
 int cmd_compensate(int argc, char **argv);
 int cmd_lcd(int argc, char **argv);
@@ -21,6 +24,10 @@ int cmd_cluster(int argc, char **argv);
 /* The MPI service; implemented in cluster/run.c (the only code with MPI). */
 int cmd_run(int argc, char **argv);
 
+/* Prints a command's usage lines (its help text up to the first blank line)
+ * to stderr: before the one-line error of a missing or bad argument, so the
+ * error stays the last line and the whole help is not repeated. */
+void cli_print_usage(void (*help)(FILE *));
 /* Prints "cave <cmd>: message" to stderr and returns 2 (usage) or 1. */
 int cli_fail(const char *cmd, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
@@ -30,9 +37,51 @@ int cli_parse_int(const char *s, int lo, int hi, int *out);
 /* "x,y,z" (n values) into out; 0 on success. */
 int cli_parse_vec(const char *s, int n, double *out);
 
+/* Checks before any work that the folder of an output path exists and is
+ * writable; prints "cave <cmd>: <opt>: cannot write ..." and returns 1 if
+ * not, else 0. */
+int cli_check_output(const char *cmd, const char *opt, const char *path);
+/* --illuminance: lux in (0, 1e7] or "auto" (CV_ILLUMINANCE_AUTO); 0 on success. */
+int cli_parse_illuminance(const char *s, double *lux);
+#define CLI_ILLUMINANCE_HELP                                                                 \
+  "  --illuminance LUX|auto  calibrate the env map(s): the horizontal illuminance of\n"     \
+  "                  the upper hemisphere becomes LUX (pixels then in cd/m^2); auto:\n"     \
+  "                  each blender-data map at its documented daylight level (forest\n"     \
+  "                  10000 lx, ...: docs/scene-config.md); not with --scale\n"
+
 /* 1 if path ends with ext (case-insensitive, ext includes the dot). */
 int cli_has_ext(const char *path, const char *ext);
 
+/* Prints the placement (units, up, where they came from) and the bounding box
+ * in metres, with a warning when the size is implausible for a car. */
+void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says);
+
+/* The placement options shared by commands that load a mesh: --units U,
+ * --up y|z, --model-scale S, --rotate X,Y,Z (degrees), --translate X,Y,Z (m). */
+typedef struct cli_place_opts {
+  cv_placement p;
+  int given; /* bit per option seen */
+} cli_place_opts;
+#define CLI_PLACE_HELP                                                                     \
+  "  --units U       file units: mm, cm, m, in, ft or metres per unit (default:\n"         \
+  "                  what the file says - glTF metres, FBX UnitScaleFactor - else m)\n"    \
+  "  --up y|z        the file's up axis (default: from the file, else y)\n"                \
+  "  --model-scale S uniform scale after units (default 1)\n"                              \
+  "  --rotate X,Y,Z  degrees about X, then Y, then Z, after units and up\n"                \
+  "  --translate X,Y,Z  metres, applied last\n"
+/* argv[*i] is a placement option: parses it (and its value, advancing *i)
+ * and returns 1; 0 when it is not one; -1 on a bad value (*rc = 2, the
+ * message printed). */
+int cli_place_option(const char *cmd, char **argv, int argc, int *i, cli_place_opts *o, int *rc);
+/* Copies the given options into c->place; returns 2 (message printed) when
+ * they are given for the built-in cabin, else 0. */
+int cli_place_apply(const char *cmd, const cli_place_opts *o, cv_scene_config *c);
+
+/* "window", "lcd", "window+lcd" or "none" for CV_MAT_* flags. */
+const char *cli_tag_name(uint32_t flags);
+/* The scene's mesh before cleaning: the cabin or the imported, placed file,
+ * with the config's material overrides (a line per pattern to `report`). */
+int cli_import_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err);
 /* Builds the scene's mesh from the config: the parametric cabin or an
  * imported file, material overrides, then geometry cleaning (report printed
  * to `report` when non-NULL).  *out owned by the caller. */

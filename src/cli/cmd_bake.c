@@ -16,7 +16,9 @@ static void help(FILE *f) {
           "usage: cave bake <scene.json | mesh.obj|.ply|.gltf|.glb | default> -o scene.prt\n"
           "                 [--bands N|auto] [--rays N|auto] [--bounces N] [--seed S]\n"
           "                 [--budget E] [--spread F] [--cosine-only] [--tess N]\n"
-          "                 [--threads N] [--force] [--quiet]\n\n"
+          "                 [--threads N] [--force] [--quiet]\n"
+          "                 [--units U] [--up y|z] [--model-scale S] [--rotate X,Y,Z]\n"
+          "                 [--translate X,Y,Z]\n\n"
           "Precomputes per-vertex radiance transfer (Dmitriev et al. 2004, section 4.1):\n"
           "cosine-weighted Owen-scrambled Sobol rays from stochastic points in each vertex's\n"
           "triangles; only rays that leave through a window see the sky (directions drawn\n"
@@ -33,7 +35,13 @@ static void help(FILE *f) {
           "  --tess N        built-in cabin subdivision (1..64; scene default 2, ~38K triangles)\n"
           "  --threads N     OpenMP threads (default: all cores)\n"
           "  --force         bake even if the output already matches the inputs\n"
-          "  --quiet         no progress bar\n");
+          "  --quiet         no progress bar\n"
+          CLI_PLACE_HELP
+          "The bake prints the model's bounding box in metres and warns when it is\n"
+          "implausible for a car (largest extent under 0.5 m or over 20 m).\n\n"
+          "examples:\n"
+          "  cave bake configs/scenes/default.json -o cabin.prt\n"
+          "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");
 }
 
 int cmd_bake(int argc, char **argv) {
@@ -42,11 +50,16 @@ int cmd_bake(int argc, char **argv) {
              *budget_s = NULL, *tess_s = NULL;
   int force = 0, quiet = 0, threads = 0, cosine_only = -1;
   double spread = -1;
+  cli_place_opts place = {.given = 0};
+  cv_placement_default(&place.p);
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    int pr, prc = 0;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
+    } else if ((pr = cli_place_option("bake", argv, argc, &i, &place, &prc)) != 0) {
+      if (pr < 0) return prc;
     } else if (!strcmp(a, "--force")) {
       force = 1;
     } else if (!strcmp(a, "--quiet")) {
@@ -74,7 +87,7 @@ int cmd_bake(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 1, 1024, &threads))
         return cli_fail("bake", 2, "--threads: expected 1..1024, got '%s'", v);
     } else if (a[0] == '-' && a[1]) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("bake", 2, "unknown or incomplete option '%s'", a);
     } else if (!in) {
       in = a;
@@ -83,9 +96,10 @@ int cmd_bake(int argc, char **argv) {
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("bake", 2, "an input and -o FILE.prt are required");
   }
+  if (cli_check_output("bake", "-o", out)) return 1;
   cv_scene_config cfg;
   cv_err err;
   cv_err_clear(&err);
@@ -140,6 +154,8 @@ int cmd_bake(int argc, char **argv) {
     rc = cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", tess_s);
     goto done;
   }
+  if ((rc = cli_place_apply("bake", &place, &cfg)) != 0) goto done;
+  rc = 1;
   if (threads > 0) omp_set_num_threads(threads);
   if (spread >= 0) cfg.spread = spread;
   if (cosine_only >= 0) cfg.window_sampling = !cosine_only;

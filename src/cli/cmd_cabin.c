@@ -16,7 +16,10 @@ static void help(FILE *f) {
           "  --tess N        subdivision scale 1..64 (default 1, about 10K triangles)\n"
           "  --triangles N   pick the smallest tess reaching N triangles (8 gives ~585K)\n"
           "  --length/--width/--height M   interior size in metres (2.6 / 1.45 / 1.2)\n"
-          "  -o FILE         output OBJ path (required)\n");
+          "  -o FILE         output OBJ path (required)\n"
+          "\nexamples:\n"
+          "  cave cabin -o cabin.obj\n"
+          "  cave cabin --tess 2 --length 2.8 -o long.obj\n");
 }
 
 int cmd_cabin(int argc, char **argv) {
@@ -47,12 +50,12 @@ int cmd_cabin(int argc, char **argv) {
       else p.height = d;
       i++;
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("cabin", 2, "unknown or incomplete option '%s'", a);
     }
   }
   if (!out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("cabin", 2, "-o FILE.obj is required");
   }
   cv_mesh *m;

@@ -100,7 +100,29 @@ static void help(FILE *f) {
           "  -o I.exr          output: atlas in, atlas out; otherwise I_<surface>.exr per\n"
           "                    surface (stereo: _left / _right)\n"
           "  --report          displayed error, luminance compensated overall and within\n"
-          "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n");
+          "                    0.5 m of a seam, clipping, iterations, spectral radius, time\n"
+          "\nexamples:\n"
+          "  cave compensate --display configs/caves/cave5.json --image atlas.exr -o I.exr --report\n"
+          "  cave compensate --display configs/displays/dome.json --image R.exr -o I.exr\n");
+}
+
+/* Input images are display values in [0, 1]: say how many lie outside (an
+ * HDR render, not yet tone-mapped?) instead of only reporting a large error. */
+static void warn_range(const char *path, const cv_image *im) {
+  size_t n = (size_t)im->w * im->h * im->c, out = 0;
+  double lo = 0, hi = 1;
+  for (size_t i = 0; i < n; i++) {
+    double v = im->px[i];
+    if (v >= 0 && v <= 1) continue;
+    out++;
+    if (v < lo) lo = v;
+    if (v > hi) hi = v;
+  }
+  if (out)
+    fprintf(stderr,
+            "warning: %s: %zu of %zu values outside [0, 1] (min %.4g, max %.4g); the displays "
+            "cannot show them (tone-map HDR images first: cave tonemap)\n",
+            path, out, n, lo, hi);
 }
 
 /* Output path: base without ".exr" + suffix + ".exr". */
@@ -164,7 +186,7 @@ int cmd_compensate(int argc, char **argv) {
       else if (!strcmp(v, "direct")) half = 0, compress = 3;
       else return cli_fail("compensate", 2, "--storage: expected auto, float, half, low-rank or direct, got '%s'", v);
     } else if (!v) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "--display")) {
       display_path = argv[++i];
@@ -195,17 +217,18 @@ int cmd_compensate(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &drop) || drop < 0 || drop >= 1)
         return cli_fail("compensate", 2, "--drop: expected 0 <= F < 1, got '%s'", v);
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown option '%s'", a);
     }
   }
   if (!display_path || !out || n_img == 0) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("compensate", 2, "--display, at least one --image and -o are required");
   }
   if (n_right && n_right != n_img)
     return cli_fail("compensate", 2, "--right: %d images for %d --image", n_right, n_img);
   if (!cli_has_ext(out, ".exr")) return cli_fail("compensate", 2, "-o: expected an .exr path, got '%s'", out);
+  if (cli_check_output("compensate", "-o", out)) return 1; /* before minutes of work */
 
   int rc = 1;
   cv_err err;
@@ -250,6 +273,8 @@ int cmd_compensate(int argc, char **argv) {
         rc = cli_fail("compensate", 1, "%s", err.msg);
         goto done;
       }
+  for (int e = 0; e < eyes; e++)
+    for (int k = 0; k < n_img; k++) warn_range(e ? right_path[k] : img_path[k], imgs[e][k]);
   /* Per surface views into the inputs (atlas: equal-width columns). */
   int w0 = imgs[0][0]->w, h0 = imgs[0][0]->h;
   if (atlas && w0 % (int)ns) {

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "cli/cli.h"
+#include "core/parse.h"
 #include "core/outfile.h"
 #include "core/progress.h"
 #include "io/exr.h"
@@ -43,7 +44,8 @@ static void help(FILE *f) {
           "elsewhere the PRT radiance of the hit triangle; the sun is added where it reaches the\n"
           "panel.  The panel's content (--content image, --luminance cd/m^2 for white) is added.\n"
           "Rounds of --spp samples per texel accumulate in fixed point (same result for any split).\n\n"
-          "LIGHT is one of --env FILE[,FILE...] [--weights w,..] [--scale S] [--no-sun],\n"
+          "LIGHT is one of --env FILE[,FILE...] [--weights w,..] [--scale S |\n"
+          "--illuminance LUX|auto] [--no-sun],\n"
           "--env-constant R,G,B, --sky TURBIDITY,ELEVATION,AZIMUTH (as cave shade); a\n"
           "scene.json's own lighting is used when none is given.\n\n"
           "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance)\n"
@@ -75,12 +77,15 @@ static void help(FILE *f) {
           "                    head + scene offset (default that of configs/caves/cave5.json)\n"
           "  --cave FILE       take the scene offset from a CAVE config\n"
           "  --scene-offset V  scene point = CAVE point + V (metres)\n"
-          "  --dt S            seconds between steps (default 0.5); each step renders --rounds\n"
+          "  --dt S            seconds between steps, 0.5 or 1/2 (default 0.5); each step renders --rounds\n"
           "                    rounds and writes one CSV row (docs/readability.md), and\n"
           "                    series.png is plotted with gnuplot when it is installed\n"
           "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
           "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
-          "colour bar CR 1..10 on a log scale below with the requirement marked white).\n");
+          "colour bar CR 1..10 on a log scale below with the requirement marked white).\n"
+          "\nexamples:\n"
+          "  cave lcd scene.prt --eye -0.37,1.1,0.3 --env forest.exr --illuminance auto -o panel.exr --png\n"
+          "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
 }
 
 static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, int *have,
@@ -105,6 +110,9 @@ static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, 
   } else if (!strcmp(a, "--scale")) {
     if (cli_parse_double(argv[++*i], &spec->scale) || spec->scale < 0)
       return cli_fail("lcd", 2, "--scale: expected a non-negative number, got '%s'", val);
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(argv[++*i], &spec->illuminance))
+      return cli_fail("lcd", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
     if (cli_parse_vec(argv[++*i], 3, spec->constant) || spec->constant[0] < 0 ||
@@ -385,9 +393,9 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--no-sun")) {
       spec.extract_sun = 0;
     } else if (a[0] == '-' && !val) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("lcd", 2, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") ||
+    } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") || !strcmp(a, "--illuminance") ||
                !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
                !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
       int rc = parse_light(a, argv, &i, &spec, &have_light, &weights);
@@ -432,7 +440,7 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--scene-offset")) {
       if (cli_parse_vec(argv[++i], 3, offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
-      if (cli_parse_double(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s, got '%s'", val);
+      if (cv_parse_seconds(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s (0.5 or 1/2), got '%s'", val);
     } else if (!strcmp(a, "--glare-spc")) {
       if (cli_parse_int(argv[++i], 2, 4096, &vp.spc) || vp.spc % 2) return cli_fail("lcd", 2, "--glare-spc: expected an even number 2..4096, got '%s'", val);
     } else if (!strcmp(a, "--heatmap")) {
@@ -448,7 +456,7 @@ int cmd_lcd(int argc, char **argv) {
     } else if (!strcmp(a, "--threads")) {
       if (cli_parse_int(argv[++i], 1, 1024, &threads)) return cli_fail("lcd", 2, "--threads: expected 1..1024, got '%s'", val);
     } else if (a[0] == '-') {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("lcd", 2, "unknown option '%s'", a);
     } else {
       if (in) return cli_fail("lcd", 2, "more than one input ('%s' and '%s')", in, a);
@@ -456,7 +464,7 @@ int cmd_lcd(int argc, char **argv) {
     }
   }
   if (!in || !out || (!have_eye && !(drive_s && head_s))) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z (or --drive with --head-path) and -o FILE are required");
   }
   if (head_s && !drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");

@@ -30,7 +30,8 @@ static void help(FILE *f) {
           "with the PRT bake: use it to measure `cave shade --view` (same camera, one ray\n"
           "through each pixel centre).  A map's sun stays in the map (no extraction).\n\n"
           "LIGHT is one of\n"
-          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S]   lat-long HDR maps\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
+          "                       lat-long HDR maps\n"
           "                       (a bare name such as forest.exr is looked up in blender-data)\n"
           "  --env-constant R,G,B constant environment radiance\n"
           "  --sky T,ELEV,AZIM    Preetham sky and its sun (as cave shade)\n"
@@ -63,6 +64,7 @@ static int parse_light(int argc, char **argv, int *i, light_opts *lo) {
   cv_err err;
   cv_err_clear(&err);
   int is_light = !strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") ||
+                 !strcmp(a, "--illuminance") ||
                  !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
                  !strcmp(a, "--pitch") || !strcmp(a, "--roll");
   if (!is_light) return 0;
@@ -87,6 +89,9 @@ static int parse_light(int argc, char **argv, int *i, light_opts *lo) {
   } else if (!strcmp(a, "--scale")) {
     if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
       return cli_fail("reference", 2, "--scale: expected a non-negative number, got '%s'", val), -1;
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(val, &spec->illuminance))
+      return cli_fail("reference", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val), -1;
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
     if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
@@ -185,7 +190,7 @@ int cmd_reference(int argc, char **argv) {
     if (pl < 0) return 2;
     if (pl) continue;
     if (a[0] == '-' && a[1] && !val) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("reference", 2, "option '%s' needs a value", a);
     }
     if (!strcmp(a, "-o")) {
@@ -234,7 +239,7 @@ int cmd_reference(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
         return cli_fail("reference", 2, "--exposure: expected a positive number, got '%s'", val);
     } else if (a[0] == '-' && a[1]) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("reference", 2, "unknown option '%s'", a);
     } else if (!in) {
       in = a;
@@ -243,7 +248,7 @@ int cmd_reference(int argc, char **argv) {
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("reference", 2, "an input scene and -o FILE.exr are required");
   }
   if (!cli_has_ext(out, ".exr"))

@@ -26,6 +26,7 @@
 #include <time.h>
 
 #include "cli/cli.h"
+#include "core/parse.h"
 #include "io/exr.h"
 #include "io/png.h"
 #include "prt/scene_light.h"
@@ -48,14 +49,16 @@ static void help(FILE *f) {
           "statistics, one Pattanaik adaptation step of --dt seconds, then the shading\n"
           "passes tone-mapped with Drago at the adapted luminance.\n\n"
           "LIGHT is one of (as in `cave shade`)\n"
-          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S] [--no-sun]\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
+          "                       [--no-sun]\n"
+          CLI_ILLUMINANCE_HELP
           "  --env-constant R,G,B\n"
           "  --sky T,ELEV,AZIM    Preetham sky: turbidity 2..10, sun elevation, azimuth (deg)\n"
           "  [--yaw DEG] [--pitch DEG] [--roll DEG]   car orientation\n\n"
           "  --head x,y,z     tracked head position, CAVE coordinates (default: the config's)\n"
           "  --gaze x,y,z     gaze direction (default: the config's)\n"
           "  --frames N       frames to simulate (default 1)\n"
-          "  --dt S           seconds per frame for the adaptation (default 0.1)\n"
+          "  --dt S           seconds per frame for the adaptation, 0.0333 or 1/30 (default 0.1)\n"
           "  --size N         render every wall at N pixels on its longer side (default: the\n"
           "                   config's resolution)\n"
           "  --supersample K  1 or 2 (default: the config's)\n"
@@ -76,7 +79,10 @@ static void help(FILE *f) {
           "eye) on the walls it touches gives the target log-average luminance; the first\n"
           "frame starts adapted to it (steady state), each later frame steps the Pattanaik\n"
           "model by --dt.  An empty cone keeps the state.  Drago's Lwmax is the maximum\n"
-          "luminance of all walls' luminance passes.\n");
+          "luminance of all walls' luminance passes.\n"
+          "\nexamples:\n"
+          "  cave render configs/caves/cave5.json --scene scene.prt --env forest.exr --illuminance auto -o out\n"
+          "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");
 }
 
 /* Same option syntax as cmd_shade.c. */
@@ -90,6 +96,7 @@ static int parse_light(const char *a, char **argv, int *i, int argc, cv_light_sp
     return 0;
   }
   if (strcmp(a, "--env") && strcmp(a, "--weights") && strcmp(a, "--scale") &&
+      strcmp(a, "--illuminance") &&
       strcmp(a, "--env-constant") && strcmp(a, "--sky") && strcmp(a, "--yaw") &&
       strcmp(a, "--pitch") && strcmp(a, "--roll")) {
     *consumed = 0;
@@ -116,6 +123,9 @@ static int parse_light(const char *a, char **argv, int *i, int argc, cv_light_sp
   } else if (!strcmp(a, "--scale")) {
     if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
       return cli_fail("render", 2, "--scale: expected a non-negative number, got '%s'", val);
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(val, &spec->illuminance))
+      return cli_fail("render", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
     if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
@@ -198,7 +208,7 @@ int cmd_render(int argc, char **argv) {
       if (cfg) return cli_fail("render", 2, "more than one CAVE config ('%s' and '%s')", cfg, a);
       cfg = a;
     } else if (!val) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("render", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "-o")) {
       outdir = argv[++i];
@@ -215,8 +225,8 @@ int cmd_render(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 1, 1000000, &frames))
         return cli_fail("render", 2, "--frames: expected 1..1000000, got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
-      if (cli_parse_double(argv[++i], &dt) || dt < 0 || dt > 3600)
-        return cli_fail("render", 2, "--dt: expected seconds in [0, 3600], got '%s'", val);
+      if (cv_parse_seconds(argv[++i], &dt) || dt < 0 || dt > 3600)
+        return cli_fail("render", 2, "--dt: expected seconds in [0, 3600] (0.0333 or 1/30), got '%s'", val);
     } else if (!strcmp(a, "--size")) {
       if (cli_parse_int(argv[++i], 1, CV_CAVE_MAX_RES, &size))
         return cli_fail("render", 2, "--size: expected 1..%d pixels, got '%s'", CV_CAVE_MAX_RES, val);
@@ -230,12 +240,12 @@ int cmd_render(int argc, char **argv) {
       if (cli_parse_int(argv[++i], 2, 16384, &bg_res))
         return cli_fail("render", 2, "--bg-res: expected 2..16384, got '%s'", val);
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("render", 2, "unknown option '%s'", a);
     }
   }
   if (!cfg || !scene || !outdir) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("render", 2, "a CAVE config, --scene FILE.prt and -o DIR are required");
   }
   if (spec.kind == CV_LIGHT_NONE)
@@ -265,12 +275,7 @@ int cmd_render(int argc, char **argv) {
   }
   if (ss) cave.supersample = ss;
   if (lum_res) cave.lum_res = lum_res;
-  if (size)
-    for (int i = 0; i < cave.n_walls; i++) {
-      int *r = cave.walls[i].res, big = r[0] > r[1] ? r[0] : r[1];
-      int w = (int)lround((double)r[0] * size / big), h = (int)lround((double)r[1] * size / big);
-      r[0] = w < 1 ? 1 : w, r[1] = h < 1 ? 1 : h;
-    }
+  cv_cave_fit_res(&cave, size);
   double eyes[2][3];
   cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
   static const char *eye_name[2] = {"L", "R"};

@@ -21,9 +21,11 @@ static void help(FILE *f) {
           "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
           "                  [--fov DEG] [--size WxH] [--exposure E] -o view.exr|view.png\n\n"
           "LIGHT is one of\n"
-          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S] [--no-sun]\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
+          "                       [--no-sun]\n"
           "                       lat-long HDR maps (blended); a bare name such as forest.exr\n"
           "                       is looked up in blender-data's studio lights\n"
+          CLI_ILLUMINANCE_HELP
           "  --env-constant R,G,B constant environment radiance\n"
           "  --sky T,ELEV,AZIM    Preetham sky: turbidity 2..10, sun elevation and azimuth\n"
           "                       (degrees, azimuth clockwise from straight ahead)\n\n"
@@ -33,7 +35,10 @@ static void help(FILE *f) {
           "--split K cuts the K brightest window-visible cells of a W x W/2 grid (default\n"
           "W 64) out of the map as extra directional lights treated like the sun (an\n"
           "all-frequency answer to window light; docs/reference.md).\n"
-          "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n");
+          "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
+          "\nexamples:\n"
+          "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
 }
 
 typedef struct {
@@ -114,7 +119,7 @@ int cmd_shade(int argc, char **argv) {
       spec.extract_sun = 0;
     } else if (!val) {
       if (a[0] == '-') {
-        help(stderr);
+        cli_print_usage(help);
         return cli_fail("shade", 2, "option '%s' needs a value", a);
       }
       if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
@@ -139,6 +144,9 @@ int cmd_shade(int argc, char **argv) {
     } else if (!strcmp(a, "--scale")) {
       if (cli_parse_double(argv[++i], &spec.scale) || spec.scale < 0)
         return cli_fail("shade", 2, "--scale: expected a non-negative number, got '%s'", val);
+    } else if (!strcmp(a, "--illuminance")) {
+      if (cli_parse_illuminance(argv[++i], &spec.illuminance))
+        return cli_fail("shade", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
     } else if (!strcmp(a, "--env-constant")) {
       spec.kind = CV_LIGHT_CONSTANT;
       if (cli_parse_vec(argv[++i], 3, spec.constant) || spec.constant[0] < 0 ||
@@ -185,7 +193,7 @@ int cmd_shade(int argc, char **argv) {
       if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
         return cli_fail("shade", 2, "--exposure: expected a positive number, got '%s'", val);
     } else if (a[0] == '-') {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("shade", 2, "unknown option '%s'", a);
     } else {
       if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
@@ -193,9 +201,10 @@ int cmd_shade(int argc, char **argv) {
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("shade", 2, "a .prt input and -o FILE are required");
   }
+  if (cli_check_output("shade", "-o", out)) return 1;
   if (spec.kind == CV_LIGHT_NONE)
     return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
   if (weights) {

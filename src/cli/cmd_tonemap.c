@@ -30,7 +30,10 @@ static void help(FILE *f) {
           "Prints one line: lwa, lmax, invalid (NaN/Inf/negative) pixels set to 0, and\n"
           "saturated pixels (a channel above 1 after the colour ratio, clamped).\n"
           "Input EXRs with NaN or Inf are refused by the reader; negative values are\n"
-          "clamped to 0 by the reader and counted.\n");
+          "clamped to 0 by the reader and counted.\n"
+          "\nexamples:\n"
+          "  cave tonemap frame00003_front_L.exr -o front.png\n"
+          "  cave tonemap in.exr --lwa 2000 --lmax 2e5 -o out.png\n");
 }
 
 int cmd_tonemap(int argc, char **argv) {
@@ -47,7 +50,7 @@ int cmd_tonemap(int argc, char **argv) {
       if (in) return cli_fail("tonemap", 2, "more than one input ('%s' and '%s')", in, a);
       in = a;
     } else if (!v) {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("tonemap", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "-o")) {
       out = argv[++i];
@@ -66,12 +69,12 @@ int cmd_tonemap(int argc, char **argv) {
         return cli_fail("tonemap", 2, "--lmax: expected a positive number, got '%s'", v);
       have_lmax = 1;
     } else {
-      help(stderr);
+      cli_print_usage(help);
       return cli_fail("tonemap", 2, "unknown option '%s'", a);
     }
   }
   if (!in || !out) {
-    help(stderr);
+    cli_print_usage(help);
     return cli_fail("tonemap", 2, "an input image and -o are required");
   }
   int png = cli_has_ext(out, ".png");

@@ -6,12 +6,31 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <libgen.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli/cli.h"
 #include "core/parse.h"
 #include "io/mesh_import.h"
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
+
+void cli_print_usage(void (*help)(FILE *)) {
+  char *buf = NULL;
+  size_t n = 0;
+  FILE *m = open_memstream(&buf, &n);
+  if (!m) {
+    help(stderr);
+    return;
+  }
+  help(m);
+  fclose(m);
+  char *end = strstr(buf, "\n\n"); /* the usage block ends at the first blank line */
+  if (end) end[1] = '\0';
+  fputs(buf, stderr);
+  free(buf);
+}
 
 int cli_fail(const char *cmd, int code, const char *fmt, ...) {
   va_list ap;
@@ -27,12 +46,131 @@ int cli_parse_double(const char *s, double *out) { return cv_parse_double(s, out
 int cli_parse_int(const char *s, int lo, int hi, int *out) { return cv_parse_int(s, lo, hi, out); }
 int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n, out); }
 
+int cli_check_output(const char *cmd, const char *opt, const char *path) {
+  char dir[4096];
+  if (strlen(path) >= sizeof dir) return cli_fail(cmd, 2, "%s: path too long", opt);
+  snprintf(dir, sizeof dir, "%s", path);
+  const char *d = dirname(dir);
+  struct stat stt;
+  if (stat(d, &stt) != 0)
+    return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
+  if (!S_ISDIR(stt.st_mode))
+    return cli_fail(cmd, 1, "%s: cannot write %s: %s is not a folder", opt, path, d);
+  if (access(d, W_OK) != 0)
+    return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
+  return 0;
+}
+
+int cli_parse_illuminance(const char *s, double *lux) {
+  if (s && !strcmp(s, "auto")) {
+    *lux = CV_ILLUMINANCE_AUTO;
+    return 0;
+  }
+  double v;
+  if (!s || cli_parse_double(s, &v) || !(v > 0) || v > 1e7) return -1;
+  *lux = v;
+  return 0;
+}
+
 int cli_has_ext(const char *path, const char *ext) {
   size_t n = strlen(path), e = strlen(ext);
   return n >= e && strcasecmp(path + n - e, ext) == 0;
 }
 
-int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err) {
+void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says) {
+  fprintf(f, "scene: units %g m (%s%s%s), up %c (%s)\n", r->unit_m, r->unit_from,
+          file_says && !strcmp(r->unit_from, "file") ? ": " : "",
+          file_says && !strcmp(r->unit_from, "file") ? file_says : "", r->up, r->up_from);
+  fprintf(f, "scene: bounding box %.3f x %.3f x %.3f m (x %.3f..%.3f, y %.3f..%.3f, z %.3f..%.3f)\n",
+          r->size[0], r->size[1], r->size[2], (double)r->lo[0], (double)r->hi[0],
+          (double)r->lo[1], (double)r->hi[1], (double)r->lo[2], (double)r->hi[2]);
+  if (r->implausible_car)
+    fprintf(f, "warning: a car is %g..%g m long, this model's largest extent is %.3g m: check "
+               "\"units\" and \"up\"\n", CV_CAR_MIN_EXTENT_M, CV_CAR_MAX_EXTENT_M,
+            fmax(r->size[0], fmax(r->size[1], r->size[2])));
+}
+
+int cli_place_option(const char *cmd, char **argv, int argc, int *i, cli_place_opts *o,
+                     int *rc) {
+  const char *a = argv[*i], *v = *i + 1 < argc ? argv[*i + 1] : NULL;
+  cv_err e;
+  int bit;
+  if (!strcmp(a, "--units")) bit = 1;
+  else if (!strcmp(a, "--up")) bit = 2;
+  else if (!strcmp(a, "--model-scale")) bit = 4;
+  else if (!strcmp(a, "--rotate")) bit = 8;
+  else if (!strcmp(a, "--translate")) bit = 16;
+  else return 0;
+  if (!v) {
+    *rc = cli_fail(cmd, 2, "%s: missing value", a);
+    return -1;
+  }
+  ++*i;
+  int bad = 0;
+  if (bit == 1) bad = cv_parse_units(v, &o->p.unit_m, &e) != CV_OK;
+  if (bit == 2) bad = cv_parse_up(v, &o->p.up, &e) != CV_OK;
+  if (bad) {
+    *rc = cli_fail(cmd, 2, "%s: %s", a, e.msg);
+    return -1;
+  }
+  if (bit == 4 && (cli_parse_double(v, &o->p.scale) || !(o->p.scale > 0))) {
+    *rc = cli_fail(cmd, 2, "%s: expected a positive number, got '%s'", a, v);
+    return -1;
+  }
+  if ((bit == 8 && cli_parse_vec(v, 3, o->p.rotate_deg)) ||
+      (bit == 16 && cli_parse_vec(v, 3, o->p.translate))) {
+    *rc = cli_fail(cmd, 2, "%s: expected X,Y,Z (%s), got '%s'", a, bit == 8 ? "degrees" : "metres",
+                   v);
+    return -1;
+  }
+  o->given |= bit;
+  return 1;
+}
+
+int cli_place_apply(const char *cmd, const cli_place_opts *o, cv_scene_config *c) {
+  if (!o->given) return 0;
+  if (c->mesh_is_cabin)
+    return cli_fail(cmd, 2, "--units/--up/--model-scale/--rotate/--translate apply to a mesh "
+                            "file, not to the built-in cabin");
+  /* each option replaces the config's value */
+  if (o->given & 1) c->place.unit_m = o->p.unit_m;
+  if (o->given & 2) c->place.up = o->p.up;
+  if (o->given & 4) c->place.scale = o->p.scale;
+  if (o->given & 8) memcpy(c->place.rotate_deg, o->p.rotate_deg, sizeof o->p.rotate_deg);
+  if (o->given & 16) memcpy(c->place.translate, o->p.translate, sizeof o->p.translate);
+  return 0;
+}
+
+const char *cli_tag_name(uint32_t flags) {
+  switch (flags & (CV_MAT_WINDOW | CV_MAT_LCD)) {
+  case CV_MAT_WINDOW: return "window";
+  case CV_MAT_LCD: return "lcd";
+  case CV_MAT_WINDOW | CV_MAT_LCD: return "window+lcd";
+  default: return "none";
+  }
+}
+
+/* The config's material overrides, with what each pattern matched. */
+static int apply_overrides(const cv_scene_config *c, cv_mesh *m, FILE *report, cv_err *err) {
+  if (c->n_overrides == 0) return CV_OK;
+  cv_override_count *n = calloc((size_t)c->n_overrides, sizeof *n);
+  if (!n) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  int st = cv_scene_apply_overrides_ex(c, m, n, err);
+  for (int i = 0; !st && report && i < c->n_overrides; i++) {
+    const cv_scene_material *ov = &c->overrides[i];
+    fprintf(report, "materials[%d] '%s': %zu material%s, %zu triangles", i, ov->name,
+            n[i].materials, n[i].materials == 1 ? "" : "s", n[i].triangles);
+    if (ov->has_tag) fprintf(report, ", tag %s", cli_tag_name(ov->flags));
+    if (ov->has_albedo)
+      fprintf(report, ", albedo %.3g %.3g %.3g", (double)ov->albedo[0], (double)ov->albedo[1],
+              (double)ov->albedo[2]);
+    fputc('\n', report);
+  }
+  free(n);
+  return st;
+}
+
+int cli_import_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err) {
   *out = NULL;
   cv_mesh *m = NULL;
   int st;
@@ -49,13 +187,31 @@ int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, c
       fprintf(report, "scene: built-in cabin, tess %d: %zu vertices, %zu triangles\n", cp.tess,
               m->nv, m->nt);
   } else {
-    st = cv_mesh_import(c->mesh_path, NULL, &m, err);
+    cv_import_stats is;
+    st = cv_mesh_import_ex(c->mesh_path, NULL, &m, &is, err);
     if (st) return st;
     if (report)
       fprintf(report, "scene: %s: %zu vertices, %zu triangles, %zu materials\n", c->mesh_path,
               m->nv, m->nt, m->nm);
+    cv_placement_report pr;
+    if ((st = cv_mesh_place(m, &c->place, &is.frame, &pr, err))) {
+      cv_err_prefix(err, "%s", c->mesh_path);
+      goto fail;
+    }
+    if (report) cli_print_placement(report, &pr, is.frame.source);
   }
-  if ((st = cv_scene_apply_overrides(c, m, err))) goto fail;
+  if ((st = apply_overrides(c, m, report, err))) goto fail;
+  *out = m;
+  return CV_OK;
+fail:
+  cv_mesh_destroy(m);
+  return st;
+}
+
+int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err) {
+  cv_mesh *m = NULL;
+  int st = cli_import_scene_mesh(c, report, &m, err);
+  if (st) return st;
   if (c->clean_enabled) {
     cv_clean_params cp;
     cv_clean_default_params(&cp);

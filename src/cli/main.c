@@ -17,12 +17,14 @@ static const struct {
 } commands[] = {
     {"cabin", cmd_cabin, "write the built-in parametric car cabin as OBJ + MTL"},
     {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
+    {"materials", cmd_materials, "list a model's materials: triangles, area, tag, albedo"},
     {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
     {"reference", cmd_reference, "unbiased path-traced view of a scene, the judge of cave shade"},
     {"compensate", cmd_compensate, "cancel the light that screens scatter onto each other"},
     {"lcd", cmd_lcd, "what the driver sees on the LCD panel: BRDF final gather, progressive"},
     {"render", cmd_render, "render every wall-eye of a CAVE on the GPU with shared adaptation"},
     {"tonemap", cmd_tonemap, "Drago tone mapping of an HDR image (EXR or PNG out)"},
+    {"tracker", cmd_tracker, "print DTrack head poses in CAVE coordinates (check a calibration)"},
     {"cluster", cmd_cluster, "write the Open MPI rankfile/hostfile of a multi-host CAVE"},
 #ifdef CAVE_HAVE_CLUSTER
     {"run", cmd_run, "the CAVE render service under mpirun (master, wall-eyes, LCD gather)"},

@@ -16,6 +16,23 @@ int cv_parse_double(const char *s, double *out) {
   return 0;
 }
 
+int cv_parse_seconds(const char *s, double *out) {
+  if (!s) return -1;
+  const char *slash = strchr(s, '/');
+  if (!slash) return cv_parse_double(s, out);
+  char num[64];
+  size_t n = (size_t)(slash - s);
+  if (n == 0 || n >= sizeof num) return -1;
+  memcpy(num, s, n);
+  num[n] = '\0';
+  double a, b;
+  if (cv_parse_double(num, &a) || cv_parse_double(slash + 1, &b) || b == 0) return -1;
+  double v = a / b;
+  if (!isfinite(v)) return -1;
+  *out = v;
+  return 0;
+}
+
 int cv_parse_int(const char *s, int lo, int hi, int *out) {
   double v;
   if (cv_parse_double(s, &v) || v != floor(v) || v < lo || v > hi) return -1;

@@ -178,6 +178,40 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import
   return cv_mesh_add_material(m, nm, alb, flags, NULL);
 }
 
+/* ---------------- the file's own units and up axis ---------------- */
+static int meta_number(const struct aiScene *sc, const char *key, double *out) {
+  const struct aiMetadata *md = sc->mMetaData;
+  for (unsigned i = 0; md && i < md->mNumProperties; i++) {
+    if (strcmp(md->mKeys[i].data, key)) continue;
+    const struct aiMetadataEntry *e = &md->mValues[i];
+    switch (e->mType) {
+    case AI_INT32: *out = *(const int32_t *)e->mData; return 1;
+    case AI_FLOAT: *out = *(const float *)e->mData; return 1;
+    case AI_DOUBLE: *out = *(const double *)e->mData; return 1;
+    default: return 0;
+    }
+  }
+  return 0;
+}
+
+static void read_frame(const char *path, const struct aiScene *sc, cv_file_frame *fr) {
+  memset(fr, 0, sizeof *fr);
+  double usf, upx, sign = 1;
+  if (ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb")) {
+    fr->unit_m = 1.0, fr->up = 'y', fr->source = "glTF specification (metres, Y up)";
+  } else if (ends_with_ci(path, ".dae")) {
+    fr->unit_m = 1.0, fr->up = 'y', fr->source = "COLLADA <unit>/<up_axis>, applied by assimp";
+  } else if (ends_with_ci(path, ".ifc")) {
+    fr->unit_m = 1.0, fr->up = 'y', fr->source = "IFC units and Z up, converted by assimp";
+  } else if (ends_with_ci(path, ".fbx") && meta_number(sc, "UnitScaleFactor", &usf)) {
+    if (isfinite(usf) && usf > 0) fr->unit_m = usf * 0.01; /* FBX: centimetres per unit */
+    meta_number(sc, "UpAxisSign", &sign);
+    if (meta_number(sc, "UpAxis", &upx) && sign > 0)
+      fr->up = upx == 1 ? 'y' : upx == 2 ? 'z' : 0;
+    fr->source = "FBX UnitScaleFactor/UpAxis";
+  }
+}
+
 /* ---------------- import ---------------- */
 int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err) {
   return cv_mesh_import_ex(path, opts, out, NULL, err);
@@ -316,6 +350,7 @@ int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **ou
     }
   }
   s->triangles = m->nt;
+  read_frame(path, sc, &s->frame);
   for (size_t i = 0; i < opts->n_overrides; i++) s->overrides_unused += !ov_used[i];
   st = cv_mesh_validate(m, err);
   if (st) cv_err_prefix(err, "%s", path);

@@ -1,5 +1,7 @@
 /* Mesh import through assimp's C API: OBJ (+MTL), PLY, glTF 2 (.gltf/.glb)
- * and whatever else assimp 5.2 reads, into one cv_mesh in metres.
+ * and whatever else assimp 5.2 reads, into one cv_mesh in the file's units
+ * (times opts->scale); stats->frame says which units and up axis the file
+ * declares, and cv_mesh_place (mesh/place.h) converts to metres, Y up.
  *
  * Post-processing is fixed for predictability: Triangulate,
  * JoinIdenticalVertices, SortByPType, PreTransformVertices (node transforms,
@@ -28,6 +30,7 @@
 
 #include "core/status.h"
 #include "mesh/mesh.h"
+#include "mesh/place.h"
 
 /* Per-material override, e.g. filled from a scene config entry
  * {"name": "glass", "albedo": [0,0,0], "flags": ["window"]}. */
@@ -56,6 +59,11 @@ typedef struct cv_import_stats {
   size_t albedo_defaulted;  /* materials without a colour */
   size_t overrides_applied; /* overrides that matched a kept material */
   size_t overrides_unused;  /* overrides whose name matched no kept material */
+  cv_file_frame frame;      /* units and up axis the file declares (glTF: metres, Y up by
+                               its specification; FBX: UnitScaleFactor (cm) and UpAxis
+                               metadata; COLLADA and IFC: converted by assimp, so
+                               metres and Y up); zeros where the format says nothing.
+                               Coordinates are NOT converted here: see cv_mesh_place. */
 } cv_import_stats;
 
 /* Defaults: no overrides, default albedo 0.5, scale 1. */

@@ -5,6 +5,7 @@
 
 #include <cjson/cJSON.h>
 #include <errno.h>
+#include <fnmatch.h>
 #include <libgen.h>
 #include <math.h>
 #include <stdio.h>
@@ -35,6 +36,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->spread = 0.5;
   c->window_sampling = 1;
   c->error_budget = 0.05;
+  cv_placement_default(&c->place);
   cv_light_spec_default(&c->light);
 }
 
@@ -158,8 +160,43 @@ static void resolve_rel(const char *base, const char *p, char out[CV_PATH_MAX]) 
     snprintf(out, CV_PATH_MAX, "%s/%s", base, p);
 }
 
+static int get_vec3(ctx *x, const cJSON *obj, const char *key, const char *path, double out[3]) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+  if (!v) return CV_OK;
+  char field[256];
+  snprintf(field, sizeof field, "%s.%s", path, key);
+  return get_rgb(x, v, field, -1e9, 1e9, out);
+}
+
+/* mesh.units / mesh.up / mesh.transform (see mesh/place.h). */
+static int parse_placement(ctx *x, const cJSON *o, cv_placement *p) {
+  const cJSON *u = cJSON_GetObjectItemCaseSensitive(o, "units");
+  cv_err e;
+  if (cJSON_IsNumber(u)) {
+    if (!(isfinite(u->valuedouble) && u->valuedouble > 0))
+      return fail(x, "mesh.units", "expected %s", cv_units_expected());
+    p->unit_m = u->valuedouble;
+  } else if (u) {
+    if (!cJSON_IsString(u) || cv_parse_units(u->valuestring, &p->unit_m, &e))
+      return fail(x, "mesh.units", "%.200s", cJSON_IsString(u) ? e.msg : "expected a string or a number");
+  }
+  const cJSON *up = cJSON_GetObjectItemCaseSensitive(o, "up");
+  if (up && (!cJSON_IsString(up) || cv_parse_up(up->valuestring, &p->up, &e)))
+    return fail(x, "mesh.up", "%.200s", cJSON_IsString(up) ? e.msg : "expected \"y\" or \"z\"");
+  const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "transform");
+  if (!t) return CV_OK;
+  static const char *const keys[] = {"translate", "rotate_deg", "scale", NULL};
+  int st = only_keys(x, t, "mesh.transform", keys);
+  if (st) return st;
+  if ((st = get_vec3(x, t, "translate", "mesh.transform", p->translate))) return st;
+  if ((st = get_vec3(x, t, "rotate_deg", "mesh.transform", p->rotate_deg))) return st;
+  if ((st = get_num(x, t, "scale", "mesh.transform", 1e-9, 1e9, &p->scale))) return st;
+  return CV_OK;
+}
+
 static int parse_mesh(ctx *x, const cJSON *o, const char *base, cv_scene_config *c) {
-  static const char *const keys[] = {"source", "path", "tess", "length", "width", "height", NULL};
+  static const char *const keys[] = {"source", "path", "tess", "length", "width", "height",
+                                     "units", "up", "transform", NULL};
   int st = only_keys(x, o, "mesh", keys);
   if (st) return st;
   const cJSON *src = cJSON_GetObjectItemCaseSensitive(o, "source");
@@ -172,8 +209,17 @@ static int parse_mesh(ctx *x, const cJSON *o, const char *base, cv_scene_config 
     if (!cJSON_IsString(path) || !path->valuestring[0])
       return fail(x, "mesh.path", "expected the mesh file's path (OBJ, PLY or glTF)%s", "");
     resolve_rel(base, path->valuestring, c->mesh_path);
+    if ((st = parse_placement(x, o, &c->place))) return st;
   } else if (path) {
     return fail(x, "mesh.path", "not allowed with \"source\": \"cabin\"%s", "");
+  } else {
+    static const char *const file_only[] = {"units", "up", "transform", NULL};
+    for (int i = 0; file_only[i]; i++)
+      if (cJSON_GetObjectItemCaseSensitive(o, file_only[i])) {
+        char field[64];
+        snprintf(field, sizeof field, "mesh.%s", file_only[i]);
+        return fail(x, field, "only for a mesh file (the cabin is built in metres, Y up)%s", "");
+      }
   }
   if ((st = get_int(x, o, "tess", "mesh", 1, 64, &c->cabin_tess))) return st;
   if ((st = get_num(x, o, "length", "mesh", 1.5, 5.0, &c->cabin_length))) return st;
@@ -198,7 +244,7 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
     char field[96];
     snprintf(field, sizeof field, "%s.name", path);
     if (!cJSON_IsString(name) || !name->valuestring[0] || strlen(name->valuestring) > 63)
-      return fail(x, field, "expected a material name (1..63 characters)%s", "");
+      return fail(x, field, "expected a material name or glob pattern (1..63 characters)%s", "");
     snprintf(ov->name, sizeof ov->name, "%s", name->valuestring);
     const cJSON *alb = cJSON_GetObjectItemCaseSensitive(o, "albedo");
     if (alb) {
@@ -275,8 +321,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
                              cv_light_spec *l, cv_err *err) {
   const cJSON *o = json;
   ctx x = {file, err};
-  static const char *const keys[] = {"env", "weights", "scale", "sun", "sky", "constant",
-                                     "yaw_deg", "pitch_deg", "roll_deg", NULL};
+  static const char *const keys[] = {"env", "weights", "scale", "illuminance", "sun", "sky",
+                                     "constant", "yaw_deg", "pitch_deg", "roll_deg", NULL};
   int st = only_keys(&x, o, "lighting", keys);
   if (st) return st;
   const cJSON *env = cJSON_GetObjectItemCaseSensitive(o, "env");
@@ -325,6 +371,14 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
       l->extract_sun = strcmp(sun->valuestring, "auto") == 0;
     }
     if ((st = get_num(&x, o, "scale", "lighting", 0, 1e9, &l->scale))) return st;
+    const cJSON *lux = cJSON_GetObjectItemCaseSensitive(o, "illuminance");
+    if (lux && cJSON_GetObjectItemCaseSensitive(o, "scale"))
+      return fail(&x, "lighting.illuminance", "not together with \"scale\" (both set the level)%s", "");
+    if (cJSON_IsString(lux) && !strcmp(lux->valuestring, "auto")) {
+      l->illuminance = CV_ILLUMINANCE_AUTO;
+    } else if (lux && (st = get_num(&x, o, "illuminance", "lighting", 1e-6, 1e7, &l->illuminance))) {
+      return fail(&x, "lighting.illuminance", "expected lux in [1e-6, 1e7] or \"auto\"%s", "");
+    }
   } else if (sky) {
     l->kind = CV_LIGHT_SKY;
     static const char *const skeys[] = {"turbidity", "sun_elevation_deg", "sun_azimuth_deg",
@@ -340,6 +394,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
     l->kind = CV_LIGHT_CONSTANT;
     if ((st = get_rgb(&x, cst, "lighting.constant", 0, 1e9, l->constant))) return st;
   }
+  if (l->kind != CV_LIGHT_ENV && cJSON_GetObjectItemCaseSensitive(o, "illuminance"))
+    return fail(&x, "lighting.illuminance", "only for \"env\" maps (the sky is absolute)%s", "");
   if ((st = get_num(&x, o, "yaw_deg", "lighting", -360, 360, &l->yaw_deg))) return st;
   if ((st = get_num(&x, o, "pitch_deg", "lighting", -90, 90, &l->pitch_deg))) return st;
   return get_num(&x, o, "roll_deg", "lighting", -180, 180, &l->roll_deg);
@@ -398,14 +454,33 @@ int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
 }
 
 int cv_scene_apply_overrides(const cv_scene_config *c, cv_mesh *m, cv_err *err) {
+  return cv_scene_apply_overrides_ex(c, m, NULL, err);
+}
+
+int cv_scene_apply_overrides_ex(const cv_scene_config *c, cv_mesh *m,
+                                cv_override_count *counts, cv_err *err) {
+  /* check every pattern first, so that nothing is changed when one fails */
+  for (int i = 0; i < c->n_overrides; i++) {
+    int any = 0;
+    for (size_t k = 0; k < m->nm && !any; k++)
+      any = fnmatch(c->overrides[i].name, m->mats[k].name, 0) == 0;
+    if (!any)
+      return cv_err_set(err, CV_ERR_CONFIG,
+                        "%s: materials[%d].name: pattern '%s' matches none of the mesh's %zu "
+                        "materials (cave materials lists them)",
+                        c->source, i, c->overrides[i].name, m->nm);
+  }
   for (int i = 0; i < c->n_overrides; i++) {
     const cv_scene_material *ov = &c->overrides[i];
-    int k = cv_mesh_find_material(m, ov->name);
-    if (k < 0)
-      return cv_err_set(err, CV_ERR_CONFIG, "%s: materials[%d].name: the mesh has no material '%s'",
-                        c->source, i, ov->name);
-    if (ov->has_albedo) memcpy(m->mats[k].albedo, ov->albedo, sizeof ov->albedo);
-    if (ov->has_tag) m->mats[k].flags = ov->flags;
+    cv_override_count n = {0, 0};
+    for (size_t k = 0; k < m->nm; k++) {
+      if (fnmatch(ov->name, m->mats[k].name, 0) != 0) continue;
+      n.materials++;
+      if (ov->has_albedo) memcpy(m->mats[k].albedo, ov->albedo, sizeof ov->albedo);
+      if (ov->has_tag) m->mats[k].flags = ov->flags;
+      for (size_t t = 0; t < m->nt; t++) n.triangles += m->tri_mat[t] == k;
+    }
+    if (counts) counts[i] = n;
   }
   return CV_OK;
 }

@@ -10,9 +10,12 @@
 
 #include "core/status.h"
 #include "mesh/mesh.h"
+#include "mesh/place.h"
 
 #define CV_PATH_MAX 1024
 #define CV_MAX_ENV_MAPS 8
+
+#define CV_ILLUMINANCE_AUTO (-1.0)
 
 typedef enum { CV_LIGHT_NONE = 0, CV_LIGHT_ENV, CV_LIGHT_SKY, CV_LIGHT_CONSTANT } cv_light_kind;
 
@@ -23,6 +26,10 @@ typedef struct cv_light_spec {
   double weight[CV_MAX_ENV_MAPS];
   int n_env;
   double scale;                 /* radiance multiplier for env maps (default 1) */
+  double illuminance;           /* env maps: lux of the upper hemisphere's horizontal
+                                   illuminance (light/calibrate.h); 0 = not calibrated
+                                   (scale applies), CV_ILLUMINANCE_AUTO = each
+                                   blender-data map at its documented default */
   int extract_sun;              /* env maps: split a sun out when one is found (default 1) */
   double turbidity;             /* sky, 2..10 (default 3) */
   double sun_elevation_deg;     /* sky (default 35) */
@@ -33,7 +40,7 @@ typedef struct cv_light_spec {
 } cv_light_spec;
 
 typedef struct cv_scene_material {
-  char name[64];
+  char name[64]; /* a glob pattern (fnmatch) over material names */
   int has_albedo;
   float albedo[3];
   int has_tag;
@@ -44,6 +51,7 @@ typedef struct cv_scene_config {
   char source[CV_PATH_MAX]; /* the config file, or "(built-in)" */
   int mesh_is_cabin;        /* 1: parametric cabin, 0: mesh_path */
   char mesh_path[CV_PATH_MAX];
+  cv_placement place;       /* mesh.units / up / transform (file meshes only) */
   double cabin_length, cabin_width, cabin_height; /* 0 = generator default */
   int cabin_tess;
   cv_scene_material *overrides;
@@ -85,7 +93,18 @@ void cv_scene_config_free(cv_scene_config *c);
  * (may be NULL), else in CAVE_BLENDER_WORLD_DIR.  CV_ERR_NOT_FOUND otherwise. */
 int cv_resolve_env_path(const char *name, const char *base_dir, char out[CV_PATH_MAX],
                         cv_err *err);
-/* Applies material overrides by exact name; unknown names are an error. */
+/* Applies the material overrides in order (a later entry wins); each name is
+ * a glob pattern (fnmatch(3): *, ?, [..], backslash escapes; an exact name
+ * matches itself) applied to EVERY matching material.  A pattern that
+ * matches no material is an error (CV_ERR_CONFIG naming materials[i].name),
+ * checked before anything is changed. */
 int cv_scene_apply_overrides(const cv_scene_config *c, cv_mesh *m, cv_err *err);
+/* What one override entry matched. */
+typedef struct cv_override_count {
+  size_t materials, triangles;
+} cv_override_count;
+/* As above; counts (c->n_overrides entries, may be NULL) gets what each matched. */
+int cv_scene_apply_overrides_ex(const cv_scene_config *c, cv_mesh *m,
+                                cv_override_count *counts, cv_err *err);
 
 #endif

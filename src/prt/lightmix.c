@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "io/scene_config.h"
+#include "light/calibrate.h"
 #include "light/envmap.h"
 #include "light/sun.h"
 #include "sh/sh.h"
@@ -33,9 +35,16 @@ int cv_lightmix_count(const cv_lightmix *m) { return m ? m->n : 0; }
 
 int cv_lightmix_create(const char *const *paths, int n, double scale, int bands,
                        cv_lightmix **out, cv_err *err) {
+  return cv_lightmix_create_calibrated(paths, n, scale, 0.0, bands, out, err);
+}
+
+int cv_lightmix_create_calibrated(const char *const *paths, int n, double scale,
+                                  double illuminance, int bands, cv_lightmix **out, cv_err *err) {
   *out = NULL;
-  if (!paths || n < 1 || !(scale > 0) || bands < 2 || bands > 8)
-    return cv_err_set(err, CV_ERR_INVALID, "lightmix: %d maps, scale %g, %d bands", n, scale, bands);
+  if (!paths || n < 1 || !(scale > 0) || bands < 2 || bands > 8 ||
+      (illuminance != 0 && scale != 1.0))
+    return cv_err_set(err, CV_ERR_INVALID, "lightmix: %d maps, scale %g, illuminance %g, %d bands",
+                      n, scale, illuminance, bands);
   cv_lightmix *m = calloc(1, sizeof *m);
   if (!m) return cv_err_set(err, CV_ERR_NOMEM, "lightmix: out of memory");
   m->maps = calloc((size_t)n, sizeof *m->maps);
@@ -52,9 +61,14 @@ int cv_lightmix_create(const char *const *paths, int n, double scale, int bands,
       cv_lightmix_destroy(m);
       return st;
     }
-    if (scale != 1.0) {
+    double f = scale;
+    if (illuminance != 0 && (st = cv_envmap_calibration(paths[i], mm->env, illuminance, &f, err))) {
+      cv_lightmix_destroy(m);
+      return st;
+    }
+    if (f != 1.0) {
       size_t k = (size_t)mm->env->img->w * mm->env->img->h * 3;
-      for (size_t j = 0; j < k; j++) mm->env->img->px[j] *= (float)scale;
+      for (size_t j = 0; j < k; j++) mm->env->img->px[j] *= (float)f;
     }
     cv_sun_params sp;
     cv_sun_params_default(&sp);

@@ -25,6 +25,14 @@ typedef struct cv_lightmix cv_lightmix;
  * CV_ERR_NOMEM. */
 int cv_lightmix_create(const char *const *paths, int n, double scale, int bands,
                        cv_lightmix **out, cv_err *err);
+/* As cv_lightmix_create, with each map calibrated instead of scaled when
+ * illuminance != 0 (light/calibrate.h): scaled so that the horizontal
+ * illuminance of its upper hemisphere is `illuminance` lux, or its
+ * blender-data default for CV_ILLUMINANCE_AUTO (an error for other maps);
+ * then scale must be 1.  Blends of maps calibrated alike keep the level
+ * (weights sum to 1). */
+int cv_lightmix_create_calibrated(const char *const *paths, int n, double scale,
+                                  double illuminance, int bands, cv_lightmix **out, cv_err *err);
 void cv_lightmix_destroy(cv_lightmix *m);
 int cv_lightmix_count(const cv_lightmix *m);
 

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "light/calibrate.h"
 #include "light/envmap.h"
 #include "light/sky.h"
 #include "light/sun.h"
@@ -21,12 +22,40 @@ struct cv_scene_light {
   double sun_fraction; /* env: energy fraction of the extracted sun */
   double sun_solid_angle;
   int sun_pixels;
+  double map_lux;      /* env: E_h of the map before scaling (its own units) */
+  double factor;       /* env: the multiplier applied (scale or calibration) */
   cv_envmap *residual; /* world-frame map that the SH lighting projects (env, sky) */
   int bands;
   cv_dir_light *extra; /* split lights, car frame */
   int n_extra;
   double extra_fraction; /* their share of the residual's luminous energy */
 };
+
+static void scale_map(cv_envmap *e, double f) {
+  size_t n = (size_t)e->img->w * e->img->h * 3;
+  for (size_t i = 0; i < n; i++) e->img->px[i] *= (float)f;
+}
+
+/* --illuminance: every map at its blender-data default (auto), or the blend
+ * at the given lux.  The multiplier goes to *factor. */
+static int calibrate_maps(const cv_light_spec *spec, cv_envmap **maps, double *factor,
+                          cv_err *err) {
+  if (spec->illuminance != CV_ILLUMINANCE_AUTO) return CV_OK;
+  for (int i = 0; i < spec->n_env; i++) {
+    double lux = cv_blender_map_default_lux(spec->env[i]);
+    if (!(lux > 0))
+      return cv_err_set(err, CV_ERR_CONFIG,
+                        "lighting: illuminance auto: %s is not a blender-data map with a "
+                        "documented level; give the illuminance in lux", spec->env[i]);
+    double E = cv_envmap_horizontal_illuminance(maps[i]);
+    if (!(E > 0))
+      return cv_err_set(err, CV_ERR_CONFIG, "lighting: %s: the upper hemisphere is black, "
+                        "cannot calibrate its illuminance", spec->env[i]);
+    scale_map(maps[i], lux / E);
+    if (i == 0) *factor = lux / E;
+  }
+  return CV_OK;
+}
 
 void cv_scene_light_destroy(cv_scene_light *sl) {
   if (!sl) return;
@@ -68,9 +97,16 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
   cv_car_rotation(spec->yaw_deg, spec->pitch_deg, spec->roll_deg, sl->R);
   int st = CV_OK;
   cv_envmap *maps[CV_MAX_ENV_MAPS] = {0}, *residual = NULL;
+  if (spec->kind == CV_LIGHT_ENV && spec->illuminance != 0 && spec->scale != 1.0) {
+    st = cv_err_set(err, CV_ERR_CONFIG, "lighting: scale %g and illuminance both set the level; "
+                    "give one", spec->scale);
+    goto done;
+  }
   if (spec->kind == CV_LIGHT_ENV) {
     for (int i = 0; i < spec->n_env && !st; i++) st = cv_envmap_load(spec->env[i], &maps[i], err);
-    if (st) goto done;
+    if (st || (st = calibrate_maps(spec, maps, &sl->factor, err))) goto done;
+    if (spec->illuminance == 0 && spec->n_env == 1)
+      sl->map_lux = cv_envmap_horizontal_illuminance(maps[0]);
     if (spec->n_env == 1 && spec->weight[0] == 1.0) {
       sl->world = maps[0];
       maps[0] = NULL;
@@ -79,9 +115,18 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
                            maps[0]->img->w, maps[0]->img->h, &sl->world, err);
       if (st) goto done;
     }
-    if (spec->scale != 1.0) {
-      size_t n = (size_t)sl->world->img->w * sl->world->img->h * 3;
-      for (size_t i = 0; i < n; i++) sl->world->img->px[i] *= (float)spec->scale;
+    if (spec->illuminance != CV_ILLUMINANCE_AUTO) sl->factor = spec->scale;
+    if (spec->illuminance > 0) {
+      sl->map_lux = cv_envmap_horizontal_illuminance(sl->world);
+      if (!(sl->map_lux > 0)) {
+        st = cv_err_set(err, CV_ERR_CONFIG, "lighting: %s: the upper hemisphere is black, "
+                        "cannot calibrate its illuminance", spec->env[0]);
+        goto done;
+      }
+      sl->factor = spec->illuminance / sl->map_lux;
+      scale_map(sl->world, sl->factor);
+    } else if (spec->illuminance == 0 && spec->scale != 1.0) {
+      scale_map(sl->world, spec->scale);
     }
     const cv_envmap *proj = sl->world;
     if (spec->extract_sun) {
@@ -314,8 +359,18 @@ void cv_scene_light_print(FILE *f, const cv_scene_light *sl) {
   if (s->kind == CV_LIGHT_ENV) {
     fprintf(f, "lighting: %d env map%s (%s", s->n_env, s->n_env > 1 ? "s" : "", s->env[0]);
     for (int i = 1; i < s->n_env; i++) fprintf(f, ", %s", s->env[i]);
-    fprintf(f, "), scale %g, yaw %g pitch %g roll %g\n", s->scale, s->yaw_deg, s->pitch_deg,
+    fprintf(f, "), scale %g, yaw %g pitch %g roll %g\n", sl->factor, s->yaw_deg, s->pitch_deg,
             s->roll_deg);
+    if (s->illuminance > 0)
+      fprintf(f, "lighting: calibrated to %g lux horizontal illuminance (the map's %.4g x %.4g)\n",
+              s->illuminance, sl->map_lux, sl->factor);
+    else if (s->illuminance == CV_ILLUMINANCE_AUTO)
+      fprintf(f, "lighting: each map at its blender-data default illuminance (%s: %g lux)\n",
+              s->env[0], cv_blender_map_default_lux(s->env[0]));
+    else if (s->scale == 1.0 && s->n_env == 1 && cv_blender_map_default_lux(s->env[0]) > 0)
+      fprintf(f, "note: %s is relative (horizontal illuminance %.4g in its own units); "
+                 "--illuminance auto sets its documented level, %g lux\n",
+              s->env[0], sl->map_lux, cv_blender_map_default_lux(s->env[0]));
   } else if (s->kind == CV_LIGHT_SKY) {
     fprintf(f, "lighting: Preetham sky, turbidity %g, sun elevation %g azimuth %g deg\n",
             s->turbidity, s->sun_elevation_deg, s->sun_azimuth_deg);

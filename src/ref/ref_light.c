@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "light/calibrate.h"
 #include "light/sky.h"
 #include "sh/latlong.h"
 
@@ -143,6 +144,17 @@ static int load_maps(const cv_light_spec *spec, cv_envmap **world, cv_err *err) 
   int st = CV_OK;
   *world = NULL;
   for (int i = 0; i < spec->n_env && !st; i++) st = cv_envmap_load(spec->env[i], &maps[i], err);
+  if (!st && spec->illuminance != 0 && spec->scale != 1.0)
+    st = cv_err_set(err, CV_ERR_CONFIG, "lighting: scale %g and illuminance both set the level; "
+                    "give one", spec->scale);
+  /* --illuminance auto: each map at its own level (as cv_scene_light_build) */
+  for (int i = 0; i < spec->n_env && !st && spec->illuminance < 0; i++) {
+    double f;
+    if (!(st = cv_envmap_calibration(spec->env[i], maps[i], spec->illuminance, &f, err))) {
+      size_t n = (size_t)maps[i]->img->w * maps[i]->img->h * 3;
+      for (size_t j = 0; j < n; j++) maps[i]->img->px[j] *= (float)f;
+    }
+  }
   if (!st) {
     if (spec->n_env == 1 && spec->weight[0] == 1.0) {
       *world = maps[0];
@@ -152,9 +164,12 @@ static int load_maps(const cv_light_spec *spec, cv_envmap **world, cv_err *err) 
                            maps[0]->img->w, maps[0]->img->h, world, err);
     }
   }
-  if (!st && spec->scale != 1.0) {
+  double f = spec->scale; /* --illuminance LUX: the blend at LUX */
+  if (!st && spec->illuminance > 0) st = cv_envmap_calibration(spec->env[0], *world, spec->illuminance, &f, err);
+  if (!st && spec->illuminance < 0) f = 1.0;
+  if (!st && f != 1.0) {
     size_t n = (size_t)(*world)->img->w * (*world)->img->h * 3;
-    for (size_t i = 0; i < n; i++) (*world)->img->px[i] *= (float)spec->scale;
+    for (size_t i = 0; i < n; i++) (*world)->img->px[i] *= (float)f;
   }
   for (int i = 0; i < CV_MAX_ENV_MAPS; i++) cv_envmap_destroy(maps[i]);
   return st;

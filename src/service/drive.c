@@ -30,6 +30,7 @@ struct cv_drive {
   int loop, is_sky, n_maps;
   char maps[CV_MAX_ENV_MAPS][CV_PATH_MAX];
   double scale, ground_albedo;
+  double illuminance; /* lux, CV_ILLUMINANCE_AUTO, or 0 (scale applies) */
   int n_keys;
   key *keys;
 };
@@ -189,7 +190,7 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
 
 static const char *const top_fields[] = {"description", "loop",          "maps",
                                          "sky",         "scale",         "ground_albedo",
-                                         "keyframes",   NULL};
+                                         "keyframes",   "illuminance",   NULL};
 
 /* Checks the JSON text; when out is non-NULL and there is no problem,
  * builds the drive. */
@@ -231,6 +232,8 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
     if (maps) cv_problem(x, CV_ERR_CONFIG, "maps", "not allowed with \"sky\": true (choose one)");
     if (cJSON_GetObjectItemCaseSensitive(root, "scale"))
       cv_problem(x, CV_ERR_CONFIG, "scale", "only for map drives (the sky has its own radiance)");
+    if (cJSON_GetObjectItemCaseSensitive(root, "illuminance"))
+      cv_problem(x, CV_ERR_CONFIG, "illuminance", "only for map drives (the sky is absolute)");
     opt_num(x, root, "", "ground_albedo", 0.0, 1.0, &d->ground_albedo);
   } else {
     if (cJSON_GetObjectItemCaseSensitive(root, "ground_albedo"))
@@ -238,6 +241,15 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
     if (cJSON_GetObjectItemCaseSensitive(root, "scale") &&
         opt_num(x, root, "", "scale", 0.0, 1e12, &d->scale) && !(d->scale > 0))
       cv_problem(x, CV_ERR_RANGE, "scale", "expected a positive multiplier, got %g", d->scale);
+    const cJSON *lux = cJSON_GetObjectItemCaseSensitive(root, "illuminance");
+    if (lux && cJSON_GetObjectItemCaseSensitive(root, "scale"))
+      cv_problem(x, CV_ERR_CONFIG, "illuminance", "not together with \"scale\" (both set the level)");
+    else if (cJSON_IsString(lux) && !strcmp(lux->valuestring, "auto"))
+      d->illuminance = CV_ILLUMINANCE_AUTO;
+    else if (lux && !cJSON_IsNumber(lux))
+      cv_problem(x, CV_ERR_CONFIG, "illuminance", "expected lux or \"auto\"");
+    else if (lux)
+      opt_num(x, root, "", "illuminance", 1e-6, 1e7, &d->illuminance);
     if (!maps) {
       cv_problem(x, CV_ERR_CONFIG, "maps",
               "missing (expected a list of environment maps, or \"sky\": true)");
@@ -470,6 +482,7 @@ void cv_drive_to_light_spec(const cv_drive *d, const cv_drive_state *s, cv_light
   }
   out->kind = CV_LIGHT_ENV;
   out->scale = d->scale;
+  out->illuminance = d->illuminance;
   int n = s->n_maps < d->n_maps ? s->n_maps : d->n_maps;
   for (int i = 0; i < n; i++) {
     if (!(s->weights[i] > 0)) continue;

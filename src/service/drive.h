@@ -20,6 +20,11 @@
  *                                    blender-data's CAVE_BLENDER_WORLD_DIR)
  *     "sky": true,                   instead of "maps": a Preetham sky
  *     "scale": 1.0,                  optional radiance multiplier for maps, > 0
+ *     "illuminance": 10000,          optional instead of scale: every map scaled
+ *                                    to this horizontal illuminance (lux) of its
+ *                                    upper hemisphere, or "auto": each
+ *                                    blender-data map at its documented level
+ *                                    (light/calibrate.h, docs/drive-format.md)
  *     "ground_albedo": 0.2,          optional, sky only, [0, 1]
  *     "keyframes": [                 1..CV_DRIVE_MAX_KEYS objects
  *       {"t": 0,                     seconds; first t = 0, strictly increasing

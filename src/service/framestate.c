@@ -105,7 +105,7 @@ int cv_frame_state_pack(const cv_frame_state *s, uint8_t buf[CV_FRAME_STATE_BYTE
   if (!s || !buf) return CV_ERR_INVALID;
   if (s->bands < 0 || s->bands > 8 || s->drive.n_maps < 0 ||
       s->drive.n_maps > CV_MAX_ENV_MAPS || (s->drive.is_sky != 0 && s->drive.is_sky != 1) ||
-      (s->has_sun != 0 && s->has_sun != 1))
+      (s->has_sun != 0 && s->has_sun != 1) || (s->has_eyes != 0 && s->has_eyes != 1))
     return CV_ERR_RANGE;
   wr w = {buf, 0, 0};
   put_u32(&w, CV_FRAME_STATE_MAGIC);
@@ -129,6 +129,8 @@ int cv_frame_state_pack(const cv_frame_state *s, uint8_t buf[CV_FRAME_STATE_BYTE
   put_f64s(&w, s->adapt, 6);
   put_u64(&w, s->lcd_key);
   put_u32(&w, s->lcd_rounds);
+  put_i32(&w, s->has_eyes);
+  put_f64s(&w, &s->eyes[0][0], 6);
   if (w.off != CV_FRAME_STATE_BYTES) return CV_ERR_INVALID; /* layout bug: caught by tests */
   return w.nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
@@ -175,9 +177,11 @@ int cv_frame_state_unpack(const uint8_t *buf, size_t len, cv_frame_state *out, c
   get_f64s(&r, "adapt", s.adapt, 6);
   s.lcd_key = get_u64(&r);
   s.lcd_rounds = get_u32(&r);
+  s.has_eyes = get_i32(&r);
+  get_f64s(&r, "eyes", &s.eyes[0][0], 6);
   if (r.off != CV_FRAME_STATE_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
-  if (s.flags & ~(CV_FS_QUIT | CV_FS_WRITE | CV_FS_NEW_LIGHT | CV_FS_HOLD | CV_FS_PREVIEW))
+  if (s.flags & ~(CV_FS_QUIT | CV_FS_WRITE | CV_FS_NEW_LIGHT | CV_FS_HOLD | CV_FS_PREVIEW | CV_FS_MEASURE))
     return cv_err_set(err, CV_ERR_FORMAT, "%s: unknown flags 0x%x", what, (unsigned)s.flags);
   if (s.bands < 0 || s.bands > 8)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: bands %d outside [0, 8]", what, (int)s.bands);
@@ -190,6 +194,9 @@ int cv_frame_state_unpack(const uint8_t *buf, size_t len, cv_frame_state *out, c
   if (s.has_sun != 0 && s.has_sun != 1)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: has_sun %d, expected 0 or 1", what,
                       (int)s.has_sun);
+  if (s.has_eyes != 0 && s.has_eyes != 1)
+    return cv_err_set(err, CV_ERR_FORMAT, "%s: has_eyes %d, expected 0 or 1", what,
+                      (int)s.has_eyes);
   if (r.bad) return nonfinite_err(&r, what, err);
   *out = s;
   return CV_OK;

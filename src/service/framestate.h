@@ -35,9 +35,13 @@
 #define CV_FS_NEW_LIGHT 4u /* lighting changed (light_key differs from the last frame) */
 #define CV_FS_HOLD 8u      /* time held after the drive (--lcd-wait): the LCD converges */
 #define CV_FS_PREVIEW 16u  /* send the desktop preview image of this frame (--present desktop) */
+#define CV_FS_MEASURE 32u  /* adaptation priming before frame 0: render and report the
+                              luminance statistics only (no present, write, LCD or
+                              compensation); frame number CV_FRAME_MEASURE */
+#define CV_FRAME_MEASURE 0xFFFFFFFFu
 
 #define CV_FRAME_STATE_MAGIC 0x53465643u /* "CVFS" in little-endian bytes */
-#define CV_FRAME_STATE_VERSION 1u
+#define CV_FRAME_STATE_VERSION 2u
 #define CV_FRAME_STATE_SH_MAX (3 * 64) /* bands <= 8 */
 
 /* Packed size of a cv_drive_state: 4 f64, i32, CV_MAX_ENV_MAPS f64, i32, 3 f64. */
@@ -45,7 +49,7 @@
 
 #define CV_FRAME_STATE_BYTES                                                                \
   (4 + 4 + 4 + 4 + 8 * 2 + 8 * 3 + 8 * 3 + 8 + CV_DRIVE_STATE_BYTES + 8 + 4 +              \
-   8 * CV_FRAME_STATE_SH_MAX + 4 + 8 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 4)
+   8 * CV_FRAME_STATE_SH_MAX + 4 + 8 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 4 + 4 + 8 * 6)
 
 typedef struct cv_frame_state {
   uint32_t frame;            /* frame index */
@@ -62,6 +66,9 @@ typedef struct cv_frame_state {
   double adapt[6];           /* the Pattanaik state (a_cone, a_rod, b_cone, b_rod, time, initialised) */
   uint64_t lcd_key;          /* key of the LCD image being accumulated */
   uint32_t lcd_rounds;       /* rounds summed so far into the current LCD image */
+  int32_t has_eyes;          /* 1: eyes[] from a calibrated tracker (docs/tracker.md: IPD,
+                                roll); 0: from head, gaze and the CAVE's eye_separation */
+  double eyes[2][3];         /* left, right eye, CAVE frame, metres */
 } cv_frame_state;
 
 /* Packs s into buf (exactly CV_FRAME_STATE_BYTES written).  All 192 sh

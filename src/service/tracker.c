@@ -400,6 +400,7 @@ struct cv_dtrack_receiver {
   int fd, port, body_id;
   char *buf;
   cv_head_pose last;
+  cv_dtrack_frame last_frame; /* the frame `last` came from */
   cv_tracker_stats stats;
 };
 
@@ -456,10 +457,11 @@ int cv_dtrack_receiver_open(const char *host, int port, int body_id, cv_dtrack_r
 
 int cv_dtrack_receiver_port(const cv_dtrack_receiver *r) { return r->port; }
 
-int cv_dtrack_receiver_poll(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
-                            cv_tracker_stats *stats) {
-  int got = 0, st = 0;
-  cv_head_pose newest;
+/* Drains pending datagrams (at most CV_DTRACK_MAX_DRAIN); the newest frame
+ * with a tracked body r->body_id goes to *fnew and its pose to *pnew. */
+static int drain(cv_dtrack_receiver *r, int *got, cv_dtrack_frame *fnew, cv_head_pose *pnew) {
+  int st = 0;
+  *got = 0;
   for (int k = 0; k < CV_DTRACK_MAX_DRAIN; k++) {
     ssize_t n = recv(r->fd, r->buf, RX_BUF, MSG_DONTWAIT);
     if (n < 0) {
@@ -478,17 +480,50 @@ int cv_dtrack_receiver_poll(cv_dtrack_receiver *r, double now, cv_head_pose *pos
       r->stats.no_body++;
       continue;
     }
-    newest = p;
-    got = 1;
+    *pnew = p;
+    *fnew = f;
+    *got = 1;
   }
+  return st;
+}
+
+int cv_dtrack_receiver_poll(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
+                            cv_tracker_stats *stats) {
+  return cv_dtrack_receiver_poll_frame(r, now, pose_out, NULL, stats);
+}
+
+int cv_dtrack_receiver_poll_frame(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
+                                  cv_dtrack_frame *frame_out, cv_tracker_stats *stats) {
+  int got = 0;
+  cv_head_pose newest;
+  cv_dtrack_frame fnew;
+  int st = drain(r, &got, &fnew, &newest);
   if (got) {
     newest.t = now;
     r->last = newest;
+    r->last_frame = fnew;
     r->stats.last_rx_time = now;
   }
   if (pose_out) *pose_out = r->last;
+  if (frame_out) *frame_out = r->last_frame;
   if (stats) *stats = r->stats;
   return st ? st : got;
+}
+
+int cv_dtrack_receiver_join(cv_dtrack_receiver *r, const char *group, const char *iface,
+                            cv_err *err) {
+  struct ip_mreq mr;
+  memset(&mr, 0, sizeof mr);
+  if (inet_pton(AF_INET, group, &mr.imr_multiaddr) != 1 ||
+      (ntohl(mr.imr_multiaddr.s_addr) >> 28) != 14)
+    return cv_err_set(err, CV_ERR_INVALID,
+                      "dtrack receiver: '%s' is not an IPv4 multicast group (224.0.0.0/4)", group);
+  if (inet_pton(AF_INET, iface ? iface : "0.0.0.0", &mr.imr_interface) != 1)
+    return cv_err_set(err, CV_ERR_INVALID, "dtrack receiver: '%s' is not an IPv4 address", iface);
+  if (setsockopt(r->fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mr, sizeof mr) < 0)
+    return cv_err_set(err, CV_ERR_IO, "dtrack receiver: join %s on %s: %s", group,
+                      iface ? iface : "any interface", strerror(errno));
+  return CV_OK;
 }
 
 void cv_dtrack_receiver_close(cv_dtrack_receiver *r) {

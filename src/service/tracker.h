@@ -123,6 +123,16 @@ int cv_dtrack_receiver_port(const cv_dtrack_receiver *r);
  * pose_out and stats may be NULL; stats receives the running totals. */
 int cv_dtrack_receiver_poll(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
                             cv_tracker_stats *stats);
+/* As cv_dtrack_receiver_poll, and frame_out (may be NULL) gets the whole
+ * frame the pose came from (all bodies, the rotation matrix; n_bodies 0
+ * before the first), for calibrated poses (tracker_calib.h). */
+int cv_dtrack_receiver_poll_frame(cv_dtrack_receiver *r, double now, cv_head_pose *pose_out,
+                                  cv_dtrack_frame *frame_out, cv_tracker_stats *stats);
+/* Multicast: joins group (an IPv4 multicast address) on the interface with
+ * address iface (NULL: any) so that the socket (opened on "0.0.0.0" and
+ * the group's port) receives it.  CV_ERR_INVALID, CV_ERR_IO. */
+int cv_dtrack_receiver_join(cv_dtrack_receiver *r, const char *group, const char *iface,
+                            cv_err *err);
 void cv_dtrack_receiver_close(cv_dtrack_receiver *r); /* accepts NULL */
 
 /* --- keyboard and mouse (desktop preview) --------------------------------- */

@@ -760,3 +760,13 @@ int cv_gpu_parse(const char *s, int *gpu) {
   *gpu = (int)v;
   return 0;
 }
+
+void cv_cave_fit_res(cv_cave *c, int n) {
+  if (n <= 0) return;
+  for (int i = 0; i < c->n_walls; i++) {
+    int *r = c->walls[i].res, big = r[0] > r[1] ? r[0] : r[1];
+    int w = (int)lround((double)r[0] * n / big), h = (int)lround((double)r[1] * n / big);
+    r[0] = w < 1 ? 1 : w;
+    r[1] = h < 1 ? 1 : h;
+  }
+}

@@ -135,6 +135,10 @@ int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *o
 
 /* CV_ERR_RANGE naming the wall when eye is on or behind any wall's plane
  * (signed distance along the wall normal <= 1e-6 m), CV_OK otherwise. */
+/* --size N in cave render and cave run: every wall's res scaled so that its
+ * longer side is n pixels, the other side keeping the wall's aspect
+ * (rounded, at least 1).  n <= 0 leaves the config's res. */
+void cv_cave_fit_res(cv_cave *c, int n);
 int cv_cave_check_eye(const cv_cave *c, const double eye[3], cv_err *err);
 
 #endif

@@ -59,6 +59,10 @@ int main(int argc, char **argv) {
       for (int x = 0; x < 12; x++) cv_image_at(w, x, y)[0] = cv_image_at(w, x, y)[1] = cv_image_at(w, x, y)[2] = 0.0f;
     snprintf(path, sizeof path, "%s/band.exr", argv[1]);
     if (cv_exr_write(path, w, 1, CV_EXR_ZIP, &err)) goto fail;
+    /* an HDR input by mistake: the band image at 4.6 */
+    for (size_t i = 0; i < (size_t)96 * 64 * 3; i++) w->px[i] *= 4.6f;
+    snprintf(path, sizeof path, "%s/bright.exr", argv[1]);
+    if (cv_exr_write(path, w, 1, CV_EXR_ZIP, &err)) goto fail;
     cv_image_destroy(w);
   }
   /* Truncated: the first 60% of the good file. */

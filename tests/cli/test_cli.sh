@@ -34,7 +34,7 @@ expect_ok() {
 }
 
 # --- help on every command --------------------------------------------------
-for c in "" cabin bake shade; do
+for c in "" cabin bake shade materials tracker; do
   if $CAVE $c --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help $c"; else bad "help $c"; fi
 done
 expect_error "unknown command" "not a command" $CAVE frobnicate
@@ -86,6 +86,68 @@ printf '{ "prt": { "bands": 12 } }\n' >range.json
 expect_error "JSON range" "prt.bands" $CAVE bake range.json -o x.prt
 printf '{ "materials": [ { "name": "no_such_material", "albedo": [0.5, 0.5, 0.5] } ] }\n' >mat.json
 expect_error "unknown material" "no_such_material" $CAVE bake mat.json -o x.prt --rays 4 --bands 2
+# units / up (assimp-testmodels' regr01.obj: centimetres, Z up)
+R01=/usr/share/assimp/models/OBJ/regr01.obj
+if [ -r $R01 ]; then
+  expect_ok "bake cm z-up obj" $CAVE bake $R01 --units cm --up z -o house.prt --bands 2 --rays 4 --bounces 0 --quiet
+  grep -q "bounding box 16.363 x 3.375 x 11.721 m" out.txt && ok "bounding box in metres" || { bad "bounding box"; grep scene out.txt; }
+  grep -q "^warning: a car" out.txt && bad "warned about a plausible size" || ok "no size warning for 16 m"
+  expect_ok "bake obj without units" $CAVE bake $R01 -o house2.prt --bands 2 --rays 4 --bounces 0 --quiet
+  grep -q "^warning: a car is 0.5..20 m long, this model's largest extent is 1.64e+03 m" out.txt && ok "implausible size warned" || bad "no size warning for 1636 m"
+  printf '{ "mesh": { "path": "%s", "units": "furlong" } }\n' $R01 >units.json
+  expect_error "unknown unit in config" "mesh.units: unknown unit 'furlong'" $CAVE bake units.json -o x.prt
+  expect_error "unknown unit option" "--units: unknown unit 'parsec'" $CAVE bake $R01 --units parsec -o x.prt
+  # materials: the IFC house has nine materials named "Glas"
+  HAUS=/usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc
+  expect_ok "materials of an IFC" $CAVE materials $HAUS
+  [ "$(grep -c ' none .* Glas$' out.txt)" = 9 ] && ok "nine Glas materials listed" || bad "Glas rows: $(grep -c 'Glas$' out.txt)"
+  grep -q "^177 materials, 35906 triangles" out.txt && ok "material totals" || { bad "material totals"; tail -1 out.txt; }
+  printf '{ "mesh": { "path": "%s" }, "materials": [ { "name": "Glas*", "tag": "window" } ] }\n' $HAUS >haus.json
+  expect_ok "materials with a glob override" $CAVE materials haus.json
+  grep -q "^materials\[0\] 'Glas\*': 9 materials, 820 triangles, tag window" out.txt && ok "count per pattern" || bad "count per pattern"
+  [ "$(grep -c ' window .* Glas$' out.txt)" = 9 ] && ok "window tag on every Glas" || bad "window tags: $(grep -c ' window .* Glas$' out.txt)"
+  printf '{ "mesh": { "path": "%s" }, "materials": [ { "name": "*window*", "tag": "window" } ] }\n' $HAUS >haus2.json
+  expect_error "pattern with no match" "materials\[0\].name: pattern '\*window\*' matches none" $CAVE materials haus2.json
+else
+  bad "assimp-testmodels missing (cluster/setup.sh installs it)"
+fi
+# areas in square metres after units: a 100 x 100 cm quad and a 50 x 100 cm one
+printf 'mtllib q.mtl\nv 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nv 0 0 10\nv 50 0 10\nv 50 100 10\nusemtl seat\nf 1 2 3 4\nusemtl window_a\nf 5 6 7\n' >q.obj
+printf 'newmtl seat\nKd 0.5 0.4 0.3\nnewmtl window_a\nKd 0 0 0\n' >q.mtl
+expect_ok "materials of an OBJ in cm" $CAVE materials q.obj --units cm
+grep -Eq "^ +0 +2 +1.0000  none .*seat$" out.txt && grep -Eq "^ +1 +1 +0.2500  window .*window_a$" out.txt && ok "triangles, area and tag per material" || { bad "area per material"; cat out.txt; }
+expect_error "materials: missing argument" "missing the model" $CAVE materials
+# light levels: --illuminance LUX|auto
+expect_ok "shade --illuminance auto" $CAVE shade a.prt --env forest.exr --illuminance auto -o lux.ply
+grep -q "blender-data default illuminance (.*forest.exr: 10000 lux)" out.txt && ok "auto level printed" || { bad "auto level"; cat out.txt; }
+expect_ok "shade --illuminance 5000" $CAVE shade a.prt --env forest.exr --illuminance 5000 -o lux.ply
+grep -q "calibrated to 5000 lux horizontal illuminance" out.txt && ok "calibration printed" || bad "calibration line"
+expect_ok "shade relative map" $CAVE shade a.prt --env forest.exr -o lux.ply
+grep -q "^note: .*forest.exr is relative" out.txt && ok "relative map noted" || bad "no note for a relative map"
+expect_error "bad illuminance" "--illuminance: expected lux" $CAVE shade a.prt --env forest.exr --illuminance -5 -o x.ply
+expect_error "scale and illuminance" "give one" $CAVE shade a.prt --env forest.exr --illuminance 100 --scale 3 -o x.ply
+printf '{ "lighting": { "env": "forest.exr", "scale": 2, "illuminance": 100 } }\n' >lux.json
+expect_error "config scale and illuminance" "lighting.illuminance: not together" $CAVE bake lux.json -o x.prt
+# tracker: recorded DTrack packets over loopback UDP, poses in CAVE metres
+printf '{"units": "mm", "body_id": 3, "room_to_cave": {"rotate_deg": [0, 90, 0], "translate": [0, 0, 1]},\n "eye_offset": [0, -0.1, -0.08], "ipd": 0.064, "udp": {"bind": "127.0.0.1"}}\n' >trk.json
+$CAVE tracker trk.json --listen --port 0 --count 2 --seconds 20 >trk.out 2>trk.err &
+tpid=$!
+for _ in $(seq 100); do grep -q "^listening on" trk.out 2>/dev/null && break; sleep 0.1; done
+tport=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' trk.out)
+python3 - "$tport" <<'PY'
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+body = lambda fr, pos: ("fr %d\r\n6d 1 [3 1.000][%s 0 0 0][1 0 0 0 1 0 0 0 1]\r\n" % (fr, pos)).encode()
+for p in (body(1, "1000 1500 -500"), body(2, "nan 0 0"), b"fr 3\r\n6d 0\r\n", body(4, "1000 1500 -500")):
+    s.sendto(p, ("127.0.0.1", int(sys.argv[1]))); time.sleep(0.05)
+PY
+wait $tpid; trc=$?
+[ $trc -eq 0 ] && grep -q "^frame 1 marker -0.5000 1.5000 0.0000 left -0.5800 1.4000 0.0320 right -0.5800 1.4000 -0.0320 gaze -1.0000 0.0000 0.0000 yaw -90.00 pitch 0.00 roll 0.00" trk.out \
+  && ok "tracker --listen: eyes in CAVE metres" || { bad "tracker --listen rc $trc"; cat trk.out trk.err; }
+grep -q "^2 poses, 4 packets, 1 malformed, 1 without body 3" trk.out && grep -q "^warning: 1 malformed" trk.err \
+  && ok "tracker: NaN and missing body counted, pose held" || { bad "tracker counts"; cat trk.out trk.err; }
+expect_error "tracker: unknown unit" "units: unknown unit 'furlong'" $CAVE tracker <(echo '{"units": "furlong"}') --listen
+expect_error "tracker: missing --listen" "missing --listen" $CAVE tracker trk.json
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
@@ -129,6 +191,13 @@ grep -q "luminance compensated" out.txt && grep -q "spectral radius" out.txt && 
 expect_ok "compensate exact" $CAVE compensate --display two.json --image white.exr --image white.exr --solver exact -o ex.exr --report
 expect_ok "compensate bounded stereo" $CAVE compensate --display two.json --image white.exr --image band.exr --right band.exr --right white.exr --solver bounded -o st.exr
 [ -s st_left_left.exr ] && [ -s st_right_right.exr ] && ok "stereo outputs per eye" || bad "stereo outputs"
+# output folder checked before any work
+start=$(date +%s.%N)
+expect_error "compensate: missing output folder" "-o: cannot write nodir/I.exr: folder nodir" $CAVE compensate --display two.json --image white.exr --image band.exr -o nodir/I.exr
+awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { exit !(b - a < 5) }' && ok "failed before the solve" || bad "missing folder reported late"
+expect_ok "compensate HDR input" $CAVE compensate --display two.json --image white.exr --image bright.exr -o hdr.exr
+grep -q "^warning: bright.exr: 16128 of 18432 values outside \[0, 1\] (min 0, max 4.6[0-9]*)" err.txt && ! grep -q "white.exr" err.txt \
+  && ok "inputs outside [0, 1] warned" || { bad "no warning for an HDR input"; cat err.txt; }
 expect_ok "compensate jacobi" $CAVE compensate --display two.json --image white.exr --image white.exr --solver jacobi --levels 3 -o jc.exr
 printf '{"surfaces": [%s, %s], "projectors": "ideal"}\n' "$(wall a "[-1,0,0]" "[0,0,-1]" "[-1,1,0.3]" 0.5 "[4,4]")" "$R" >skew.json
 expect_error "non-rectangular corners" "corners" $CAVE compensate --display skew.json --image white.exr --image white.exr -o x.exr
@@ -182,6 +251,33 @@ h2=$(pct)
 awk -v a="$h1" -v b="$h2" 'BEGIN { exit !(b >= 6 && b <= 12 && b - a >= 0.3 && b - a <= 2) }' \
   && ok "paper's figures: $h2% compensated overall (paper ~9%), +$(awk -v a="$h1" -v b="$h2" 'BEGIN{printf "%.2f", b-a}') from level 2 (paper ~1%)" \
   || bad "paper's figures: level 1 $h1%, level 2 $h2%"
+
+# --- one interface: --dt as a fraction, short usage on a missing argument ----
+expect_ok "render --dt 1/30" $CAVE render "$ROOT/configs/caves/two-sided-wall.json" --scene a.prt --env-constant 1,1,1 --size 8 --frames 2 --dt 1/30 -o rnddt
+expect_error "render --dt 1/0" "--dt: expected seconds" $CAVE render "$ROOT/configs/caves/two-sided-wall.json" --scene a.prt --env-constant 1,1,1 --dt 1/0 -o rnddt
+if $CAVE --help | grep -q "^  run "; then
+  expect_ok "run --check --dt 1/30" $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/30
+  $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/0 >out.txt 2>err.txt
+  grep -q "^--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '1/0'" err.txt && ok "run --dt 1/0 refused" || { bad "run --dt 1/0"; cat err.txt; }
+fi
+for c in cabin bake shade materials render lcd compensate tonemap tracker run; do
+  $CAVE --help | grep -q "^  $c " || continue
+  $CAVE $c --help >out.txt 2>&1
+  grep -q "^examples:" out.txt && tail -1 out.txt | grep -Eq "^  (mpirun .*)?cave $c " \
+    && ok "$c --help ends with examples" || { bad "$c --help has no examples at the end"; tail -3 out.txt; }
+done
+for c in bake shade materials tracker lcd compensate tonemap; do
+  $CAVE $c >out.txt 2>err.txt; rc=$?
+  n=$(wc -l <err.txt) nh=$($CAVE $c --help | wc -l)
+  # the usage synopsis (up to 9 lines) and one error line, not the whole help
+  if [ $rc -eq 2 ] && head -1 err.txt | grep -q "^usage: cave $c" && tail -1 err.txt | grep -q "^cave $c: " \
+     && [ "$n" -le 10 ] && [ "$nh" -gt $((n + 4)) ]; then
+    ok "$c without arguments: usage ($((n - 1)) lines of $nh in --help) + one error line"
+  else
+    bad "$c without arguments: rc $rc, $n lines"; cat err.txt
+  fi
+done
+expect_error "bake: no folder for -o" "-o: cannot write nodir/x.prt" $CAVE bake default -o nodir/x.prt
 
 # --- tonemap -----------------------------------------------------------------
 if $CAVE tonemap --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help tonemap"; else bad "help tonemap"; fi

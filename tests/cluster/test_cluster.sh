@@ -58,7 +58,7 @@ if [ $rc -eq 0 ]; then ok "11-rank run"; else bad "11-rank run rc $rc: $(tail -5
 nexr=$(ls r11/frame00003_*.exr 2>/dev/null | wc -l)
 [ "$nexr" -eq 10 ] && ok "10 wall-eye EXRs for the last frame" || bad "wall-eye EXRs: $nexr"
 [ -s r11/montage00003_L.png ] && ok "montage written" || bad "no montage"
-python3 - r11 <<'PY' && ok "metrics: every frame on time, one adaptation state, finite" || bad "metrics"
+python3 - r11 <<'PY' && ok "metrics: every frame on time, one adaptation state from frame 0's luminance, finite" || bad "metrics"
 import json, math, sys
 lines = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
 frames = [l for l in lines if l["type"] == "frame"]
@@ -69,11 +69,52 @@ for f in frames:
     assert f["state_mismatch"] == 0, f
     a = f["adaptation"]
     assert a["lwa"] is not None and math.isfinite(a["lwa"]) and a["lwa"] > 0, a
+# adaptation starts from frame 0's own luminance (the priming round), not
+# 1 cd/m2: standing still, frame 0 and frame 1 are adapted alike
+l0, l1 = frames[0]["adaptation"]["lwa"], frames[1]["adaptation"]["lwa"]
+assert abs(l0 - 1.0) > 1e-3 and abs(l0 / l1 - 1) < 0.1, (l0, l1)
 print("lwa per frame:", [round(f["adaptation"]["lwa"], 4) for f in frames],
       "master p99 ms:", summary[0].get("master_ms_p99"))
 PY
 "$CAVE" tonemap r11/frame00003_front_L.exr -o front.png >tm.txt 2>&1 && grep -q "invalid 0\|0 invalid" tm.txt \
   && ok "front wall EXR finite" || bad "front EXR: $(cat tm.txt)"
+
+# --- calibrated tracker: DTrack packets on loopback -> both eyes per frame ---
+TPORT=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+cat > trk.json <<JSON
+{"units": "mm", "body_id": 3, "room_to_cave": {"rotate_deg": [0, 90, 0], "translate": [0, 0, 1]},
+ "eye_offset": [0, -0.1, -0.08], "ipd": 0.064, "udp": {"port": $TPORT, "bind": "127.0.0.1"}}
+JSON
+printf '{"units": "furlong"}\n' >badtrk.json
+"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --tracker badtrk.json >out.txt 2>err.txt; rc=$?
+[ $rc -ne 0 ] && grep -q "\-\-tracker: badtrk.json: units: unknown unit 'furlong'" err.txt && ok "bad tracker config listed" || bad "bad tracker config: $(cat err.txt)"
+python3 - "$TPORT" <<'PY' &
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+ok = b"fr %d\r\n6d 1 [3 1.000][1000 1500 -500 0 0 0][1 0 0 0 1 0 0 0 1]\r\n"
+t0 = time.time(); n = 0
+while time.time() - t0 < 60:
+    n += 1
+    for p in (ok % n, b"fr 0\r\n6d 1 [3 1.000][nan 0 0 0 0 0][1 0 0 0 1 0 0 0 1]\r\n", b"fr 0\r\n6d 0\r\n"):
+        s.sendto(p, ("127.0.0.1", int(sys.argv[1])))
+    time.sleep(0.02)
+PY
+spid=$!
+timeout 300 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 12 --max-fps 8 \
+  --no-compensation --tracker trk.json -o rt >outrt.txt 2>errrt.txt; rc=$?
+kill $spid 2>/dev/null; wait $spid 2>/dev/null
+python3 - rt <<'PY' && ok "tracker config: calibrated eyes in every frame after the first packet, NaN and missing body counted" || bad "calibrated tracker (rc $rc): $(tail -3 errrt.txt)"
+import json, sys
+frames = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
+frames = [f for f in frames if f["type"] == "frame"]
+t = frames[-1]["tracker"]
+assert t["source"] == "dtrack-calibrated", t
+want = [-0.58, 1.4, 0.032, -0.58, 1.4, -0.032]
+assert all(abs(a - b) < 1e-9 for a, b in zip(t["eyes"], want)), t["eyes"]
+assert all(abs(a - b) < 1e-9 for a, b in zip(t["head"], [-0.58, 1.4, 0.0])), t["head"]
+assert t["malformed"] >= 1 and t["no_body"] >= 1, t
+print("eyes", t["eyes"], "packets", t["packets"], "malformed", t["malformed"], "no_body", t["no_body"])
+PY
 
 # --- LCD: bit-identical for 11 and 13 ranks at one budget -------------------
 L=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation)
@@ -209,6 +250,18 @@ dt=$(( $(date +%s) - t0 ))
 [ $rc -ne 0 ] && [ $dt -le 30 ] && grep -q "rank 5" deatherr.txt \
   && ok "a killed rank ends the job in ${dt} s, naming it: $(grep -o 'process rank 5[^(]*' deatherr.txt | head -1)" \
   || bad "killed rank: rc $rc after ${dt} s: $(grep -i rank deatherr.txt | tail -2)"
+
+# --- --size keeps each wall's aspect (as in cave render) ----------------------
+sed 's/"res": \[720, 720\]/"res": [1440, 720]/g' "$SRC/configs/caves/two-sided-wall.json" > wide.json
+timeout 300 "${MPI[@]}" -np 5 "$CAVE" run wide.json --scene scene.prt --size 32 --frames 1 --no-compensation \
+  --lcd-size 8x6 --quiet -o wide >/dev/null 2>wideerr.txt; rc=$?
+"$CAVE" tonemap wide/frame00000_front_L.exr -o wide.png >/dev/null 2>&1
+python3 - wide.png <<'PY' && [ $rc -eq 0 ] && ok "--size 32 on 1440x720 walls renders 32x16" || bad "--size aspect (rc $rc): $(tail -2 wideerr.txt)"
+import struct, sys
+b = open(sys.argv[1], "rb").read(24)
+w, h = struct.unpack(">II", b[16:24])
+assert (w, h) == (32, 16), (w, h)
+PY
 
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -1,4 +1,4 @@
-/* Unit tests of core/hash and core/progress. */
+/* Unit tests of core/hash, core/progress and core/parse. */
 #include <omp.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "core/hash.h"
+#include "core/parse.h"
 #include "core/progress.h"
 #include "core/status.h"
 
@@ -188,12 +189,30 @@ static void test_progress_unknown_total(void **state) {
   assert_non_null(strstr(last, "progress: done, 7 items"));
 }
 
+/* --dt in every command: "0.0333" and "1/30" */
+static void test_parse_seconds(void **state) {
+  (void)state;
+  double v = -1;
+  assert_int_equal(cv_parse_seconds("1/30", &v), 0);
+  assert_true(v == 1.0 / 30);
+  assert_int_equal(cv_parse_seconds("0.0333", &v), 0);
+  assert_true(v == 0.0333);
+  assert_int_equal(cv_parse_seconds("1001/30000", &v), 0);
+  assert_true(v == 1001.0 / 30000);
+  const char *bad[] = {"1/0", "/30", "1/", "1/30/2", "a/30", "1/3x", "", "nan", "1e999/1"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    v = 7;
+    if (cv_parse_seconds(bad[i], &v) == 0) fail_msg("'%s' accepted", bad[i]);
+    assert_true(v == 7);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_hash_vectors),         cmocka_unit_test(test_hash_typed),
       cmocka_unit_test(test_progress_null),        cmocka_unit_test(test_progress_plain_lines),
       cmocka_unit_test(test_progress_tty_and_quiet), cmocka_unit_test(test_progress_openmp),
-      cmocka_unit_test(test_progress_unknown_total),
+      cmocka_unit_test(test_progress_unknown_total), cmocka_unit_test(test_parse_seconds),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -243,7 +243,34 @@ static const bad_drive bad[] = {
     {"{\"maps\": [\"forest.exr\"],\n \"keyframes\": [{\"t\": 0},]}", CV_ERR_CONFIG,
      "JSON syntax error near line 2"},
     {"[1, 2]", CV_ERR_CONFIG, "expected a JSON object"},
+    {"{\"maps\": [\"forest.exr\"], \"scale\": 2, \"illuminance\": 100, \"keyframes\": [{\"t\": 0}]}",
+     CV_ERR_CONFIG, "illuminance: not together with \"scale\""},
+    {"{\"sky\": true, \"illuminance\": \"auto\", \"keyframes\": [{\"t\": 0}]}", CV_ERR_CONFIG,
+     "illuminance: only for map drives"},
+    {"{\"maps\": [\"forest.exr\"], \"illuminance\": \"bright\", \"keyframes\": [{\"t\": 0}]}",
+     CV_ERR_CONFIG, "illuminance: expected lux or \"auto\""},
+    {"{\"maps\": [\"forest.exr\"], \"illuminance\": -3, \"keyframes\": [{\"t\": 0}]}",
+     CV_ERR_RANGE, "illuminance"},
 };
+
+/* illuminance reaches the light spec (lux or auto) */
+static void test_drive_illuminance(void **state) {
+  (void)state;
+  const char *json[2] = {"{\"maps\": [\"forest.exr\"], \"illuminance\": 12000, \"keyframes\": [{\"t\": 0}]}",
+                         "{\"maps\": [\"forest.exr\"], \"illuminance\": \"auto\", \"keyframes\": [{\"t\": 0}]}"};
+  const double want[2] = {12000, CV_ILLUMINANCE_AUTO};
+  for (int i = 0; i < 2; i++) {
+    cv_drive *d;
+    cv_err err;
+    assert_int_equal(cv_drive_parse(json[i], "test.json", NULL, &d, &err), CV_OK);
+    cv_drive_state s;
+    cv_drive_eval(d, 0, &s);
+    cv_light_spec l;
+    cv_drive_to_light_spec(d, &s, &l);
+    assert_true(l.illuminance == want[i] && l.scale == 1.0);
+    cv_drive_destroy(d);
+  }
+}
 
 static void test_drive_errors(void **state) {
   (void)state;
@@ -356,7 +383,7 @@ static void test_shipped_drives(void **state) {
 int run_drive_tests(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_drive_parse_eval),   cmocka_unit_test(test_drive_loop_and_sky),
-      cmocka_unit_test(test_drive_state_key),    cmocka_unit_test(test_drive_errors),
+      cmocka_unit_test(test_drive_state_key),    cmocka_unit_test(test_drive_errors), cmocka_unit_test(test_drive_illuminance),
       cmocka_unit_test(test_drive_relative_map), cmocka_unit_test(test_shipped_drives),
   };
   return cmocka_run_group_tests_name("drive", tests, NULL, NULL);

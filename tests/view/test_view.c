@@ -378,8 +378,31 @@ static void test_head_eyes(void **state) {
   assert_true(fabs(r[0] - 0.032) < 1e-15 && isfinite(l[0]));
 }
 
+/* --size N (cave render and cave run): the longer side N, the aspect kept. */
+static void test_fit_res(void **state) {
+  (void)state;
+  cv_cave c;
+  cv_cave_defaults(&c);
+  c.n_walls = 3;
+  c.walls[0].res[0] = 1920, c.walls[0].res[1] = 1080;
+  c.walls[1].res[0] = 1050, c.walls[1].res[1] = 1400;
+  c.walls[2].res[0] = 720, c.walls[2].res[1] = 720;
+  cv_cave_fit_res(&c, 0); /* no --size: unchanged */
+  assert_int_equal(c.walls[0].res[0], 1920);
+  cv_cave_fit_res(&c, 480);
+  assert_int_equal(c.walls[0].res[0], 480);
+  assert_int_equal(c.walls[0].res[1], 270);
+  assert_int_equal(c.walls[1].res[0], 360);
+  assert_int_equal(c.walls[1].res[1], 480);
+  assert_int_equal(c.walls[2].res[0], 480);
+  assert_int_equal(c.walls[2].res[1], 480);
+  cv_cave_fit_res(&c, 1); /* never 0 pixels */
+  assert_int_equal(c.walls[0].res[1], 1);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_fit_res),
       cmocka_unit_test(test_load_shipped),     cmocka_unit_test(test_bad_configs),
       cmocka_unit_test(test_corners_to_ndc),   cmocka_unit_test(test_symmetric_and_errors),
       cmocka_unit_test(test_shared_edge),      cmocka_unit_test(test_head_eyes),
