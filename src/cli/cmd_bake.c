@@ -33,7 +33,12 @@ static void help(FILE *f) {
           "  --tess N        built-in cabin subdivision (1..64)\n"
           "  --threads N     OpenMP threads (default: all cores)\n"
           "  --force         bake even if the output already matches the inputs\n"
-          "  --quiet         no progress bar\n");
+          "  --quiet         no progress bar\n\n"
+          "Mesh files are imported by assimp in a child process under limits (environment):\n"
+          "  CAVE_IMPORT_TIMEOUT=S     wall-clock seconds (default 600; 0 = none)\n"
+          "  CAVE_IMPORT_MEMORY_MB=M   address space in MB (default 8192 or 3/4 of the RAM,\n"
+          "                            whichever is less; 0 = none); raise both for big CAD\n"
+          "  CAVE_IMPORT_VERBOSE=1     show what assimp printed (otherwise dropped)\n");
 }
 
 int cmd_bake(int argc, char **argv) {
