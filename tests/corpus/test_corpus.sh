@@ -19,7 +19,9 @@ mapfile -t files < <(cd $M && find . -type f -size -"${MAXKB}"k |
   grep -v -iE 'ReferenceImages|SourceFiles|\.(png|jpg|jpeg|bmp|tga|dds|txt|md|mtl|bin|mat|gif|pcx|tif|tiff|shader|skin|xml|material|program|ini|zip)$' |
   LC_ALL=C sort | awk -v n="$NTH" '(NR - 1) % n == 0')
 # and always assimp's own hostile file (a header claiming 353535235358 vertices)
-[ -f $M/invalid/OutOfMemory.off ] && files+=(./invalid/OutOfMemory.off)
+if [ -f $M/invalid/OutOfMemory.off ] && [[ " ${files[*]} " != *" ./invalid/OutOfMemory.off "* ]]; then
+  files+=(./invalid/OutOfMemory.off)
+fi
 export CAVE_IMPORT_TIMEOUT=10 CAVE_IMPORT_MEMORY_MB=2048
 declare -A count
 for k in ok clean unclear crash hang; do count[$k]=0; done
