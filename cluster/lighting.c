@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "io/png.h"
+#include "lcd/lcd_config.h"
 
 #include "service.h"
 #include "service_internal.h"
@@ -31,7 +32,7 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->lcd_spp = 40;
   o->lcd_budget = 64;
   o->lcd_tolerance = 0.02;
-  o->lcd_luminance = 500;
+  o->lcd_luminance = CV_LCD_WHITE_DEFAULT; /* the same panel white as `cave lcd` */
   o->lcd_idle = 1;
   o->seed = 1;
   o->present = CV_PRESENT_FILES;

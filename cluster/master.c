@@ -32,6 +32,7 @@
 #include "comm.h"
 #include "core/hash.h"
 #include "lcd/gather.h"
+#include "lcd/lcd_config.h"
 #include "master_internal.h"
 #include "render/window.h"
 #include "service.h"
@@ -109,6 +110,11 @@ static int master_setup(master *m, cv_err *err) {
   int st = cv_prt_read(s->o.scene_path, &prt, err);
   if (st) return st;
   m->bands = (int)prt->bands;
+  cv_mesh *pm = NULL;
+  cv_lcd_panel pn;
+  if (!cv_prt_to_mesh(prt, &pm) && !cv_lcd_panel_from_mesh(pm, &pn, NULL))
+    m->lcd_aspect = (double)pn.size[0] / pn.size[1]; /* content placed without stretch */
+  cv_mesh_destroy(pm);
   cv_prt_destroy(prt);
   st = cv_service_lightmix(s, m->bands, &m->mix, err);
   if (st) return st;
@@ -145,7 +151,8 @@ static int master_setup(master *m, cv_err *err) {
     m->lcd_mb = cv_mailbox_open(-1, CV_TAG_LCD, sizeof(cv_lcd_msg) + n * sizeof(int64_t));
     m->seen = calloc((size_t)s->o.lcd_budget, 1);
     if (!m->lcd_mb || !m->seen) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
-    st = cv_lcd_content_load(s->o.lcd_content, s->o.lcd_w, s->o.lcd_h, s->o.lcd_luminance,
+    st = cv_lcd_content_load(s->o.lcd_content, s->o.lcd_w, s->o.lcd_h, m->lcd_aspect,
+                             s->o.lcd_luminance, CV_LCD_BLACK_LEVEL * s->o.lcd_luminance,
                              &m->lcd_content, err);
     if (st) return st;
   }
@@ -548,6 +555,8 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "rel_rms", le.rel_rms);
       cv_metrics_uint(ml, "clamped", (uint64_t)m->prog.acc->data[CV_LCD_ACC_CLAMPED]);
     }
+    lcd_readability_update(m);
+    lcd_readability_metrics(m, ml);
     cv_metrics_object_end(ml);
   }
   if (m->disp) {

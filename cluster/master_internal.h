@@ -16,6 +16,7 @@
 
 #include "compensate/formfactor.h"
 #include "compensate/solve.h"
+#include "lcd/readability.h"
 #include "render/desktop.h"
 #include "service/clocksync.h"
 #include "service/metrics.h"
@@ -44,6 +45,7 @@ typedef struct pose_rec {
 typedef struct master {
   cv_service *s;
   int bands;
+  double lcd_aspect; /* LCD panel width / height (metres), 0 when the scene has none */
   int wall_clock;         /* 1: --clock wall */
   double t_start;         /* master clock at the first frame */
   cv_head_path *path;
@@ -87,6 +89,15 @@ typedef struct master {
   double lcd_last_send;
   uint32_t lcd_sent_rounds;
   cv_image *lcd_content;
+  /* readability of the last LCD estimate (master_lcd.c, docs/readability.md) */
+  struct {
+    int valid;
+    uint64_t key;         /* camera/lighting key of the estimate */
+    uint32_t rounds;      /* rounds it holds */
+    double t;             /* service time it was computed */
+    cv_lcd_figure L_r, cr, area, vl;
+    double L_a, cr_min;
+  } lread;
   /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
   cv_mailbox **rep_mb;
   uint64_t late_reports;
@@ -172,6 +183,11 @@ void master_sync_summary(master *m, cv_metrics_line *ml);
 void lcd_drain(master *m);
 void lcd_publish(master *m, int force);
 void lcd_write(master *m, const char *stem);
+/* Recomputes the readability figures when the estimate gained rounds. */
+void lcd_readability_update(master *m);
+/* The "readability" object of a metrics line (last valid estimate, its key
+ * and age), nothing before the first estimate. */
+void lcd_readability_metrics(master *m, cv_metrics_line *ml);
 
 /* master_desktop.c */
 /* Opens the preview window (a no-op without --present desktop) sized for

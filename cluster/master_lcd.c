@@ -11,6 +11,8 @@
 #include "comm.h"
 #include "io/exr.h"
 #include "lcd/gather.h"
+#include "lcd/lcd_config.h"
+#include "lcd/readability.h"
 #include "master_internal.h"
 
 /* ---- LCD ---------------------------------------------------------------- */
@@ -85,6 +87,58 @@ void lcd_publish(master *m, int force) {
   cv_image_destroy(img);
   m->lcd_last_send = now;
   m->lcd_sent_rounds = m->lcd_rounds;
+}
+
+/* The figures from the reflection alone: the veil needs the eye's view
+ * traced (cave lcd does it), which the master, holding no geometry, does
+ * not; the adaptation is the shared (Pattanaik) one. */
+void lcd_readability_update(master *m) {
+  if (!m->prog.acc || (m->lread.valid && m->lread.key == m->lcd_key &&
+                       m->lread.rounds == m->lcd_rounds))
+    return;
+  cv_lcd_read_params rp;
+  cv_lcd_read_params_default(&rp);
+  rp.white = m->s->o.lcd_luminance;
+  rp.black = CV_LCD_BLACK_LEVEL * rp.white;
+  rp.adaptation = m->have_adapt ? cv_adapt_lwa(&m->ad) : 0;
+  const cv_lcd_figure no_veil = {0, 0};
+  cv_lcd_readability rd;
+  cv_err err;
+  if (cv_lcd_readability_compute(m->prog.acc, &rp, &no_veil, &rd, &err) != CV_OK) return;
+  m->lread.valid = 1;
+  m->lread.key = m->lcd_key;
+  m->lread.rounds = m->lcd_rounds;
+  m->lread.t = cv_service_now();
+  m->lread.L_r = rd.L_r;
+  m->lread.cr = rd.cr_mean;
+  m->lread.area = rd.frac_ok;
+  m->lread.vl = rd.vl;
+  m->lread.L_a = rd.L_a.value;
+  m->lread.cr_min = rd.cr_min;
+  cv_lcd_readability_free(&rd);
+}
+
+void lcd_readability_metrics(master *m, cv_metrics_line *ml) {
+  if (!m->lread.valid) return;
+  char kb[32];
+  snprintf(kb, sizeof kb, "%016llx", (unsigned long long)m->lread.key);
+  cv_metrics_object_begin(ml, "readability");
+  cv_metrics_string(ml, "key", kb);
+  cv_metrics_uint(ml, "rounds", m->lread.rounds);
+  cv_metrics_double(ml, "age_s", cv_service_now() - m->lread.t);
+  cv_metrics_bool(ml, "current", m->lread.key == m->lcd_key);
+  cv_metrics_double(ml, "reflected_luminance", m->lread.L_r.value);
+  cv_metrics_double(ml, "reflected_luminance_se", m->lread.L_r.se);
+  cv_metrics_double(ml, "contrast_ratio", m->lread.cr.value);
+  cv_metrics_double(ml, "contrast_ratio_se", m->lread.cr.se);
+  cv_metrics_double(ml, "cr_min", m->lread.cr_min);
+  cv_metrics_double(ml, "area_meeting_cr_min", m->lread.area.value);
+  cv_metrics_double(ml, "area_meeting_cr_min_se", m->lread.area.se);
+  cv_metrics_double(ml, "visibility_level", m->lread.vl.value);
+  cv_metrics_double(ml, "visibility_level_se", m->lread.vl.se);
+  cv_metrics_double(ml, "adaptation_luminance", m->lread.L_a);
+  cv_metrics_bool(ml, "veil_included", 0);
+  cv_metrics_object_end(ml);
 }
 
 void lcd_write(master *m, const char *stem) {

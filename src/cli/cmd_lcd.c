@@ -4,7 +4,8 @@
  * interior (PRT radiance) and the sky through the windows, final-gathered
  * with one bounce through a tabulated BRDF, progressively in fixed point
  * (src/lcd).  Writes the panel image (EXR), a sidecar JSON with its sample
- * count and error estimate, and optionally a tone-mapped PNG. */
+ * count, error estimate and readability figures (lcd/readability.h), a
+ * contrast-ratio heat map PNG, and optionally a tone-mapped PNG. */
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -15,11 +16,16 @@
 #include "core/outfile.h"
 #include "core/progress.h"
 #include "io/exr.h"
+#include "io/png.h"
 #include "io/tonemap_simple.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/readability.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
+#include "service/drive.h"
+#include "service/tracker.h"
+#include "view/cave.h"
 
 static void help(FILE *f) {
   fprintf(f,
@@ -27,7 +33,10 @@ static void help(FILE *f) {
           "                [--roll DEG] [--spp N] [--rounds R] [--size WxH] [--brdf FILE]\n"
           "                [--sampling brdf|cosine|mis] [--content FILE] [--luminance CD]\n"
           "                [--lcd-config FILE] [--prt FILE] [--seed S] [--threads N]\n"
-          "                -o panel.exr [--png]\n\n"
+          "                [--black CD] [--cr-min R] [--age YEARS] [--pigment P]\n"
+          "                [--adaptation CD] [--glare-spc N] [--heatmap FILE.png] -o panel.exr [--png]\n"
+          "       cave lcd <scene.prt | scene.json> --drive DRIVE.json (--head-path FILE | --eye x,y,z)\n"
+          "                [--cave CAVE.json | --scene-offset x,y,z] [--dt S] [options] -o series.csv\n\n"
           "Final gather on the LCD panel (the scene's triangles tagged lcd): for every texel the\n"
           "eye ray from --eye gives the view direction; reflected rays are drawn from the\n"
           "panel's BRDF and traced one bounce: through a window they read the environment,\n"
@@ -40,17 +49,38 @@ static void help(FILE *f) {
           "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance)\n"
           "  --spp N           samples per texel per round (default 40)\n"
           "  --rounds R        rounds (default 1)\n"
-          "  --size WxH        panel texels (default 400x300)\n"
+          "  --size WxH        panel texels (default 400 wide, height from the panel's aspect)\n"
           "  --brdf FILE       BRDF table (docs/brdf-format.md), MERL .binary, or\n"
           "                    builtin:antiglare (default)\n"
           "  --sampling S      brdf, cosine, or mis (default: mis: half the samples towards\n"
           "                    the windows, the rest 90%% BRDF / 10%% cosine)\n"
           "  --content FILE    .png (sRGB) or .exr shown on the panel (default: a test pattern)\n"
-          "  --luminance CD    content white luminance in cd/m^2 (default 250)\n"
-          "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (see lcd_config.h)\n"
+          "  --luminance CD    content white luminance in cd/m^2 (default 500)\n"
+          "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (docs/scene-config.md);\n"
+          "                    a scene.json's own \"lcd\" block is read first\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
-          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate).\n");
+          "Readability (docs/readability.md; each figure with its standard error):\n"
+          "  --black CD        panel black luminance in cd/m^2 (default 0.002 x white)\n"
+          "  --cr-min R        required contrast ratio (default 3, ISO 15008)\n"
+          "  --age YEARS       driver's age for the CIE 146 disability glare (default 40)\n"
+          "  --pigment P       eye pigmentation 0 (dark) .. 1 (light blue) (default 0.5)\n"
+          "  --glare-spc N     samples per cell of the 48 x 96 glare integral (even, default 4)\n"
+          "  --adaptation CD   adaptation luminance for the visibility level (default: the\n"
+          "                    panel background seen, black + reflection + veil)\n"
+          "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
+          "A whole drive, offline (no MPI):\n"
+          "  --drive FILE      drive file (configs/drives/): lighting and car attitude over time\n"
+          "  --head-path FILE  recorded head path (t x y z gx gy gz, CAVE frame); the eye is\n"
+          "                    head + scene offset (default that of configs/caves/cave5.json)\n"
+          "  --cave FILE       take the scene offset from a CAVE config\n"
+          "  --scene-offset V  scene point = CAVE point + V (metres)\n"
+          "  --dt S            seconds between steps (default 0.5); each step renders --rounds\n"
+          "                    rounds and writes one CSV row (docs/readability.md), and\n"
+          "                    series.png is plotted with gnuplot when it is installed\n"
+          "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
+          "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
+          "colour bar CR 1..10 on a log scale below with the requirement marked white).\n");
 }
 
 static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, int *have,
@@ -101,7 +131,9 @@ static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, 
 }
 
 static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd_error *e,
-                         const cv_lcd_key *key, double seconds, const char *brdf, cv_err *err) {
+                         const cv_lcd_key *key, double seconds, const char *brdf,
+                         const cv_lcd_readability *rd, const cv_lcd_read_params *rp,
+                         const cv_lcd_veil_params *vp, cv_err *err) {
   cv_outfile o;
   int st = cv_outfile_open(&o, path, 1, err);
   if (st) return st;
@@ -112,21 +144,234 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
           "  \"clamped_values\": %lld, \"nonfinite_values\": %lld,\n"
           "  \"rays\": {\"interior\": %lld, \"environment\": %lld, \"lost\": %lld, \"sun_shadow\": %lld, \"sun_unblocked\": %lld},\n"
           "  \"key\": {\"eye_q\": [%d, %d, %d], \"light_hash\": \"%016llx\", \"setup_hash\": \"%016llx\"},\n"
-          "  \"brdf\": \"%s\", \"seconds\": %.3f\n}\n",
+          "  \"brdf\": \"%s\", \"seconds\": %.3f,\n",
           acc->w, acc->h, (long long)d[CV_LCD_ACC_SPP], (long long)d[CV_LCD_ACC_ROUNDS], e->rel_rms,
           e->mean_luminance, (long long)d[CV_LCD_ACC_CLAMPED], (long long)d[CV_LCD_ACC_NONFINITE],
           (long long)d[CV_LCD_ACC_HITS], (long long)d[CV_LCD_ACC_ENV], (long long)d[CV_LCD_ACC_LOST],
           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_SUNLIT], key->eye_q[0],
           key->eye_q[1], key->eye_q[2], (unsigned long long)key->light_hash,
           (unsigned long long)key->setup_hash, brdf, seconds);
+  fprintf(o.f,
+          "  \"readability\": {\"white_luminance\": %.6g, \"black_luminance\": %.6g, \"cr_min\": %.6g,\n"
+          "    \"age\": %.6g, \"pigment\": %.6g,\n"
+          "    \"contrast_ratio\": %.6g, \"contrast_ratio_se\": %.3g, \"contrast_ratio_worst\": %.6g,\n"
+          "    \"area_meeting_cr_min\": %.6g, \"area_meeting_cr_min_se\": %.3g,\n"
+          "    \"reflected_luminance\": %.6g, \"reflected_luminance_se\": %.3g,\n"
+          "    \"veiling_luminance\": %.6g, \"veiling_luminance_se\": %.3g,\n"
+          "    \"adaptation_luminance\": %.6g, \"threshold_difference\": %.6g,\n"
+          "    \"visibility_level\": %.6g, \"visibility_level_se\": %.3g}\n}\n",
+          rp->white, rp->black, rp->cr_min, vp->age, vp->pigment, rd->cr_mean.value,
+          rd->cr_mean.se, rd->cr_worst, rd->frac_ok.value, rd->frac_ok.se, rd->L_r.value,
+          rd->L_r.se, rd->L_v.value, rd->L_v.se, rd->L_a.value, rd->dL_threshold, rd->vl.value,
+          rd->vl.se);
   return cv_outfile_commit(&o, err);
+}
+
+typedef struct eye_ctx {
+  const cv_lcd_gather *g;
+  const cv_lcd_light *l;
+  float eye[3];
+} eye_ctx;
+
+static double eye_luminance(void *ctx, const double dir[3]) {
+  const eye_ctx *c = ctx;
+  const float d[3] = {(float)dir[0], (float)dir[1], (float)dir[2]};
+  float rgb[3];
+  cv_lcd_eye_radiance(c->g, c->l, c->eye, d, rgb);
+  return cv_luminance(rgb[0], rgb[1], rgb[2]);
+}
+
+/* The veil at the eye looking at the panel centre: the surroundings seen
+ * (environment through the windows, interior) plus the sun when visible.
+ * *sun_deg: the sun's glare angle (-1: no sun or hidden). */
+static int panel_veil(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                      const cv_lcd_veil_params *vp, cv_lcd_figure *lv, double *sun_deg) {
+  const cv_lcd_panel *pn = cv_lcd_gather_panel(g);
+  double gaze[3], len = 0;
+  for (int k = 0; k < 3; k++) {
+    gaze[k] = (double)pn->center[k] - eye[k];
+    len += gaze[k] * gaze[k];
+  }
+  len = sqrt(len);
+  if (!(len > 0)) return CV_ERR_INVALID;
+  for (int k = 0; k < 3; k++) gaze[k] /= len;
+  eye_ctx c = {g, l, {eye[0], eye[1], eye[2]}};
+  cv_lcd_point_source sun;
+  int nsrc = 0;
+  *sun_deg = -1;
+  if (cv_lcd_sun_visible(g, l, eye)) {
+    double sl = 0;
+    for (int k = 0; k < 3; k++) sl += (double)l->sun_dir[k] * l->sun_dir[k];
+    sl = sqrt(sl);
+    double cosg = 0;
+    for (int k = 0; k < 3; k++) {
+      sun.dir[k] = l->sun_dir[k] / sl;
+      cosg += sun.dir[k] * gaze[k];
+    }
+    sun.E = cv_luminance(l->sun_E[0], l->sun_E[1], l->sun_E[2]);
+    *sun_deg = acos(cosg > 1 ? 1 : (cosg < -1 ? -1 : cosg)) * 180 / M_PI;
+    nsrc = 1;
+  }
+  cv_rt_thread_init();
+  return cv_lcd_veil(gaze, vp, eye_luminance, &c, &sun, nsrc, lv);
+}
+
+/* Writes the CR heat map (panel over a colour bar). */
+static int write_heatmap(const char *path, const cv_lcd_readability *rd, cv_err *err) {
+  const int bar = rd->h / 12 > 8 ? rd->h / 12 : 8;
+  uint8_t *px = malloc((size_t)rd->w * (size_t)(rd->h + bar) * 3);
+  if (!px) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+  int st = cv_lcd_heatmap_rgb(rd, bar, px);
+  if (st) cv_err_set(err, st, "%s: out of memory", path);
+  else st = cv_png_write(path, rd->w, rd->h + bar, 3, px, err);
+  free(px);
+  return st;
+}
+
+/* --- a whole drive, offline ------------------------------------------------ */
+
+typedef struct drive_job {
+  const char *drive_path, *head_path, *csv;
+  double offset[3]; /* scene point = CAVE point + offset (head path -> car frame) */
+  double eye[3];    /* the eye when there is no head path */
+  double dt;        /* seconds between steps */
+} drive_job;
+
+/* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
+ * CR with its error bars against time, the requirement as a line, the steps
+ * below it marked.  Returns 1 when written. */
+static int drive_plot(const char *csv, const char *png, double cr_min) {
+  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
+  FILE *g = popen("gnuplot", "w");
+  if (!g) return 0;
+  fprintf(g,
+          "set terminal pngcairo size 1000,450 font ',10'\n"
+          "set output '%s'\n"
+          "set datafile separator ','\n"
+          "set key autotitle columnhead top right\n"
+          "set xlabel 'drive time (s)'\nset ylabel 'contrast ratio'\nset grid\n"
+          "set title 'LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
+          "misses the required %g:1 (ISO 15008)'\n"
+          "plot '%s' using 1:11:12 with yerrorbars lc rgb '#3b528b' pt 7 ps 0.6 title 'CR', "
+          "'' using 1:11 with lines lc rgb '#3b528b' notitle, "
+          "'' using 1:($11 < %g ? $11 : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' title 'unreadable', "
+          "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n",
+          png, cr_min, csv, cr_min, cr_min, cr_min);
+  return pclose(g) == 0;
+}
+
+static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
+                     const cv_lcd_gather *g, const cv_brdf *brdf, const cv_lcd_config *lc,
+                     const cv_lcd_params *par0, const cv_lcd_read_params *rp,
+                     const cv_lcd_veil_params *vp) {
+  cv_err err;
+  cv_err_clear(&err);
+  cv_drive *d = NULL;
+  cv_head_path *hp = NULL;
+  if (cv_drive_load(j->drive_path, &d, &err)) return cli_fail("lcd", 1, "--drive: %s", err.msg);
+  if (j->head_path && cv_head_path_load(j->head_path, &hp, &err)) {
+    cv_drive_destroy(d);
+    return cli_fail("lcd", 1, "--head-path: %s", err.msg);
+  }
+  const double dur = cv_drive_duration(d);
+  const int n = (int)floor(dur / j->dt + 1e-9) + (cv_drive_loops(d) ? 0 : 1);
+  cv_outfile o;
+  if (cv_outfile_open(&o, j->csv, 1, &err)) {
+    cv_drive_destroy(d);
+    cv_head_path_destroy(hp);
+    return cli_fail("lcd", 1, "%s", err.msg);
+  }
+  fprintf(o.f, "t_s,yaw_deg,eye_x,eye_y,eye_z,sun_glare_deg,L_r,L_r_se,L_v,L_v_se,CR,CR_se,"
+               "area_meeting,area_meeting_se,VL,VL_se,L_a,readable\n");
+  printf("drive: %s, %.1f s, %d steps of %.2f s; eye from %s\n", j->drive_path, dur, n < 1 ? 1 : n,
+         j->dt, j->head_path ? j->head_path : "--eye");
+  int rc = 0, n_bad = 0, worst_k = 0;
+  double worst = INFINITY;
+  const uint64_t setup = cv_lcd_setup_hash(g, par0, 0, lc->eye_tolerance, p->meta.input_hash);
+  for (int k = 0; k < (n < 1 ? 1 : n) && !rc; k++) {
+    const double t = k * j->dt;
+    cv_drive_state ds;
+    cv_drive_eval(d, t, &ds);
+    cv_light_spec spec;
+    cv_drive_to_light_spec(d, &ds, &spec);
+    cv_scene_light *sl = NULL;
+    cv_lcd_light *light = NULL;
+    cv_lcd_accum *acc = NULL;
+    cv_lcd_readability rd;
+    memset(&rd, 0, sizeof rd);
+    float eye[3];
+    if (hp) {
+      cv_head_pose hpose;
+      cv_head_path_eval(hp, t, 1, &hpose);
+      for (int a = 0; a < 3; a++) eye[a] = (float)(hpose.pos[a] + j->offset[a]);
+    } else {
+      for (int a = 0; a < 3; a++) eye[a] = (float)j->eye[a];
+    }
+    cv_lcd_params par = *par0;
+    cv_lcd_key key;
+    cv_lcd_figure lv;
+    double sun_deg = -1;
+    if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
+        cv_lcd_light_from_scene(sl, &spec, p, tr, lc->sun_samples, lc->env_width, &light, &err)) {
+      rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, err.msg);
+    } else if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
+      rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
+    } else {
+      cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
+      const double clamp = lc->clamp > 0 ? lc->clamp : cv_lcd_default_clamp(light, brdf);
+      int st = cv_lcd_accum_create(par.w, par.h, clamp, &acc);
+      for (int r = 0; r < lc->rounds && !st; r++)
+        st = cv_lcd_render_round(g, light, &par, (uint32_t)r, acc);
+      if (!st) st = panel_veil(g, light, par.eye, vp, &lv, &sun_deg);
+      if (st || cv_lcd_readability_compute(acc, rp, &lv, &rd, &err))
+        rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, st ? cv_status_str(st) : err.msg);
+    }
+    if (!rc) {
+      const int ok = rd.cr_mean.value >= rp->cr_min;
+      n_bad += !ok;
+      if (rd.cr_mean.value < worst) worst = rd.cr_mean.value, worst_k = k;
+      fprintf(o.f, "%.3f,%.2f,%.4f,%.4f,%.4f,%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d\n",
+              t, ds.yaw_deg, par.eye[0], par.eye[1], par.eye[2], sun_deg, rd.L_r.value, rd.L_r.se,
+              rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se, rd.frac_ok.value,
+              rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value, ok);
+      printf("t %6.2f s yaw %5.1f: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, L_v %.4g "
+             "cd/m2, VL %.3g +- %.2g%s\n",
+             t, ds.yaw_deg, rd.cr_mean.value, rd.cr_mean.se, 100 * rd.frac_ok.value, rp->cr_min,
+             rd.L_r.value, rd.L_v.value, rd.vl.value, rd.vl.se, ok ? "" : "  UNREADABLE");
+      fflush(stdout);
+    }
+    cv_lcd_readability_free(&rd);
+    cv_lcd_accum_destroy(acc);
+    cv_lcd_light_destroy(light);
+    cv_scene_light_destroy(sl);
+  }
+  cv_drive_destroy(d);
+  cv_head_path_destroy(hp);
+  if (rc) {
+    cv_outfile_abort(&o);
+    return rc;
+  }
+  if (cv_outfile_commit(&o, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  printf("drive: CR below %g:1 at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
+         rp->cr_min, n_bad, n < 1 ? 1 : n, n_bad * j->dt, dur, worst, worst_k * j->dt);
+  char png[CV_PATH_MAX];
+  snprintf(png, sizeof png, "%.*s.png", (int)(strlen(j->csv) - 4), j->csv);
+  if (drive_plot(j->csv, png, rp->cr_min)) printf("wrote %s and %s\n", j->csv, png);
+  else printf("wrote %s (no plot: gnuplot is not installed)\n", j->csv);
+  return 0;
 }
 
 int cmd_lcd(int argc, char **argv) {
   const char *in = NULL, *out = NULL, *weights = NULL, *prt_path = NULL, *cfg_path = NULL;
   const char *brdf_s = NULL, *content_s = NULL, *sampling = NULL, *size_s = NULL;
   int png = 0, have_light = 0, have_eye = 0, threads = 0, spp = -1, rounds = -1;
-  double lum = -1, eye[3] = {0, 0, 0};
+  double lum = -1, eye[3] = {0, 0, 0}, black = -1, cr_min = -1, age = -1, pigment = -1;
+  const char *heat_s = NULL, *drive_s = NULL, *head_s = NULL, *cave_s = NULL;
+  double dt = 0.5, offset[3] = {-0.37, -0.18, 0}; /* configs/caves/cave5.json's scene_offset */
+  cv_lcd_read_params rp;
+  cv_lcd_read_params_default(&rp);
+  cv_lcd_veil_params vp;
+  cv_lcd_veil_params_default(&vp);
   long long seed = -1;
   cv_light_spec spec;
   cv_light_spec_default(&spec);
@@ -168,6 +413,30 @@ int cmd_lcd(int argc, char **argv) {
       content_s = argv[++i];
     } else if (!strcmp(a, "--luminance")) {
       if (cli_parse_double(argv[++i], &lum) || lum < 0) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 >= 0, got '%s'", val);
+    } else if (!strcmp(a, "--black")) {
+      if (cli_parse_double(argv[++i], &black) || black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
+    } else if (!strcmp(a, "--cr-min")) {
+      if (cli_parse_double(argv[++i], &cr_min) || !(cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
+    } else if (!strcmp(a, "--age")) {
+      if (cli_parse_double(argv[++i], &age) || !(age >= 0) || age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
+    } else if (!strcmp(a, "--pigment")) {
+      if (cli_parse_double(argv[++i], &pigment) || !(pigment >= 0 && pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
+    } else if (!strcmp(a, "--adaptation")) {
+      if (cli_parse_double(argv[++i], &rp.adaptation) || !(rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
+    } else if (!strcmp(a, "--drive")) {
+      drive_s = argv[++i];
+    } else if (!strcmp(a, "--head-path")) {
+      head_s = argv[++i];
+    } else if (!strcmp(a, "--cave")) {
+      cave_s = argv[++i];
+    } else if (!strcmp(a, "--scene-offset")) {
+      if (cli_parse_vec(argv[++i], 3, offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
+    } else if (!strcmp(a, "--dt")) {
+      if (cli_parse_double(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s, got '%s'", val);
+    } else if (!strcmp(a, "--glare-spc")) {
+      if (cli_parse_int(argv[++i], 2, 4096, &vp.spc) || vp.spc % 2) return cli_fail("lcd", 2, "--glare-spc: expected an even number 2..4096, got '%s'", val);
+    } else if (!strcmp(a, "--heatmap")) {
+      heat_s = argv[++i];
     } else if (!strcmp(a, "--lcd-config")) {
       cfg_path = argv[++i];
     } else if (!strcmp(a, "--prt")) {
@@ -186,15 +455,26 @@ int cmd_lcd(int argc, char **argv) {
       in = a;
     }
   }
-  if (!in || !out || !have_eye) {
+  if (!in || !out || (!have_eye && !(drive_s && head_s))) {
     help(stderr);
-    return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z and -o FILE.exr are required");
+    return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z (or --drive with --head-path) and -o FILE are required");
   }
-  if (!cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);
+  if (head_s && !drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
+  if (drive_s && !cli_has_ext(out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", out);
+  if (!drive_s && !cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);
+  if (cave_s) {
+    cv_cave cave;
+    cv_err cerr;
+    if (cv_cave_load(cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
+    memcpy(offset, cave.scene_offset, sizeof offset);
+  }
   cv_err err;
   cv_err_clear(&err);
   cv_lcd_config lc;
   cv_lcd_config_default(&lc);
+  /* the scene config's "lcd" block, then --lcd-config, then the options */
+  if (cli_has_ext(in, ".json") && cv_lcd_config_load_scene(in, &lc, &err))
+    return cli_fail("lcd", 1, "%s", err.msg);
   if (cfg_path && cv_lcd_config_load(cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   if (spp > 0) lc.spp = spp;
   if (rounds > 0) lc.rounds = rounds;
@@ -207,6 +487,20 @@ int cmd_lcd(int argc, char **argv) {
   if (seed >= 0) lc.seed = (uint32_t)seed;
   if (sampling) lc.brdf_fraction = !strcmp(sampling, "brdf") ? 1.0 : !strcmp(sampling, "cosine") ? 0.0 : 0.9;
   if (threads > 0) omp_set_num_threads(threads);
+  if (black >= 0) lc.black_luminance = black;
+  if (cr_min >= 1) lc.cr_min = cr_min;
+  if (age >= 0) lc.age = age;
+  if (pigment >= 0) lc.pigment = pigment;
+  rp.white = lc.content_luminance;
+  rp.black = cv_lcd_config_black(&lc);
+  rp.cr_min = lc.cr_min;
+  vp.age = lc.age;
+  vp.pigment = lc.pigment;
+  if (cv_lcd_read_params_check(&rp, &err)) return cli_fail("lcd", 2, "%s", err.msg);
+  if (heat_s && !cli_has_ext(heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", heat_s);
+  char heatp[CV_PATH_MAX];
+  if (heat_s) snprintf(heatp, sizeof heatp, "%s", heat_s);
+  else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)(strlen(out) - 4), out);
 
   int rc = 1;
   cv_scene_config cfg;
@@ -222,6 +516,8 @@ int cmd_lcd(int argc, char **argv) {
   cv_lcd_progress prog;
   memset(&prog, 0, sizeof prog);
   cv_image *content = NULL, *img = NULL;
+  cv_lcd_readability rd;
+  memset(&rd, 0, sizeof rd);
   if (weights) {
     if (spec.kind != CV_LIGHT_ENV) return cli_fail("lcd", 2, "--weights needs --env");
     double w[CV_MAX_ENV_MAPS], sum = 0;
@@ -294,13 +590,39 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
-  if (!have_light || spec.kind == CV_LIGHT_NONE) {
+  if (!drive_s && (!have_light || spec.kind == CV_LIGHT_NONE)) {
     rc = cli_fail("lcd", 2, "no lighting: give --env, --env-constant or --sky");
     goto done;
   }
   double t0 = cv_now_seconds();
   if (cv_prt_to_mesh(p, &m) || cv_tracer_create(m, &tr, &err)) {
     rc = cli_fail("lcd", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
+    goto done;
+  }
+  cv_lcd_panel panel;
+  if (cv_lcd_panel_from_mesh(m, &panel, &err) ||
+      cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
+    rc = cli_fail("lcd", 1, "%s: %s", in, err.msg);
+    goto done;
+  }
+  if (lc.height < 1) { /* square texels: the panel's aspect */
+    const double hh = floor(lc.width * (double)panel.size[1] / panel.size[0] + 0.5);
+    lc.height = hh < 1 ? 1 : (hh > 16384 ? 16384 : (int)hh);
+  }
+  if (drive_s) {
+    cv_lcd_params dpar;
+    cv_lcd_params_default(&dpar);
+    dpar.w = lc.width, dpar.h = lc.height, dpar.spp = lc.spp, dpar.seed = lc.seed;
+    dpar.brdf_fraction = lc.brdf_fraction;
+    if (sampling && strcmp(sampling, "mis")) dpar.window_fraction = 0;
+    /* the content is not part of the figures, but a missing file is an error */
+    if (cv_lcd_content_load(lc.content, 1, 1, 0, rp.white, rp.black, &content, &err)) {
+      rc = cli_fail("lcd", 1, "content: %s", err.msg);
+      goto done;
+    }
+    drive_job dj = {drive_s, head_s, out, {offset[0], offset[1], offset[2]},
+                    {eye[0], eye[1], eye[2]}, dt};
+    rc = lcd_drive(&dj, p, tr, g, brdf, &lc, &dpar, &rp, &vp);
     goto done;
   }
   if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
@@ -311,12 +633,6 @@ int cmd_lcd(int argc, char **argv) {
   cv_scene_light_print(stdout, sl);
   printf("lcd sun: %s; %llu vertex radiance values were not finite or negative (set to 0)\n",
          light->sun_source, (unsigned long long)light->vrad_fixed);
-  cv_lcd_panel panel;
-  if (cv_lcd_panel_from_mesh(m, &panel, &err) ||
-      cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
-    rc = cli_fail("lcd", 1, "%s: %s", in, err.msg);
-    goto done;
-  }
   printf("panel: %.0f x %.0f mm at %.3f %.3f %.3f, normal %.3f %.3f %.3f; %dx%d texels\n",
          1000 * panel.size[0], 1000 * panel.size[1], panel.center[0], panel.center[1],
          panel.center[2], panel.normal[0], panel.normal[1], panel.normal[2], lc.width, lc.height);
@@ -343,6 +659,12 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "cannot allocate a %dx%d panel", par.w, par.h);
     goto done;
   }
+  /* the content before the long work: a missing file fails here */
+  if (cv_lcd_content_load(lc.content, par.w, par.h, (double)panel.size[0] / panel.size[1], rp.white,
+                          rp.black, &content, &err)) {
+    rc = cli_fail("lcd", 1, "content: %s", err.msg);
+    goto done;
+  }
   double setup_s = cv_now_seconds() - t0;
   t0 = cv_now_seconds();
   for (int r = 0; r < lc.rounds; r++) {
@@ -358,8 +680,11 @@ int cmd_lcd(int argc, char **argv) {
   acc = prog.acc;
   cv_lcd_error e;
   cv_lcd_accum_error(acc, &e);
-  if (cv_lcd_content_load(lc.content, par.w, par.h, lc.content_luminance, &content, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
+  cv_lcd_figure lv;
+  double sun_deg;
+  if (panel_veil(g, light, par.eye, &vp, &lv, &sun_deg) ||
+      cv_lcd_readability_compute(acc, &rp, &lv, &rd, &err)) {
+    rc = cli_fail("lcd", 1, "readability: %s", err.msg[0] ? err.msg : "the eye is at the panel centre");
     goto done;
   }
   if (cv_lcd_accum_to_image(acc, content, &img) || cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
@@ -380,14 +705,21 @@ int cmd_lcd(int argc, char **argv) {
          (long long)d[CV_LCD_ACC_SUNLIT], (long long)d[CV_LCD_ACC_SHADOW],
          (long long)d[CV_LCD_ACC_CLAMPED], (long long)d[CV_LCD_ACC_NONFINITE],
          (long long)d[CV_LCD_ACC_BEHIND]);
-  double white = lc.content_luminance, black = 0.002 * white;
-  printf("lcd: mean reflected luminance %.4g; content white %.4g, black %.4g: ambient contrast "
-         "ratio %.1f:1\n",
-         e.mean_luminance, white, black,
-         black + e.mean_luminance > 0 ? (white + e.mean_luminance) / (black + e.mean_luminance) : 0.0);
+  char sun_txt[64];
+  if (sun_deg < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
+  else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg);
+  printf("lcd: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil L_v "
+         "%.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
+         rp.white, rp.black, rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, vp.age, vp.pigment,
+         sun_txt);
+  printf("lcd: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets it "
+         "(worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+         rd.cr_mean.value, rd.cr_mean.se, rp.cr_min, 100 * rd.frac_ok.value, 100 * rd.frac_ok.se,
+         rd.cr_worst, rd.vl.value, rd.vl.se, rd.L_a.value, rd.dL_threshold);
   char side[CV_PATH_MAX + 8];
   snprintf(side, sizeof side, "%s.json", out);
-  if (write_sidecar(side, acc, &e, &key, render_s, brdf->source, &err)) {
+  if (write_sidecar(side, acc, &e, &key, render_s, brdf->source, &rd, &rp, &vp, &err) ||
+      write_heatmap(heatp, &rd, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
@@ -401,9 +733,10 @@ int cmd_lcd(int argc, char **argv) {
     }
     printf("wrote %s (exposure %.4g)\n", pngp, ps.exposure);
   }
-  printf("wrote %s and %s\n", out, side);
+  printf("wrote %s, %s and %s\n", out, side, heatp);
   rc = 0;
 done:
+  cv_lcd_readability_free(&rd);
   cv_image_destroy(img);
   cv_image_destroy(content);
   cv_lcd_progress_free(&prog);

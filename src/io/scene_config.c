@@ -381,9 +381,14 @@ int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
   snprintf(dirbuf, sizeof dirbuf, "%s", path);
   const char *base = dirname(dirbuf);
   ctx x = {path, err};
-  static const char *const keys[] = {"mesh", "materials", "clean", "prt", "lighting", NULL};
+  static const char *const keys[] = {"mesh", "materials", "clean", "prt", "lighting", "lcd", NULL};
   int st = only_keys(&x, root, "", keys);
   const cJSON *o;
+  /* "lcd": the panel settings, read and checked field by field by
+   * src/lcd/lcd_config.c (cv_lcd_config_load_scene), which this layer
+   * cannot call; only its type is checked here */
+  if (!st && (o = cJSON_GetObjectItemCaseSensitive(root, "lcd")) && !cJSON_IsObject(o))
+    st = cv_err_set(err, CV_ERR_CONFIG, "%s: lcd: expected an object", path);
   if (!st && (o = cJSON_GetObjectItemCaseSensitive(root, "mesh"))) st = parse_mesh(&x, o, base, c);
   if (!st && (o = cJSON_GetObjectItemCaseSensitive(root, "materials"))) st = parse_materials(&x, o, c);
   if (!st && (o = cJSON_GetObjectItemCaseSensitive(root, "clean"))) st = parse_clean(&x, o, c);

@@ -1002,6 +1002,51 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
 
 /* --- content -------------------------------------------------------------- */
 
+/* --- what the eye sees ---------------------------------------------------- */
+
+/* Distance along the ray to the panel rectangle, or INFINITY. */
+static float panel_distance(const cv_lcd_panel *pn, const float o[3], const float d[3]) {
+  const float dn = dot3(d, pn->normal);
+  if (fabsf(dn) < 1e-8f) return INFINITY;
+  const float c[3] = {pn->center[0] - o[0], pn->center[1] - o[1], pn->center[2] - o[2]};
+  const float t = dot3(c, pn->normal) / dn;
+  if (!(t > 0)) return INFINITY;
+  const float q[3] = {o[0] + t * d[0] - pn->center[0], o[1] + t * d[1] - pn->center[1],
+                      o[2] + t * d[2] - pn->center[2]};
+  if (fabsf(dot3(q, pn->u)) > 0.5f * pn->size[0] || fabsf(dot3(q, pn->v)) > 0.5f * pn->size[1])
+    return INFINITY;
+  return t;
+}
+
+int cv_lcd_eye_radiance(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                        const float dir[3], float rgb[3]) {
+  rgb[0] = rgb[1] = rgb[2] = 0;
+  cv_hit h;
+  const int hit = cv_rt_intersect(g->rt, eye, dir, 0.0f, INFINITY, &h);
+  const float tp = panel_distance(&g->panel, eye, dir);
+  if (tp < INFINITY && (!hit || tp <= h.t * 1.0001f + 1e-4f)) return 1;
+  if (hit) {
+    if (l->nv != g->nv || h.tri >= g->nt) return 0;
+    const uint32_t *t = g->tri + 3 * (size_t)h.tri;
+    const float w0 = 1 - h.u - h.v;
+    for (int c = 0; c < 3; c++)
+      rgb[c] = w0 * l->vrad[3 * (size_t)t[0] + c] + h.u * l->vrad[3 * (size_t)t[1] + c] +
+               h.v * l->vrad[3 * (size_t)t[2] + c];
+    return 0;
+  }
+  if (g->has_windows) {
+    cv_hit wh;
+    if (!cv_rt_window_hit(g->rt, eye, dir, 0.0f, &wh)) return 0;
+  }
+  cv_envmap_lookup(l->env, dir, rgb);
+  return 0;
+}
+
+int cv_lcd_sun_visible(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3]) {
+  if (!l->has_sun) return 0;
+  return cv_rt_reaches_env(g->rt, eye, l->sun_dir, 0.0f);
+}
+
 static double srgb_decode(double v) {
   return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
 }
@@ -1012,7 +1057,7 @@ static void builtin_pattern(cv_image *img) {
     for (int x = 0; x < w; x++) {
       float *px = cv_image_at(img, x, y);
       double fx = (x + 0.5) / w, fy = (y + 0.5) / h;
-      double r = 0.002, g = 0.002, b = 0.002; /* black level */
+      double r = 0, g = 0, b = 0; /* black (the panel's black luminance) */
       /* six lines of "text": blocks of glyph-sized bars */
       int line = (int)(fy * 12);
       if (fx > 0.06 && fx < 0.55 && line >= 2 && line < 12 && line % 2 == 0) {
@@ -1030,11 +1075,13 @@ static void builtin_pattern(cv_image *img) {
     }
 }
 
-int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_image **out,
-                        cv_err *err) {
+int cv_lcd_content_load(const char *path, int w, int h, double panel_aspect, double white,
+                        double black, cv_image **out, cv_err *err) {
   *out = NULL;
-  if (w < 1 || h < 1 || !(luminance >= 0) || !isfinite(luminance))
-    return cv_err_set(err, CV_ERR_INVALID, "content: size %dx%d, luminance %g", w, h, luminance);
+  if (w < 1 || h < 1 || !(black >= 0) || !(white >= black) || !isfinite(white) ||
+      !isfinite(panel_aspect))
+    return cv_err_set(err, CV_ERR_INVALID, "content: size %dx%d, white %g, black %g", w, h, white,
+                      black);
   cv_image *img;
   if (cv_image_create(w, h, 3, &img)) return cv_err_set(err, CV_ERR_NOMEM, "content: out of memory");
   if (!path || !path[0]) {
@@ -1062,15 +1109,24 @@ int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_ima
       }
       scale = ymax > 0 ? 1 / ymax : 1;
     }
+    /* the content's rectangle on the panel: its own aspect, as large as
+     * fits, centred (no stretch); black around it */
+    double fw = 1, fh = 1;
+    const double ca = (double)src->w / src->h;
+    if (panel_aspect > 0 && ca > panel_aspect) fh = panel_aspect / ca;
+    else if (panel_aspect > 0) fw = ca / panel_aspect;
+    const double ox = 0.5 * (1 - fw), oy = 0.5 * (1 - fh);
     /* box filter: average of a grid of nearest source pixels per texel */
-    int gx = (src->w + w - 1) / w, gy = (src->h + h - 1) / h;
+    int gx = (int)ceil(src->w / (fw * w)), gy = (int)ceil(src->h / (fh * h));
     for (int y = 0; y < h; y++)
       for (int x = 0; x < w; x++) {
         double acc[3] = {0, 0, 0};
         for (int j = 0; j < gy; j++)
           for (int i = 0; i < gx; i++) {
-            int sx = (int)(((x + (i + 0.5) / gx) / w) * src->w);
-            int sy = (int)(((y + (j + 0.5) / gy) / h) * src->h);
+            const double cu = ((x + (i + 0.5) / gx) / w - ox) / fw;
+            const double cv = ((y + (j + 0.5) / gy) / h - oy) / fh;
+            if (cu < 0 || cu >= 1 || cv < 0 || cv >= 1) continue; /* outside: black */
+            int sx = (int)(cu * src->w), sy = (int)(cv * src->h);
             if (sx >= src->w) sx = src->w - 1;
             if (sy >= src->h) sy = src->h - 1;
             const float *q = cv_image_at(src, sx, sy);
@@ -1085,7 +1141,7 @@ int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_ima
     cv_image_destroy(src);
   }
   size_t n3 = (size_t)w * h * 3;
-  for (size_t i = 0; i < n3; i++) img->px[i] = (float)(img->px[i] * luminance);
+  for (size_t i = 0; i < n3; i++) img->px[i] = (float)(black + img->px[i] * (white - black));
   *out = img;
   return CV_OK;
 }

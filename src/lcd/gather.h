@@ -181,15 +181,34 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                         uint32_t round, cv_lcd_accum *acc);
 
+/* --- what the eye sees (for the glare integral, lcd/readability.h) -------- */
+
+/* RGB radiance the eye at `eye` sees along unit `dir`: the environment when
+ * the ray leaves through a window (or, in a mesh without windows, escapes),
+ * the PRT exit radiance interpolated at the first interior hit, black when
+ * it escapes without crossing a window.  Returns 1, with black, when the
+ * ray meets the panel rectangle first (the task, which is not glare), else
+ * 0.  Thread-safe. */
+int cv_lcd_eye_radiance(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
+                        const float dir[3], float rgb[3]);
+
+/* 1 when the light has a sun and the eye sees it (the ray towards it
+ * reaches the environment), else 0. */
+int cv_lcd_sun_visible(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3]);
+
 /* --- panel content ------------------------------------------------------ */
 
-/* The panel's emitted radiance: w x h x 3 linear RGB such that content
- * white (1, 1, 1) has luminance `luminance` cd/m^2.  From an image file
- * (.png: sRGB decoded; .exr: linear, scaled so that its maximum luminance
- * maps to `luminance`), box-filtered to w x h; or the built-in test pattern
- * (path NULL or ""): a dark screen (0.2% black level) with white text-like
- * bars and a coloured gauge.  Errors name the file. */
-int cv_lcd_content_load(const char *path, int w, int h, double luminance, cv_image **out,
-                        cv_err *err);
+/* The panel's emitted radiance: w x h x 3 linear RGB, content value v in
+ * [0, 1] shown as black + v (white - black) cd/m^2 (content white has
+ * luminance `white`, content black `black`, the panel's own black level).
+ * From an image file (.png: sRGB decoded; .exr: linear, scaled so that its
+ * maximum luminance maps to white), box-filtered to w x h and placed with
+ * its own aspect on a panel of aspect panel_aspect (width / height in
+ * metres; as large as fits, centred, black around it: never stretched;
+ * panel_aspect <= 0: filling the panel); or the built-in test pattern (path
+ * NULL or ""): a black screen with white text-like bars and a coloured
+ * gauge.  Errors name the file. */
+int cv_lcd_content_load(const char *path, int w, int h, double panel_aspect, double white,
+                        double black, cv_image **out, cv_err *err);
 
 #endif

@@ -14,11 +14,15 @@
 void cv_lcd_config_default(cv_lcd_config *c) {
   memset(c, 0, sizeof *c);
   c->width = 400;
-  c->height = 300;
+  c->height = 0;
   c->spp = 40;
   c->rounds = 1;
   snprintf(c->brdf, sizeof c->brdf, "%s", CV_BRDF_BUILTIN_ANTIGLARE);
-  c->content_luminance = 250;
+  c->content_luminance = CV_LCD_WHITE_DEFAULT;
+  c->black_luminance = -1;
+  c->cr_min = 3;
+  c->age = 40;
+  c->pigment = 0.5;
   c->eye_tolerance = 0.005;
   c->brdf_fraction = 0.9;
   c->seed = 1;
@@ -56,7 +60,11 @@ static int path_field(const char *file, const char *base, const cJSON *o, const 
   return CV_OK;
 }
 
-int cv_lcd_config_load(const char *path, cv_lcd_config *c, cv_err *err) {
+double cv_lcd_config_black(const cv_lcd_config *c) {
+  return c->black_luminance >= 0 ? c->black_luminance : CV_LCD_BLACK_LEVEL * c->content_luminance;
+}
+
+static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open (%s)", path, strerror(errno));
   size_t cap = 4096, n = 0;
@@ -99,15 +107,16 @@ int cv_lcd_config_load(const char *path, cv_lcd_config *c, cv_err *err) {
   static const char *const top[] = {"lcd", NULL};
   static const char *const keys[] = {"resolution", "spp", "rounds", "brdf", "content",
                                      "content_luminance", "eye_tolerance", "brdf_fraction",
-                                     "seed", "env_width", "sun_samples", "clamp", NULL};
-  char list[400];
+                                     "seed", "env_width", "sun_samples", "clamp",
+                                     "black_luminance", "cr_min", "age", "pigment", NULL};
+  char list[600];
   const cJSON *it;
   if (!cJSON_IsObject(root)) {
     st = cv_err_set(err, CV_ERR_CONFIG, "%s: expected an object with an \"lcd\" field", path);
     goto done;
   }
   cJSON_ArrayForEach(it, root) {
-    if (!cv_json_key_allowed(it->string, top)) {
+    if (!scene && !cv_json_key_allowed(it->string, top)) {
       char kbuf[128];
       st = cv_err_set(err, CV_ERR_CONFIG, "%s: %s: unknown field (expected lcd)", path,
                       cv_json_key_show(it->string, kbuf, sizeof kbuf));
@@ -161,9 +170,27 @@ int cv_lcd_config_load(const char *path, cv_lcd_config *c, cv_err *err) {
   if ((st = num(path, o, "sun_samples", 1, 4096, 1, &d, err))) goto done;
   c->sun_samples = (int)d;
   if ((st = num(path, o, "clamp", 0, 1e30, 0, &c->clamp, err))) goto done;
+  if ((st = num(path, o, "black_luminance", 0, 1e6, 0, &c->black_luminance, err))) goto done;
+  if ((st = num(path, o, "cr_min", 1, 1000, 0, &c->cr_min, err))) goto done;
+  if ((st = num(path, o, "age", 0, 150, 0, &c->age, err))) goto done;
+  if ((st = num(path, o, "pigment", 0, 1, 0, &c->pigment, err))) goto done;
+  if (cv_lcd_config_black(c) > c->content_luminance) {
+    st = cv_err_set(err, CV_ERR_CONFIG,
+                    "%s: lcd.black_luminance: %g is above the white lcd.content_luminance %g",
+                    path, cv_lcd_config_black(c), c->content_luminance);
+    goto done;
+  }
   if ((st = path_field(path, base, o, "brdf", 1, c->brdf, err))) goto done;
   st = path_field(path, base, o, "content", 0, c->content, err);
 done:
   cJSON_Delete(root);
   return st;
+}
+
+int cv_lcd_config_load(const char *path, cv_lcd_config *c, cv_err *err) {
+  return load(path, 0, c, err);
+}
+
+int cv_lcd_config_load_scene(const char *path, cv_lcd_config *c, cv_err *err) {
+  return load(path, 1, c, err);
 }

@@ -206,6 +206,50 @@ expect_ok "lcd tiny run" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --size 40x30
 [ -s lcd.exr ] && [ -s lcd.png ] && grep -q '"samples_per_texel": 8' lcd.exr.json \
   && ok "lcd: EXR, PNG and sidecar (8 samples per texel)" || bad "lcd outputs"
 grep -q "estimated relative RMS error" out.txt && ok "lcd: error estimate printed" || bad "lcd: no error estimate"
+grep -Eq "CR [0-9.]+ \+- [0-9.e-]+ \(required 3:1" out.txt && grep -q '"contrast_ratio_se"' lcd.exr.json \
+  && [ "$(head -c 8 lcd.cr.png | od -An -tx1 | tr -d ' ')" = 89504e470d0a1a0a ] \
+  && ok "lcd: readability printed, in the sidecar, heat map PNG" || bad "lcd: readability outputs"
+# sun high behind the driver lights the panel; high ahead it reaches neither panel nor eye
+lcd_cr() { sed -n 's/.*"contrast_ratio": \([0-9.e+-]*\),.*/\1/p' "$1"; }
+expect_ok "lcd sun behind" $CAVE lcd a.prt "${EYE[@]}" --sky 3,70,180 --size 40x24 --spp 8 -o behind.exr
+expect_ok "lcd sun ahead" $CAVE lcd a.prt "${EYE[@]}" --sky 3,70,0 --size 40x24 --spp 8 -o ahead.exr
+awk -v b="$(lcd_cr behind.exr.json)" -v a="$(lcd_cr ahead.exr.json)" 'BEGIN { exit !(b > 0 && a > b) }' \
+  && ok "lcd: CR sun behind $(lcd_cr behind.exr.json) < sun ahead $(lcd_cr ahead.exr.json)" \
+  || bad "lcd: CR sun behind $(lcd_cr behind.exr.json) not below sun ahead $(lcd_cr ahead.exr.json)"
+expect_error "lcd: white below black" "white_luminance" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --luminance 100 --black 200 -o y.exr
+expect_error "lcd: negative age" "--age" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --age -3 -o y.exr
+expect_error "lcd: missing content" "content: .*nosuch.png" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --content nosuch.png -o y.exr
+[ ! -e y.cr.png ] && ok "lcd: no heat map left by failures" || bad "lcd: a failure left a heat map"
+# the scene config's "lcd" block: one LCD model (white, black, resolution) read by `cave lcd`
+printf '{ "mesh": { "source": "cabin" }, "lighting": { "sky": { "sun_elevation_deg": 40 } },\n  "lcd": { "resolution": [40, 24], "spp": 2, "content_luminance": 300, "black_luminance": 2, "age": 60 } }\n' >lcdscene.json
+expect_ok "lcd scene lcd block" $CAVE lcd lcdscene.json --prt a.prt "${EYE[@]}" -o ls.exr
+grep -q '"width": 40, "height": 24' ls.exr.json && grep -q '"white_luminance": 300, "black_luminance": 2' ls.exr.json \
+  && grep -q '"age": 60' ls.exr.json && ok "lcd: scene lcd block applied" || bad "lcd: scene lcd block not applied"
+expect_ok "lcd default size" $CAVE lcd a.prt "${EYE[@]}" --env-constant 1,1,1 --spp 1 -o ld.exr
+grep -q '"width": 400, "height": 240' ld.exr.json && grep -q '"white_luminance": 500' ld.exr.json \
+  && ok "lcd: default 400 texels wide, height from the 5:3 panel, white 500" || bad "lcd: default size/white"
+printf '{ "mesh": { "source": "cabin" }, "lcd": { "content_luminance": 100, "black_luminance": 200 } }\n' >lcdbw.json
+expect_error "lcd: scene black above white" "lcd.black_luminance" $CAVE lcd lcdbw.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+printf '{ "mesh": { "source": "cabin" }, "lcd": { "age": -5 } }\n' >lcdage.json
+expect_error "lcd: scene negative age" "lcd.age" $CAVE lcd lcdage.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+printf '{ "mesh": { "source": "cabin" }, "lcd": 3 }\n' >lcdnotobj.json
+expect_error "scene: lcd not an object" "lcd: expected an object" $CAVE bake lcdnotobj.json -o y.prt
+[ ! -e y.exr ] && [ ! -e y.prt ] && ok "lcd: no output left by config failures" || bad "lcd: a config failure left output"
+# a whole drive offline: the sun climbs ahead from 3 to 15 degrees (the roof hides it at 15)
+printf '{ "loop": false, "sky": true, "keyframes": [\n {"t": 0, "yaw": 0, "pitch": 0, "roll": 0, "turbidity": 3, "sun_elevation": 3, "sun_azimuth": 0},\n {"t": 4, "turbidity": 3, "sun_elevation": 15} ] }\n' >rise.json
+expect_ok "lcd drive" $CAVE lcd a.prt --drive rise.json --eye -0.37,1.02,0 --size 40x24 --spp 8 --dt 1 -o rise.csv
+[ "$(wc -l <rise.csv)" -eq 6 ] && head -1 rise.csv | grep -q "^t_s,.*,CR,CR_se,.*,VL,VL_se" \
+  && ok "lcd drive: CSV header and 5 steps" || bad "lcd drive: CSV"
+# the glare angle grows as the sun climbs (geometry) while it is in sight, and the sunlit
+# dashboard and the low sun in the eye bring the CR down as the sun gains strength
+awk -F, 'NR > 1 && $6 >= 0 { if (g != "" && $6 <= g) bad = 1; g = $6 } NR > 1 && NR <= 5 { if (c != "" && $11 >= c) bad = 1; c = $11 }
+  END { exit bad }' rise.csv && ok "lcd drive: glare angle rising, CR falling while the sun climbs ahead" \
+  || { bad "lcd drive: series not monotone"; cat rise.csv; }
+if command -v gnuplot >/dev/null; then [ -s rise.png ] && ok "lcd drive: plot" || bad "lcd drive: no plot"; fi
+expect_error "lcd: --head-path without --drive" "needs --drive" $CAVE lcd a.prt --head-path x.txt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+expect_error "lcd: missing drive" "--drive: .*nosuch.json" $CAVE lcd a.prt --drive nosuch.json "${EYE[@]}" -o y.csv
+expect_error "lcd: missing head path" "--head-path: .*nosuch.txt" $CAVE lcd a.prt --drive rise.json --head-path nosuch.txt -o y.csv
+[ ! -e y.csv ] && ok "lcd drive: no CSV left by failures" || bad "lcd drive: a failure left a CSV"
 expect_ok "lcd 1 thread" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 1 -o l1.exr
 expect_ok "lcd 2 threads" $CAVE lcd a.prt "${EYE[@]}" --sky 3,30,150 --size 40x30 --spp 4 --rounds 3 --threads 2 -o l2.exr
 cmp -s l1.exr l2.exr && ok "lcd: same bytes for 1 and 2 threads" || bad "lcd: bytes differ across thread counts"
