@@ -12,6 +12,7 @@
 int cmd_cabin(int argc, char **argv);
 int cmd_bake(int argc, char **argv);
 int cmd_shade(int argc, char **argv);
+int cmd_reference(int argc, char **argv);
 int cmd_compensate(int argc, char **argv);
 int cmd_lcd(int argc, char **argv);
 int cmd_render(int argc, char **argv);

@@ -17,7 +17,7 @@
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave shade <scene.prt> LIGHT [--yaw DEG] [--pitch DEG] [--roll DEG]\n"
-          "                  [--sun-samples N] -o out.ply [--ascii]\n"
+          "                  [--sun-samples N] [--split K [--split-grid W]] -o out.ply [--ascii]\n"
           "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
           "                  [--fov DEG] [--size WxH] [--exposure E] -o view.exr|view.png\n\n"
           "LIGHT is one of\n"
@@ -30,6 +30,9 @@ static void help(FILE *f) {
           "A sun found in a map (or the sky's sun) is split out of the SH lighting and\n"
           "added as a directional light with ray-traced visibility through the windows.\n"
           "The PLY holds float x y z and float red green blue = linear exit radiance.\n"
+          "--split K cuts the K brightest window-visible cells of a W x W/2 grid (default\n"
+          "W 64) out of the map as extra directional lights treated like the sun (an\n"
+          "all-frequency answer to window light; docs/reference.md).\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n");
 }
 
@@ -94,7 +97,7 @@ int cmd_shade(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   cv_light_spec spec;
   cv_light_spec_default(&spec);
-  int ascii = 0, sun_samples = 16, have_view = 0, have_look = 0;
+  int ascii = 0, sun_samples = 16, have_view = 0, have_look = 0, split = 0, split_grid = 64;
   double exposure = 0;
   view_opts v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480};
   const char *weights = NULL;
@@ -158,6 +161,12 @@ int cmd_shade(int argc, char **argv) {
     } else if (!strcmp(a, "--sun-samples")) {
       if (cli_parse_int(argv[++i], 1, 4096, &sun_samples))
         return cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
+    } else if (!strcmp(a, "--split")) {
+      if (cli_parse_int(argv[++i], 0, 4096, &split))
+        return cli_fail("shade", 2, "--split: expected 0..4096 lights, got '%s'", val);
+    } else if (!strcmp(a, "--split-grid")) {
+      if (cli_parse_int(argv[++i], 4, 1024, &split_grid) || split_grid % 2)
+        return cli_fail("shade", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
     } else if (!strcmp(a, "--view")) {
       if (cli_parse_vec(argv[++i], 3, v.eye)) return cli_fail("shade", 2, "--view: expected x,y,z, got '%s'", val);
       have_view = 1;
@@ -224,15 +233,21 @@ int cmd_shade(int argc, char **argv) {
     rc = cli_fail("shade", 1, "%s", err.msg);
     goto done;
   }
-  cv_scene_light_print(stdout, sl);
-  cv_lighting l = cv_scene_light_sh(sl);
   if (cv_prt_to_mesh(p, &m) || cv_tracer_create(m, &tr, &err)) {
     rc = cli_fail("shade", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
     goto done;
   }
+  if (split && cv_scene_light_split(sl, tr, split, split_grid, &err)) {
+    rc = cli_fail("shade", 1, "--split: %s", err.msg);
+    goto done;
+  }
+  cv_scene_light_print(stdout, sl);
+  cv_lighting l = cv_scene_light_sh(sl);
+  const cv_dir_light *extra = NULL;
+  int n_extra = cv_scene_light_extra(sl, &extra);
   rad = malloc(3 * p->nv * sizeof(float) + 1);
   cv_relight_stats rs;
-  if (!rad || cv_prt_relight(p, &l, tr, sun_samples, rad, &rs)) {
+  if (!rad || cv_prt_relight_ex(p, &l, extra, n_extra, tr, sun_samples, rad, &rs)) {
     rc = cli_fail("shade", 1, "relighting failed");
     goto done;
   }

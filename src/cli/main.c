@@ -18,6 +18,7 @@ static const struct {
     {"cabin", cmd_cabin, "write the built-in parametric car cabin as OBJ + MTL"},
     {"bake", cmd_bake, "precompute radiance transfer (PRT) for a scene"},
     {"shade", cmd_shade, "relight a baked scene on the CPU: per-vertex PLY or a view image"},
+    {"reference", cmd_reference, "unbiased path-traced view of a scene, the judge of cave shade"},
     {"compensate", cmd_compensate, "cancel the light that screens scatter onto each other"},
     {"lcd", cmd_lcd, "what the driver sees on the LCD panel: BRDF final gather, progressive"},
     {"render", cmd_render, "render every wall-eye of a CAVE on the GPU with shared adaptation"},

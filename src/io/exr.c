@@ -563,6 +563,28 @@ static const char *write_channel_name(int nc, int k) {
   return nc == 1 ? "Y" : rgba[k];
 }
 
+/* OpenEXR issue #2306 (fixed upstream by PR #2307; Debian 12 ships 3.1.5
+ * without it): when zlib's output is exactly as long as the packed chunk, the
+ * Core ZIP/ZIPS encoder stores the zlib bytes, and every reader, seeing equal
+ * sizes, takes them as raw pixels.  The file format says a chunk that does
+ * not shrink is stored raw, so after the library's compressor ran, such a
+ * chunk gets the packed bytes.  The library's own routine is kept in the
+ * pipeline's user data. */
+typedef struct zip_guard {
+  exr_result_t (*compress)(exr_encode_pipeline_t *enc);
+} zip_guard;
+
+static exr_result_t zip_guard_compress(exr_encode_pipeline_t *enc) {
+  const zip_guard *g = enc->encoding_user_data;
+  exr_result_t rv = g->compress(enc);
+  if (rv == EXR_ERR_SUCCESS && enc->compressed_buffer && enc->packed_buffer &&
+      enc->compressed_buffer != enc->packed_buffer && enc->compressed_bytes >= enc->packed_bytes) {
+    memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    enc->compressed_bytes = enc->packed_bytes;
+  }
+  return rv;
+}
+
 int cv_exr_write(const char *path, const cv_image *img, int half, int compression, cv_err *err) {
   return cv_exr_write_ex(path, img, half, compression, NULL, err);
 }
@@ -670,6 +692,12 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
         }
       }
       rv = exr_encoding_choose_default_routines(ctxt, part, &enc);
+    }
+    zip_guard guard = {enc.compress_fn};
+    if (rv == EXR_ERR_SUCCESS && enc.compress_fn &&
+        (compression == CV_EXR_ZIP || compression == CV_EXR_ZIPS)) {
+      enc.encoding_user_data = &guard;
+      enc.compress_fn = zip_guard_compress;
     }
     if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(ctxt, part, &enc);
     exr_encoding_destroy(ctxt, &enc);

@@ -88,7 +88,8 @@ typedef struct cv_exr_write_info {
  * (OpenEXR failure, message quoted), CV_ERR_UNSUPPORTED (a compression this
  * OpenEXR build cannot encode: DWAA/DWAB with OpenEXR 3.1; B44/B44A are
  * always refused because 3.1 Core's B44 output is misread by other
- * readers). */
+ * readers).  ZIP/ZIPS chunks that do not shrink are stored raw, as the format
+ * says (works around OpenEXR issue #2306, present in Debian 12's 3.1.5). */
 int cv_exr_write(const char *path, const cv_image *img, int half, int compression, cv_err *err);
 
 /* As cv_exr_write; info (may be NULL) reports values clamped to half range. */

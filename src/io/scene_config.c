@@ -25,7 +25,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   memset(c, 0, sizeof *c);
   snprintf(c->source, sizeof c->source, "(built-in)");
   c->mesh_is_cabin = 1;
-  c->cabin_tess = 1;
+  c->cabin_tess = CV_SCENE_DEFAULT_TESS;
   c->clean_enabled = 1;
   c->weld_tolerance = c->crease_angle_deg = c->crack_width = c->sliver_aspect = -1;
   c->bands = 5;

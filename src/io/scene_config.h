@@ -60,7 +60,11 @@ typedef struct cv_scene_config {
   cv_light_spec light;      /* kind NONE when the config names no lighting */
 } cv_scene_config;
 
-/* Defaults: built-in cabin at tess 1, cleaning on, 5 bands, 1024 rays,
+/* The one default cabin subdivision of a scene (`cave bake default`, a
+ * config without mesh.tess, configs/scenes/default.json): ~38K triangles. */
+#define CV_SCENE_DEFAULT_TESS 2
+
+/* Defaults: built-in cabin at tess CV_SCENE_DEFAULT_TESS, cleaning on, 5 bands, 1024 rays,
  * 2 bounces, seed 1, budget 0.05, no lighting. */
 void cv_scene_config_default(cv_scene_config *c);
 /* Light defaults (no kind, scale 1, sun extraction on, sky T=3 ...). */

@@ -563,6 +563,52 @@ done:
 }
 
 /* ---------------- driver ---------------- */
+/* (g): one vertex per (vertex, albedo) pair.  Incidence lists in CSR form;
+ * groups are found by exact albedo equality in triangle order, so the
+ * result is deterministic. */
+static int split_materials(cv_mesh *m, size_t *added) {
+  size_t nv = m->nv, nt = m->nt;
+  uint32_t *off = calloc(nv + 1, sizeof *off), *inc = malloc((3 * nt + 1) * sizeof *inc);
+  uint32_t *fill = calloc(nv + 1, sizeof *fill);
+  int st = CV_OK;
+  if (!off || !inc || !fill) {
+    st = CV_ERR_NOMEM;
+    goto done;
+  }
+  for (size_t i = 0; i < 3 * nt; i++) off[m->tri[i] + 1]++;
+  for (size_t v = 0; v < nv; v++) off[v + 1] += off[v];
+  for (size_t i = 0; i < 3 * nt; i++) {
+    uint32_t v = m->tri[i];
+    inc[off[v] + fill[v]++] = (uint32_t)i; /* corner index: triangle i / 3 */
+  }
+  for (size_t v = 0; v < nv; v++) {
+    const float *first = NULL;
+    for (uint32_t k = off[v]; k < off[v + 1]; k++) {
+      const cv_material *mt = &m->mats[m->tri_mat[inc[k] / 3]];
+      if ((mt->flags & CV_MAT_WINDOW) || m->tri[inc[k]] != v) continue; /* moved already */
+      if (!first) first = mt->albedo;
+      if (!memcmp(first, mt->albedo, sizeof mt->albedo)) continue;
+      /* A new albedo at v: one new vertex for every corner with it. */
+      uint32_t nvtx;
+      const float *a = mt->albedo;
+      float px = m->pos[3 * v], py = m->pos[3 * v + 1], pz = m->pos[3 * v + 2];
+      if ((st = cv_mesh_add_vertex(m, px, py, pz, &nvtx))) goto done;
+      (*added)++;
+      for (uint32_t j = k; j < off[v + 1]; j++) {
+        const cv_material *mj = &m->mats[m->tri_mat[inc[j] / 3]];
+        if (!(mj->flags & CV_MAT_WINDOW) && m->tri[inc[j]] == v &&
+            !memcmp(a, mj->albedo, sizeof mj->albedo))
+          m->tri[inc[j]] = nvtx;
+      }
+    }
+  }
+done:
+  free(off);
+  free(inc);
+  free(fill);
+  return st;
+}
+
 static int bad_param(double x) { return !isfinite(x) || x < 0; }
 
 int cv_mesh_clean(cv_mesh *m, const cv_clean_params *p, cv_clean_report *rep, cv_err *err) {
@@ -637,6 +683,9 @@ int cv_mesh_clean(cv_mesh *m, const cv_clean_params *p, cv_clean_report *rep, cv
   if (!st && (st = edgemap_build(&em, m)) == CV_OK) rep->boundary_edges_after = count_boundary(&em);
   edgemap_free(&em);
 
+  /* (g) */
+  if (!st) st = split_materials(m, &rep->material_splits);
+
   /* (f) before (e) so that worst_tri indexes the output mesh; (e) changes
    * nothing, so the order does not matter otherwise. */
   if (!st) {
@@ -698,6 +747,8 @@ void cv_clean_report_print(FILE *f, const cv_clean_report *r) {
           r->nt_after_bc, r->nt_after_d);
   fprintf(f, "  (e) slivers: %zu (worst aspect %.4g at triangle %zu), not changed\n", r->slivers,
           r->worst_aspect, r->worst_tri);
+  fprintf(f, "  (g) material boundaries: %zu vertices split off (one per albedo)\n",
+          r->material_splits);
   fprintf(f, "  (f) unreferenced vertices removed: %zu (vertices %zu -> %zu)\n", r->unreferenced,
           r->nv_before, r->nv_after);
 }

@@ -29,6 +29,13 @@
  *      whole step repeats until nothing changes (at most 4 passes).
  *  (e) slivers: triangles with longest edge / smallest altitude above
  *      sliver_aspect are counted (and the worst reported), not changed.
+ *  (g) material boundaries: a vertex used by triangles of materials with
+ *      different albedos is split, one copy per albedo (the first group in
+ *      triangle order keeps the original index, the others get new vertices
+ *      at the same position), so that a per-vertex quantity such as the
+ *      PRT's fan albedo never blends two materials: the LCD panel keeps its
+ *      own albedo at its edges.  Window triangles (CV_MAT_WINDOW, no albedo
+ *      of their own) never cause a split.  Runs after (d), before (f).
  *  (f) unreferenced vertices are dropped, the order of the others kept.
  * Materials are left as they are. */
 #ifndef CV_MESH_CLEAN_H
@@ -71,6 +78,8 @@ typedef struct cv_clean_report {
   size_t slivers;
   double worst_aspect; /* largest longest-edge / smallest-altitude ratio seen */
   size_t worst_tri;    /* its index in the OUTPUT mesh (0 if nt_after == 0) */
+  /* (g) */
+  size_t material_splits; /* vertices added by splitting at material boundaries */
   /* (f) */
   size_t unreferenced;
 } cv_clean_report;

@@ -8,7 +8,14 @@
 
 int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, int sun_samples,
                    float *out_rgb, cv_relight_stats *stats) {
+  return cv_prt_relight_ex(p, l, NULL, 0, tr, sun_samples, out_rgb, stats);
+}
+
+int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
+                      int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
+                      cv_relight_stats *stats) {
   if ((uint32_t)l->bands < p->bands) return CV_ERR_RANGE;
+  if (n_extra < 0 || (n_extra > 0 && (!extra || !tr))) return CV_ERR_INVALID;
   const int nc = (int)(p->bands * p->bands);
   /* Lighting as planar [c][i] in the PRT's band count. */
   double L[3][CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], S[3][CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
@@ -25,6 +32,12 @@ int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, i
     cv_sh_eval_d((int)p->bands, l->sun_dir, y);
     for (int c = 0; c < 3; c++)
       for (int i = 0; i < nc; i++) S[c][i] = l->sun_E[c] * y[i];
+  }
+  for (int k = 0; k < n_extra; k++) { /* extra lights: indirect as the sun's */
+    double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    cv_sh_eval_d((int)p->bands, extra[k].dir, y);
+    for (int c = 0; c < 3; c++)
+      for (int i = 0; i < nc; i++) S[c][i] += extra[k].E[c] * y[i];
   }
   const size_t nv = p->nv;
 #pragma omp parallel for schedule(static)
@@ -43,6 +56,11 @@ int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, i
   }
   if (l->has_sun && tr) {
     int st = cv_sun_direct(tr, l->sun_dir, l->sun_E, sun_samples, p->meta.seed, out_rgb);
+    if (st) return st;
+  }
+  for (int k = 0; k < n_extra; k++) {
+    int st = cv_sun_direct(tr, extra[k].dir, extra[k].E, sun_samples, p->meta.seed + 1u + (uint32_t)k,
+                           out_rgb);
     if (st) return st;
   }
   cv_relight_stats s = {0, 0};

@@ -30,4 +30,18 @@ typedef struct cv_relight_stats {
 int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, int sun_samples,
                    float *out_rgb, cv_relight_stats *stats);
 
+/* A directional light split out of the lighting (scene_light.h). */
+typedef struct cv_dir_light {
+  double dir[3]; /* unit, car frame, towards the light */
+  double E[3];   /* RGB irradiance at normal incidence */
+} cv_dir_light;
+
+/* cv_prt_relight plus n_extra more directional lights, each treated as the
+ * sun is: direct light with ray-traced visibility (needs tr), indirect light
+ * through the interreflected transfer.  Negative channels are clamped after
+ * everything is summed. */
+int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
+                      int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
+                      cv_relight_stats *stats);
+
 #endif

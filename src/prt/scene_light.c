@@ -8,6 +8,7 @@
 #include "light/envmap.h"
 #include "light/sky.h"
 #include "light/sun.h"
+#include "sh/latlong.h"
 #include "sh/sh.h"
 
 struct cv_scene_light {
@@ -20,12 +21,19 @@ struct cv_scene_light {
   double sun_fraction; /* env: energy fraction of the extracted sun */
   double sun_solid_angle;
   int sun_pixels;
+  cv_envmap *residual; /* world-frame map that the SH lighting projects (env, sky) */
+  int bands;
+  cv_dir_light *extra; /* split lights, car frame */
+  int n_extra;
+  double extra_fraction; /* their share of the residual's luminous energy */
 };
 
 void cv_scene_light_destroy(cv_scene_light *sl) {
   if (!sl) return;
   cv_envmap_destroy(sl->world);
+  cv_envmap_destroy(sl->residual);
   cv_sky_destroy(sl->sky);
+  free(sl->extra);
   free(sl);
 }
 
@@ -56,6 +64,7 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
   cv_scene_light *sl = calloc(1, sizeof *sl);
   if (!sl) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
   sl->spec = *spec;
+  sl->bands = bands;
   cv_car_rotation(spec->yaw_deg, spec->pitch_deg, spec->roll_deg, sl->R);
   int st = CV_OK;
   cv_envmap *maps[CV_MAX_ENV_MAPS] = {0}, *residual = NULL;
@@ -97,6 +106,13 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
       cv_err_set(err, st, "SH projection of %s failed", spec->env[0]);
       goto done;
     }
+    if (proj == residual) {
+      sl->residual = residual;
+      residual = NULL;
+    } else if ((st = cv_envmap_clone(sl->world, &sl->residual))) {
+      cv_err_set(err, st, "out of memory");
+      goto done;
+    }
   } else if (spec->kind == CV_LIGHT_SKY) {
     double el = spec->sun_elevation_deg * M_PI / 180, az = spec->sun_azimuth_deg * M_PI / 180;
     double sd[3] = {sin(az) * cos(el), sin(el), -cos(az) * cos(el)};
@@ -110,6 +126,8 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
     st = cv_envmap_from_image(img, &residual, err);
     cv_image_destroy(img);
     if (st || (st = project_to_car(residual, bands, sl->R, &sl->l))) goto done;
+    sl->residual = residual;
+    residual = NULL;
     double E[3], sa;
     cv_sky_sun(sl->sky, sl->sun_world, E, &sa);
     if (E[0] + E[1] + E[2] > 0) {
@@ -134,6 +152,144 @@ done:
   }
   *out = sl;
   return CV_OK;
+}
+
+typedef struct {
+  double score, e, E[3], dir[3];
+} split_cell;
+
+static int cmp_cell(const void *a, const void *b) {
+  const split_cell *x = a, *y = b;
+  return (x->score < y->score) - (x->score > y->score); /* descending */
+}
+
+/* Energy, colour and centroid of every cell of the residual (world frame). */
+static void cell_sums(const cv_envmap *env, int gw, int gh, split_cell *cells) {
+  const cv_image *img = env->img;
+  memset(cells, 0, (size_t)gw * gh * sizeof *cells);
+  for (int y = 0; y < img->h; y++) {
+    double om = cv_latlong_pixel_solid_angle(y, img->w, img->h);
+    int cy = (int)((long)y * gh / img->h);
+    for (int x = 0; x < img->w; x++) {
+      split_cell *c = &cells[cy * gw + (int)((long)x * gw / img->w)];
+      const float *p = cv_image_at(img, x, y);
+      double Y = cv_luminance(p[0], p[1], p[2]) * om, d[3];
+      cv_latlong_pixel_dir(x, y, img->w, img->h, d);
+      c->e += Y;
+      for (int k = 0; k < 3; k++) {
+        c->E[k] += p[k] * om;
+        c->dir[k] += Y * d[k];
+      }
+    }
+  }
+}
+
+/* Fraction of probe points that see world direction w through a window. */
+static double window_fraction(const cv_tracer *tr, const double R[9], const double w[3],
+                              const float *probes, int np) {
+  if (!tr || np == 0) return 1;
+  double d[3];
+  to_car(R, w, d);
+  const float df[3] = {(float)d[0], (float)d[1], (float)d[2]};
+  int seen = 0;
+  for (int i = 0; i < np; i++) seen += cv_rt_reaches_env(cv_tracer_rt(tr), probes + 3 * i, df, 0);
+  return (double)seen / np;
+}
+
+int cv_scene_light_split(cv_scene_light *sl, const cv_tracer *tr, int k, int grid_w,
+                         cv_err *err) {
+  if (k < 0 || k > 4096 || grid_w < 4 || grid_w > 1024 || grid_w % 2)
+    return cv_err_set(err, CV_ERR_RANGE, "split: %d lights on a %d-wide grid, expected 0..4096 "
+                      "and an even width 4..1024", k, grid_w);
+  free(sl->extra);
+  sl->extra = NULL;
+  sl->n_extra = 0;
+  sl->extra_fraction = 0;
+  if (k == 0 || !sl->residual) return CV_OK;
+  const int gw = grid_w, gh = grid_w / 2, ncell = gw * gh;
+  split_cell *cells = malloc((size_t)ncell * sizeof *cells);
+  float *probes = malloc(3 * 256 * sizeof *probes);
+  cv_envmap *rest = NULL;
+  int st = CV_OK, np = 0;
+  if (!cells || !probes || cv_envmap_clone(sl->residual, &rest)) {
+    st = cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    goto done;
+  }
+  if (tr) {
+    size_t nv = cv_tracer_vertex_count(tr);
+    size_t step = nv > 256 ? nv / 256 : 1;
+    for (size_t v = 0; v < nv && np < 256; v += step) {
+      float dir[3];
+      uint32_t tri;
+      if (cv_tracer_sample(tr, (uint32_t)v, 0, 0x51u, probes + 3 * np, dir, &tri)) np++;
+    }
+  }
+  cell_sums(rest, gw, gh, cells);
+  double total = 0;
+  for (int i = 0; i < ncell; i++) {
+    total += cells[i].e;
+    double l = sqrt(cells[i].dir[0] * cells[i].dir[0] + cells[i].dir[1] * cells[i].dir[1] +
+                    cells[i].dir[2] * cells[i].dir[2]);
+    if (!(cells[i].e > 0) || !(l > 0)) {
+      cells[i].score = 0;
+      continue;
+    }
+    for (int c = 0; c < 3; c++) cells[i].dir[c] /= l;
+    cells[i].score = cells[i].e * window_fraction(tr, sl->R, cells[i].dir, probes, np);
+  }
+  /* Selection by score: sort a copy for the k-th best score, then take the
+   * cells at or above it in grid order (so the map can be cut by index). */
+  split_cell *sorted = malloc((size_t)ncell * sizeof *sorted);
+  if (!sorted) {
+    st = cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    goto done;
+  }
+  memcpy(sorted, cells, (size_t)ncell * sizeof *cells);
+  qsort(sorted, (size_t)ncell, sizeof *sorted, cmp_cell);
+  int n = k < ncell ? k : ncell;
+  while (n > 0 && !(sorted[n - 1].score > 0)) n--;
+  double thr = n > 0 ? sorted[n - 1].score : INFINITY;
+  free(sorted);
+  sl->extra = calloc((size_t)(n > 0 ? n : 1), sizeof *sl->extra);
+  char *chosen = calloc((size_t)ncell, 1);
+  if (!sl->extra || !chosen) {
+    free(chosen);
+    st = cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    goto done;
+  }
+  double taken = 0;
+  for (int i = 0; i < ncell && sl->n_extra < n; i++) { /* ties: lowest index first */
+    if (!(cells[i].score >= thr) || !(cells[i].score > 0)) continue;
+    chosen[i] = 1;
+    cv_dir_light *L = &sl->extra[sl->n_extra++];
+    to_car(sl->R, cells[i].dir, L->dir);
+    memcpy(L->E, cells[i].E, sizeof L->E);
+    taken += cells[i].e;
+  }
+  sl->extra_fraction = total > 0 ? taken / total : 0;
+  /* Remove the chosen cells from the map and re-project the rest. */
+  cv_image *img = rest->img;
+  for (int y = 0; y < img->h; y++) {
+    int cy = (int)((long)y * gh / img->h);
+    for (int x = 0; x < img->w; x++)
+      if (chosen[cy * gw + (int)((long)x * gw / img->w)]) {
+        float *p = cv_image_at(img, x, y);
+        p[0] = p[1] = p[2] = 0;
+      }
+  }
+  free(chosen);
+  if ((st = project_to_car(rest, sl->bands, sl->R, &sl->l)))
+    cv_err_set(err, st, "split: SH projection failed");
+done:
+  free(cells);
+  free(probes);
+  cv_envmap_destroy(rest);
+  return st;
+}
+
+int cv_scene_light_extra(const cv_scene_light *sl, const cv_dir_light **lights) {
+  *lights = sl->extra;
+  return sl->n_extra;
 }
 
 cv_lighting cv_scene_light_sh(const cv_scene_light *sl) { return sl->l; }
@@ -182,4 +338,7 @@ void cv_scene_light_print(FILE *f, const cv_scene_light *sl) {
                                        ? "extraction off"
                                        : "no compact region above the energy threshold");
   }
+  if (sl->n_extra)
+    fprintf(f, "split: %d window-visible regions as directional lights (%.1f%% of the residual "
+            "map's energy), exact visibility\n", sl->n_extra, 100 * sl->extra_fraction);
 }

@@ -10,6 +10,7 @@
 #include <stdio.h>
 
 #include "io/scene_config.h"
+#include "prt/bake.h"
 #include "prt/relight.h"
 
 typedef struct cv_scene_light cv_scene_light;
@@ -22,6 +23,22 @@ void cv_scene_light_destroy(cv_scene_light *sl);
 cv_lighting cv_scene_light_sh(const cv_scene_light *sl);
 /* Radiance arriving from car-frame direction d (unit), sun included. */
 void cv_scene_light_background(const cv_scene_light *sl, const float d[3], float rgb[3]);
+/* All-frequency window light (issue 13): splits up to k more directional
+ * lights out of the SH lighting.  The map left after the sun (the residual)
+ * is cut into cells of a grid_w x grid_w/2 lat-long grid; each cell scores
+ * its luminous energy sum(Y Omega) times the fraction of up to 256 probe
+ * points of the mesh (tr, vertex fan points) that see its centre through a
+ * window; the k best cells with a score > 0 become directional lights (RGB
+ * irradiance = the cell's sum(L Omega), direction = its luminance-weighted
+ * centroid), are removed from the map and the SH lighting is re-projected
+ * without them.  Replaces an earlier split.  Only for maps and the sky (a
+ * constant environment has nothing to split: returns 0 lights).  Errors:
+ * CV_ERR_RANGE (k outside 0..4096, grid_w not even in 4..1024), CV_ERR_NOMEM. */
+int cv_scene_light_split(cv_scene_light *sl, const cv_tracer *tr, int k, int grid_w,
+                         cv_err *err);
+/* The split lights (car frame); returns their number, *lights owned by sl. */
+int cv_scene_light_extra(const cv_scene_light *sl, const cv_dir_light **lights);
+
 /* One or two lines: what the lighting is, whether a sun was found, its energy. */
 void cv_scene_light_print(FILE *f, const cv_scene_light *sl);
 

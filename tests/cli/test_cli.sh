@@ -112,6 +112,28 @@ expect_error "bad number" "--rays" $CAVE bake default -o x.prt --rays abc
 expect_error "no lighting" "no lighting" $CAVE shade a.prt -o x.ply
 [ ! -e x.prt ] && [ ! -e x.ply ] && ok "no output left behind by failures" || bad "a failed command left output"
 
+# --- reference ---------------------------------------------------------------
+if $CAVE reference --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help reference"; else bad "help reference"; fi
+RV="--view -0.37,1.02,0.1 --look -0.3,0.85,-1 --size 32x20"
+expect_ok "reference exr+png+error+ids" $CAVE reference a.prt --env good.exr $RV --spp 4 --pass 2 --quiet -o r.exr --png r.png --error rse.exr --ids rid.exr
+[ -s r.exr ] && [ -s r.png ] && [ -s rse.exr ] && [ -s rid.exr ] && ok "reference outputs written" || bad "reference outputs missing"
+expect_ok "reference sky, bounces" $CAVE reference a.prt --sky 3,30,20 $RV --spp 2 --bounces 1 --quiet -o r2.exr
+expect_error "reference no view" "--view" $CAVE reference a.prt --env-constant 1,1,1 -o y.exr
+expect_error "reference no lighting" "no lighting" $CAVE reference a.prt $RV -o y.exr
+expect_error "reference bad spp" "--spp" $CAVE reference a.prt --env-constant 1,1,1 $RV --spp 0 -o y.exr
+expect_error "reference png as -o" "linear .exr" $CAVE reference a.prt --env-constant 1,1,1 $RV -o y.png
+expect_error "reference missing PRT" "none.prt" $CAVE reference none.prt --env-constant 1,1,1 $RV -o y.exr
+expect_error "reference missing map" "nosuch.exr" $CAVE reference a.prt --env nosuch.exr $RV -o y.exr
+[ ! -e y.exr ] && [ ! -e y.png ] && ok "reference failures leave no output" || bad "a failed reference left output"
+expect_ok "shade --split" $CAVE shade a.prt --env good.exr --split 4 --split-grid 16 $RV -o split.exr
+grep -q "^split: [1-4] window-visible" out.txt && ok "shade --split reports its lights" || { bad "shade --split printed no split line"; cat out.txt; }
+expect_error "shade bad split grid" "--split-grid" $CAVE shade a.prt --env good.exr --split 4 --split-grid 7 $RV -o y.exr
+
+# One default cabin: `cave bake default` and configs/scenes/default.json bake the same mesh.
+H1=$($CAVE bake default -o d1.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')
+H2=$($CAVE bake "$ROOT/configs/scenes/default.json" -o d2.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')
+[ -n "$H1" ] && [ "$H1" = "$H2" ] && ok "one default cabin (input hash $H1)" || bad "bake default ($H1) and default.json ($H2) differ"
+
 # --- compensate --------------------------------------------------------------
 if $CAVE compensate --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help compensate"; else bad "help compensate"; fi
 wall() { # wall NAME PA PB PC REFL PATCHES

@@ -18,7 +18,7 @@ for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS; do [ -n "${!v:-}" ] && MPI+=(-
 CFG="$SRC/configs/caves/cave5.json"
 echo "X display $DISPLAY"
 
-"$CAVE" bake default -o scene.prt --bands 3 --rays 32 --bounces 1 --quiet >/dev/null || { echo "FAIL: bake"; exit 1; }
+"$CAVE" bake default -o scene.prt --tess 1 --bands 3 --rays 32 --bounces 1 --quiet >/dev/null || { echo "FAIL: bake"; exit 1; }
 cat > still.json <<'JSON'
 {"description": "standing still under forest", "loop": true, "maps": ["forest.exr"],
  "keyframes": [{"t": 0, "yaw": 30, "weights": [1]}, {"t": 10, "yaw": 30}]}

@@ -224,12 +224,68 @@ static void test_determinism_errors(void **state) {
   cv_mesh_destroy(b);
 }
 
+/* (g): a 2x1 strip of quads, left quad material A, right quad B (another
+ * albedo), and a third quad above the left one in material C with A's albedo.
+ * The two vertices on the A|B edge are split (B gets its own copies); A and
+ * C share theirs; no vertex is used by two different albedos afterwards;
+ * window triangles never split. */
+static void test_material_split(void **state) {
+  (void)state;
+  cv_mesh *m;
+  assert_int_equal(cv_mesh_create(&m), CV_OK);
+  const float a[3] = {0.5f, 0.5f, 0.5f}, b[3] = {0.03f, 0.03f, 0.03f}, z[3] = {0, 0, 0};
+  uint32_t ma, mb, mc, mw;
+  assert_int_equal(cv_mesh_add_material(m, "A", a, 0, &ma), CV_OK);
+  assert_int_equal(cv_mesh_add_material(m, "B", b, CV_MAT_LCD, &mb), CV_OK);
+  assert_int_equal(cv_mesh_add_material(m, "C", a, 0, &mc), CV_OK);
+  assert_int_equal(cv_mesh_add_material(m, "glass", z, CV_MAT_WINDOW, &mw), CV_OK);
+  /* 3 x 3 grid of vertices in the z = 0 plane: index = 3*row + col. */
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++) assert_int_equal(cv_mesh_add_vertex(m, (float)c, (float)r, 0, NULL), CV_OK);
+  const uint32_t quad[4][4] = {{0, 1, 4, 3}, {1, 2, 5, 4}, {3, 4, 7, 6}, {4, 5, 8, 7}};
+  const uint32_t qm[4] = {ma, mb, mc, mw};
+  for (int q = 0; q < 4; q++) {
+    assert_int_equal(cv_mesh_add_tri(m, quad[q][0], quad[q][1], quad[q][2], qm[q]), CV_OK);
+    assert_int_equal(cv_mesh_add_tri(m, quad[q][0], quad[q][2], quad[q][3], qm[q]), CV_OK);
+  }
+  cv_clean_report r = clean_ok(m);
+  assert_int_equal(r.material_splits, 2); /* vertices 1 and 4 (B's corners on the A|B edge) */
+  assert_int_equal(m->nv, 11);
+  assert_int_equal(m->nt, 8);
+  /* No vertex is used by two different (non-window) albedos. */
+  float *va = malloc(3 * m->nv * sizeof *va);
+  int *seen = calloc(m->nv, sizeof *seen);
+  for (size_t t = 0; t < m->nt; t++) {
+    const cv_material *mt = &m->mats[m->tri_mat[t]];
+    if (mt->flags & CV_MAT_WINDOW) continue;
+    for (int k = 0; k < 3; k++) {
+      uint32_t v = m->tri[3 * t + k];
+      if (seen[v]) assert_memory_equal(va + 3 * v, mt->albedo, 3 * sizeof(float));
+      memcpy(va + 3 * v, mt->albedo, 3 * sizeof(float));
+      seen[v] = 1;
+    }
+  }
+  /* A and C (same albedo) still share the edge vertices 3 and 4. */
+  int a_has4 = 0, c_has4 = 0;
+  for (size_t t = 0; t < m->nt; t++)
+    for (int k = 0; k < 3; k++)
+      if (m->tri[3 * t + k] == 4) {
+        a_has4 |= m->tri_mat[t] == ma;
+        c_has4 |= m->tri_mat[t] == mc;
+      }
+  assert_true(a_has4 && c_has4);
+  free(va);
+  free(seen);
+  cv_mesh_destroy(m);
+}
+
 int run_clean_tests(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_weld),       cmocka_unit_test(test_crease_kept),
       cmocka_unit_test(test_degenerate), cmocka_unit_test(test_duplicates),
       cmocka_unit_test(test_crack),      cmocka_unit_test(test_crack_opposite_normals),
       cmocka_unit_test(test_sliver),     cmocka_unit_test(test_determinism_errors),
+      cmocka_unit_test(test_material_split),
   };
   return cmocka_run_group_tests_name("clean", tests, NULL, NULL);
 }

@@ -1,0 +1,335 @@
+/* `cave reference`: the independent judge of the PRT pipeline.  Renders the
+ * view of `cave shade --view` with an unbiased path tracer (src/ref/) that
+ * shares no transfer code with the bake, and writes a linear EXR, its
+ * per-pixel standard error and optionally a PNG preview. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <omp.h>
+
+#include "cli/cli.h"
+#include "io/exr.h"
+#include "io/tonemap_simple.h"
+#include "prt/prt.h"
+#include "ref/ref.h"
+
+static void help(FILE *f) {
+  fprintf(f,
+          "usage: cave reference <scene.prt | scene.json | mesh.obj|.ply|.gltf|.glb | default>\n"
+          "                      LIGHT --view x,y,z --look x,y,z [--up x,y,z] [--fov DEG]\n"
+          "                      [--size WxH] [--spp N] [--pass N] [--bounces N] [--seed S]\n"
+          "                      [--tess N] [--threads N] [--error se.exr] [--png view.png]\n"
+          "                      [--exposure E] [--ids ids.exr] [--quiet] -o view.exr\n\n"
+          "Unbiased Monte Carlo path tracer of the car interior: Lambert surfaces with each\n"
+          "triangle's material albedo, the environment seen only through window triangles,\n"
+          "next-event estimation of the map (luminance alias table) and of the window\n"
+          "openings (area sampling), both MIS-weighted with the cosine lobe, and of the\n"
+          "sky's sun; Russian roulette.  Shares no transfer code\n"
+          "with the PRT bake: use it to measure `cave shade --view` (same camera, one ray\n"
+          "through each pixel centre).  A map's sun stays in the map (no extraction).\n\n"
+          "LIGHT is one of\n"
+          "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S]   lat-long HDR maps\n"
+          "                       (a bare name such as forest.exr is looked up in blender-data)\n"
+          "  --env-constant R,G,B constant environment radiance\n"
+          "  --sky T,ELEV,AZIM    Preetham sky and its sun (as cave shade)\n"
+          "  [--yaw DEG] [--pitch DEG] [--roll DEG]   car orientation\n\n"
+          "  --spp N        samples per pixel (default 64)\n"
+          "  --pass N       samples per progressive pass, one progress line each (default 16)\n"
+          "  --bounces N    keep light that bounced at most N times (N = 2 matches a 2-bounce\n"
+          "                 bake); default: until Russian roulette ends the path\n"
+          "  --seed S       sampling seed (same seed, same image, any thread count)\n"
+          "  --tess N       built-in cabin subdivision (default or .json input)\n"
+          "  --threads N    OpenMP threads (default: all cores)\n"
+          "  --error FILE   EXR of the per-pixel standard error of each channel's mean\n"
+          "  --png FILE     tone-mapped preview (log-average to 0.18, Reinhard, sRGB)\n"
+          "  --exposure E   fixed exposure for --png instead of the log-average\n"
+          "  --ids FILE     EXR (1 channel) of 1 + the material index each pixel sees, 0 for none\n"
+          "                 (region masks for the error report; the indices are printed)\n"
+          "Input .prt: its cleaned mesh and material albedos (not its per-vertex albedos).\n");
+}
+
+typedef struct {
+  cv_light_spec spec;
+  const char *weights;
+} light_opts;
+
+/* Parses one lighting option at argv[*i] (value at argv[*i + 1]).  Returns 1
+ * if consumed, 0 if not a lighting option, -1 after printing an error. */
+static int parse_light(int argc, char **argv, int *i, light_opts *lo) {
+  const char *a = argv[*i], *val = *i + 1 < argc ? argv[*i + 1] : NULL;
+  cv_light_spec *spec = &lo->spec;
+  cv_err err;
+  cv_err_clear(&err);
+  int is_light = !strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") ||
+                 !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
+                 !strcmp(a, "--pitch") || !strcmp(a, "--roll");
+  if (!is_light) return 0;
+  if (!val) return cli_fail("reference", 2, "option '%s' needs a value", a), -1;
+  ++*i;
+  if (!strcmp(a, "--env")) {
+    char buf[8192];
+    snprintf(buf, sizeof buf, "%s", val);
+    char *save = NULL;
+    spec->kind = CV_LIGHT_ENV;
+    spec->n_env = 0;
+    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+      if (spec->n_env == CV_MAX_ENV_MAPS)
+        return cli_fail("reference", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS), -1;
+      if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
+        return cli_fail("reference", 1, "--env: %s", err.msg), -1;
+      spec->n_env++;
+    }
+    for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
+  } else if (!strcmp(a, "--weights")) {
+    lo->weights = val;
+  } else if (!strcmp(a, "--scale")) {
+    if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
+      return cli_fail("reference", 2, "--scale: expected a non-negative number, got '%s'", val), -1;
+  } else if (!strcmp(a, "--env-constant")) {
+    spec->kind = CV_LIGHT_CONSTANT;
+    if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
+        spec->constant[2] < 0)
+      return cli_fail("reference", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val), -1;
+  } else if (!strcmp(a, "--sky")) {
+    double s[3];
+    spec->kind = CV_LIGHT_SKY;
+    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
+      return cli_fail("reference", 2,
+                      "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val),
+             -1;
+    spec->turbidity = s[0];
+    spec->sun_elevation_deg = s[1];
+    spec->sun_azimuth_deg = s[2];
+  } else {
+    double d;
+    if (cli_parse_double(val, &d))
+      return cli_fail("reference", 2, "%s: expected degrees, got '%s'", a, val), -1;
+    if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
+    else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
+    else spec->roll_deg = d;
+  }
+  return 1;
+}
+
+static int finish_light(light_opts *lo) {
+  cv_light_spec *spec = &lo->spec;
+  if (spec->kind == CV_LIGHT_NONE)
+    return cli_fail("reference", 2, "no lighting: give --env, --env-constant or --sky");
+  if (!lo->weights) return 0;
+  if (spec->kind != CV_LIGHT_ENV) return cli_fail("reference", 2, "--weights needs --env");
+  double w[CV_MAX_ENV_MAPS], sum = 0;
+  if (cli_parse_vec(lo->weights, spec->n_env, w))
+    return cli_fail("reference", 2, "--weights: expected %d comma-separated numbers, got '%s'",
+                    spec->n_env, lo->weights);
+  for (int k = 0; k < spec->n_env; k++) {
+    if (w[k] < 0) return cli_fail("reference", 2, "--weights: negative weight %g", w[k]);
+    spec->weight[k] = w[k];
+    sum += w[k];
+  }
+  if (!(sum > 0)) return cli_fail("reference", 2, "--weights: the weights sum to 0");
+  return 0;
+}
+
+/* The scene's cleaned mesh: from a .prt (as `cave shade` sees it) or built
+ * from a config, a mesh file or the default cabin. */
+static int load_mesh(const char *in, int tess, cv_mesh **m, cv_err *err) {
+  if (cli_has_ext(in, ".prt")) {
+    cv_prt *p = NULL;
+    int st = cv_prt_read(in, &p, err);
+    if (st) return st;
+    st = cv_prt_to_mesh(p, m);
+    if (!st)
+      printf("scene: %s: %zu vertices, %zu triangles, %zu materials\n", in, p->nv, p->nt, p->nm);
+    cv_prt_destroy(p);
+    if (st) return cv_err_set(err, st, "%s: out of memory", in);
+    return CV_OK;
+  }
+  cv_scene_config cfg;
+  if (!strcmp(in, "default")) {
+    cv_scene_config_default(&cfg);
+  } else if (cli_has_ext(in, ".json")) {
+    int st = cv_scene_config_load(in, &cfg, err);
+    if (st) return st;
+  } else {
+    cv_scene_config_default(&cfg);
+    cfg.mesh_is_cabin = 0;
+    snprintf(cfg.mesh_path, sizeof cfg.mesh_path, "%s", in);
+    snprintf(cfg.source, sizeof cfg.source, "%s", in);
+  }
+  if (tess > 0) cfg.cabin_tess = tess;
+  return cli_load_scene_mesh(&cfg, stdout, m, err);
+}
+
+int cmd_reference(int argc, char **argv) {
+  const char *in = NULL, *out = NULL, *err_out = NULL, *png_out = NULL, *ids_out = NULL;
+  light_opts lo = {.weights = NULL};
+  cv_light_spec_default(&lo.spec);
+  cv_ref_camera cam = {.up = {0, 1, 0}, .fov_deg = 70, .w = 640, .h = 480};
+  cv_ref_params rp;
+  cv_ref_params_default(&rp);
+  int have_view = 0, have_look = 0, threads = 0, tess = 0;
+  double exposure = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      help(stdout);
+      return 0;
+    }
+    if (!strcmp(a, "--quiet")) {
+      rp.quiet = 1;
+      continue;
+    }
+    int pl = parse_light(argc, argv, &i, &lo);
+    if (pl < 0) return 2;
+    if (pl) continue;
+    if (a[0] == '-' && a[1] && !val) {
+      help(stderr);
+      return cli_fail("reference", 2, "option '%s' needs a value", a);
+    }
+    if (!strcmp(a, "-o")) {
+      out = argv[++i];
+    } else if (!strcmp(a, "--error")) {
+      err_out = argv[++i];
+    } else if (!strcmp(a, "--ids")) {
+      ids_out = argv[++i];
+    } else if (!strcmp(a, "--png")) {
+      png_out = argv[++i];
+    } else if (!strcmp(a, "--view") || !strcmp(a, "--look") || !strcmp(a, "--up")) {
+      double *dst = !strcmp(a, "--view") ? cam.eye : !strcmp(a, "--look") ? cam.look : cam.up;
+      if (cli_parse_vec(argv[++i], 3, dst))
+        return cli_fail("reference", 2, "%s: expected x,y,z, got '%s'", a, val);
+      have_view |= !strcmp(a, "--view");
+      have_look |= !strcmp(a, "--look");
+    } else if (!strcmp(a, "--fov")) {
+      if (cli_parse_double(argv[++i], &cam.fov_deg) || cam.fov_deg <= 1 || cam.fov_deg >= 179)
+        return cli_fail("reference", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
+    } else if (!strcmp(a, "--size")) {
+      char extra;
+      if (sscanf(argv[++i], "%dx%d%c", &cam.w, &cam.h, &extra) != 2 || cam.w < 1 || cam.h < 1 ||
+          cam.w > 16384 || cam.h > 16384)
+        return cli_fail("reference", 2, "--size: expected WxH (1..16384), got '%s'", val);
+    } else if (!strcmp(a, "--spp")) {
+      if (cli_parse_int(argv[++i], 1, 1 << 20, &rp.spp))
+        return cli_fail("reference", 2, "--spp: expected 1..1048576, got '%s'", val);
+    } else if (!strcmp(a, "--pass")) {
+      if (cli_parse_int(argv[++i], 1, 1 << 20, &rp.pass_spp))
+        return cli_fail("reference", 2, "--pass: expected 1..1048576, got '%s'", val);
+    } else if (!strcmp(a, "--bounces")) {
+      if (cli_parse_int(argv[++i], 0, 1000, &rp.bounces))
+        return cli_fail("reference", 2, "--bounces: expected 0..1000, got '%s'", val);
+    } else if (!strcmp(a, "--seed")) {
+      int s;
+      if (cli_parse_int(argv[++i], 0, 2147483647, &s))
+        return cli_fail("reference", 2, "--seed: expected 0..2147483647, got '%s'", val);
+      rp.seed = (uint32_t)s;
+    } else if (!strcmp(a, "--tess")) {
+      if (cli_parse_int(argv[++i], 1, 64, &tess))
+        return cli_fail("reference", 2, "--tess: expected 1..64, got '%s'", val);
+    } else if (!strcmp(a, "--threads")) {
+      if (cli_parse_int(argv[++i], 1, 1024, &threads))
+        return cli_fail("reference", 2, "--threads: expected 1..1024, got '%s'", val);
+    } else if (!strcmp(a, "--exposure")) {
+      if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
+        return cli_fail("reference", 2, "--exposure: expected a positive number, got '%s'", val);
+    } else if (a[0] == '-' && a[1]) {
+      help(stderr);
+      return cli_fail("reference", 2, "unknown option '%s'", a);
+    } else if (!in) {
+      in = a;
+    } else {
+      return cli_fail("reference", 2, "more than one input ('%s' and '%s')", in, a);
+    }
+  }
+  if (!in || !out) {
+    help(stderr);
+    return cli_fail("reference", 2, "an input scene and -o FILE.exr are required");
+  }
+  if (!cli_has_ext(out, ".exr"))
+    return cli_fail("reference", 2, "-o: the view is written as linear .exr, got '%s'", out);
+  if (err_out && !cli_has_ext(err_out, ".exr"))
+    return cli_fail("reference", 2, "--error: expected an .exr path, got '%s'", err_out);
+  if (ids_out && !cli_has_ext(ids_out, ".exr"))
+    return cli_fail("reference", 2, "--ids: expected an .exr path, got '%s'", ids_out);
+  if (png_out && !cli_has_ext(png_out, ".png"))
+    return cli_fail("reference", 2, "--png: expected a .png path, got '%s'", png_out);
+  if (!have_view || !have_look)
+    return cli_fail("reference", 2, "--view x,y,z and --look x,y,z are required");
+  if (finish_light(&lo)) return 2;
+  if (threads) omp_set_num_threads(threads);
+
+  int rc = 1;
+  cv_err err;
+  cv_err_clear(&err);
+  cv_mesh *m = NULL;
+  cv_ref_scene *sc = NULL;
+  cv_ref_light *light = NULL;
+  cv_image *img = NULL, *se = NULL, *ids = NULL;
+  if (load_mesh(in, tess, &m, &err)) {
+    rc = cli_fail("reference", 1, "%s", err.msg);
+    goto done;
+  }
+  if (cv_ref_scene_create(m, &sc, &err)) {
+    rc = cli_fail("reference", 1, "%s: %s", in, err.msg);
+    goto done;
+  }
+  if (cv_ref_light_build(&lo.spec, &light, &err)) {
+    rc = cli_fail("reference", 1, "%s", err.msg);
+    goto done;
+  }
+  cv_ref_light_print(stdout, light);
+  if (cv_image_create(cam.w, cam.h, 3, &img) || cv_image_create(cam.w, cam.h, 3, &se)) {
+    rc = cli_fail("reference", 1, "cannot allocate a %dx%d image", cam.w, cam.h);
+    goto done;
+  }
+  cv_ref_stats st;
+  if (cv_ref_render(sc, light, &cam, &rp, img, se, &st, &err)) {
+    rc = cli_fail("reference", 1, "%s", err.msg);
+    goto done;
+  }
+  printf("reference: %dx%d, %d spp, bounces %s, seed %u: %.2f s, %.3g paths/s, %.2f vertices "
+         "per path\n",
+         cam.w, cam.h, rp.spp, rp.bounces < 0 ? "until roulette" : "limited", rp.seed, st.seconds,
+         st.paths / (st.seconds > 0 ? st.seconds : 1), (double)st.vertices / (double)st.paths);
+  printf("reference: relative standard error of pixel luminance: median %.2f%%, p90 %.2f%%; "
+         "%llu samples non-finite (set to 0); %llu pixels saw neither geometry nor a window\n",
+         100 * st.median_rel_se, 100 * st.p90_rel_se, (unsigned long long)st.nonfinite,
+         (unsigned long long)st.blocked_view);
+  /* ZIP: cv_exr_write guards against OpenEXR issue #2306 (a chunk whose
+   * deflated size equals its raw size was stored wrongly; noisy images hit it). */
+  if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err) ||
+      (err_out && cv_exr_write(err_out, se, 0, CV_EXR_ZIP, &err))) {
+    rc = cli_fail("reference", 1, "%s", err.msg);
+    goto done;
+  }
+  if (ids_out) {
+    if (cv_image_create(cam.w, cam.h, 1, &ids) || cv_ref_material_ids(sc, &cam, ids, &err) ||
+        cv_exr_write(ids_out, ids, 0, CV_EXR_NONE, &err)) {
+      rc = cli_fail("reference", 1, "--ids: %s", err.msg[0] ? err.msg : "out of memory");
+      goto done;
+    }
+    for (size_t k = 0; k < m->nm; k++)
+      printf("material %zu: %s (albedo %.3g %.3g %.3g)\n", k, m->mats[k].name,
+             (double)m->mats[k].albedo[0], (double)m->mats[k].albedo[1],
+             (double)m->mats[k].albedo[2]);
+  }
+  if (png_out) {
+    cv_preview_stats ps;
+    if (cv_preview_write_png(png_out, img, exposure, &ps, &err)) {
+      rc = cli_fail("reference", 1, "%s", err.msg);
+      goto done;
+    }
+  }
+  printf("wrote %s%s%s%s%s\n", out, err_out ? ", " : "", err_out ? err_out : "",
+         png_out ? ", " : "", png_out ? png_out : "");
+  rc = 0;
+done:
+  cv_image_destroy(img);
+  cv_image_destroy(se);
+  cv_image_destroy(ids);
+  cv_ref_light_destroy(light);
+  cv_ref_scene_destroy(sc);
+  cv_mesh_destroy(m);
+  return rc;
+}
