@@ -39,6 +39,11 @@ static void help(FILE *f) {
           CLI_PLACE_HELP
           "The bake prints the model's bounding box in metres and warns when it is\n"
           "implausible for a car (largest extent under 0.5 m or over 20 m).\n\n"
+          "Mesh files are imported by assimp in a child process under limits (environment):\n"
+          "  CAVE_IMPORT_TIMEOUT=S     wall-clock seconds (default 600; 0 = none)\n"
+          "  CAVE_IMPORT_MEMORY_MB=M   address space in MB (default 8192 or 3/4 of the RAM,\n"
+          "                            whichever is less; 0 = none); raise both for big CAD\n"
+          "  CAVE_IMPORT_VERBOSE=1     show what assimp printed (otherwise dropped)\n\n"
           "examples:\n"
           "  cave bake configs/scenes/default.json -o cabin.prt\n"
           "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");

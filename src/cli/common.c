@@ -220,10 +220,17 @@ int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, c
     if (c->crack_width >= 0) cp.crack_width_rel = c->crack_width;
     if (c->sliver_aspect >= 0) cp.sliver_aspect = c->sliver_aspect;
     cv_clean_report rep;
-    if ((st = cv_mesh_clean(m, &cp, &rep, err))) goto fail;
+    if ((st = cv_mesh_clean(m, &cp, &rep, err))) {
+      cv_err_prefix(err, "%s", c->mesh_is_cabin ? "built-in cabin" : c->mesh_path);
+      goto fail;
+    }
     if (report) cv_clean_report_print(report, &rep);
   }
-  if ((st = cv_mesh_validate(m, err))) goto fail;
+  if ((st = cv_mesh_validate(m, err))) {
+    cv_err_prefix(err, "%s%s", c->mesh_is_cabin ? "built-in cabin" : c->mesh_path,
+                  c->clean_enabled ? " after cleaning" : "");
+    goto fail;
+  }
   size_t windows = 0;
   for (size_t t = 0; t < m->nt; t++) windows += (m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) != 0;
   if (report && windows == 0)

@@ -79,8 +79,8 @@ static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *co
   const cJSON *it;
   cJSON_ArrayForEach(it, obj) {
     if (!cv_json_key_allowed(it->string, allowed)) {
-      char field[256], list[320];
-      field_name(field, sizeof field, path, it->string);
+      char field[256], list[320], kbuf[128];
+      field_name(field, sizeof field, path, cv_json_key_show(it->string, kbuf, sizeof kbuf));
       cv_json_key_list(allowed, list, sizeof list);
       cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
@@ -767,11 +767,11 @@ static cv_display *parse_text(ctx *x, const char *text) {
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
   if (!root) {
-    int line = 1;
-    for (const char *p = text; end && p < end && *p; p++) line += *p == '\n';
-    char f[32];
-    snprintf(f, sizeof f, "line %d", line);
-    cv_problem(x, CV_ERR_CONFIG, f, "JSON syntax error (NaN and Inf are not JSON numbers)");
+    int line, col;
+    char f[48], what[128];
+    cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
+    snprintf(f, sizeof f, "line %d, column %d", line, col);
+    cv_problem(x, CV_ERR_CONFIG, f, "%s", what);
     return d;
   }
   parse_root(x, root, d);

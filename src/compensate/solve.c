@@ -33,7 +33,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+/* gcc only: clang 14 (the fuzz build) rejects __builtin_cpu_supports("f16c"). */
+#if defined(__GNUC__) && !defined(__clang__) && (defined(__x86_64__) || defined(__i386__))
 #include <immintrin.h>
 #define CV_HAVE_X86_F16C 1
 #endif

@@ -456,7 +456,7 @@ int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_
   init.user_data = &r.stream;
   init.read_fn = stream_read;
   init.size_fn = stream_size;
-  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+  init.flags = 0; /* not SILENT_HEADER_PARSE: on_exr_error keeps the detail (which attribute) */
   int rc = CV_OK;
   exr_result_t rv = exr_start_read(&r.ctxt, path, &init);
   if (rv != EXR_ERR_SUCCESS) {

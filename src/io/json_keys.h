@@ -1,6 +1,7 @@
 /* Checking JSON objects against the keys a format allows, shared by every
  * config parser (scene configs, display descriptions), so a misspelt field
- * is always an error that lists what was expected. */
+ * is always an error that lists what was expected; and saying where a JSON
+ * text stops being JSON (line and column). */
 #ifndef CV_IO_JSON_KEYS_H
 #define CV_IO_JSON_KEYS_H
 
@@ -10,5 +11,17 @@
 int cv_json_key_allowed(const char *key, const char *const *allowed);
 /* "a, b, c" from the NULL-terminated list, truncated to n bytes. */
 void cv_json_key_list(const char *const *allowed, char *buf, size_t n);
+
+/* key with every byte outside printable ASCII shown as \xNN (a mangled key
+ * is never echoed raw to a terminal); truncated to n bytes; returns buf. */
+const char *cv_json_key_show(const char *key, char *buf, size_t n);
+
+/* Where and why cJSON stopped: errpos is cJSON_GetErrorPtr() or the parse
+ * end of cJSON_ParseWithOpts (may be NULL: taken as the start).  Gives the
+ * 1-based line and column (in bytes) and a short reason in what: "empty
+ * file" for a file of only white space, else "JSON syntax error near
+ * '<the next characters, escaped>'", with a hint when they spell NaN or Inf. */
+void cv_json_syntax_error(const char *text, const char *errpos, int *line, int *col, char *what,
+                          size_t n);
 
 #endif

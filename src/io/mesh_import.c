@@ -16,6 +16,7 @@ void cv_import_opts_default(cv_import_opts *o) {
   memset(o, 0, sizeof *o);
   o->default_albedo[0] = o->default_albedo[1] = o->default_albedo[2] = 0.5f;
   o->scale = 1.0;
+  cv_import_limits_default(o);
 }
 
 static int starts_with_ci(const char *s, const char *prefix) {
@@ -217,8 +218,8 @@ int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, 
   return cv_mesh_import_ex(path, opts, out, NULL, err);
 }
 
-int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **out,
-                      cv_import_stats *stats, cv_err *err) {
+int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh **out,
+                          cv_import_stats *stats, cv_err *err) {
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "mesh import: out is NULL");
   *out = NULL;
   if (!path) return cv_err_set(err, CV_ERR_INVALID, "mesh import: path is NULL");

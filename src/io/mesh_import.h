@@ -47,7 +47,22 @@ typedef struct cv_import_opts {
   size_t n_overrides;
   float default_albedo[3]; /* for materials with no colour (default 0.5 grey) */
   double scale;            /* multiplies coordinates (file units -> metres), default 1 */
+  /* Guards of cv_mesh_import(_ex), which runs assimp in a child process:
+   * wall-clock seconds and address space in MB (0 = no limit).  Defaults:
+   * CAVE_IMPORT_TIMEOUT (seconds, else CV_IMPORT_DEFAULT_SECONDS) and
+   * CAVE_IMPORT_MEMORY_MB (else CV_IMPORT_DEFAULT_MEMORY_MB or 3/4 of the
+   * physical memory, whichever is less); raise them for
+   * very big CAD models.  The memory limit is not applied in an
+   * AddressSanitizer build (its shadow memory needs terabytes of addresses). */
+  double limit_seconds;
+  double limit_memory_mb;
 } cv_import_opts;
+
+#define CV_IMPORT_DEFAULT_SECONDS 600.0
+/* 8 GB.  A higher default lets a lying header make assimp touch that much
+ * memory before failing: assimp's invalid/OutOfMemory.off took 46 s under an
+ * 18 GB limit, 0.2 s under 8 GB (docs/fuzzing.md). */
+#define CV_IMPORT_DEFAULT_MEMORY_MB 8192.0
 
 /* What the import did (everything that was dropped, clamped or defaulted). */
 typedef struct cv_import_stats {
@@ -66,8 +81,10 @@ typedef struct cv_import_stats {
                                Coordinates are NOT converted here: see cv_mesh_place. */
 } cv_import_stats;
 
-/* Defaults: no overrides, default albedo 0.5, scale 1. */
+/* Defaults: no overrides, default albedo 0.5, scale 1, limits as above. */
 void cv_import_opts_default(cv_import_opts *o);
+/* Sets only o's two limits from the environment (see cv_import_opts). */
+void cv_import_limits_default(cv_import_opts *o);
 
 /* Imports the file at path into a new mesh *out (owned by the caller,
  * cv_mesh_destroy; NULL on error).  opts may be NULL (defaults).
@@ -82,8 +99,17 @@ void cv_import_opts_default(cv_import_opts *o);
  *   CV_ERR_NOMEM */
 int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err);
 
-/* As cv_mesh_import, and fills *stats (may be NULL). */
+/* As cv_mesh_import, and fills *stats (may be NULL).  Both run the import in
+ * a forked child under opts' limits (src/io/import_guard.c), the mesh coming
+ * back through a pipe, assimp's own output dropped (shown after the error
+ * if the child crashed, or always with CAVE_IMPORT_VERBOSE=1).  More errors:
+ *   CV_ERR_RANGE    the time limit was hit ("time limit N s hit")
+ *   CV_ERR_NOMEM    the memory limit was hit ("memory limit N MB hit")
+ *   CV_ERR_BACKEND  the import crashed (signal named) */
 int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **out,
                       cv_import_stats *stats, cv_err *err);
+/* The import itself, in this process, without limits (what the child runs). */
+int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh **out,
+                          cv_import_stats *stats, cv_err *err);
 
 #endif

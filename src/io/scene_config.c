@@ -97,7 +97,9 @@ static int only_keys(ctx *x, const cJSON *obj, const char *path, const char *con
   cJSON_ArrayForEach(it, obj) {
     if (!cv_json_key_allowed(it->string, allowed)) {
       char field[256], list[200]; /* fits fail()'s 256-byte message */
-      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", it->string);
+      char kbuf[64];
+      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "",
+               cv_json_key_show(it->string, kbuf, sizeof kbuf));
       cv_json_key_list(allowed, list, sizeof list);
       return fail(x, field, "unknown field (expected one of: %s)", list);
     }
@@ -424,10 +426,11 @@ int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
   if (!root) {
-    int line = 1;
-    for (const char *p = text; end && p < end && *p; p++) line += *p == '\n';
+    int line, col;
+    char what[128];
+    cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
     free(text);
-    return cv_err_set(err, CV_ERR_CONFIG, "%s:%d: JSON syntax error", path, line);
+    return cv_err_set(err, CV_ERR_CONFIG, "%s:%d:%d: %s", path, line, col, what);
   }
   free(text);
   char dirbuf[CV_PATH_MAX];

@@ -90,10 +90,11 @@ static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(buf, &end, 0);
   if (!root) {
-    int line = 1;
-    for (const char *q = buf; end && q < end; q++) line += *q == '\n';
+    int line, col;
+    char what[128];
+    cv_json_syntax_error(buf, end, &line, &col, what, sizeof what);
     free(buf);
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: line %d: JSON syntax error", path, line);
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: line %d, column %d: %s", path, line, col, what);
   }
   free(buf);
   char base[CV_PATH_MAX];
@@ -116,7 +117,9 @@ static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   }
   cJSON_ArrayForEach(it, root) {
     if (!scene && !cv_json_key_allowed(it->string, top)) {
-      st = cv_err_set(err, CV_ERR_CONFIG, "%s: %s: unknown field (expected lcd)", path, it->string);
+      char kbuf[128];
+      st = cv_err_set(err, CV_ERR_CONFIG, "%s: %s: unknown field (expected lcd)", path,
+                      cv_json_key_show(it->string, kbuf, sizeof kbuf));
       goto done;
     }
   }
@@ -127,9 +130,10 @@ static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   }
   cJSON_ArrayForEach(it, o) {
     if (!cv_json_key_allowed(it->string, keys)) {
+      char kbuf[128];
       cv_json_key_list(keys, list, sizeof list);
       st = cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: unknown field (expected one of: %s)", path,
-                      it->string, list);
+                      cv_json_key_show(it->string, kbuf, sizeof kbuf), list);
       goto done;
     }
   }

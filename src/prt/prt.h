@@ -21,6 +21,8 @@
 
 #define CV_PRT_VERSION 1
 #define CV_PRT_MAX_BANDS 8
+/* Tolerance on a stored normal's length (the reader refuses others). */
+#define CV_PRT_NORMAL_TOL 1e-3
 
 enum {
   CV_PRT_HAS_INDIRECT = 1u << 0,    /* ti present */
@@ -61,8 +63,11 @@ void cv_prt_destroy(cv_prt *p);
 
 /* Writes the file (temp file + rename: never a partial file).  err names the path. */
 int cv_prt_write(const char *path, const cv_prt *p, cv_err *err);
-/* Reads and validates a file (magic, version, sizes, payload hash, finite
- * values).  *out owned by the caller. */
+/* Reads and validates a file: magic, version, the header's counts against the
+ * file's size (before allocating), payload hash, then every record (finite
+ * values, unit or zero normals, albedo in [0, 1], indices in range).  The
+ * message names the file, the field, its value and what was expected.
+ * *out owned by the caller. */
 int cv_prt_read(const char *path, cv_prt **out, cv_err *err);
 /* Reads only the header's input hash (to skip re-baking an unchanged scene).
  * Returns CV_ERR_NOT_FOUND if the file does not exist. */

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "core/hash.h"
@@ -167,12 +168,87 @@ int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err) {
   return CV_OK;
 }
 
+/* Payload bytes the header's counts call for, from the counts alone (read_header
+ * bounds them: nv, nt <= 2^32, nm <= 2^20, bands <= 8, so no overflow in 64 bits). */
+static uint64_t payload_bytes(const header *h) {
+  uint64_t nc = (uint64_t)h->bands * h->bands;
+  uint64_t per_vertex = 9 * sizeof(float) + nc * sizeof(float) +
+                        ((h->flags & CV_PRT_HAS_INDIRECT) ? 3 * nc * sizeof(float) : 0);
+  return h->nv * per_vertex + h->nt * 4 * sizeof(uint32_t) + h->nm * sizeof(cv_material);
+}
+
+/* The header's counts against the file's size, before anything is allocated:
+ * a 2 KB file claiming 2^30 vertices is refused at once, naming the counts. */
+static int check_counts(FILE *f, const char *path, const header *h, cv_err *err) {
+  struct stat sb;
+  if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode))
+    return cv_err_set(err, CV_ERR_IO, "%s: not a regular file", path);
+  uint64_t have = (uint64_t)sb.st_size - HEADER_SIZE, want = payload_bytes(h);
+  if (have == want) return CV_OK;
+  return cv_err_set(err, CV_ERR_FORMAT,
+                    "%s: header counts (nv %llu vertices, nt %llu triangles, nm %llu materials, "
+                    "bands %u%s) need a %llu-byte payload, the file has %llu after the header",
+                    path, (unsigned long long)h->nv, (unsigned long long)h->nt,
+                    (unsigned long long)h->nm, h->bands,
+                    (h->flags & CV_PRT_HAS_INDIRECT) ? ", indirect" : "", (unsigned long long)want,
+                    (unsigned long long)have);
+}
+
+/* Per-vertex records: finite position, transfer, albedo in [0, 1], normal
+ * unit (within CV_PRT_NORMAL_TOL) or exactly zero (a vertex no triangle
+ * faces, as the bake writes it).  Names the first bad record. */
+static int check_records(const cv_prt *p, const char *path, cv_err *err) {
+  size_t nc = (size_t)p->bands * p->bands;
+  static const char *axis = "xyz", *chan = "rgb";
+  for (size_t v = 0; v < p->nv; v++) {
+    const float *x = p->pos + 3 * v, *n = p->nrm + 3 * v, *a = p->albedo + 3 * v;
+    for (int k = 0; k < 3; k++) {
+      if (!isfinite(x[k]))
+        return cv_err_set(err, CV_ERR_NONFINITE, "%s: vertex %zu position.%c is %g, expected finite",
+                          path, v, axis[k], (double)x[k]);
+      if (!isfinite(n[k]))
+        return cv_err_set(err, CV_ERR_NONFINITE, "%s: vertex %zu normal.%c is %g, expected finite",
+                          path, v, axis[k], (double)n[k]);
+      if (!(a[k] >= 0.0f && a[k] <= 1.0f))
+        return cv_err_set(err, isfinite(a[k]) ? CV_ERR_RANGE : CV_ERR_NONFINITE,
+                          "%s: vertex %zu albedo.%c is %g, expected in [0, 1]", path, v, chan[k],
+                          (double)a[k]);
+    }
+    double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+    if (len != 0.0 && fabs(len - 1.0) > CV_PRT_NORMAL_TOL)
+      return cv_err_set(err, CV_ERR_RANGE,
+                        "%s: vertex %zu normal (%g, %g, %g) has length %g, expected 1 +- %g (or 0)",
+                        path, v, (double)n[0], (double)n[1], (double)n[2], len, CV_PRT_NORMAL_TOL);
+    for (size_t i = 0; i < nc; i++)
+      if (!isfinite(p->td[v * nc + i]))
+        return cv_err_set(err, CV_ERR_NONFINITE,
+                          "%s: vertex %zu direct transfer coefficient %zu is %g, expected finite",
+                          path, v, i, (double)p->td[v * nc + i]);
+    for (size_t i = 0; p->ti && i < 3 * nc; i++)
+      if (!isfinite(p->ti[3 * v * nc + i]))
+        return cv_err_set(err, CV_ERR_NONFINITE,
+                          "%s: vertex %zu indirect transfer %c coefficient %zu is %g, expected finite",
+                          path, v, chan[i / nc], i % nc, (double)p->ti[3 * v * nc + i]);
+  }
+  for (size_t t = 0; t < p->nt; t++) {
+    for (int j = 0; j < 3; j++)
+      if (p->tri[3 * t + j] >= p->nv)
+        return cv_err_set(err, CV_ERR_FORMAT, "%s: triangle %zu vertex %d is %u, expected < nv %zu",
+                          path, t, j, p->tri[3 * t + j], p->nv);
+    if (p->tri_mat[t] >= p->nm)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: triangle %zu material is %u, expected < nm %zu",
+                        path, t, p->tri_mat[t], p->nm);
+  }
+  return CV_OK;
+}
+
 int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
   *out = NULL;
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
   header h;
   int st = read_header(f, path, &h, err);
+  if (!st) st = check_counts(f, path, &h, err);
   if (st) {
     fclose(f);
     return st;
@@ -181,8 +257,9 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
   st = cv_prt_alloc(h.bands, h.nv, h.nt, h.nm, (h.flags & CV_PRT_HAS_INDIRECT) != 0, &p);
   if (st) {
     fclose(f);
-    return cv_err_set(err, st, "%s: cannot allocate %llu vertices", path,
-                      (unsigned long long)h.nv);
+    return cv_err_set(err, st, "%s: cannot allocate %llu-byte payload (%llu vertices, %llu triangles)",
+                      path, (unsigned long long)payload_bytes(&h), (unsigned long long)h.nv,
+                      (unsigned long long)h.nt);
   }
   p->meta.input_hash = h.input_hash;
   p->meta.rays = h.rays;
@@ -209,31 +286,14 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
     return cv_err_set(err, CV_ERR_FORMAT, "%s: payload %s (hash mismatch)", path,
                       extra ? "has trailing bytes" : "is corrupt");
   }
-  size_t nc = (size_t)p->bands * p->bands;
-  for (size_t i = 0; i < 3 * p->nt; i++)
-    if (p->tri[i] >= p->nv) {
-      cv_prt_destroy(p);
-      return cv_err_set(err, CV_ERR_FORMAT, "%s: triangle %zu has vertex index out of range",
-                        path, i / 3);
-    }
-  for (size_t t = 0; t < p->nt; t++)
-    if (p->tri_mat[t] >= p->nm) {
-      cv_prt_destroy(p);
-      return cv_err_set(err, CV_ERR_FORMAT, "%s: triangle %zu has material out of range", path, t);
-    }
   for (size_t i = 0; i < p->nm; i++) p->mats[i].name[sizeof p->mats[i].name - 1] = '\0';
-  size_t nf = p->nv * nc, nfi = (p->flags & CV_PRT_HAS_INDIRECT) ? 3 * nf : 0;
-  for (size_t i = 0; i < nf; i++)
-    if (!isfinite(p->td[i])) goto nonfinite;
-  for (size_t i = 0; i < nfi; i++)
-    if (!isfinite(p->ti[i])) goto nonfinite;
-  for (size_t i = 0; i < 3 * p->nv; i++)
-    if (!isfinite(p->pos[i]) || !isfinite(p->albedo[i])) goto nonfinite;
+  st = check_records(p, path, err);
+  if (st) {
+    cv_prt_destroy(p);
+    return st;
+  }
   *out = p;
   return CV_OK;
-nonfinite:
-  cv_prt_destroy(p);
-  return cv_err_set(err, CV_ERR_NONFINITE, "%s: non-finite value in the payload", path);
 }
 
 int cv_prt_to_mesh(const cv_prt *p, cv_mesh **out) {

@@ -319,9 +319,11 @@ void cv_rt_offset_origin(const float p[3], const float ng[3], float out[3]) {
   }
   for (int k = 0; k < 3; k++) {
     int32_t of = (int32_t)(int_scale * n[k]);
-    int32_t bits;
+    /* unsigned: -0.0f has the bits of INT32_MIN, and a signed add would
+     * overflow there (that value is not used: |p| < origin) */
+    uint32_t bits;
     memcpy(&bits, &p[k], sizeof bits);
-    bits += (p[k] < 0) ? -of : of;
+    bits += (uint32_t)((p[k] < 0) ? -of : of);
     float pi;
     memcpy(&pi, &bits, sizeof pi);
     out[k] = fabsf(p[k]) < origin ? p[k] + float_scale * n[k] : pi;

@@ -54,8 +54,9 @@ static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *co
   const cJSON *it;
   cJSON_ArrayForEach(it, obj) {
     if (!cv_json_key_allowed(it->string, allowed)) {
-      char field[256], list[320];
-      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", it->string);
+      char field[256], list[320], kbuf[128];
+      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "",
+               cv_json_key_show(it->string, kbuf, sizeof kbuf));
       cv_json_key_list(allowed, list, sizeof list);
       cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
@@ -197,11 +198,11 @@ static const char *const top_fields[] = {"description", "loop",          "maps",
 static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive **out) {
   cJSON *root = cJSON_Parse(json);
   if (!root) {
-    const char *e = cJSON_GetErrorPtr();
-    int line = 1;
-    if (e)
-      for (const char *p = json; *p && p < e; p++) line += (*p == '\n');
-    cv_problem(x, CV_ERR_CONFIG, "", "JSON syntax error near line %d", line);
+    int line, col;
+    char f[48], what[128];
+    cv_json_syntax_error(json, cJSON_GetErrorPtr(), &line, &col, what, sizeof what);
+    snprintf(f, sizeof f, "line %d, column %d", line, col);
+    cv_problem(x, CV_ERR_CONFIG, f, "%s", what);
     return;
   }
   cv_drive *d = calloc(1, sizeof *d);

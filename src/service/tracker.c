@@ -132,9 +132,15 @@ int cv_head_path_parse(const char *text, const char *name, cv_head_path **out, c
 int cv_head_path_load(const char *path, cv_head_path **out, cv_err *err) {
   if (out) *out = NULL;
   char *text;
-  int st = cv_service_read_text(path, &text, NULL, err);
+  size_t len;
+  int st = cv_service_read_text(path, &text, &len, err);
   if (st) return st;
-  st = cv_head_path_parse(text, path, out, err);
+  size_t nul = strlen(text);
+  if (nul < len)
+    st = cv_err_set(err, CV_ERR_FORMAT, "%s: NUL byte at offset %zu, expected a text file", path,
+                    nul);
+  else
+    st = cv_head_path_parse(text, path, out, err);
   free(text);
   return st;
 }

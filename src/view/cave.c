@@ -151,8 +151,9 @@ static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *co
   const cJSON *it;
   cJSON_ArrayForEach(it, obj) {
     if (!cv_json_key_allowed(it->string, allowed)) {
-      char field[256], list[320];
-      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "", it->string);
+      char field[256], list[320], kbuf[128];
+      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "",
+               cv_json_key_show(it->string, kbuf, sizeof kbuf));
       cv_json_key_list(allowed, list, sizeof list);
       problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
     }
@@ -674,11 +675,11 @@ static int cave_parse(const char *json_text, const char *name_for_errors, cv_cav
   }
   cJSON *root = cJSON_Parse(json_text);
   if (!root) {
-    const char *e = cJSON_GetErrorPtr();
-    int line = 1;
-    if (e)
-      for (const char *q = json_text; q < e && *q; q++) line += *q == '\n';
-    problem(&x, CV_ERR_FORMAT, "", "not valid JSON (near line %d)", line);
+    int line, col;
+    char f[48], what[128];
+    cv_json_syntax_error(json_text, cJSON_GetErrorPtr(), &line, &col, what, sizeof what);
+    snprintf(f, sizeof f, "line %d, column %d", line, col);
+    problem(&x, CV_ERR_FORMAT, f, "%s", what);
     if (count) *count = x.count;
     return finish(&x, err);
   }

@@ -81,7 +81,23 @@ expect_error "garbage number in OBJ" "bad2.obj" $CAVE bake bad2.obj -o x.prt --q
 printf '{ "prt": { "rayz": 5 } }\n' >unknown.json
 expect_error "unknown JSON field" "prt.rayz" $CAVE bake unknown.json -o x.prt
 printf '{ "prt": { "rays": 5, } \n' >syntax.json
-expect_error "JSON syntax" "syntax.json" $CAVE bake syntax.json -o x.prt
+expect_error "JSON syntax" "syntax.json:2:1: JSON syntax error at the end of the text" $CAVE bake syntax.json -o x.prt
+: >empty.json
+expect_error "empty JSON" "empty.json:1:1: empty file" $CAVE bake empty.json -o x.prt
+printf '{\n  "prt": {\n    "rays": NaN }\n}\n' >nan.json
+expect_error "NaN in JSON" "nan.json:3:13: .*NaN and Inf are not JSON numbers" $CAVE bake nan.json -o x.prt
+printf '{ "pr\001\377t": 1 }\n' >key.json
+expect_error "mangled key escaped" 'pr\\x01\\xfft: unknown field' $CAVE bake key.json -o x.prt
+printf 'v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n' >line.obj
+expect_error "no triangles names the file" "line.obj after cleaning: mesh has no triangles" $CAVE bake line.obj -o x.prt --quiet
+# guarded import: a lying OFF header stops at the memory limit; assimp's own chatter is dropped
+printf 'OFF\n353535235358 1 0\n0 0 0\n3 0 0 0\n' >huge.off
+# (under ASan no memory limit applies: the 5 s time limit stops it there)
+CAVE_IMPORT_MEMORY_MB=512 CAVE_IMPORT_TIMEOUT=5 expect_error "import memory limit" "huge.off: import (OFF) stopped.* limit [0-9]* [MBs]* hit" $CAVE bake huge.off -o x.prt --quiet
+mkfifo blocked.off
+CAVE_IMPORT_TIMEOUT=1 expect_error "import time limit" "blocked.off: import (OFF) stopped after [0-9.]* s: time limit 1 s hit" $CAVE bake blocked.off -o x.prt --quiet
+OGEX=/usr/share/assimp/models/OpenGEX/empty_camera.ogex # assimp prints "nullptr returned by creating DDLNode."
+[ -f $OGEX ] && expect_error "assimp output dropped" "empty_camera.ogex: assimp: " $CAVE bake $OGEX -o x.prt --quiet
 printf '{ "prt": { "bands": 12 } }\n' >range.json
 expect_error "JSON range" "prt.bands" $CAVE bake range.json -o x.prt
 printf '{ "materials": [ { "name": "no_such_material", "albedo": [0.5, 0.5, 0.5] } ] }\n' >mat.json
@@ -150,6 +166,9 @@ expect_error "tracker: unknown unit" "units: unknown unit 'furlong'" $CAVE track
 expect_error "tracker: missing --listen" "missing --listen" $CAVE tracker trk.json
 head -c 1000 a.prt >cut.prt
 expect_error "truncated PRT" "cut.prt" $CAVE shade cut.prt --env-constant 1,1,1 -o x.ply
+cp a.prt huge.prt # header nv (offset 24) := 2^30: refused from the file size, not allocated
+printf '\000\000\000\100\000\000\000\000' | dd of=huge.prt bs=1 seek=24 conv=notrunc status=none
+expect_error "PRT counts beyond the file" "huge.prt: header counts (nv 1073741824 vertices" $CAVE shade huge.prt --env-constant 1,1,1 -o x.ply
 expect_error "missing PRT" "none.prt" $CAVE shade none.prt --env-constant 1,1,1 -o x.ply
 expect_error "bad number" "--rays" $CAVE bake default -o x.prt --rays abc
 expect_error "no lighting" "no lighting" $CAVE shade a.prt -o x.ply

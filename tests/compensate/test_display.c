@@ -245,10 +245,10 @@ static void test_bad_input(void **state) {
        "surfaces[0].reflectance[1]: expected a finite number"},
       {"{\"surfaces\": [{\"name\": \"a\", \"corners\": [[0,0,0],[1,0,0],[0,1,0]], \"patches\": "
        "[4,4],\n \"reflectance\": [0.5,NaN,0.5]}]}",
-       "line 2: JSON syntax error"},
+       "line 2, column 22: JSON syntax error near 'NaN,0.5]}]}' (NaN and Inf are not JSON numbers)"},
       {"{\"surfaces\": [{\"name\": \"a\", \"corners\": [[0,0,0],[1,0,0],[0,NaN,0]], \"patches\": "
        "[4,4], \"reflectance\": [0.5,0.5,0.5]}]}",
-       "line 1: JSON syntax error"},
+       "line 1, column 60: JSON syntax error near 'NaN,0]], \"patch'"},
       {"{\"surfaces\": [{\"name\": \"a\", \"corners\": [[0,0,0],[1,0,0],[0,1,0]], \"patches\": "
        "[4,4], \"reflectance\": [0.5,0.5,0.5]}, {\"name\": \"a\", \"corners\": "
        "[[0,0,0],[0,0,1],[0,1,0]], \"patches\": [4,4], \"reflectance\": [0.5,0.5,0.5]}]}",

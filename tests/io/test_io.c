@@ -621,6 +621,17 @@ static void test_exr_missing_and_garbage(void **state) {
   assert_int_equal(cv_exr_read(tmp_path("garbage.exr"), &img, &err), CV_ERR_FORMAT);
   assert_non_null(strstr(err.msg, "garbage.exr"));
   printf("garbage: %s\n", err.msg);
+  /* A header without the required 'channels' attribute: the message names it. */
+  static const uint8_t nochan[] = {
+      0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0, 'c', 'o', 'm', 'p', 'r', 'e', 's', 's', 'i', 'o', 'n',
+      0, 'c', 'o', 'm', 'p', 'r', 'e', 's', 's', 'i', 'o', 'n', 0, 1, 0, 0, 0, 0,
+      'd', 'a', 't', 'a', 'W', 'i', 'n', 'd', 'o', 'w', 0, 'b', 'o', 'x', '2', 'i', 0, 16, 0, 0, 0,
+      0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  spit(tmp_path("nochannels.exr"), nochan, sizeof nochan);
+  assert_int_equal(cv_exr_read(tmp_path("nochannels.exr"), &img, &err), CV_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "nochannels.exr"));
+  assert_non_null(strstr(err.msg, "'channels'"));
+  printf("no channels: %s\n", err.msg);
 }
 
 /* Random byte damage in DWA pixel data must never crash (run under ASan)

@@ -829,6 +829,10 @@ static void test_bad_files(void **state) {
   expect_fail(TMP("ch.brdf"), CV_ERR_FORMAT, "channels", NULL);
   write_table(TMP("grid.brdf"), 1, np, 3, v, (size_t)np * 3, 1);
   expect_fail(TMP("grid.brdf"), CV_ERR_FORMAT, "grid", NULL);
+  /* the largest grid the header allows, in a 100-byte file: refused from the
+   * header and the file size, before allocating its 140 GB */
+  write_table(TMP("huge.brdf"), 1801, 3601, 3, v, 19, 1);
+  expect_fail(TMP("huge.brdf"), CV_ERR_FORMAT, "1801x1801x3601 grid", "the file has 100");
   f = fopen(TMP("junk.brdf"), "wb");
   fputs("hello, this is not a BRDF\n", f);
   fclose(f);

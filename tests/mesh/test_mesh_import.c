@@ -12,6 +12,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
 
 #include <cmocka.h>
 
@@ -302,11 +305,81 @@ static void test_errors(void **state) {
   assert_int_equal(cv_mesh_import(tmp_path("x.obj"), &o, &m, &err), CV_ERR_INVALID);
 }
 
+static double wall_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The guarded import: an OFF header claiming 353535235358 vertices (as
+ * assimp's invalid/OutOfMemory.off) stops at the memory limit, not after
+ * minutes; an import that blocks (a FIFO nobody writes) stops at the time
+ * limit; the message names file, format and the limit hit. */
+static void test_guard(void **state) {
+  (void)state;
+  cv_import_opts o;
+  cv_import_opts_default(&o);
+  assert_true(o.limit_seconds > 0 && o.limit_memory_mb > 0);
+  o.limit_memory_mb = 256;
+  o.limit_seconds = 30;
+#if defined(__SANITIZE_ADDRESS__)
+  o.limit_seconds = 3; /* no memory limit under ASan: the time limit stops it */
+#endif
+  const char *p = write_text("huge.off", "OFF\n353535235358 1 0\n0 0 0\n3 0 0 0\n");
+  cv_mesh *m = NULL;
+  cv_err err;
+  double t0 = wall_s();
+  int st = cv_mesh_import(p, &o, &m, &err);
+  double took = wall_s() - t0;
+  print_message("huge.off: %s (%.2f s)\n", err.msg, took);
+  assert_int_not_equal(st, CV_OK);
+  assert_null(m);
+  assert_non_null(strstr(err.msg, "huge.off"));
+  assert_true(took < o.limit_seconds + 5);
+#if !defined(__SANITIZE_ADDRESS__)
+  assert_int_equal(st, CV_ERR_NOMEM);
+  assert_non_null(strstr(err.msg, "import (OFF) stopped: memory limit 256 MB hit"));
+#endif
+
+  const char *fifo = tmp_path("blocked.off");
+  unlink(fifo);
+  assert_int_equal(mkfifo(fifo, 0600), 0);
+  o.limit_seconds = 1;
+  t0 = wall_s();
+  st = cv_mesh_import(fifo, &o, &m, &err);
+  took = wall_s() - t0;
+  print_message("blocked.off: %s (%.2f s)\n", err.msg, took);
+  assert_int_equal(st, CV_ERR_RANGE);
+  assert_null(m);
+  assert_non_null(strstr(err.msg, "blocked.off: import (OFF) stopped after"));
+  assert_non_null(strstr(err.msg, "time limit 1 s hit"));
+  assert_true(took >= 1.0 && took < 10.0);
+  unlink(fifo);
+
+  /* the guarded result equals the in-process one */
+  p = write_text("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  cv_mesh *a, *b;
+  cv_import_stats sa, sb;
+  cv_import_opts_default(&o);
+  assert_int_equal(cv_mesh_import_ex(p, &o, &a, &sa, &err), CV_OK);
+  assert_int_equal(cv_mesh_import_direct(p, &o, &b, &sb, &err), CV_OK);
+  assert_int_equal(a->nv, b->nv);
+  assert_int_equal(a->nt, 2);
+  assert_int_equal(a->nt, b->nt);
+  assert_int_equal(a->nm, b->nm);
+  assert_memory_equal(a->pos, b->pos, 3 * a->nv * sizeof(float));
+  assert_memory_equal(a->tri, b->tri, 3 * a->nt * sizeof(uint32_t));
+  assert_memory_equal(a->mats, b->mats, a->nm * sizeof(cv_material));
+  assert_memory_equal(&sa, &sb, sizeof sa);
+  cv_mesh_destroy(a);
+  cv_mesh_destroy(b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_obj_mtl), cmocka_unit_test(test_points_lines_dropped),
       cmocka_unit_test(test_ply),     cmocka_unit_test(test_gltf),
-      cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_errors),  cmocka_unit_test(test_guard),
   };
   return cmocka_run_group_tests_name("mesh_import", tests, NULL, NULL);
 }

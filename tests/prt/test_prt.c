@@ -527,6 +527,81 @@ static void test_window_mis(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* Writes bytes to path (test helper). */
+static void write_bytes(const char *path, const void *b, size_t n) {
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  assert_int_equal(fwrite(b, 1, n, f), n);
+  fclose(f);
+}
+
+/* Hostile .prt files: header counts far beyond the file's size are refused
+ * before any allocation, naming the count; NaN or non-unit normals, negative
+ * albedo and NaN transfer are refused naming the vertex and the field. */
+static void test_hostile_files(void **state) {
+  (void)state;
+  const float alb[3] = {0.5f, 0.5f, 0.5f};
+  cv_mesh *m = plane_mesh(2, alb);
+  cv_bake_params p = {.bands = 3, .rays = 16, .bounces = 1, .seed = 1, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_prt *a, *r = NULL;
+  cv_err err;
+  assert_int_equal(cv_prt_bake(m, &p, &a, NULL, &err), CV_OK);
+  char path[512];
+  snprintf(path, sizeof path, "%s/hostile.prt", CV_TEST_TMP_DIR);
+  assert_int_equal(cv_prt_write(path, a, &err), CV_OK);
+  FILE *f = fopen(path, "rb");
+  unsigned char buf[1 << 16];
+  size_t size = fread(buf, 1, sizeof buf, f);
+  fclose(f);
+  assert_true(size > 128 && size < sizeof buf);
+
+  /* nv at byte 24, nt at 32, nm at 40 (docs/prt-format.md). */
+  const struct { size_t off; uint64_t v; const char *want; } lie[] = {
+      {24, 1ull << 30, "nv 1073741824 vertices"},
+      {32, 1ull << 32, "nt 4294967296 triangles"},
+      {40, 1ull << 20, "nm 1048576 materials"},
+      {24, 1, "need a"},
+  };
+  for (size_t k = 0; k < sizeof lie / sizeof lie[0]; k++) {
+    unsigned char b[1 << 16];
+    memcpy(b, buf, size);
+    memcpy(b + lie[k].off, &lie[k].v, 8);
+    write_bytes(path, b, size);
+    assert_int_equal(cv_prt_read(path, &r, &err), CV_ERR_FORMAT);
+    assert_null(r);
+    assert_non_null(strstr(err.msg, "hostile.prt"));
+    assert_non_null(strstr(err.msg, lie[k].want));
+    assert_non_null(strstr(err.msg, "the file has"));
+  }
+
+  /* Bad records, written with a valid hash so only the record check can catch them. */
+  const struct { float *field; float v; int status; const char *want; } bad[] = {
+      {&a->nrm[3 * 1 + 2], NAN, CV_ERR_NONFINITE, "vertex 1 normal.z is nan, expected finite"},
+      {&a->nrm[3 * 2 + 0], a->nrm[3 * 2 + 0] + 0.5f, CV_ERR_RANGE, "vertex 2 normal"},
+      {&a->albedo[3 * 3 + 1], -0.25f, CV_ERR_RANGE, "vertex 3 albedo.g is -0.25, expected in [0, 1]"},
+      {&a->albedo[0], 1.5f, CV_ERR_RANGE, "vertex 0 albedo.r is 1.5"},
+      {&a->pos[4], INFINITY, CV_ERR_NONFINITE, "vertex 1 position.y is inf"},
+      {&a->td[5], NAN, CV_ERR_NONFINITE, "direct transfer coefficient"},
+      {&a->ti[7], NAN, CV_ERR_NONFINITE, "indirect transfer"},
+  };
+  for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+    float keep = *bad[k].field;
+    *bad[k].field = bad[k].v;
+    assert_int_equal(cv_prt_write(path, a, &err), CV_OK);
+    *bad[k].field = keep;
+    assert_int_equal(cv_prt_read(path, &r, &err), bad[k].status);
+    assert_null(r);
+    if (!strstr(err.msg, bad[k].want)) fail_msg("message '%s' lacks '%s'", err.msg, bad[k].want);
+  }
+  /* A zero normal (a vertex no triangle faces) is allowed. */
+  memset(&a->nrm[0], 0, 3 * sizeof(float));
+  assert_int_equal(cv_prt_write(path, a, &err), CV_OK);
+  assert_int_equal(cv_prt_read(path, &r, &err), CV_OK);
+  cv_prt_destroy(r);
+  cv_prt_destroy(a);
+  cv_mesh_destroy(m);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_unshadowed_plane),
@@ -540,6 +615,7 @@ int main(void) {
       cmocka_unit_test(test_cie_overcast),
       cmocka_unit_test(test_auto_select),
       cmocka_unit_test(test_window_mis),
+      cmocka_unit_test(test_hostile_files),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -241,7 +241,7 @@ static const bad_drive bad[] = {
     {"{\"maps\": [\"forest.exr\"], \"keyframes\": [3]}", CV_ERR_CONFIG,
      "keyframes[0]: expected an object"},
     {"{\"maps\": [\"forest.exr\"],\n \"keyframes\": [{\"t\": 0},]}", CV_ERR_CONFIG,
-     "JSON syntax error near line 2"},
+     "line 2, column 25: JSON syntax error near ']}'"},
     {"[1, 2]", CV_ERR_CONFIG, "expected a JSON object"},
     {"{\"maps\": [\"forest.exr\"], \"scale\": 2, \"illuminance\": 100, \"keyframes\": [{\"t\": 0}]}",
      CV_ERR_CONFIG, "illuminance: not together with \"scale\""},

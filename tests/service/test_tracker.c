@@ -101,6 +101,17 @@ static void test_head_path_errors(void **state) {
   cv_err err;
   assert_int_equal(cv_head_path_load("/nonexistent/head.txt", &p, &err), CV_ERR_IO);
   assert_non_null(strstr(err.msg, "/nonexistent/head.txt"));
+  /* a NUL byte (a binary file) is named, not read as the end of the text */
+  char bin[512];
+  snprintf(bin, sizeof bin, "%s/binary_head.txt", CV_TEST_TMP_DIR);
+  FILE *f = fopen(bin, "wb");
+  assert_non_null(f);
+  fwrite("0 0 1 0 0 0 -1\n\0\x01\x02garbage", 1, 26, f);
+  fclose(f);
+  assert_int_equal(cv_head_path_load(bin, &p, &err), CV_ERR_FORMAT);
+  assert_null(p);
+  assert_non_null(strstr(err.msg, "binary_head.txt"));
+  assert_non_null(strstr(err.msg, "NUL byte at offset 15"));
 }
 
 static void test_default_head_path(void **state) {

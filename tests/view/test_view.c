@@ -127,7 +127,7 @@ static void test_bad_configs(void **state) {
   expect_bad("{\"walls\": [{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], "
              "\"pc\": [-1.5, 3, -1.5], \"resolution\": [4, 4]}], \"eye_sep\": 0.06}",
              unknown, 3);
-  const char *syntax[] = {"not valid JSON"};
+  const char *syntax[] = {"line 1, column 12: JSON syntax error at the end of the text"};
   expect_bad("{\"walls\": [", syntax, 1);
   const char *misc[] = {"supersample", "far: expected far > near", "gaze", "lum_res"};
   expect_bad("{\"walls\": [" FRONT "], \"supersample\": 3, \"near\": 1, \"far\": 0.5, "
