@@ -8,6 +8,7 @@
 
 typedef struct pending_send {
   MPI_Request req;
+  int dest;
   void *copy;
   int *refs; /* shared copies (cv_comm_send_multi): free at 0; NULL = own copy */
 } pending_send;
@@ -21,6 +22,10 @@ static MPI_Request g_barrier = MPI_REQUEST_NULL;
 /* The LCD reduction's communicator and its sum in flight (same rule). */
 static MPI_Comm g_lcd = MPI_COMM_NULL;
 static MPI_Request g_lcd_req = MPI_REQUEST_NULL;
+static int g_lcd_abandoned; /* a member died: never waited on (nor freed) again */
+/* Ranks declared dead (cv_comm_mark_dead): nothing is sent to them. */
+static unsigned char *g_dead;
+static int g_size;
 
 static void release(pending_send *ps);
 
@@ -35,15 +40,20 @@ struct cv_mailbox {
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
   int provided = 0;
   if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) return -1;
+  /* An MPI error (a dead peer) returns to the caller instead of ending the
+   * job; the communicators split from this one inherit the handler. */
+  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
   MPI_Comm_rank(MPI_COMM_WORLD, rank);
   MPI_Comm_size(MPI_COMM_WORLD, size);
+  g_size = *size;
+  g_dead = calloc((size_t)(*size > 0 ? *size : 1), 1);
   return 0;
 }
 
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
-  if (g_lcd != MPI_COMM_NULL) MPI_Comm_free(&g_lcd);
+  if (g_lcd != MPI_COMM_NULL && !g_lcd_abandoned) MPI_Comm_free(&g_lcd);
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
     MPI_Request_free(&g_sends[i].req);
@@ -52,6 +62,13 @@ void cv_comm_finalize(void) {
   free(g_sends);
   g_sends = NULL;
   g_nsends = g_capsends = 0;
+  const int dead = cv_comm_dead_count() > 0;
+  free(g_dead);
+  g_dead = NULL;
+  /* With a dead rank MPI_Finalize (a collective of the runtime) may never
+   * return: leave without it (mpirun --enable-recovery then ends the job
+   * once every live rank has exited). */
+  if (dead || g_lcd_abandoned) return;
   MPI_Finalize();
 }
 
@@ -65,8 +82,21 @@ void cv_comm_abort(int code, const char *msg) {
   MPI_Abort(MPI_COMM_WORLD, code);
 }
 
+void cv_comm_mark_dead(int rank) {
+  if (g_dead && rank >= 0 && rank < g_size) g_dead[rank] = 1;
+}
+
+int cv_comm_dead_count(void) {
+  int n = 0;
+  for (int r = 0; g_dead && r < g_size; r++) n += g_dead[r];
+  return n;
+}
+
+static int is_dead(int rank) { return g_dead && rank >= 0 && rank < g_size && g_dead[rank]; }
+
 int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
   if (n > (size_t)INT32_MAX) return -1;
+  if (is_dead(dest)) return 0; /* dropped: nobody reads it */
   if (g_nsends == g_capsends) {
     size_t nc = g_capsends ? 2 * g_capsends : 64;
     pending_send *p = realloc(g_sends, nc * sizeof *p);
@@ -84,6 +114,7 @@ int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
   }
   ps->copy = copy;
   ps->refs = NULL;
+  ps->dest = dest;
   g_nsends++;
   return 0;
 }
@@ -110,10 +141,12 @@ int cv_comm_send_multi(const void *buf, size_t n, const int *dests, int ndest, i
   *refs = 0;
   for (int i = 0; i < ndest; i++) {
     pending_send *ps = &g_sends[g_nsends];
+    if (is_dead(dests[i])) continue;
     if (MPI_Isend(copy, (int)n, MPI_BYTE, dests[i], tag, MPI_COMM_WORLD, &ps->req) != MPI_SUCCESS)
       continue;
     ps->copy = copy;
     ps->refs = refs;
+    ps->dest = dests[i];
     (*refs)++;
     g_nsends++;
   }
@@ -138,7 +171,10 @@ int cv_comm_progress(void) {
   size_t k = 0;
   for (size_t i = 0; i < g_nsends; i++) {
     int done = 0;
-    MPI_Test(&g_sends[i].req, &done, MPI_STATUS_IGNORE);
+    /* a send to a dead rank never completes: forgotten (its copy leaks:
+     * MPI may still hold it) */
+    if (is_dead(g_sends[i].dest)) continue;
+    if (MPI_Test(&g_sends[i].req, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS) done = 1;
     if (done)
       release(&g_sends[i]);
     else
@@ -239,7 +275,7 @@ int cv_comm_lcd_group(int member, int *size, int *rank) {
 }
 
 int cv_comm_lcd_iallreduce(int64_t *buf, size_t n) {
-  if (g_lcd == MPI_COMM_NULL || g_lcd_req != MPI_REQUEST_NULL || n > (size_t)INT32_MAX) return -1;
+  if (g_lcd == MPI_COMM_NULL || g_lcd_abandoned || g_lcd_req != MPI_REQUEST_NULL || n > (size_t)INT32_MAX) return -1;
   return MPI_Iallreduce(MPI_IN_PLACE, buf, (int)n, MPI_INT64_T, MPI_SUM, g_lcd, &g_lcd_req) ==
                  MPI_SUCCESS
              ? 0
@@ -247,10 +283,15 @@ int cv_comm_lcd_iallreduce(int64_t *buf, size_t n) {
 }
 
 int cv_comm_lcd_test(void) {
-  if (g_lcd_req == MPI_REQUEST_NULL) return 1;
+  if (g_lcd_req == MPI_REQUEST_NULL || g_lcd_abandoned) return 1;
   int done = 0;
-  MPI_Test(&g_lcd_req, &done, MPI_STATUS_IGNORE);
+  if (MPI_Test(&g_lcd_req, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS) return 1;
   return done;
+}
+
+void cv_comm_lcd_abandon(void) {
+  g_lcd_abandoned = 1;
+  g_lcd_req = MPI_REQUEST_NULL; /* the request in flight is never completed */
 }
 
 void cv_comm_host(char *buf, size_t cap) {

@@ -37,9 +37,12 @@ enum {
   CV_TAG_STOPREQ = 11, /* render rank -> master: its window was closed / Escape / X lost */
   CV_TAG_SWAPREADY = 12, /* render rank -> master: frame drawn and finished (u32 frame) */
   CV_TAG_GO = 13,       /* master -> render rank: swap frame at this time of the rank's clock */
-  CV_TAG_PREVIEW = 14   /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
+  CV_TAG_PREVIEW = 14,  /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
+  CV_TAG_ALIVE = 15     /* gather rank -> master: heartbeat (u32 count), every 0.25 s */
 };
 
+/* MPI_Init_thread, and MPI_ERRORS_RETURN on MPI_COMM_WORLD: an error with a
+ * dead peer returns (-1 from these calls) instead of ending the job. */
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size);
 void cv_comm_finalize(void);
 double cv_comm_time(void);
@@ -92,6 +95,14 @@ int cv_comm_lcd_group(int member, int *size, int *rank);
 int cv_comm_lcd_iallreduce(int64_t *buf, size_t n);
 /* Polls it (MPI_Test): 1 done (or none in flight), 0 not yet. */
 int cv_comm_lcd_test(void);
+/* Gives the LCD sum up for good (a member died): the sum in flight is never
+ * waited on again, no new one starts (cv_comm_lcd_iallreduce fails) and
+ * cv_comm_lcd_test says done. */
+void cv_comm_lcd_abandon(void);
+/* Marks a rank dead: sends to it are dropped (those in flight forgotten);
+ * with a dead rank cv_comm_finalize skips MPI_Finalize. */
+void cv_comm_mark_dead(int rank);
+int cv_comm_dead_count(void);
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);
 

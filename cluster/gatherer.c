@@ -16,6 +16,30 @@ static int pool_round(const uint8_t *buf, size_t len, void *user) {
   return cv_lcd_reduce_add_round(user, buf, len);
 }
 
+/* After the allreduce was given up: each round straight to the master. */
+static int send_round(const uint8_t *buf, size_t len, void *user) {
+  (void)user;
+  return cv_comm_send(buf, len, 0, CV_TAG_LCD);
+}
+
+/* Gives the allreduce up (a member died, docs/dead-rank.md): when the master
+ * says so, or when an epoch has waited --gather-timeout s while states came
+ * in (the master or another member is gone).  The rounds then go
+ * point-to-point. */
+static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_mailbox *alive_mb, double first_state) {
+  if (!*red) return;
+  int told = 0;
+  const uint8_t *data;
+  while (alive_mb && cv_mailbox_take(alive_mb, &data, NULL) >= 0) told = 1;
+  const double waited = first_state > 0 ? cv_lcd_reduce_waiting(*red, cv_service_now(), first_state) : 0;
+  if (!told && waited <= s->o.gather_timeout_s) return;
+  if (told) fprintf(stderr, "cave run: rank %d: a gather rank died: LCD rounds point-to-point\n", s->rank);
+  else fprintf(stderr, "cave run: rank %d: LCD sum waited %.1f s: LCD rounds point-to-point\n", s->rank, waited);
+  cv_lcd_reduce_abandon(*red);
+  cv_lcd_reduce_destroy(*red);
+  *red = NULL;
+}
+
 /* Reports set-up success ('O') or failure ('F' + message) to the master. */
 void cv_service_ready(int ok, const char *msg) {
   char buf[512];
@@ -50,7 +74,9 @@ int cv_gather_run(cv_service *s) {
                                             s->lcd_me, &red) != CV_OK)
     fprintf(stderr, "cave run: rank %d: LCD reduction: out of memory\n", s->rank);
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
-  double stop_since = 0, quit_since = 0;
+  cv_mailbox *alive_mb = cv_mailbox_open(0, CV_TAG_ALIVE, 16);
+  double stop_since = 0, quit_since = 0, first_state = 0, beat_t = 0;
+  uint32_t beats = 0;
   int rc = st ? 1 : 0;
   for (;;) {
     const uint8_t *data;
@@ -66,8 +92,16 @@ int cv_gather_run(cv_service *s) {
       got = 1;
     }
     if (quit && quit_since == 0) quit_since = cv_service_now();
+    if (got && first_state == 0) first_state = cv_service_now();
     if (got && w && !quit_since && !(fs.flags & CV_FS_MEASURE)) cv_lcd_worker_post(w, &fs);
+    if (cv_service_now() - beat_t >= 0.25) { /* heartbeat (master_health.c) */
+      beats++;
+      cv_comm_send(&beats, sizeof beats, 0, CV_TAG_ALIVE);
+      beat_t = cv_service_now();
+    }
+    if (!quit_since) maybe_abandon(s, &red, alive_mb, first_state);
     if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+    else if (w && s->lcd_me > 0) cv_lcd_worker_send_ready(w, send_round, NULL, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
      * brings the last pooled rounds), but not for ever. */
     const int red_done = red ? cv_lcd_reduce_poll(red, cv_service_now(), 0, NULL, NULL) : 1;
@@ -83,6 +117,7 @@ int cv_gather_run(cv_service *s) {
   cv_lcd_worker_destroy(w);
   cv_lcd_reduce_destroy(red);
   cv_mailbox_close(mb);
+  cv_mailbox_close(alive_mb);
   cv_prt_destroy(prt);
   cv_comm_flush(2);
   return rc;

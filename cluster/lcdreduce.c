@@ -281,6 +281,17 @@ int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_r
   }
 }
 
+double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since) {
+  if (r->phase != PH_HEADER && r->phase != PH_DATA) return 0;
+  return now - (r->t_start > since ? r->t_start : since);
+}
+
+void cv_lcd_reduce_abandon(cv_lcd_reduce *r) {
+  cv_comm_lcd_abandon();
+  pool_clear(&r->offer);
+  r->phase = PH_DONE;
+}
+
 void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {
   st->epochs = r->epochs;
   st->data_epochs = r->data_epochs;

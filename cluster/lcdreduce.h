@@ -48,6 +48,14 @@ void cv_lcd_reduce_announce(cv_lcd_reduce *r, uint64_t key, int quit);
 int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
                        void *user);
 
+/* Seconds the epoch in flight has waited since max(its start, since); 0
+ * when none is in flight. */
+double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since);
+/* Gives the sum up for good (a member died, cv_comm_lcd_abandon): the
+ * epoch in flight and the rounds it offered are dropped, poll returns 1
+ * from now on; the totals stay. */
+void cv_lcd_reduce_abandon(cv_lcd_reduce *r);
+
 /* Totals: epochs finished, those that carried rounds, and the mean time
  * from an epoch's start to its sum on this rank (ms). */
 typedef struct cv_lcd_reduce_stats {

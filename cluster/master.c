@@ -62,6 +62,7 @@ static void master_free(master *m) {
   free(m->r);
   cv_mailbox_close(m->lcd_mb);
   cv_lcd_reduce_destroy(m->lcd_red);
+  master_health_free(m);
   cv_lcd_progress_free(&m->prog);
   free(m->seen);
   cv_lcd_progress_free(&m->mot.prog);
@@ -158,6 +159,7 @@ static int master_setup(master *m, cv_err *err) {
     if (!m->rep_mb[i]) return cv_err_set(err, CV_ERR_NOMEM, "master: cannot post receives");
   }
   if ((st = master_images_setup(m, err))) return st;
+  if (master_health_setup(m)) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory (heartbeats)");
   if (s->o.lcd && s->n_contributors > 0) {
     size_t n = cv_lcd_accum_words(s->o.lcd_w, s->o.lcd_h);
     m->lcd_mb = cv_mailbox_open(-1, CV_TAG_LCD, sizeof(cv_lcd_msg) + n * sizeof(int64_t));
@@ -388,6 +390,7 @@ static void merge_report(master *m, int from, const uint8_t *data, long len, uin
     return;
   }
   const int k = 2 * rep.wall + rep.eye;
+  master_health_seen(m, from);
   if (m->got[k]) return;
   m->got[k] = 1;
   (*ngot)++;
@@ -449,8 +452,9 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
     master_desktop_drain(m);
     master_sync_poll(m);
     master_stop_poll(m);
+    master_health_poll(m);
     cv_comm_progress();
-    if (ngot == s->n_walleyes || *s->stop) break;
+    if (ngot == s->n_walleyes || *s->stop || m->stop_code) break;
     if (cv_service_now() > deadline) break;
     if (!progressed) {
       struct timespec ts = {0, 200000};
@@ -525,6 +529,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
   cv_metrics_double(ml, "master_ms", overhead);
   cv_metrics_double(ml, "wait_ms", (t->t_wait - t->t_sent) * 1e3);
   cv_metrics_int(ml, "late_walleyes", late);
+  master_health_metrics(m, ml);
   if (s->o.swap_lock && s->o.swap_sync == CV_SWAP_SCHEDULED) {
     cv_metrics_double(ml, "swap_release_wait_ms", m->release_ms);
     cv_metrics_int(ml, "swap_release_late", m->release_late);
@@ -672,6 +677,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   }
   master_sync_summary(m, ml);
   cv_metrics_uint(ml, "late_reports", m->late_reports);
+  master_health_metrics(m, ml);
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
   cv_metrics_uint(ml, "montages", m->montages);
   master_desktop_summary(m, ml);
@@ -760,6 +766,7 @@ int cv_master_run(cv_service *s) {
      * rendering until the LCD image has its budget. */
     const int holding = nframes > 0 && f >= (uint32_t)nframes;
     if (holding && !(m->lcd_mb && s->o.lcd_wait && m->lcd_rounds < (uint32_t)s->o.lcd_budget)) break;
+    if (f == 1) master_health_arm(m); /* frame 0 has the start-up time */
     frame_times t;
     memset(&t, 0, sizeof t);
     t.tf0 = cv_service_now();
@@ -853,7 +860,7 @@ int cv_master_run(cv_service *s) {
   if (m->stop_code)
     printf("cave run: stopped on request: %s\n", m->stop_reason);
   cv_comm_flush(10);
-  const int lost = m->stop_code == CV_WIN_LOST;
+  const int lost = m->stop_code == CV_WIN_LOST || m->stop_code == MASTER_STOP_DEAD;
   master_free(m);
   return lost ? 1 : 0;
 }

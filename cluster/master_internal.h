@@ -134,8 +134,14 @@ typedef struct master {
   double mtp_ms, age_ms, pred_err_mm, held_err_mm; /* the last frame's; NAN unmeasured */
   double *skew_hist, *mtp_hist, *age_hist, *pred_hist, *held_hist;
   size_t n_skew, n_lat, n_pred;
-  int stop_code;          /* CV_WIN_* of the first stop request; 0 none */
+  int stop_code;          /* CV_WIN_* of the first stop request, MASTER_STOP_DEAD; 0 none */
   char stop_reason[300];
+  /* heartbeat watch (master_health.c) */
+  cv_mailbox *alive_mb;   /* gather ranks' heartbeats */
+  double *alive_t;        /* per rank: when last heard of */
+  uint8_t *dead;          /* per rank: declared dead */
+  int ndead, health_armed, lcd_red_abandoned;
+  uint64_t lcd_gather_p2p; /* gather ranks' rounds summed point-to-point */
   /* montages of the left eye (written frames) and the viewer simulation */
   cv_mailbox **img_mb;
   cv_image **mont, **mont_unc; /* per wall: display-linear compensated / uncompensated */
@@ -237,5 +243,17 @@ int master_images_setup(master *m, cv_err *err);
 void master_images_free(master *m);
 void montage_drain(master *m);
 void montage_flush(master *m);
+
+/* Heartbeat watch (master_health.c, docs/dead-rank.md). */
+enum { MASTER_STOP_DEAD = 100 }; /* stop_code: a wall-eye died */
+int master_health_setup(master *m);
+void master_health_free(master *m);
+/* Starts the watch (every rank counts as heard of now). */
+void master_health_arm(master *m);
+void master_health_seen(master *m, int rank);
+/* Takes heartbeats; declares ranks silent for --gather-timeout dead. */
+void master_health_poll(master *m);
+/* "dead_ranks": [ranks] */
+void master_health_metrics(master *m, cv_metrics_line *ml);
 
 #endif

@@ -113,13 +113,13 @@ static void lcd_reduced(const cv_lcd_reduce_sum *sum, void *user) {
 /* Tests the allreduce in flight (never waits) and starts the next epoch
  * (at most every 0.1 s), asking for the current key. */
 static void lcd_reduce_poll(master *m) {
-  if (!m->lcd_red) return;
+  if (!m->lcd_red || m->lcd_red_abandoned) return;
   cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 0);
   cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0.1, lcd_reduced, m);
 }
 
 void lcd_reduce_finish(master *m) {
-  if (!m->lcd_red) return;
+  if (!m->lcd_red || m->lcd_red_abandoned) return;
   cv_lcd_reduce_announce(m->lcd_red, m->lcd_key, 1);
   const double t0 = cv_service_now();
   while (!cv_lcd_reduce_poll(m->lcd_red, cv_service_now(), 0, lcd_reduced, m) &&
@@ -140,6 +140,8 @@ void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_uint(ml, "data_epochs", st.data_epochs);
   cv_metrics_uint(ml, "rounds", st.rounds);
   cv_metrics_double(ml, "epoch_ms_mean", st.mean_ms);
+  cv_metrics_bool(ml, "abandoned", m->lcd_red_abandoned); /* a member died: rounds point-to-point */
+  cv_metrics_uint(ml, "p2p_rounds", m->lcd_gather_p2p);   /* gather ranks' rounds taken point-to-point */
   cv_metrics_object_end(ml);
 }
 
@@ -172,8 +174,10 @@ void lcd_drain(master *m) {
     cv_lcd_accum view = {.w = h.w, .h = h.h, .clamp = h.clamp,
                          .unit = cv_lcd_unit_for_clamp(h.clamp), .n = h.n,
                          .data = (int64_t *)(void *)(uintptr_t)(data + sizeof h)};
+    const uint32_t had = m->lcd_rounds + m->mot.rounds;
     lcd_take(m, &h.key, h.frame, &h.round, 1, &view);
-    (void)from;
+    /* a gather rank's round point-to-point: the allreduce was given up */
+    if (from > m->s->n_render && m->lcd_rounds + m->mot.rounds != had) m->lcd_gather_p2p++;
   }
 }
 

@@ -57,6 +57,8 @@ static void help(FILE *f) {
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
+          "  --gather-timeout S   a gather rank silent S s is dead: named, LCD goes on without\n"
+          "                       it; a wall-eye silent S s stops the run (default 3; 0.5..3600)\n"
           "  --present WHAT       files, window, desktop, none, or a list: window,files or\n"
           "                       desktop,files (default files).\n"
           "                       window: one borderless window per output of the CAVE config\n"
@@ -278,6 +280,10 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       NEED();
       if (cv_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
       else o->timeout_ms = d;
+    } else if (!strcmp(a, "--gather-timeout")) {
+      NEED();
+      if (cv_parse_double(v, &d) || !(d >= 0.5 && d <= 3600)) problem(pb, "--gather-timeout: expected 0.5..3600 s, got '%s'", v);
+      else o->gather_timeout_s = d;
     } else if (!strcmp(a, "--patches")) {
       NEED();
       if (cv_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);

@@ -183,8 +183,10 @@ sys.exit(0 if ok else 1)
 PY
 
 # --- a stopped gather rank does not stall the frames -----------------------
+# (stopped 8 s: below --gather-timeout, so stalled, not dead; dead_gather.sh
+# kills one)
 timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 \
-  --timeout-ms 1500 -o stop >stop.txt 2>stoperr.txt &
+  --timeout-ms 1500 --gather-timeout 20 -o stop >stop.txt 2>stoperr.txt &
 job=$!
 for i in $(seq 1 300); do [ -s stop/pids/rank11.pid ] && [ -s stop/metrics.jsonl ] && break; sleep 0.5; done
 g=$(cat stop/pids/rank11.pid 2>/dev/null); m0=$(cat stop/pids/rank0.pid 2>/dev/null)

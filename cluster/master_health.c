@@ -1,0 +1,94 @@
+/* The master's heartbeat watch (docs/dead-rank.md).  Open MPI 4 cannot tell
+ * a rank that a peer died, and with `mpirun --enable-recovery` the job goes
+ * on with the dead process's operations pending for ever.  So the master
+ * watches above MPI: gather-only ranks send a heartbeat every 0.25 s
+ * (CV_TAG_ALIVE), wall-eyes report every frame.  A rank silent for
+ * --gather-timeout seconds is dead:
+ *   gather rank  named once on stderr and in the metrics (dead_ranks); no
+ *                more states to it; the LCD allreduce, which would wait for
+ *                it for ever, is given up on the master, and the surviving
+ *                gather ranks are told to send their rounds point-to-point
+ *                (the render ranks' path); the frames never waited for it.
+ *   wall-eye     its walls cannot be shown: the run stops cleanly, naming
+ *                it (summary stop_reason, exit status 1). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "comm.h"
+#include "lcdreduce.h"
+#include "master_internal.h"
+
+int master_health_setup(master *m) {
+  m->alive_t = calloc((size_t)m->s->size, sizeof *m->alive_t);
+  m->dead = calloc((size_t)m->s->size, 1);
+  if (!m->alive_t || !m->dead) return -1;
+  if (m->s->n_gather > 0 && !(m->alive_mb = cv_mailbox_open(-1, CV_TAG_ALIVE, 16))) return -1;
+  return 0;
+}
+
+void master_health_free(master *m) {
+  cv_mailbox_close(m->alive_mb);
+  free(m->alive_t);
+  free(m->dead);
+}
+
+void master_health_arm(master *m) {
+  const double now = cv_service_now();
+  for (int r = 0; r < m->s->size; r++) m->alive_t[r] = now;
+  m->health_armed = 1;
+}
+
+void master_health_seen(master *m, int rank) {
+  if (m->alive_t && rank > 0 && rank < m->s->size) m->alive_t[rank] = cv_service_now();
+}
+
+/* A gather rank is dead: the allreduce is given up, the others go
+ * point-to-point. */
+static void gather_dead(master *m, int r, double silent) {
+  fprintf(stderr,
+          "cave run: master: rank %d (gather-only) silent for %.1f s: declared dead; "
+          "the LCD goes on without it\n",
+          r, silent);
+  if (m->lcd_red && !m->lcd_red_abandoned) {
+    cv_lcd_reduce_abandon(m->lcd_red);
+    m->lcd_red_abandoned = 1;
+    const char p2p = 'P';
+    for (int g = 1 + m->s->n_render; g < m->s->size; g++)
+      if (!m->dead[g]) cv_comm_send(&p2p, 1, g, CV_TAG_ALIVE);
+  }
+}
+
+static void walleye_dead(master *m, int r, double silent) {
+  if (m->stop_code) return;
+  const cv_output *o = &m->s->cave.outputs[r - 1];
+  m->stop_code = MASTER_STOP_DEAD;
+  snprintf(m->stop_reason, sizeof m->stop_reason,
+           "rank %d (wall-eye of wall %d) silent for %.1f s: declared dead", r, o->wall, silent);
+  fprintf(stderr, "cave run: stopping: %s\n", m->stop_reason);
+}
+
+void master_health_poll(master *m) {
+  if (!m->alive_t) return;
+  const uint8_t *data;
+  int from;
+  while (m->alive_mb && cv_mailbox_take(m->alive_mb, &data, &from) >= 0) master_health_seen(m, from);
+  if (!m->health_armed) return;
+  const double now = cv_service_now(), tmo = m->s->o.gather_timeout_s;
+  for (int r = 1; r < m->s->size; r++) {
+    if (m->dead[r] || now - m->alive_t[r] <= tmo) continue;
+    m->dead[r] = 1;
+    m->ndead++;
+    cv_comm_mark_dead(r);
+    if (r > m->s->n_render) gather_dead(m, r, now - m->alive_t[r]);
+    else walleye_dead(m, r, now - m->alive_t[r]);
+  }
+}
+
+void master_health_metrics(master *m, cv_metrics_line *ml) {
+  double d[64];
+  size_t n = 0;
+  for (int r = 1; m->dead && r < m->s->size && n < 64; r++)
+    if (m->dead[r]) d[n++] = r;
+  cv_metrics_doubles(ml, "dead_ranks", d, n);
+}
