@@ -50,8 +50,26 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
   return 0;
 }
 
+/* Takes the master's death notices not taken by a mailbox (a render rank
+ * has none for CV_TAG_ALIVE). */
+static void take_notices(void) {
+  for (int i = 0; i < 1024; i++) {
+    int flag = 0;
+    MPI_Status st;
+    if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS || !flag) return;
+    uint8_t b[16];
+    int count = 0;
+    MPI_Get_count(&st, MPI_BYTE, &count);
+    if (count > (int)sizeof b ||
+        MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+      return;
+    cv_comm_dead_notice(b, count);
+  }
+}
+
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
+  take_notices();
   if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
   if (g_lcd != MPI_COMM_NULL && !g_lcd_abandoned) MPI_Comm_free(&g_lcd);
   for (size_t i = 0; i < g_nsends; i++) {
@@ -90,6 +108,23 @@ int cv_comm_dead_count(void) {
   int n = 0;
   for (int r = 0; g_dead && r < g_size; r++) n += g_dead[r];
   return n;
+}
+
+int cv_comm_dead_notice(const uint8_t *data, long len) {
+  int32_t r;
+  if (len != 1 + (long)sizeof r || data[0] != 'D') return 0;
+  memcpy(&r, data + 1, sizeof r);
+  cv_comm_mark_dead(r);
+  return 1;
+}
+
+void cv_comm_notify_dead(int rank) {
+  uint8_t b[1 + sizeof(int32_t)];
+  const int32_t r = rank;
+  b[0] = 'D';
+  memcpy(b + 1, &r, sizeof r);
+  for (int d = 1; d < g_size; d++)
+    if (!g_dead[d]) cv_comm_send(b, sizeof b, d, CV_TAG_ALIVE);
 }
 
 static int is_dead(int rank) { return g_dead && rank >= 0 && rank < g_size && g_dead[rank]; }

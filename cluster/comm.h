@@ -38,7 +38,8 @@ enum {
   CV_TAG_SWAPREADY = 12, /* render rank -> master: frame drawn and finished (u32 frame) */
   CV_TAG_GO = 13,       /* master -> render rank: swap frame at this time of the rank's clock */
   CV_TAG_PREVIEW = 14,  /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
-  CV_TAG_ALIVE = 15     /* gather rank -> master: heartbeat (u32 count), every 0.25 s */
+  CV_TAG_ALIVE = 15     /* gather rank -> master: heartbeat (u32 count), every 0.25 s;
+                           master -> all: 'D' + int32 rank: that rank is dead */
 };
 
 /* MPI_Init_thread, and MPI_ERRORS_RETURN on MPI_COMM_WORLD: an error with a
@@ -103,6 +104,12 @@ void cv_comm_lcd_abandon(void);
  * with a dead rank cv_comm_finalize skips MPI_Finalize. */
 void cv_comm_mark_dead(int rank);
 int cv_comm_dead_count(void);
+/* Master: tells every live rank that rank is dead ('D' + int32 rank, tag
+ * CV_TAG_ALIVE), so that none waits for it in MPI_Finalize. */
+void cv_comm_notify_dead(int rank);
+/* A rank: marks the rank of such a notice dead; 1 if data is one, else 0.
+ * cv_comm_finalize takes the notices no mailbox took. */
+int cv_comm_dead_notice(const uint8_t *data, long len);
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);
 

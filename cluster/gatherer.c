@@ -30,7 +30,9 @@ static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_mailbox *alive_
   if (!*red) return;
   int told = 0;
   const uint8_t *data;
-  while (alive_mb && cv_mailbox_take(alive_mb, &data, NULL) >= 0) told = 1;
+  long len;
+  while (alive_mb && (len = cv_mailbox_take(alive_mb, &data, NULL)) >= 0)
+    if (cv_comm_dead_notice(data, len)) told = 1;
   const double waited = first_state > 0 ? cv_lcd_reduce_waiting(*red, cv_service_now(), first_state) : 0;
   if (!told && waited <= s->o.gather_timeout_s) return;
   if (told) fprintf(stderr, "cave run: rank %d: a gather rank died: LCD rounds point-to-point\n", s->rank);

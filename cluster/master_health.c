@@ -7,8 +7,10 @@
  *   gather rank  named once on stderr and in the metrics (dead_ranks); no
  *                more states to it; the LCD allreduce, which would wait for
  *                it for ever, is given up on the master, and the surviving
- *                gather ranks are told to send their rounds point-to-point
+ *                gather ranks, told by the death notice every rank gets
+ *                (cv_comm_notify_dead), send their rounds point-to-point
  *                (the render ranks' path); the frames never waited for it.
+ * With a dead rank no rank calls MPI_Finalize (it would wait for it).
  *   wall-eye     its walls cannot be shown: the run stops cleanly, naming
  *                it (summary stop_reason, exit status 1). */
 #include <stdio.h>
@@ -50,12 +52,9 @@ static void gather_dead(master *m, int r, double silent) {
           "cave run: master: rank %d (gather-only) silent for %.1f s: declared dead; "
           "the LCD goes on without it\n",
           r, silent);
-  if (m->lcd_red && !m->lcd_red_abandoned) {
+  if (m->lcd_red && !m->lcd_red_abandoned) { /* the others learn it from the notice */
     cv_lcd_reduce_abandon(m->lcd_red);
     m->lcd_red_abandoned = 1;
-    const char p2p = 'P';
-    for (int g = 1 + m->s->n_render; g < m->s->size; g++)
-      if (!m->dead[g]) cv_comm_send(&p2p, 1, g, CV_TAG_ALIVE);
   }
 }
 
@@ -80,6 +79,7 @@ void master_health_poll(master *m) {
     m->dead[r] = 1;
     m->ndead++;
     cv_comm_mark_dead(r);
+    cv_comm_notify_dead(r);
     if (r > m->s->n_render) gather_dead(m, r, now - m->alive_t[r]);
     else walleye_dead(m, r, now - m->alive_t[r]);
   }

@@ -7,7 +7,9 @@
 # (frames after the kill), rank 12 named dead on stderr and in the metrics
 # (dead_ranks, frame lines and summary), LCD rounds still arriving after the
 # kill (the survivors' rounds point-to-point), and the job ending by itself
-# (--frames) with the summary written.  Prints the measured figures.
+# (--frames) with the summary written.  Then a SIGKILLed wall-eye (rank 3):
+# the run stops by itself, naming it on stderr and in the summary's
+# stop_reason and dead_ranks.  Prints the measured figures.
 # Usage: dead_gather.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
 set -uo pipefail
 CAVE=$(realpath "$1"); WORK="$2"; SRC="$(realpath "$3")"; MPIEXEC="${4:-mpirun}"
@@ -95,5 +97,33 @@ sys.exit(0 if ok else 1)
 PY
 [ -s run/lcd.exr ] && ok "LCD image written at the end" || bad "no lcd.exr"
 echo "stderr: $(grep -v '^\s*$' run.err | head -8 | cut -c1-200 | tr '\n' '|')"
+
+# --- a dead wall-eye: the run stops by itself, naming it ----------------------
+timeout 600 "$MPIEXEC" --oversubscribe --enable-recovery -x OMP_NUM_THREADS -x LP_NUM_THREADS "${XS[@]}" \
+  -np 12 "$CAVE" run "$CFG" --scene scene.prt --size 48 --lcd-size 40x30 --lcd-spp 4 \
+  --patches 8 --quiet --drive still.json --frames 0 --max-fps 10 --timeout-ms 1500 --gather-timeout 3 \
+  -o wall >wall.out 2>wall.err &
+mpid=$!
+for i in $(seq 1 600); do
+  n=$(grep -c '"type":"frame"' wall/metrics.jsonl 2>/dev/null); [ -s wall/pids/rank3.pid ] && [ "${n:-0}" -ge 10 ] && break
+  kill -0 $mpid 2>/dev/null || break
+  sleep 0.5
+done
+t0=$(date +%s.%N)
+kill -9 "$(cat wall/pids/rank3.pid)" 2>/dev/null || bad "no rank 3 to kill"
+for i in $(seq 1 600); do kill -0 $mpid 2>/dev/null || break; sleep 0.1; done
+if kill -0 $mpid 2>/dev/null; then
+  bad "a dead wall-eye: still running 60 s after the kill"; kill -TERM $mpid; sleep 5; kill -KILL $mpid 2>/dev/null
+fi
+wait $mpid; rc=$?
+t1=$(date +%s.%N)
+dt=$(python3 -c "print('%.1f' % ($t1 - $t0))")
+reason=$(tail -1 wall/metrics.jsonl | python3 -c "import json,sys; l=json.loads(sys.stdin.read()); print(l.get('type'), l.get('stop_reason'), l.get('dead_ranks'))")
+# (the master exits with status 1, but mpirun --enable-recovery reports 0
+# whatever its ranks' status, even after MPI_Abort: measured, docs/dead-rank.md)
+grep -q 'stopping: rank 3 (wall-eye of wall [0-9]*) silent' wall.err \
+  && [ "${reason#summary rank 3 }" != "$reason" ] \
+  && ok "a dead wall-eye stops the run ${dt} s after the kill (mpirun status $rc): $reason" \
+  || bad "dead wall-eye: status $rc after ${dt} s; last line: $reason; $(grep -i 'rank 3' wall.err | head -2)"
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
