@@ -1,6 +1,8 @@
 /* Mesh import through assimp's C API (see mesh_import.h). */
 #include "io/mesh_import.h"
 
+#include "io/png.h"
+
 #include <assimp/cimport.h>
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
@@ -146,8 +148,48 @@ static float clamp01(float x, size_t *nclamp) {
   return x > 1.0f ? 1.0f : 0.0f; /* NaN and negatives -> 0 */
 }
 
-static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import_opts *o,
-                        uint8_t *ov_used, cv_import_stats *s) {
+/* sRGB transfer function inverse (IEC 61966-2-1), v in [0, 1]. */
+static double srgb_to_linear(double v) {
+  return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
+
+/* Mean linear RGB of the PNG at path (sRGB-encoded, as glTF's baseColorTexture
+ * and MTL's map_Kd are; a gray image gives three equal means; alpha ignored).
+ * Returns 0 and fills mean[3], or -1 (the file is missing or not a readable PNG). */
+static int texture_mean(const char *path, double mean[3]) {
+  cv_image *im = NULL;
+  cv_err e;
+  if (!ends_with_ci(path, ".png") || cv_png_read(path, &im, &e) != CV_OK) return -1;
+  double acc[3] = {0, 0, 0};
+  const size_t n = (size_t)im->w * (size_t)im->h;
+  for (size_t i = 0; i < n; i++) {
+    const float *px = im->px + i * (size_t)im->c;
+    for (int k = 0; k < 3; k++) acc[k] += srgb_to_linear(px[im->c >= 3 ? k : 0]);
+  }
+  for (int k = 0; k < 3; k++) mean[k] = acc[k] / (double)n;
+  cv_image_destroy(im);
+  return 0;
+}
+
+/* The material's diffuse texture (glTF base colour, else diffuse) resolved
+ * against the model's folder into out; 0 if the material has none.  An
+ * embedded texture ("*N") is reported as a texture that cannot be read. */
+static int texture_path(const struct aiMaterial *am, const char *model, char *out, size_t n) {
+  struct aiString tp;
+  if (aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tp, NULL, NULL, NULL, NULL, NULL,
+                           NULL) != aiReturn_SUCCESS &&
+      aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tp, NULL, NULL, NULL, NULL, NULL,
+                           NULL) != aiReturn_SUCCESS)
+    return 0;
+  const char *slash = strrchr(model, '/');
+  int dir = slash ? (int)(slash - model) + 1 : 0;
+  if (tp.data[0] == '/' || dir == 0) snprintf(out, n, "%s", tp.data);
+  else snprintf(out, n, "%.*s%s", dir, model, tp.data);
+  return 1;
+}
+
+static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *model,
+                        const cv_import_opts *o, uint8_t *ov_used, cv_import_stats *s) {
   struct aiString name;
   char nm[64] = "unnamed";
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS) {
@@ -161,6 +203,20 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import
       aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &c) == aiReturn_SUCCESS) {
     alb[0] = c.r, alb[1] = c.g, alb[2] = c.b;
   } else {
+    alb[0] = alb[1] = alb[2] = -1.0f; /* none yet */
+  }
+  char tex[4096];
+  double mean[3];
+  if (texture_path(am, model, tex, sizeof tex)) {
+    if (texture_mean(tex, mean) == 0) {
+      /* the colour factor multiplies the texture (glTF 2.0 spec; MTL Kd x map_Kd) */
+      for (int k = 0; k < 3; k++) alb[k] = (float)((alb[k] < 0 ? 1.0 : alb[k]) * mean[k]);
+      s->textures_averaged++;
+    } else {
+      s->textures_unread++;
+    }
+  }
+  if (alb[0] < 0) {
     memcpy(alb, o->default_albedo, sizeof alb);
     s->albedo_defaulted++;
   }
@@ -312,7 +368,7 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
   for (unsigned i = 0; i < sc->mNumMaterials; i++) {
     if (matmap[i] < 0) continue;
     matmap[i] = (int32_t)m->nm;
-    if (add_material(m, sc->mMaterials[i], opts, ov_used, s)) {
+    if (add_material(m, sc->mMaterials[i], path, opts, ov_used, s)) {
       st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
       goto done;
     }
