@@ -207,8 +207,12 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *mod
   }
   char tex[4096];
   double mean[3];
+  int textured = 0;
   if (texture_path(am, model, tex, sizeof tex)) {
-    if (texture_mean(tex, mean) == 0) {
+    if (strlen(tex) >= CV_TEX_PATH_MAX) {
+      s->textures_unread++; /* path too long to keep */
+    } else if (texture_mean(tex, mean) == 0) {
+      textured = 1;
       /* the colour factor multiplies the texture (glTF 2.0 spec; MTL Kd x map_Kd) */
       for (int k = 0; k < 3; k++) alb[k] = (float)((alb[k] < 0 ? 1.0 : alb[k]) * mean[k]);
       s->textures_averaged++;
@@ -232,7 +236,10 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *mod
     ov_used[i] = 1;
   }
   for (int k = 0; k < 3; k++) alb[k] = clamp01(alb[k], &s->albedo_clamped);
-  return cv_mesh_add_material(m, nm, alb, flags, NULL);
+  uint32_t idx;
+  int st = cv_mesh_add_material(m, nm, alb, flags, &idx);
+  if (!st && textured) st = cv_mesh_set_texture(m, idx, tex);
+  return st;
 }
 
 /* ---------------- the file's own units and up axis ---------------- */
@@ -393,6 +400,12 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
       }
       cv_mesh_add_vertex(m, (float)p[0], (float)p[1], (float)p[2], NULL);
     }
+    /* corner UVs (first channel) are kept when some material has a texture */
+    const struct aiVector3D *uv = am->mTextureCoords[0];
+    if (m->mat_tex && cv_mesh_enable_uv(m)) {
+      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+      goto done;
+    }
     for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
       const struct aiFace *fc = &am->mFaces[fi];
       if (fc->mNumIndices != 3) continue;
@@ -404,6 +417,16 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
         }
       cv_mesh_add_tri(m, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2],
                       (uint32_t)matmap[am->mMaterialIndex]);
+      for (int k = 0; m->tri_uv && uv && k < 3; k++) {
+        const struct aiVector3D *t = &uv[fc->mIndices[k]];
+        if (!isfinite(t->x) || !isfinite(t->y)) {
+          st = cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
+                          "texture coordinate", path, i, fc->mIndices[k]);
+          goto done;
+        }
+        m->tri_uv[6 * (m->nt - 1) + 2 * k] = t->x;
+        m->tri_uv[6 * (m->nt - 1) + 2 * k + 1] = t->y;
+      }
     }
   }
   s->triangles = m->nt;

@@ -284,6 +284,16 @@ static void test_texture_mean(void **state) {
   const cv_material *a = mat_named(m, "painted");
   for (int k = 0; k < 3; k++) assert_true(fabs(a->albedo[k] - kd[k] * mean) < 1e-6);
   assert_true(mat_named(m, "lost")->albedo[0] == 0.3f);
+  /* the texture path (found) and the corner UVs are kept */
+  assert_non_null(m->mat_tex);
+  assert_string_equal(m->mat_tex[cv_mesh_find_material(m, "painted")], tmp_path("mi_tex.png"));
+  assert_string_equal(m->mat_tex[cv_mesh_find_material(m, "lost")], "");
+  assert_non_null(m->tri_uv);
+  for (size_t t = 0; t < m->nt; t++)
+    for (int k = 0; k < 3; k++) {
+      const float *q = m->pos + 3 * m->tri[3 * t + k]; /* vt = (x, y) here */
+      assert_true(m->tri_uv[6 * t + 2 * k] == q[0] && m->tri_uv[6 * t + 2 * k + 1] == q[1]);
+    }
   cv_mesh_destroy(m);
 }
 
