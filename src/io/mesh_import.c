@@ -1,7 +1,7 @@
 /* Mesh import through assimp's C API (see mesh_import.h). */
 #include "io/mesh_import.h"
 
-#include "io/png.h"
+#include "io/texture.h"
 
 #include <assimp/cimport.h>
 #include <assimp/material.h>
@@ -9,6 +9,7 @@
 #include <assimp/scene.h>
 #include <ctype.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -148,24 +149,16 @@ static float clamp01(float x, size_t *nclamp) {
   return x > 1.0f ? 1.0f : 0.0f; /* NaN and negatives -> 0 */
 }
 
-/* sRGB transfer function inverse (IEC 61966-2-1), v in [0, 1]. */
-static double srgb_to_linear(double v) {
-  return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
-}
-
-/* Mean linear RGB of the PNG at path (sRGB-encoded, as glTF's baseColorTexture
- * and MTL's map_Kd are; a gray image gives three equal means; alpha ignored).
- * Returns 0 and fills mean[3], or -1 (the file is missing or not a readable PNG). */
+/* Mean linear RGB of the PNG texture at path (cv_texture_load).  Returns 0
+ * and fills mean[3], or -1 (the file is missing or not a readable PNG). */
 static int texture_mean(const char *path, double mean[3]) {
   cv_image *im = NULL;
   cv_err e;
-  if (!ends_with_ci(path, ".png") || cv_png_read(path, &im, &e) != CV_OK) return -1;
+  if (!ends_with_ci(path, ".png") || cv_texture_load(path, &im, &e) != CV_OK) return -1;
   double acc[3] = {0, 0, 0};
   const size_t n = (size_t)im->w * (size_t)im->h;
-  for (size_t i = 0; i < n; i++) {
-    const float *px = im->px + i * (size_t)im->c;
-    for (int k = 0; k < 3; k++) acc[k] += srgb_to_linear(px[im->c >= 3 ? k : 0]);
-  }
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < 3; k++) acc[k] += im->px[3 * i + k];
   for (int k = 0; k < 3; k++) mean[k] = acc[k] / (double)n;
   cv_image_destroy(im);
   return 0;
@@ -185,6 +178,8 @@ static int texture_path(const struct aiMaterial *am, const char *model, char *ou
   int dir = slash ? (int)(slash - model) + 1 : 0;
   if (tp.data[0] == '/' || dir == 0) snprintf(out, n, "%s", tp.data);
   else snprintf(out, n, "%.*s%s", dir, model, tp.data);
+  char abs[PATH_MAX]; /* absolute, so that a .prt works from any directory */
+  if (realpath(out, abs) && strlen(abs) < n) memcpy(out, abs, strlen(abs) + 1);
   return 1;
 }
 

@@ -59,6 +59,7 @@ int cv_mesh_enable_uv(cv_mesh *m) {
 int cv_mesh_set_texture(cv_mesh *m, uint32_t mat, const char *path) {
   if (mat >= m->nm) return CV_ERR_RANGE;
   if (!m->mat_tex && !(m->mat_tex = calloc(m->cap_m + 1, CV_TEX_PATH_MAX))) return CV_ERR_NOMEM;
+  memset(m->mat_tex[mat], 0, CV_TEX_PATH_MAX); /* NUL-padded: files get the same bytes */
   snprintf(m->mat_tex[mat], CV_TEX_PATH_MAX, "%s", path ? path : "");
   return CV_OK;
 }
@@ -73,7 +74,7 @@ int cv_mesh_add_material(cv_mesh *m, const char *name, const float albedo[3],
     if (!q) return CV_ERR_NOMEM;
     m->mat_tex = q;
   }
-  if (m->mat_tex) m->mat_tex[m->nm][0] = '\0';
+  if (m->mat_tex) memset(m->mat_tex[m->nm], 0, CV_TEX_PATH_MAX);
   cv_material *mt = &m->mats[m->nm];
   memset(mt, 0, sizeof *mt);
   strncpy(mt->name, name ? name : "", sizeof mt->name - 1);
