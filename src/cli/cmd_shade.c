@@ -37,6 +37,8 @@ static void help(FILE *f) {
           "W 64) out of the map as extra directional lights treated like the sun (an\n"
           "all-frequency answer to window light; docs/reference.md).\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
+          "A view multiplies each pixel on a textured material by its texture (the PNG\n"
+          "named in the .prt, bilinear, sRGB decoded); the PLY shows the mean albedo.\n"
           "\nexamples:\n"
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
           "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
