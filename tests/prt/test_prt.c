@@ -165,7 +165,33 @@ static void test_textured_quad(void **state) {
   for (size_t v = 0; v < prt->nv; v++)
     for (int c = 0; c < 3; c++) assert_true(fabs(rad[3 * v + c] / (mean[c] * L) - 1) < 0.01);
   free(rad);
+  /* version 1 files (no textures) are still read; version 1 with the texture
+   * flag is refused */
   cv_prt_destroy(prt);
+  cv_mesh *plain = plane_mesh(2, mean);
+  assert_int_equal(cv_prt_bake(plain, &p, &prt, NULL, &err), CV_OK);
+  assert_int_equal(cv_prt_write(path, prt, &err), CV_OK);
+  cv_prt_destroy(prt);
+  FILE *f = fopen(path, "r+b");
+  assert_non_null(f);
+  const uint32_t v1 = 1;
+  assert_int_equal(fseek(f, 8, SEEK_SET), 0);
+  assert_int_equal(fwrite(&v1, 4, 1, f), 1);
+  fclose(f);
+  assert_int_equal(cv_prt_read(path, &prt, &err), CV_OK);
+  assert_null(prt->tri_uv);
+  cv_prt_destroy(prt);
+  f = fopen(path, "r+b");
+  uint32_t flags;
+  assert_int_equal(fseek(f, 20, SEEK_SET), 0);
+  assert_int_equal(fread(&flags, 4, 1, f), 1);
+  flags |= CV_PRT_TEXTURED;
+  assert_int_equal(fseek(f, 20, SEEK_SET), 0);
+  assert_int_equal(fwrite(&flags, 4, 1, f), 1);
+  fclose(f);
+  assert_int_equal(cv_prt_read(path, &prt, &err), CV_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "version 1 has no textures"));
+  cv_mesh_destroy(plain);
   cv_image_destroy(tex);
   cv_mesh_destroy(m);
 }
