@@ -10,6 +10,7 @@
 #include "cli/cli.h"
 #include "io/exr.h"
 #include "io/ply.h"
+#include "io/texture.h"
 #include "io/tonemap_simple.h"
 #include "prt/relight.h"
 #include "prt/scene_light.h"
@@ -36,6 +37,8 @@ static void help(FILE *f) {
           "W 64) out of the map as extra directional lights treated like the sun (an\n"
           "all-frequency answer to window light; docs/reference.md).\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
+          "A view multiplies each pixel on a textured material by its texture (the PNG\n"
+          "named in the .prt, bilinear, sRGB decoded); the PLY shows the mean albedo.\n"
           "\nexamples:\n"
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
           "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
@@ -46,9 +49,11 @@ typedef struct {
   int w, h;
 } view_opts;
 
-/* Renders the view: radiance interpolated from vertex colours. */
+/* Renders the view: radiance interpolated from vertex colours, times the
+ * material's texture (tex[material], NULL for none) at the hit's UV. */
 static void render_view(const cv_prt *p, const cv_tracer *tr, const cv_scene_light *sl,
-                        const float *rad, const view_opts *v, cv_image *img, uint64_t *escaped) {
+                        const float *rad, cv_image *const *tex, const view_opts *v, cv_image *img,
+                        uint64_t *escaped) {
   double f[3], r[3], u[3];
   for (int k = 0; k < 3; k++) f[k] = v->look[k] - v->eye[k];
   double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
@@ -87,6 +92,14 @@ static void render_view(const cv_prt *p, const cv_tracer *tr, const cv_scene_lig
         float w0 = 1 - h.u - h.v;
         for (int c = 0; c < 3; c++)
           px[c] = w0 * rad[3 * t[0] + c] + h.u * rad[3 * t[1] + c] + h.v * rad[3 * t[2] + c];
+        const cv_image *tx = tex ? tex[p->tri_mat[h.tri]] : NULL;
+        if (tx) {
+          const float *q = p->tri_uv + 6 * (size_t)h.tri;
+          float a[3];
+          cv_texture_sample(tx, w0 * q[0] + h.u * q[2] + h.v * q[4],
+                            w0 * q[1] + h.u * q[3] + h.v * q[5], a);
+          for (int c = 0; c < 3; c++) px[c] *= a[c];
+        }
       } else if (cv_rt_reaches_env(rt, o, d, 0)) {
         cv_scene_light_background(sl, d, px);
       } else {
@@ -234,6 +247,7 @@ int cmd_shade(int argc, char **argv) {
   cv_scene_light *sl = NULL;
   float *rad = NULL;
   cv_image *img = NULL;
+  cv_image **tex = NULL; /* per material, NULL where untextured */
   if (cv_prt_read(in, &p, &err)) {
     rc = cli_fail("shade", 1, "%s", err.msg);
     goto done;
@@ -263,6 +277,10 @@ int cmd_shade(int argc, char **argv) {
   printf("relit %zu vertices (%u bands); %llu channels clamped from negative (SH ringing), %llu non-finite\n",
          p->nv, p->bands, (unsigned long long)rs.clamped_negative, (unsigned long long)rs.nonfinite);
   if (!is_view) {
+    if (cv_prt_fold_texture_means(p, rad)) {
+      rc = cli_fail("shade", 1, "out of memory");
+      goto done;
+    }
     if (cv_ply_write_points(out, p->nv, p->pos, rad, p->tri, p->nt, !ascii, &err)) {
       rc = cli_fail("shade", 1, "%s", err.msg);
       goto done;
@@ -273,7 +291,22 @@ int cmd_shade(int argc, char **argv) {
       goto done;
     }
     uint64_t escaped;
-    render_view(p, tr, sl, rad, &v, img, &escaped);
+    if (p->flags & CV_PRT_TEXTURED) {
+      if (!(tex = calloc(p->nm + 1, sizeof *tex))) {
+        rc = cli_fail("shade", 1, "out of memory");
+        goto done;
+      }
+      for (size_t i = 0; i < p->nm; i++) {
+        if (!cv_prt_mat_textured(p, i)) continue;
+        if (cv_texture_load(p->mat_tex[i], &tex[i], &err)) {
+          rc = cli_fail("shade", 1, "material '%s' texture: %s", p->mats[i].name, err.msg);
+          goto done;
+        }
+        printf("texture: material '%s': %s (%d x %d)\n", p->mats[i].name, p->mat_tex[i],
+               tex[i]->w, tex[i]->h);
+      }
+    }
+    render_view(p, tr, sl, rad, tex, &v, img, &escaped);
     if (escaped)
       printf("view: %llu pixels saw neither geometry nor a window (black)\n", (unsigned long long)escaped);
     if (cli_has_ext(out, ".exr")) {
@@ -294,6 +327,8 @@ int cmd_shade(int argc, char **argv) {
   printf("wrote %s\n", out);
   rc = 0;
 done:
+  for (size_t i = 0; tex && i < p->nm; i++) cv_image_destroy(tex[i]);
+  free(tex);
   cv_image_destroy(img);
   free(rad);
   cv_tracer_destroy(tr);

@@ -34,6 +34,7 @@ typedef struct reply {
   char msg[512];
   cv_import_stats stats;
   uint64_t nv, nt, nm;
+  uint32_t has_uv, has_tex; /* corner UVs (6*nt floats) and texture paths (nm x CV_TEX_PATH_MAX) follow */
 } reply;
 
 static double env_number(const char *name, double fallback) {
@@ -93,13 +94,17 @@ static void child(const char *path, const cv_import_opts *opts, int data_fd, int
     r.nv = m->nv;
     r.nt = m->nt;
     r.nm = m->nm;
+    r.has_uv = m->tri_uv != NULL;
+    r.has_tex = m->mat_tex != NULL;
   }
   int bad = write_all(data_fd, &r, sizeof r);
   if (!bad && m)
     bad = write_all(data_fd, m->pos, 3 * m->nv * sizeof(float)) ||
           write_all(data_fd, m->tri, 3 * m->nt * sizeof(uint32_t)) ||
           write_all(data_fd, m->tri_mat, m->nt * sizeof(uint32_t)) ||
-          write_all(data_fd, m->mats, m->nm * sizeof(cv_material));
+          write_all(data_fd, m->mats, m->nm * sizeof(cv_material)) ||
+          (r.has_uv && write_all(data_fd, m->tri_uv, 6 * m->nt * sizeof(float))) ||
+          (r.has_tex && write_all(data_fd, m->mat_tex, m->nm * (size_t)CV_TEX_PATH_MAX));
   cv_mesh_destroy(m);
   close(data_fd);
   fflush(NULL);
@@ -197,7 +202,9 @@ static int unpack(const char *path, const buf *data, cv_mesh **out, cv_import_st
     return cv_err_set(err, r.status, "%s", r.msg);
   }
   size_t want = sizeof r + (size_t)r.nv * 3 * sizeof(float) + (size_t)r.nt * 4 * sizeof(uint32_t) +
-                (size_t)r.nm * sizeof(cv_material);
+                (size_t)r.nm * sizeof(cv_material) +
+                (r.has_uv ? (size_t)r.nt * 6 * sizeof(float) : 0) +
+                (r.has_tex ? (size_t)r.nm * CV_TEX_PATH_MAX : 0);
   if (data->n != want)
     return cv_err_set(err, CV_ERR_BACKEND, "%s: import: the child process sent %zu bytes, expected %zu",
                       path, data->n, want);
@@ -225,8 +232,23 @@ static int unpack(const char *path, const buf *data, cv_mesh **out, cv_import_st
       return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
     }
   }
+  p += r.nm * sizeof(cv_material);
+  if (r.has_uv) {
+    if (cv_mesh_enable_uv(m)) goto nomem;
+    memcpy(m->tri_uv, p, r.nt * 6 * sizeof(float));
+    p += r.nt * 6 * sizeof(float);
+  }
+  for (size_t i = 0; r.has_tex && i < r.nm; i++) {
+    char t[CV_TEX_PATH_MAX];
+    memcpy(t, p + i * CV_TEX_PATH_MAX, sizeof t);
+    t[sizeof t - 1] = '\0';
+    if (cv_mesh_set_texture(m, (uint32_t)i, t)) goto nomem;
+  }
   *out = m;
   return CV_OK;
+nomem:
+  cv_mesh_destroy(m);
+  return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
 }
 
 int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **out,

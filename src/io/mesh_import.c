@@ -1,12 +1,15 @@
 /* Mesh import through assimp's C API (see mesh_import.h). */
 #include "io/mesh_import.h"
 
+#include "io/texture.h"
+
 #include <assimp/cimport.h>
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <ctype.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -146,8 +149,42 @@ static float clamp01(float x, size_t *nclamp) {
   return x > 1.0f ? 1.0f : 0.0f; /* NaN and negatives -> 0 */
 }
 
-static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import_opts *o,
-                        uint8_t *ov_used, cv_import_stats *s) {
+/* Mean linear RGB of the PNG texture at path (cv_texture_load).  Returns 0
+ * and fills mean[3], or -1 (the file is missing or not a readable PNG). */
+static int texture_mean(const char *path, double mean[3]) {
+  cv_image *im = NULL;
+  cv_err e;
+  if (!ends_with_ci(path, ".png") || cv_texture_load(path, &im, &e) != CV_OK) return -1;
+  double acc[3] = {0, 0, 0};
+  const size_t n = (size_t)im->w * (size_t)im->h;
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < 3; k++) acc[k] += im->px[3 * i + k];
+  for (int k = 0; k < 3; k++) mean[k] = acc[k] / (double)n;
+  cv_image_destroy(im);
+  return 0;
+}
+
+/* The material's diffuse texture (glTF base colour, else diffuse) resolved
+ * against the model's folder into out; 0 if the material has none.  An
+ * embedded texture ("*N") is reported as a texture that cannot be read. */
+static int texture_path(const struct aiMaterial *am, const char *model, char *out, size_t n) {
+  struct aiString tp;
+  if (aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tp, NULL, NULL, NULL, NULL, NULL,
+                           NULL) != aiReturn_SUCCESS &&
+      aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tp, NULL, NULL, NULL, NULL, NULL,
+                           NULL) != aiReturn_SUCCESS)
+    return 0;
+  const char *slash = strrchr(model, '/');
+  int dir = slash ? (int)(slash - model) + 1 : 0;
+  if (tp.data[0] == '/' || dir == 0) snprintf(out, n, "%s", tp.data);
+  else snprintf(out, n, "%.*s%s", dir, model, tp.data);
+  char abs[PATH_MAX]; /* absolute, so that a .prt works from any directory */
+  if (realpath(out, abs) && strlen(abs) < n) memcpy(out, abs, strlen(abs) + 1);
+  return 1;
+}
+
+static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *model,
+                        const cv_import_opts *o, uint8_t *ov_used, cv_import_stats *s) {
   struct aiString name;
   char nm[64] = "unnamed";
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS) {
@@ -161,6 +198,24 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import
       aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &c) == aiReturn_SUCCESS) {
     alb[0] = c.r, alb[1] = c.g, alb[2] = c.b;
   } else {
+    alb[0] = alb[1] = alb[2] = -1.0f; /* none yet */
+  }
+  char tex[4096];
+  double mean[3];
+  int textured = 0;
+  if (texture_path(am, model, tex, sizeof tex)) {
+    if (strlen(tex) >= CV_TEX_PATH_MAX) {
+      s->textures_unread++; /* path too long to keep */
+    } else if (texture_mean(tex, mean) == 0) {
+      textured = 1;
+      /* the colour factor multiplies the texture (glTF 2.0 spec; MTL Kd x map_Kd) */
+      for (int k = 0; k < 3; k++) alb[k] = (float)((alb[k] < 0 ? 1.0 : alb[k]) * mean[k]);
+      s->textures_averaged++;
+    } else {
+      s->textures_unread++;
+    }
+  }
+  if (alb[0] < 0) {
     memcpy(alb, o->default_albedo, sizeof alb);
     s->albedo_defaulted++;
   }
@@ -176,7 +231,10 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const cv_import
     ov_used[i] = 1;
   }
   for (int k = 0; k < 3; k++) alb[k] = clamp01(alb[k], &s->albedo_clamped);
-  return cv_mesh_add_material(m, nm, alb, flags, NULL);
+  uint32_t idx;
+  int st = cv_mesh_add_material(m, nm, alb, flags, &idx);
+  if (!st && textured) st = cv_mesh_set_texture(m, idx, tex);
+  return st;
 }
 
 /* ---------------- the file's own units and up axis ---------------- */
@@ -312,7 +370,7 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
   for (unsigned i = 0; i < sc->mNumMaterials; i++) {
     if (matmap[i] < 0) continue;
     matmap[i] = (int32_t)m->nm;
-    if (add_material(m, sc->mMaterials[i], opts, ov_used, s)) {
+    if (add_material(m, sc->mMaterials[i], path, opts, ov_used, s)) {
       st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
       goto done;
     }
@@ -337,6 +395,12 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
       }
       cv_mesh_add_vertex(m, (float)p[0], (float)p[1], (float)p[2], NULL);
     }
+    /* corner UVs (first channel) are kept when some material has a texture */
+    const struct aiVector3D *uv = am->mTextureCoords[0];
+    if (m->mat_tex && cv_mesh_enable_uv(m)) {
+      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+      goto done;
+    }
     for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
       const struct aiFace *fc = &am->mFaces[fi];
       if (fc->mNumIndices != 3) continue;
@@ -348,6 +412,16 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
         }
       cv_mesh_add_tri(m, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2],
                       (uint32_t)matmap[am->mMaterialIndex]);
+      for (int k = 0; m->tri_uv && uv && k < 3; k++) {
+        const struct aiVector3D *t = &uv[fc->mIndices[k]];
+        if (!isfinite(t->x) || !isfinite(t->y)) {
+          st = cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
+                          "texture coordinate", path, i, fc->mIndices[k]);
+          goto done;
+        }
+        m->tri_uv[6 * (m->nt - 1) + 2 * k] = t->x;
+        m->tri_uv[6 * (m->nt - 1) + 2 * k + 1] = t->y;
+      }
     }
   }
   s->triangles = m->nt;

@@ -11,7 +11,11 @@
  * Materials: albedo = the base colour (AI_MATKEY_BASE_COLOR, "$clr.base",
  * which assimp 5.2 fills from glTF's pbrMetallicRoughness.baseColorFactor)
  * when present, else the diffuse colour (AI_MATKEY_COLOR_DIFFUSE, MTL Kd),
- * else opts->default_albedo; each component is clamped to [0, 1] (NaN -> 0)
+ * else opts->default_albedo.  A material with a diffuse texture (glTF
+ * baseColorTexture, MTL map_Kd; a PNG file found relative to the model) gets
+ * the colour (1 if none) times the texture's mean linear RGB (sRGB decoded):
+ * the average albedo that other surfaces' bounce light sees in the bake.
+ * Each component is clamped to [0, 1] (NaN -> 0)
  * and clamps are counted.  A material whose name starts with "window" gets
  * CV_MAT_WINDOW, "lcd" gets CV_MAT_LCD (case-insensitive); opts->overrides
  * then replace albedo and/or flags by exact material name.  Only materials
@@ -74,6 +78,9 @@ typedef struct cv_import_stats {
   size_t albedo_defaulted;  /* materials without a colour */
   size_t overrides_applied; /* overrides that matched a kept material */
   size_t overrides_unused;  /* overrides whose name matched no kept material */
+  size_t textures_averaged; /* materials whose albedo is their diffuse texture's mean */
+  size_t textures_unread;   /* materials whose texture is missing, embedded or not a PNG
+                               (their colour is used alone) */
   cv_file_frame frame;      /* units and up axis the file declares (glTF: metres, Y up by
                                its specification; FBX: UnitScaleFactor (cm) and UpAxis
                                metadata; COLLADA and IFC: converted by assimp, so

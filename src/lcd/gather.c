@@ -246,7 +246,8 @@ int cv_lcd_light_from_scene(const cv_scene_light *sl, const cv_light_spec *spec,
     return cv_err_set(err, CV_ERR_NOMEM, "lcd lighting: out of memory");
   }
   cv_relight_stats rs;
-  if ((st = cv_prt_relight(p, &lt, tr, sun_samples, vrad, &rs))) {
+  if ((st = cv_prt_relight(p, &lt, tr, sun_samples, vrad, &rs)) ||
+      (st = cv_prt_fold_texture_means(p, vrad))) { /* textures as their mean albedo */
     cv_envmap_destroy(tab);
     free(vrad);
     return cv_err_set(err, st, "lcd lighting: relighting failed (%s)", cv_status_str(st));

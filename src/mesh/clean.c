@@ -248,6 +248,7 @@ static int remove_bad_tris(cv_mesh *m, double tol, tricount *tc) {
     tab[h] = (uint32_t)(k + 1);
     memcpy(m->tri + 3 * k, tr, sizeof tr);
     m->tri_mat[k] = mat;
+    if (m->tri_uv) memmove(m->tri_uv + 6 * k, m->tri_uv + 6 * t, 6 * sizeof(float));
     k++;
   }
   m->nt = k;
@@ -535,17 +536,40 @@ static int crack_ve(cv_mesh *m, double cell_min, double cw, double tol, double c
     }
     tsplit[e->tri] = 1;
     uint32_t mat = m->tri_mat[e->tri], prev = e->a;
+    /* corner UVs of a, b, c; a split point's UV lies on the edge at its t */
+    float uva[2] = {0, 0}, uvb[2] = {0, 0}, uvc[2] = {0, 0};
+    if (m->tri_uv) {
+      const float *q = m->tri_uv + 6 * (size_t)e->tri;
+      int ja = m->tri[3 * (size_t)e->tri] == e->a ? 0 : m->tri[3 * (size_t)e->tri + 1] == e->a ? 1 : 2;
+      memcpy(uva, q + 2 * ja, sizeof uva);
+      memcpy(uvb, q + 2 * ((ja + 1) % 3), sizeof uvb);
+      memcpy(uvc, q + 2 * ((ja + 2) % 3), sizeof uvc);
+    }
+    double tprev = 0;
     for (size_t r = i; r <= j && !st; r++) {
       uint32_t cur = r < j ? rec[r].v : e->b;
+      double tcur = r < j ? rec[r].t : 1.0;
+      size_t tt;
       if (r == i) {
-        m->tri[3 * (size_t)e->tri] = prev;
-        m->tri[3 * (size_t)e->tri + 1] = cur;
-        m->tri[3 * (size_t)e->tri + 2] = e->c;
+        tt = e->tri;
+        m->tri[3 * tt] = prev;
+        m->tri[3 * tt + 1] = cur;
+        m->tri[3 * tt + 2] = e->c;
       } else {
+        tt = m->nt;
         st = cv_mesh_add_tri(m, prev, cur, e->c, mat);
         (*nadded)++;
       }
+      if (!st && m->tri_uv) {
+        float *q = m->tri_uv + 6 * tt;
+        for (int k = 0; k < 2; k++) {
+          q[k] = (float)(uva[k] + tprev * (uvb[k] - uva[k]));
+          q[2 + k] = (float)(uva[k] + tcur * (uvb[k] - uva[k]));
+          q[4 + k] = uvc[k];
+        }
+      }
       prev = cur;
+      tprev = tcur;
     }
     *nsplit += j - i;
     i = j;

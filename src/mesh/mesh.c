@@ -2,6 +2,7 @@
 #include "mesh/mesh.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -27,6 +28,8 @@ void cv_mesh_destroy(cv_mesh *m) {
   free(m->tri);
   free(m->tri_mat);
   free(m->mats);
+  free(m->tri_uv);
+  free(m->mat_tex);
   free(m);
 }
 
@@ -37,14 +40,41 @@ int cv_mesh_reserve(cv_mesh *m, size_t nv, size_t nt) {
   if (grow((void **)&m->tri, &ct, nt, 3 * sizeof(uint32_t))) return CV_ERR_NOMEM;
   size_t ct2 = m->cap_t;
   if (grow((void **)&m->tri_mat, &ct2, nt, sizeof(uint32_t))) return CV_ERR_NOMEM;
+  size_t old_t = m->cap_t;
   m->cap_t = ct < ct2 ? ct : ct2;
+  if (m->tri_uv && m->cap_t > old_t) {
+    float *q = realloc(m->tri_uv, m->cap_t * 6 * sizeof(float));
+    if (!q) return CV_ERR_NOMEM;
+    m->tri_uv = q;
+  }
+  return CV_OK;
+}
+
+int cv_mesh_enable_uv(cv_mesh *m) {
+  if (m->tri_uv) return CV_OK;
+  m->tri_uv = calloc(m->cap_t * 6 + 1, sizeof(float));
+  return m->tri_uv ? CV_OK : CV_ERR_NOMEM;
+}
+
+int cv_mesh_set_texture(cv_mesh *m, uint32_t mat, const char *path) {
+  if (mat >= m->nm) return CV_ERR_RANGE;
+  if (!m->mat_tex && !(m->mat_tex = calloc(m->cap_m + 1, CV_TEX_PATH_MAX))) return CV_ERR_NOMEM;
+  memset(m->mat_tex[mat], 0, CV_TEX_PATH_MAX); /* NUL-padded: files get the same bytes */
+  snprintf(m->mat_tex[mat], CV_TEX_PATH_MAX, "%s", path ? path : "");
   return CV_OK;
 }
 
 int cv_mesh_add_material(cv_mesh *m, const char *name, const float albedo[3],
                          uint32_t flags, uint32_t *idx) {
+  size_t old_m = m->cap_m;
   if (grow((void **)&m->mats, &m->cap_m, m->nm + 1, sizeof(cv_material)))
     return CV_ERR_NOMEM;
+  if (m->mat_tex && m->cap_m > old_m) {
+    void *q = realloc(m->mat_tex, m->cap_m * CV_TEX_PATH_MAX);
+    if (!q) return CV_ERR_NOMEM;
+    m->mat_tex = q;
+  }
+  if (m->mat_tex) memset(m->mat_tex[m->nm], 0, CV_TEX_PATH_MAX);
   cv_material *mt = &m->mats[m->nm];
   memset(mt, 0, sizeof *mt);
   strncpy(mt->name, name ? name : "", sizeof mt->name - 1);
@@ -80,6 +110,7 @@ int cv_mesh_add_tri(cv_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat
   t[1] = b;
   t[2] = c;
   m->tri_mat[m->nt] = mat;
+  if (m->tri_uv) memset(m->tri_uv + 6 * m->nt, 0, 6 * sizeof(float));
   m->nt++;
   return CV_OK;
 }
@@ -99,6 +130,12 @@ int cv_mesh_clone(const cv_mesh *m, cv_mesh **out) {
     memcpy(c->mats, m->mats, m->nm * sizeof(cv_material));
     c->nm = c->cap_m = m->nm;
   }
+  if (m->tri_uv) {
+    if (cv_mesh_enable_uv(c)) goto fail;
+    memcpy(c->tri_uv, m->tri_uv, m->nt * 6 * sizeof(float));
+  }
+  for (size_t i = 0; m->mat_tex && i < m->nm; i++)
+    if (cv_mesh_set_texture(c, (uint32_t)i, m->mat_tex[i])) goto fail;
   *out = c;
   return CV_OK;
 fail:
@@ -157,6 +194,9 @@ void cv_mesh_vertex_normals(const cv_mesh *m, float *out) {
 
 int cv_mesh_validate(const cv_mesh *m, cv_err *err) {
   if (m->nt == 0) return cv_err_set(err, CV_ERR_EMPTY, "mesh has no triangles");
+  for (size_t i = 0; m->tri_uv && i < 6 * m->nt; i++)
+    if (!isfinite(m->tri_uv[i]))
+      return cv_err_set(err, CV_ERR_NONFINITE, "triangle %zu: non-finite texture coordinate", i / 6);
   for (size_t i = 0; i < 3 * m->nv; i++)
     if (!isfinite(m->pos[i]))
       return cv_err_set(err, CV_ERR_NONFINITE, "vertex %zu has a non-finite coordinate", i / 3);

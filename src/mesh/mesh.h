@@ -25,6 +25,8 @@ typedef struct cv_material {
   uint32_t flags;  /* CV_MAT_* */
 } cv_material;
 
+#define CV_TEX_PATH_MAX 256
+
 typedef struct cv_mesh {
   size_t nv, nt, nm;       /* vertices, triangles, materials */
   size_t cap_v, cap_t, cap_m;
@@ -32,6 +34,14 @@ typedef struct cv_mesh {
   uint32_t *tri;           /* 3*nt: vertex indices */
   uint32_t *tri_mat;       /* nt: material index per triangle */
   cv_material *mats;       /* nm */
+  /* Texture coordinates per triangle corner (not per vertex, so that welding
+   * and crack closing never merge two sides of a UV seam): 6*nt floats
+   * (u, v) for corners 0, 1, 2, origin at the image's bottom-left (assimp's
+   * convention; v grows upwards), or NULL when the model has none. */
+  float *tri_uv;
+  /* Diffuse texture file per material ("" none), nm entries, or NULL when no
+   * material has one (cv_mesh_set_texture). */
+  char (*mat_tex)[CV_TEX_PATH_MAX];
 } cv_mesh;
 
 /* Creates an empty mesh; *out owned by the caller (cv_mesh_destroy). */
@@ -48,6 +58,12 @@ int cv_mesh_add_vertex(cv_mesh *m, float x, float y, float z, uint32_t *idx);
 /* Appends a triangle (a, b, c must be existing vertex indices, mat an existing
  * material); returns CV_ERR_RANGE otherwise. */
 int cv_mesh_add_tri(cv_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat);
+/* Gives the mesh corner UVs (all zero so far; later triangles get zeros
+ * too until set).  No-op if it has them already. */
+int cv_mesh_enable_uv(cv_mesh *m);
+/* Sets material mat's texture path (truncated to CV_TEX_PATH_MAX - 1 bytes;
+ * "" = none); CV_ERR_RANGE for a bad index. */
+int cv_mesh_set_texture(cv_mesh *m, uint32_t mat, const char *path);
 /* Reserves room for at least nv vertices and nt triangles. */
 int cv_mesh_reserve(cv_mesh *m, size_t nv, size_t nt);
 /* Deep copy; *out owned by the caller. */

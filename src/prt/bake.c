@@ -347,12 +347,21 @@ static void window_point(const cv_tracer *tr, int g, float u0, float u1, float q
  * window crossing at distance d on opening g.  A
  * ray that leaves through a window crosses exactly one window triangle in a
  * convex shell; a second crossing would re-enter the car and be blocked. */
+/* The albedo a triangle's own vertices store: 1 on a textured material (the
+ * texture multiplies the irradiance per pixel), else the material's. */
+static const float k_one[3] = {1.0f, 1.0f, 1.0f};
+static const float *recv_albedo(const cv_mesh *m, uint32_t t) {
+  uint32_t i = m->tri_mat[t];
+  return m->mat_tex && m->mat_tex[i][0] ? k_one : m->mats[i].albedo;
+}
+
 static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          double *acc, double alb[3]) {
+                          double *acc, double alb[3], double albr[3]) {
   int nc = bands * bands;
   float y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   memset(acc, 0, (size_t)nc * sizeof(double));
   alb[0] = alb[1] = alb[2] = 0;
+  albr[0] = albr[1] = albr[2] = 0;
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
   vseq q;
   vseq_init(&q, seed, v);
@@ -389,8 +398,11 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     vseq_sample(&tr->sobol, &q, (uint32_t)j, mis ? 7 : 6, u);
     uint32_t t = fan_point(tr, v, u, p);
     const float *n = tr->tri_n + 3 * t;
-    const float *al = tr->m->mats[tr->m->tri_mat[t]].albedo;
-    for (int k = 0; k < 3; k++) alb[k] += al[k];
+    const float *al = tr->m->mats[tr->m->tri_mat[t]].albedo, *ar = recv_albedo(tr->m, t);
+    for (int k = 0; k < 3; k++) {
+      alb[k] += al[k];
+      albr[k] += ar[k];
+    }
     cv_rt_offset_origin(p, n, org);
     if (!mis) {
       cosine_dir(n, u[0], u[1], dir);
@@ -435,7 +447,10 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     for (int i = 0; i < nc; i++) acc[i] += w * y[i];
   }
   for (int i = 0; i < nc; i++) acc[i] /= rays;
-  for (int k = 0; k < 3; k++) alb[k] /= rays;
+  for (int k = 0; k < 3; k++) {
+    alb[k] /= rays;
+    albr[k] /= rays;
+  }
 }
 
 /* Prefetches the bytes [p, p + n) into the cache (hint only). */
@@ -451,9 +466,10 @@ static inline void prefetch_range(const void *p, size_t n) {
  * accumulation keeps the ray order, so results are unchanged bit for bit. */
 #define BOUNCE_BATCH 8
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          const float *prev, double *acc) {
+                          const float *prev, double *acc, double *accr) {
   int nc = bands * bands;
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
+  if (accr) memset(accr, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
   float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   const size_t rec = 3 * (size_t)nc;
@@ -484,9 +500,15 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
       const float *al = tr->m->mats[tr->m->tri_mat[from[b]]].albedo;
       for (int c = 0; c < 3; c++)
         for (int i = 0; i < nc; i++) acc[c * nc + i] += (double)al[c] * tmp[c * nc + i];
+      if (accr) {
+        const float *ar = recv_albedo(tr->m, from[b]);
+        for (int c = 0; c < 3; c++)
+          for (int i = 0; i < nc; i++) accr[c * nc + i] += (double)ar[c] * tmp[c * nc + i];
+      }
     }
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
+  for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
 }
 
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
@@ -496,10 +518,10 @@ int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t see
 #pragma omp parallel
   {
     cv_rt_thread_init();
-    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3];
+    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3], albr[3];
 #pragma omp for schedule(dynamic, 16)
     for (size_t k = 0; k < count; k++) {
-      vertex_direct(tr, verts[k], bands, rays, seed, acc, alb);
+      vertex_direct(tr, verts[k], bands, rays, seed, acc, alb, albr);
       for (int i = 0; i < nc; i++) out[k * nc + i] = (float)acc[i];
     }
   }
@@ -537,6 +559,10 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
     h = cv_hash64_update(h, m->mats[i].name, strlen(m->mats[i].name));
     h = cv_hash64_update(h, m->mats[i].albedo, sizeof m->mats[i].albedo);
     h = cv_hash64_update(h, &m->mats[i].flags, sizeof m->mats[i].flags);
+  }
+  if (m->mat_tex) {
+    for (size_t i = 0; i < m->nm; i++) h = cv_hash64_update(h, m->mat_tex[i], strlen(m->mat_tex[i]) + 1);
+    if (m->tri_uv) h = cv_hash64_update(h, m->tri_uv, 6 * m->nt * sizeof(float));
   }
   return h;
 }
@@ -588,11 +614,14 @@ int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, in
     char label[32];
     snprintf(label, sizeof label, "bake bounce %d", pass);
     double t0 = cv_now_seconds();
+    const int textured = tr->m->mat_tex != NULL;
     FOR_VERTICES(label, nv, quiet, {
-      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc);
+      double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
+      const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
       for (int i = 0; i < 3 * nc; i++) {
         cur[v * 3 * nc + i] = (float)acc[i];
-        ti[v * 3 * nc + i] += (float)acc[i];
+        ti[v * 3 * nc + i] += (float)own[i];
       }
     });
     memcpy(prev, cur, 3 * nv * nc * sizeof(float));
@@ -628,6 +657,14 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   memcpy(prt->tri, m->tri, 3 * m->nt * sizeof(uint32_t));
   memcpy(prt->tri_mat, m->tri_mat, m->nt * sizeof(uint32_t));
   memcpy(prt->mats, m->mats, m->nm * sizeof(cv_material));
+  if (m->mat_tex) {
+    if (cv_prt_alloc_textures(prt)) {
+      cv_prt_destroy(prt);
+      return cv_err_set(err, CV_ERR_NOMEM, "cannot allocate texture references");
+    }
+    memcpy(prt->mat_tex, m->mat_tex, m->nm * (size_t)CV_TEX_PATH_MAX);
+    if (m->tri_uv) memcpy(prt->tri_uv, m->tri_uv, 6 * m->nt * sizeof(float));
+  }
   cv_mesh_vertex_normals(m, prt->nrm);
   prt->meta.input_hash = cv_prt_input_hash(m, p);
   prt->meta.rays = (uint32_t)p->rays;
@@ -647,9 +684,10 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   }
   double t_all = cv_now_seconds();
   FOR_VERTICES("bake direct", nv, p->quiet, {
-    vertex_direct(tr, (uint32_t)v, p->bands, p->rays, p->seed, acc, alb);
+    double albr[3];
+    vertex_direct(tr, (uint32_t)v, p->bands, p->rays, p->seed, acc, alb, albr);
     for (int i = 0; i < nc; i++) prt->td[v * nc + i] = (float)acc[i];
-    for (int k = 0; k < 3; k++) prt->albedo[3 * v + k] = (float)alb[k];
+    for (int k = 0; k < 3; k++) prt->albedo[3 * v + k] = (float)albr[k];
     if (prev)
       for (int c = 0; c < 3; c++)
         for (int i = 0; i < nc; i++) prev[(v * 3 + c) * nc + i] = (float)(alb[c] * acc[i]);
@@ -698,7 +736,7 @@ int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3
         if (c <= 0) continue;
         cv_rt_offset_origin(p, n, org);
         if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
-        const float *a = tr->m->mats[tr->m->tri_mat[t]].albedo;
+        const float *a = recv_albedo(tr->m, t);
         for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
       }
       for (int k = 0; k < 3; k++) out_rgb[3 * v + k] += (float)(E[k] / M_PI * acc[k] / samples);

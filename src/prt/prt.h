@@ -7,7 +7,8 @@
  *               V = 1 only where the ray leaves the car through a window;
  *   ti(x)[c][i] interreflected transfer, RGB (bounces 1..B, albedos applied).
  * Exit radiance under SH lighting l (RGB, l[i][c]):
- *   L_c(x) = sum_i l_i,c * (albedo_c(x) * td_i(x) + ti_c,i(x)).
+ *   L_c(x) = sum_i l_i,c * (albedo_c(x) * td_i(x) + ti_c,i(x))
+ * (times the texture at the pixel on a textured material, CV_PRT_TEXTURED).
  * Keeping the direct part separate lets a sun that was split out of the
  * lighting (exact visibility) still light the interior through ti. */
 #ifndef CV_PRT_PRT_H
@@ -19,7 +20,7 @@
 #include "core/status.h"
 #include "mesh/mesh.h"
 
-#define CV_PRT_VERSION 1
+#define CV_PRT_VERSION 2 /* 1: no textures (still read) */
 #define CV_PRT_MAX_BANDS 8
 /* Tolerance on a stored normal's length (the reader refuses others). */
 #define CV_PRT_NORMAL_TOL 1e-3
@@ -27,6 +28,8 @@
 enum {
   CV_PRT_HAS_INDIRECT = 1u << 0,    /* ti present */
   CV_PRT_WINDOW_SAMPLING = 1u << 1, /* direct pass used window importance sampling */
+  CV_PRT_TEXTURED = 1u << 2,        /* version 2: tri_uv and mat_tex present; textured
+                                       receivers' albedo and ti exclude their own albedo */
 };
 
 typedef struct cv_prt_meta {
@@ -52,6 +55,13 @@ typedef struct cv_prt {
   cv_material *mats;/* nm */
   float *td;        /* nv * n*n */
   float *ti;        /* nv * 3 * n*n ([v][c][i]), NULL without CV_PRT_HAS_INDIRECT */
+  /* With CV_PRT_TEXTURED (else NULL): corner UVs (6*nt, as cv_mesh.tri_uv) and
+   * each material's texture file ("" none).  A textured material's triangles
+   * count as albedo 1 for their own vertices (albedo and ti above), so that
+   * L = texture(uv) * sum_i l_i (albedo td_i + ti_i) per pixel; other
+   * surfaces see them with the material's albedo (the texture's mean). */
+  float *tri_uv;
+  char (*mat_tex)[CV_TEX_PATH_MAX];
   cv_prt_meta meta;
 } cv_prt;
 
@@ -72,6 +82,20 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err);
 /* Reads only the header's input hash (to skip re-baking an unchanged scene).
  * Returns CV_ERR_NOT_FOUND if the file does not exist. */
 int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err);
+
+/* Gives p the texture arrays (zeroed) and sets CV_PRT_TEXTURED. */
+int cv_prt_alloc_textures(cv_prt *p);
+/* Nonzero if material i has a texture. */
+int cv_prt_mat_textured(const cv_prt *p, size_t i);
+/* For consumers that do not sample textures: per-vertex RGB factors (3*nv)
+ * that turn a textured receiver's albedo and ti back into the untextured
+ * ones (mean albedo of the materials around the vertex / stored albedo; 1
+ * where nothing is textured or the stored albedo is 0). */
+int cv_prt_untextured_scale(const cv_prt *p, float *scale);
+/* Multiplies per-vertex radiance (3*nv, from cv_prt_relight) by those
+ * factors: per-vertex outputs (PLY, the LCD's gather) show textured
+ * surfaces with their mean albedo. */
+int cv_prt_fold_texture_means(const cv_prt *p, float *rad);
 
 /* A view of the PRT's geometry as a cv_mesh (copies); *out owned by the caller. */
 int cv_prt_to_mesh(const cv_prt *p, cv_mesh **out);

@@ -1,4 +1,4 @@
-/* PRT file format, version 1 (documented in docs/prt-format.md).
+/* PRT file format, version 2 (reads 1; documented in docs/prt-format.md).
  * Little-endian; a fixed 128-byte header, then the payload arrays in a fixed
  * order; the header carries an FNV-1a hash of the payload so truncation and
  * corruption are detected, and the input hash of the bake. */
@@ -66,7 +66,53 @@ void cv_prt_destroy(cv_prt *p) {
   free(p->mats);
   free(p->td);
   free(p->ti);
+  free(p->tri_uv);
+  free(p->mat_tex);
   free(p);
+}
+
+int cv_prt_alloc_textures(cv_prt *p) {
+  if (!p->tri_uv) p->tri_uv = calloc(6 * p->nt + 1, sizeof(float));
+  if (!p->mat_tex) p->mat_tex = calloc(p->nm + 1, CV_TEX_PATH_MAX);
+  if (!p->tri_uv || !p->mat_tex) return CV_ERR_NOMEM;
+  p->flags |= CV_PRT_TEXTURED;
+  return CV_OK;
+}
+
+int cv_prt_mat_textured(const cv_prt *p, size_t i) {
+  return p->mat_tex && i < p->nm && p->mat_tex[i][0] != '\0';
+}
+
+int cv_prt_untextured_scale(const cv_prt *p, float *scale) {
+  for (size_t i = 0; i < 3 * p->nv; i++) scale[i] = 1.0f;
+  if (!(p->flags & CV_PRT_TEXTURED)) return CV_OK;
+  double *acc = calloc(4 * p->nv + 1, sizeof(double));
+  if (!acc) return CV_ERR_NOMEM;
+  for (size_t t = 0; t < p->nt; t++) {
+    const float *a = p->mats[p->tri_mat[t]].albedo;
+    for (int j = 0; j < 3; j++) {
+      double *q = acc + 4 * (size_t)p->tri[3 * t + j];
+      for (int c = 0; c < 3; c++) q[c] += a[c];
+      q[3] += 1;
+    }
+  }
+  for (size_t v = 0; v < p->nv; v++)
+    for (int c = 0; c < 3; c++) {
+      double r = p->albedo[3 * v + c], n = acc[4 * v + 3];
+      if (r > 0 && n > 0) scale[3 * v + c] = (float)(acc[4 * v + c] / n / r);
+    }
+  free(acc);
+  return CV_OK;
+}
+
+int cv_prt_fold_texture_means(const cv_prt *p, float *rad) {
+  if (!(p->flags & CV_PRT_TEXTURED)) return CV_OK;
+  float *s = malloc(3 * p->nv * sizeof(float) + 1);
+  if (!s) return CV_ERR_NOMEM;
+  cv_prt_untextured_scale(p, s);
+  for (size_t i = 0; i < 3 * p->nv; i++) rad[i] *= s[i];
+  free(s);
+  return CV_OK;
 }
 
 /* The payload as a list of (pointer, bytes) in file order. */
@@ -75,7 +121,7 @@ typedef struct {
   size_t bytes;
 } chunk;
 
-static int payload_chunks(const cv_prt *p, chunk c[8]) {
+static int payload_chunks(const cv_prt *p, chunk c[10]) {
   size_t nc = (size_t)p->bands * p->bands;
   int k = 0;
   c[k++] = (chunk){p->pos, 3 * p->nv * sizeof(float)};
@@ -86,6 +132,10 @@ static int payload_chunks(const cv_prt *p, chunk c[8]) {
   c[k++] = (chunk){p->mats, p->nm * sizeof(cv_material)};
   c[k++] = (chunk){p->td, p->nv * nc * sizeof(float)};
   if (p->flags & CV_PRT_HAS_INDIRECT) c[k++] = (chunk){p->ti, 3 * p->nv * nc * sizeof(float)};
+  if (p->flags & CV_PRT_TEXTURED) {
+    c[k++] = (chunk){p->tri_uv, 6 * p->nt * sizeof(float)};
+    c[k++] = (chunk){p->mat_tex, p->nm * (size_t)CV_TEX_PATH_MAX};
+  }
   return k;
 }
 
@@ -96,7 +146,7 @@ _Static_assert(sizeof(cv_material) == 80, "cv_material layout is part of the PRT
 _Static_assert(sizeof(header) <= HEADER_SIZE, "header fits");
 
 int cv_prt_write(const char *path, const cv_prt *p, cv_err *err) {
-  chunk c[8];
+  chunk c[10];
   int nchunks = payload_chunks(p, c);
   header h;
   memset(&h, 0, sizeof h);
@@ -142,9 +192,12 @@ static int read_header(FILE *f, const char *path, header *h, cv_err *err) {
   memcpy(h, hb, sizeof *h);
   if (memcmp(h->magic, MAGIC, 8) != 0)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: not a CAVE PRT file (bad magic)", path);
-  if (h->version != CV_PRT_VERSION)
-    return cv_err_set(err, CV_ERR_UNSUPPORTED, "%s: PRT version %u, this build reads %d", path,
+  if (h->version != 1 && h->version != CV_PRT_VERSION)
+    return cv_err_set(err, CV_ERR_UNSUPPORTED, "%s: PRT version %u, this build reads 1..%d", path,
                       h->version, CV_PRT_VERSION);
+  if (h->version == 1 && (h->flags & CV_PRT_TEXTURED))
+    return cv_err_set(err, CV_ERR_FORMAT, "%s: flags 0x%x: version 1 has no textures", path,
+                      h->flags);
   if (h->header_size != HEADER_SIZE || h->bands < 1 || h->bands > CV_PRT_MAX_BANDS ||
       h->nv == 0 || h->nt == 0 || h->nv > (1ull << 32) || h->nt > (1ull << 32) ||
       h->nm > (1ull << 20))
@@ -174,7 +227,10 @@ static uint64_t payload_bytes(const header *h) {
   uint64_t nc = (uint64_t)h->bands * h->bands;
   uint64_t per_vertex = 9 * sizeof(float) + nc * sizeof(float) +
                         ((h->flags & CV_PRT_HAS_INDIRECT) ? 3 * nc * sizeof(float) : 0);
-  return h->nv * per_vertex + h->nt * 4 * sizeof(uint32_t) + h->nm * sizeof(cv_material);
+  uint64_t tex = (h->flags & CV_PRT_TEXTURED)
+                     ? h->nt * 6 * sizeof(float) + h->nm * (uint64_t)CV_TEX_PATH_MAX
+                     : 0;
+  return h->nv * per_vertex + h->nt * 4 * sizeof(uint32_t) + h->nm * sizeof(cv_material) + tex;
 }
 
 /* The header's counts against the file's size, before anything is allocated:
@@ -238,6 +294,10 @@ static int check_records(const cv_prt *p, const char *path, cv_err *err) {
     if (p->tri_mat[t] >= p->nm)
       return cv_err_set(err, CV_ERR_FORMAT, "%s: triangle %zu material is %u, expected < nm %zu",
                         path, t, p->tri_mat[t], p->nm);
+    for (int j = 0; p->tri_uv && j < 6; j++)
+      if (!isfinite(p->tri_uv[6 * t + j]))
+        return cv_err_set(err, CV_ERR_NONFINITE, "%s: triangle %zu uv[%d] is %g, expected finite",
+                          path, t, j, (double)p->tri_uv[6 * t + j]);
   }
   return CV_OK;
 }
@@ -267,7 +327,12 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
   p->meta.seed = h.seed;
   p->meta.est_error = h.est_error;
   p->meta.spread = h.spread;
-  chunk c[8];
+  if ((h.flags & CV_PRT_TEXTURED) && cv_prt_alloc_textures(p)) {
+    fclose(f);
+    cv_prt_destroy(p);
+    return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory for textures", path);
+  }
+  chunk c[10];
   int nchunks = payload_chunks(p, c);
   uint64_t ph = cv_hash64_init();
   for (int i = 0; i < nchunks; i++) {
@@ -287,6 +352,7 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
                       extra ? "has trailing bytes" : "is corrupt");
   }
   for (size_t i = 0; i < p->nm; i++) p->mats[i].name[sizeof p->mats[i].name - 1] = '\0';
+  for (size_t i = 0; p->mat_tex && i < p->nm; i++) p->mat_tex[i][CV_TEX_PATH_MAX - 1] = '\0';
   st = check_records(p, path, err);
   if (st) {
     cv_prt_destroy(p);
@@ -309,6 +375,12 @@ int cv_prt_to_mesh(const cv_prt *p, cv_mesh **out) {
   for (size_t i = 0; i < p->nm; i++)
     if (cv_mesh_add_material(m, p->mats[i].name, p->mats[i].albedo, p->mats[i].flags, NULL))
       goto fail;
+  if (p->tri_uv) {
+    if (cv_mesh_enable_uv(m)) goto fail;
+    memcpy(m->tri_uv, p->tri_uv, 6 * p->nt * sizeof(float));
+  }
+  for (size_t i = 0; p->mat_tex && i < p->nm; i++)
+    if (cv_mesh_set_texture(m, (uint32_t)i, p->mat_tex[i])) goto fail;
   *out = m;
   return CV_OK;
 fail:

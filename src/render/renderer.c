@@ -378,21 +378,29 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
       old_of[next] = (uint32_t)v;
       new_of[v] = next++;
     }
+  /* No textures here yet: a textured receiver gets its mean albedo back. */
+  float *usc = malloc(3 * p->nv * sizeof *usc + 4);
+  if (!usc || cv_prt_untextured_scale(p, usc)) {
+    free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb), free(usc);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
+  }
   for (size_t v = 0; v < p->nv; v++)
     for (int j = 0; j < 3; j++) {
       pos[3 * v + j] = p->pos[3 * old_of[v] + j];
-      alb[3 * v + j] = p->albedo[3 * old_of[v] + j];
+      alb[3 * v + j] = p->albedo[3 * old_of[v] + j] * usc[3 * old_of[v] + j];
     }
   for (size_t nvx = 0; nvx < p->nv; nvx++) {
     const size_t v = old_of[nvx];
     float *o = tf + 4 * nvx * (size_t)(nc + 1);
     for (int i = 0; i < nc; i++) {
       o[4 * i] = p->td[v * nc + i];
-      for (int c = 0; c < 3; c++) o[4 * i + 1 + c] = p->ti ? p->ti[(v * 3 + c) * nc + i] : 0.0f;
+      for (int c = 0; c < 3; c++)
+        o[4 * i + 1 + c] = p->ti ? p->ti[(v * 3 + c) * nc + i] * usc[3 * v + c] : 0.0f;
     }
-    for (int c = 0; c < 3; c++) o[4 * nc + c] = p->albedo[3 * v + c];
+    for (int c = 0; c < 3; c++) o[4 * nc + c] = p->albedo[3 * v + c] * usc[3 * v + c];
     o[4 * nc + 3] = 0;
   }
+  free(usc);
   if (th)
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
   r->tex_transfer = th ? cvr_make_tbo(&r->buf_transfer, GL_RGBA16F, th, 4 * texels * sizeof *th)

@@ -124,6 +124,16 @@ if [ -r $R01 ]; then
   [ "$(grep -c ' window .* Glas$' out.txt)" = 9 ] && ok "window tag on every Glas" || bad "window tags: $(grep -c ' window .* Glas$' out.txt)"
   printf '{ "mesh": { "path": "%s" }, "materials": [ { "name": "*window*", "tag": "window" } ] }\n' $HAUS >haus2.json
   expect_error "pattern with no match" "materials\[0\].name: pattern '\*window\*' matches none" $CAVE materials haus2.json
+  # a textured glTF: the texture's mean linear albedo (0.404 0.524 0.564 for CesiumLogoFlat.png,
+  # checked with an independent PNG decoder in Python) is the material's albedo in the bake
+  BOXT=/usr/share/assimp/models/glTF2/BoxTextured-glTF/BoxTextured.gltf
+  expect_ok "materials of a textured glTF" $CAVE materials $BOXT
+  grep -q "^scene: 1 textured materials use their texture's mean albedo" out.txt && grep -Eq " 0.404 0.524 0.564 +Texture$" out.txt && ok "texture mean albedo" || { bad "texture mean albedo"; cat out.txt; }
+  # ... and per pixel in a `cave shade --view` picture (looked at: the Cesium logo on the box)
+  expect_ok "bake a textured glTF" $CAVE bake $BOXT -o boxt.prt --bands 3 --rays 64 --bounces 1 --quiet
+  expect_ok "shade a textured view" $CAVE shade boxt.prt --env-constant 1,1,1 --view 1.5,1.2,2 --look 0,0,0 --size 320x240 -o boxt.png
+  grep -q "^texture: material 'Texture': .*CesiumLogoFlat.png (211 x 211)" out.txt && [ -s boxt.png ] && ok "texture used in the view" || { bad "texture in the view"; cat out.txt; }
+  expect_ok "shade a textured PLY" $CAVE shade boxt.prt --env-constant 1,1,1 -o boxt.ply
 else
   bad "assimp-testmodels missing (cluster/setup.sh installs it)"
 fi

@@ -167,6 +167,38 @@ static void test_crack(void **state) {
   cv_mesh_destroy(m);
 }
 
+
+/* Corner UVs follow cleaning: with a planar map u = x / 2, v = y on every
+ * corner, after crack closing (vertex merges, a T-junction split, which
+ * interpolates along the split edge) and compaction every corner's UV still
+ * equals its vertex's planar map (to the crack width). */
+static void test_crack_uv(void **state) {
+  (void)state;
+  double w = 1e-4 * sqrt(5.0);
+  cv_mesh *m = crack_mesh(0.5 * w);
+  assert_int_equal(cv_mesh_enable_uv(m), CV_OK);
+  for (size_t t = 0; t < m->nt; t++)
+    for (int k = 0; k < 3; k++) {
+      const float *p = m->pos + 3 * m->tri[3 * t + k];
+      m->tri_uv[6 * t + 2 * k] = p[0] / 2;
+      m->tri_uv[6 * t + 2 * k + 1] = p[1];
+    }
+  cv_clean_report r = clean_ok(m);
+  assert_int_equal(r.crack_edge_splits, 1);
+  assert_int_equal(m->nt, 7);
+  for (size_t t = 0; t < m->nt; t++)
+    for (int k = 0; k < 3; k++) {
+      const float *p = m->pos + 3 * m->tri[3 * t + k];
+      assert_true(fabs(m->tri_uv[6 * t + 2 * k] - p[0] / 2) < w);
+      assert_true(fabs(m->tri_uv[6 * t + 2 * k + 1] - p[1]) < w);
+    }
+  cv_mesh *c;
+  assert_int_equal(cv_mesh_clone(m, &c), CV_OK);
+  assert_memory_equal(c->tri_uv, m->tri_uv, 6 * m->nt * sizeof(float));
+  cv_mesh_destroy(c);
+  cv_mesh_destroy(m);
+}
+
 /* A crack between two touching objects with opposite normals (a box face
  * resting on a floor) is not a crack: nothing is snapped. */
 static void test_crack_opposite_normals(void **state) {
@@ -285,7 +317,7 @@ int run_clean_tests(void) {
       cmocka_unit_test(test_degenerate), cmocka_unit_test(test_duplicates),
       cmocka_unit_test(test_crack),      cmocka_unit_test(test_crack_opposite_normals),
       cmocka_unit_test(test_sliver),     cmocka_unit_test(test_determinism_errors),
-      cmocka_unit_test(test_material_split),
+      cmocka_unit_test(test_material_split), cmocka_unit_test(test_crack_uv),
   };
   return cmocka_run_group_tests_name("clean", tests, NULL, NULL);
 }

@@ -19,6 +19,7 @@
 #include <cmocka.h>
 
 #include "io/mesh_import.h"
+#include "io/png.h"
 #include "mesh_check.h"
 
 static const char *tmp_path(const char *name) {
@@ -256,6 +257,46 @@ static void test_gltf(void **state) {
   cv_mesh_destroy(m);
 }
 
+
+/* A textured material's albedo is its colour times the texture's mean linear
+ * RGB (sRGB decoded); a missing texture is counted and the colour kept. */
+static double lin(double v) { return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4); }
+static void test_texture_mean(void **state) {
+  (void)state;
+  const uint8_t px[2 * 2 * 3] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 128, 128, 128};
+  cv_err err;
+  assert_int_equal(cv_png_write(tmp_path("mi_tex.png"), 2, 2, 3, px, &err), CV_OK);
+  write_text("mi_tex.mtl", "newmtl painted\nKd 0.5 0.8 1.0\nmap_Kd mi_tex.png\n"
+                           "newmtl lost\nKd 0.3 0.3 0.3\nmap_Kd mi_no_such.png\n");
+  const char *p = write_text("mi_tex.obj", "mtllib mi_tex.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\n"
+                                           "v 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                           "usemtl painted\nf 1/1 2/2 3/3\n"
+                                           "usemtl lost\nf 1/1 3/3 4/4\n");
+  cv_mesh *m = NULL;
+  cv_import_stats s;
+  int st = cv_mesh_import_ex(p, NULL, &m, &s, &err);
+  if (st) fprintf(stderr, "%s\n", err.msg);
+  assert_int_equal(st, CV_OK);
+  assert_int_equal(s.textures_averaged, 1);
+  assert_int_equal(s.textures_unread, 1);
+  const double g = lin(128 / 255.0), mean = (1.0 + g) / 4.0; /* every channel */
+  const double kd[3] = {0.5, 0.8, 1.0};
+  const cv_material *a = mat_named(m, "painted");
+  for (int k = 0; k < 3; k++) assert_true(fabs(a->albedo[k] - kd[k] * mean) < 1e-6);
+  assert_true(mat_named(m, "lost")->albedo[0] == 0.3f);
+  /* the texture path (found) and the corner UVs are kept */
+  assert_non_null(m->mat_tex);
+  assert_string_equal(m->mat_tex[cv_mesh_find_material(m, "painted")], tmp_path("mi_tex.png"));
+  assert_string_equal(m->mat_tex[cv_mesh_find_material(m, "lost")], "");
+  assert_non_null(m->tri_uv);
+  for (size_t t = 0; t < m->nt; t++)
+    for (int k = 0; k < 3; k++) {
+      const float *q = m->pos + 3 * m->tri[3 * t + k]; /* vt = (x, y) here */
+      assert_true(m->tri_uv[6 * t + 2 * k] == q[0] && m->tri_uv[6 * t + 2 * k + 1] == q[1]);
+    }
+  cv_mesh_destroy(m);
+}
+
 static void expect_error(const char *p, int status, const char *needle) {
   cv_mesh *m = (cv_mesh *)1;
   cv_err err;
@@ -380,6 +421,7 @@ int main(void) {
       cmocka_unit_test(test_obj_mtl), cmocka_unit_test(test_points_lines_dropped),
       cmocka_unit_test(test_ply),     cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_errors),  cmocka_unit_test(test_guard),
+      cmocka_unit_test(test_texture_mean),
   };
   return cmocka_run_group_tests_name("mesh_import", tests, NULL, NULL);
 }

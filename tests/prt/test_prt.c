@@ -23,6 +23,8 @@
 #include "prt/prt.h"
 #include "prt/relight.h"
 #include "sh/sh.h"
+#include "io/png.h"
+#include "io/texture.h"
 
 /* n x n grid of quads over a parallelogram o + s*e1 + t*e2 (s,t in [0,1]);
  * winding makes the normal e1 x e2. */
@@ -96,6 +98,102 @@ static void constant_light(double L, int bands, cv_lighting *l) {
   memset(l, 0, sizeof *l);
   l->bands = bands;
   for (int c = 0; c < 3; c++) l->sh[c] = L * sqrt(4 * M_PI);
+}
+
+
+/* A textured quad under constant light L: the receiver's transfer is stored
+ * without its own albedo (albedo 1), so the radiance per pixel is
+ * texture(uv) x L; the PRT file keeps UVs and the texture reference, and
+ * per-vertex outputs fold the material's mean albedo back in. */
+static void test_textured_quad(void **state) {
+  (void)state;
+  char png[1024], path[1024];
+  snprintf(png, sizeof png, "%s/quad_tex.png", CV_TEST_TMP_DIR);
+  snprintf(path, sizeof path, "%s/quad_tex.prt", CV_TEST_TMP_DIR);
+  uint8_t px[4 * 4 * 3];
+  for (int i = 0; i < 48; i++) px[i] = (uint8_t)(17 * i % 256); /* every texel different */
+  cv_err err;
+  assert_int_equal(cv_png_write(png, 4, 4, 3, px, &err), CV_OK);
+  cv_image *tex;
+  assert_int_equal(cv_texture_load(png, &tex, &err), CV_OK);
+  float mean[3] = {0, 0, 0};
+  for (int i = 0; i < 16; i++)
+    for (int c = 0; c < 3; c++) mean[c] += tex->px[3 * i + c] / 16;
+  cv_mesh *m = plane_mesh(4, mean); /* the import gives a textured material its mean */
+  assert_int_equal(cv_mesh_set_texture(m, 0, png), CV_OK);
+  assert_int_equal(cv_mesh_enable_uv(m), CV_OK);
+  for (size_t t = 0; t < m->nt; t++) /* u along e1 (z), v along e2 (x) */
+    for (int k = 0; k < 3; k++) {
+      const float *q = m->pos + 3 * m->tri[3 * t + k];
+      m->tri_uv[6 * t + 2 * k] = (q[2] + 1) / 2;
+      m->tri_uv[6 * t + 2 * k + 1] = (q[0] + 1) / 2;
+    }
+  cv_bake_params p = {.bands = 3, .rays = 256, .bounces = 1, .seed = 7, .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake(m, &p, &prt, NULL, &err), CV_OK);
+  assert_true(prt->flags & CV_PRT_TEXTURED);
+  assert_int_equal(cv_prt_write(path, prt, &err), CV_OK);
+  cv_prt_destroy(prt);
+  assert_int_equal(cv_prt_read(path, &prt, &err), CV_OK);
+  assert_true(prt->flags & CV_PRT_TEXTURED);
+  assert_string_equal(prt->mat_tex[0], png);
+  assert_memory_equal(prt->tri_uv, m->tri_uv, 6 * m->nt * sizeof(float));
+  for (size_t i = 0; i < 3 * prt->nv; i++) assert_true(prt->albedo[i] == 1.0f);
+  const double L = 2.0;
+  cv_lighting l;
+  constant_light(L, 3, &l);
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
+  /* per pixel: the radiance interpolated at the texel centre (any triangle:
+   * it is L everywhere) times the texture there equals texel x L */
+  double worst = 0;
+  for (int j = 0; j < 4; j++)
+    for (int i = 0; i < 4; i++) {
+      float a[3];
+      cv_texture_sample(tex, (i + 0.5) / 4, 1.0 - (j + 0.5) / 4, a); /* row j from the top */
+      for (int c = 0; c < 3; c++) {
+        const float texel = tex->px[3 * (4 * j + i) + c];
+        for (size_t v = 0; v < prt->nv; v++) {
+          double e = fabs(rad[3 * v + c] * a[c] - texel * L) / (texel * L + 1e-3);
+          worst = e > worst ? e : worst;
+        }
+      }
+    }
+  printf("textured quad: worst relative error of texture x irradiance %.2e\n", worst);
+  assert_true(worst < 0.01);
+  assert_int_equal(cv_prt_fold_texture_means(prt, rad), CV_OK);
+  for (size_t v = 0; v < prt->nv; v++)
+    for (int c = 0; c < 3; c++) assert_true(fabs(rad[3 * v + c] / (mean[c] * L) - 1) < 0.01);
+  free(rad);
+  /* version 1 files (no textures) are still read; version 1 with the texture
+   * flag is refused */
+  cv_prt_destroy(prt);
+  cv_mesh *plain = plane_mesh(2, mean);
+  assert_int_equal(cv_prt_bake(plain, &p, &prt, NULL, &err), CV_OK);
+  assert_int_equal(cv_prt_write(path, prt, &err), CV_OK);
+  cv_prt_destroy(prt);
+  FILE *f = fopen(path, "r+b");
+  assert_non_null(f);
+  const uint32_t v1 = 1;
+  assert_int_equal(fseek(f, 8, SEEK_SET), 0);
+  assert_int_equal(fwrite(&v1, 4, 1, f), 1);
+  fclose(f);
+  assert_int_equal(cv_prt_read(path, &prt, &err), CV_OK);
+  assert_null(prt->tri_uv);
+  cv_prt_destroy(prt);
+  f = fopen(path, "r+b");
+  uint32_t flags;
+  assert_int_equal(fseek(f, 20, SEEK_SET), 0);
+  assert_int_equal(fread(&flags, 4, 1, f), 1);
+  flags |= CV_PRT_TEXTURED;
+  assert_int_equal(fseek(f, 20, SEEK_SET), 0);
+  assert_int_equal(fwrite(&flags, 4, 1, f), 1);
+  fclose(f);
+  assert_int_equal(cv_prt_read(path, &prt, &err), CV_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "version 1 has no textures"));
+  cv_mesh_destroy(plain);
+  cv_image_destroy(tex);
+  cv_mesh_destroy(m);
 }
 
 static void test_unshadowed_plane(void **state) {
@@ -616,6 +714,7 @@ int main(void) {
       cmocka_unit_test(test_auto_select),
       cmocka_unit_test(test_window_mis),
       cmocka_unit_test(test_hostile_files),
+      cmocka_unit_test(test_textured_quad),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

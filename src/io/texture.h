@@ -1,0 +1,20 @@
+/* Diffuse albedo textures: a PNG (sRGB-encoded, as glTF's baseColorTexture
+ * and MTL's map_Kd are) decoded to linear RGB floats, and bilinear lookup
+ * with repeat wrapping (glTF's default sampler). */
+#ifndef CV_IO_TEXTURE_H
+#define CV_IO_TEXTURE_H
+
+#include "core/image.h"
+#include "core/status.h"
+
+/* Reads the PNG at path into a new 3-channel linear-RGB image *out (gray is
+ * replicated, alpha dropped; sRGB decoded by IEC 61966-2-1).  Errors as
+ * cv_png_read. */
+int cv_texture_load(const char *path, cv_image **out, cv_err *err);
+
+/* Bilinear sample at (u, v), origin at the image's bottom-left (assimp's
+ * convention: v = 0 is the last row), texel centres at (i + 0.5) / w,
+ * coordinates wrapped (repeat).  rgb gets 3 floats. */
+void cv_texture_sample(const cv_image *t, double u, double v, float rgb[3]);
+
+#endif
