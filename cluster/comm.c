@@ -53,10 +53,15 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
 /* Takes the master's death notices not taken by a mailbox (a render rank
  * has none for CV_TAG_ALIVE). */
 static void take_notices(void) {
-  for (int i = 0; i < 1024; i++) {
+  /* a notice may still be on its way behind the quit state (another tag):
+   * looked for during 0.2 s */
+  const double t0 = MPI_Wtime();
+  for (int i = 0; i < 1024 && MPI_Wtime() - t0 < 0.2;) {
     int flag = 0;
     MPI_Status st;
-    if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS || !flag) return;
+    if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS) return;
+    if (!flag) continue;
+    i++;
     uint8_t b[16];
     int count = 0;
     MPI_Get_count(&st, MPI_BYTE, &count);
