@@ -365,6 +365,7 @@ static int send_state(master *m, const cv_frame_state *fs) {
   const int n = m->s->size - 1 < 1024 ? m->s->size - 1 : 1024;
   for (int r = 1; r <= n; r++) dests[r - 1] = r;
   cv_comm_send_multi(buf, sizeof buf, dests, n, CV_TAG_STATE);
+  if (m->health_armed) master_health_sent(m);
   m->sent_hash = cv_hash64(buf, sizeof buf);
   m->state_mismatch = 0;
   return 0;

@@ -11,7 +11,8 @@
  *                (cv_comm_notify_dead), send their rounds point-to-point
  *                (the render ranks' path); the frames never waited for it.
  * With a dead rank no rank calls MPI_Finalize (it would wait for it).
- *   wall-eye     its walls cannot be shown: the run stops cleanly, naming
+ *   wall-eye     (silent: no report for S s while one was owed)
+ *                its walls cannot be shown: the run stops cleanly, naming
  *                it (summary stop_reason, exit status 1). */
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,8 +24,9 @@
 
 int master_health_setup(master *m) {
   m->alive_t = calloc((size_t)m->s->size, sizeof *m->alive_t);
+  m->owed_t = calloc((size_t)m->s->size, sizeof *m->owed_t);
   m->dead = calloc((size_t)m->s->size, 1);
-  if (!m->alive_t || !m->dead) return -1;
+  if (!m->alive_t || !m->owed_t || !m->dead) return -1;
   if (m->s->n_gather > 0 && !(m->alive_mb = cv_mailbox_open(-1, CV_TAG_ALIVE, 16))) return -1;
   return 0;
 }
@@ -32,17 +34,32 @@ int master_health_setup(master *m) {
 void master_health_free(master *m) {
   cv_mailbox_close(m->alive_mb);
   free(m->alive_t);
+  free(m->owed_t);
   free(m->dead);
 }
 
 void master_health_arm(master *m) {
   const double now = cv_service_now();
-  for (int r = 0; r < m->s->size; r++) m->alive_t[r] = now;
+  for (int r = 0; r < m->s->size; r++) {
+    m->alive_t[r] = now;
+    m->owed_t[r] = 0;
+  }
   m->health_armed = 1;
 }
 
 void master_health_seen(master *m, int rank) {
-  if (m->alive_t && rank > 0 && rank < m->s->size) m->alive_t[rank] = cv_service_now();
+  if (!m->alive_t || rank <= 0 || rank >= m->s->size) return;
+  m->alive_t[rank] = cv_service_now();
+  if (rank <= m->s->n_render) m->owed_t[rank] = 0;
+}
+
+/* A wall-eye counts as silent only while a frame's report is owed (the
+ * frames may be paced slower than the timeout). */
+void master_health_sent(master *m) {
+  if (!m->owed_t) return;
+  const double now = cv_service_now();
+  for (int r = 1; r <= m->s->n_render; r++)
+    if (m->owed_t[r] == 0) m->owed_t[r] = now;
 }
 
 /* A gather rank is dead: the allreduce is given up, the others go
@@ -75,13 +92,15 @@ void master_health_poll(master *m) {
   if (!m->health_armed) return;
   const double now = cv_service_now(), tmo = m->s->o.gather_timeout_s;
   for (int r = 1; r < m->s->size; r++) {
-    if (m->dead[r] || now - m->alive_t[r] <= tmo) continue;
+    const int wall = r <= m->s->n_render;
+    const double silent = wall ? (m->owed_t[r] > 0 ? now - m->owed_t[r] : 0) : now - m->alive_t[r];
+    if (m->dead[r] || silent <= tmo) continue;
     m->dead[r] = 1;
     m->ndead++;
     cv_comm_mark_dead(r);
     cv_comm_notify_dead(r);
-    if (r > m->s->n_render) gather_dead(m, r, now - m->alive_t[r]);
-    else walleye_dead(m, r, now - m->alive_t[r]);
+    if (wall) walleye_dead(m, r, silent);
+    else gather_dead(m, r, silent);
   }
 }
 

@@ -139,6 +139,7 @@ typedef struct master {
   /* heartbeat watch (master_health.c) */
   cv_mailbox *alive_mb;   /* gather ranks' heartbeats */
   double *alive_t;        /* per rank: when last heard of */
+  double *owed_t;         /* per render rank: first state sent since its last report; 0 none */
   uint8_t *dead;          /* per rank: declared dead */
   int ndead, health_armed, lcd_red_abandoned;
   uint64_t lcd_gather_p2p; /* gather ranks' rounds summed point-to-point */
@@ -251,6 +252,8 @@ void master_health_free(master *m);
 /* Starts the watch (every rank counts as heard of now). */
 void master_health_arm(master *m);
 void master_health_seen(master *m, int rank);
+/* A frame state went out: the wall-eyes owe a report. */
+void master_health_sent(master *m);
 /* Takes heartbeats; declares ranks silent for --gather-timeout dead. */
 void master_health_poll(master *m);
 /* "dead_ranks": [ranks] */
