@@ -21,7 +21,7 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->dt = 1.0 / 30.0;
   o->write_every = 10;
   o->timeout_ms = 2000;
-  o->gather_timeout_s = 3;
+  o->gather_timeout_s = 10;
   o->startup_timeout_s = 300;
   o->compensate = 1;
   o->patches = 0; /* the config's screens.patches */

@@ -58,7 +58,7 @@ static void help(FILE *f) {
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
           "  --gather-timeout S   a gather rank silent S s is dead: named, LCD goes on without\n"
-          "                       it; a wall-eye silent S s stops the run (default 3; 0.5..3600)\n"
+          "                       it; a wall-eye silent S s stops the run (default 10; 0.5..3600)\n"
           "  --present WHAT       files, window, desktop, none, or a list: window,files or\n"
           "                       desktop,files (default files).\n"
           "                       window: one borderless window per output of the CAVE config\n"

@@ -61,7 +61,7 @@ typedef struct cv_run_opts {
   int write_every;               /* write images every k-th frame (default 10; 0 = last only) */
   double timeout_ms;             /* wait for late contributions at most this long (default 2000) */
   double startup_timeout_s;      /* ranks must be ready within this (default 300) */
-  double gather_timeout_s;       /* a rank silent this long is dead (default 3; docs/dead-rank.md) */
+  double gather_timeout_s;       /* a rank silent this long is dead (default 10; docs/dead-rank.md) */
   int barrier;                   /* per-frame MPI barrier (swap lock) */
   unsigned present;              /* CV_PRESENT_* bits (default files; 0 = none) */
   int desktop_view;              /* --desktop-view: -1 the cross of all walls (default), else a wall index */
