@@ -43,6 +43,18 @@ int cli_parse_vec(const char *s, int n, double *out);
 int cli_check_output(const char *cmd, const char *opt, const char *path);
 /* --illuminance: lux in (0, 1e7] or "auto" (CV_ILLUMINANCE_AUTO); 0 on success. */
 int cli_parse_illuminance(const char *s, double *lux);
+
+/* The lighting options shared by shade, render and reference: --env FILE[,..],
+ * --weights W,.., --scale S, --illuminance LUX|auto, --env-constant R,G,B,
+ * --sky T,EL,AZ, --yaw/--pitch/--roll DEG.  argv[*i] is the option.  Returns 0
+ * when it is none of these, 1 when it was taken (with its value: *i advanced),
+ * or minus the exit code (-1 or -2) after printing the error as `cave CMD: ...`.
+ * --weights is only kept in *weights; cli_apply_weights checks it. */
+int cli_parse_light(const char *cmd, int argc, char **argv, int *i, cv_light_spec *spec,
+                    const char **weights);
+/* Applies --weights (NULL: nothing to do) to spec's --env maps; 0 or exit
+ * code 2 after printing the error. */
+int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights);
 #define CLI_ILLUMINANCE_HELP                                                                 \
   "  --illuminance LUX|auto  calibrate the env map(s): the horizontal illuminance of\n"     \
   "                  the upper hemisphere becomes LUX (pixels then in cd/m^2); auto:\n"     \

@@ -88,56 +88,6 @@ static void help(FILE *f) {
           "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
 }
 
-static int parse_light(const char *a, char **argv, int *i, cv_light_spec *spec, int *have,
-                       const char **weights) {
-  const char *val = argv[*i + 1];
-  cv_err err;
-  if (!strcmp(a, "--env")) {
-    char buf[8192];
-    snprintf(buf, sizeof buf, "%s", argv[++*i]);
-    char *save = NULL;
-    spec->kind = CV_LIGHT_ENV;
-    spec->n_env = 0;
-    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-      if (spec->n_env == CV_MAX_ENV_MAPS) return cli_fail("lcd", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
-      if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
-        return cli_fail("lcd", 1, "--env: %s", err.msg);
-      spec->n_env++;
-    }
-    for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
-  } else if (!strcmp(a, "--weights")) {
-    *weights = argv[++*i];
-  } else if (!strcmp(a, "--scale")) {
-    if (cli_parse_double(argv[++*i], &spec->scale) || spec->scale < 0)
-      return cli_fail("lcd", 2, "--scale: expected a non-negative number, got '%s'", val);
-  } else if (!strcmp(a, "--illuminance")) {
-    if (cli_parse_illuminance(argv[++*i], &spec->illuminance))
-      return cli_fail("lcd", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
-  } else if (!strcmp(a, "--env-constant")) {
-    spec->kind = CV_LIGHT_CONSTANT;
-    if (cli_parse_vec(argv[++*i], 3, spec->constant) || spec->constant[0] < 0 ||
-        spec->constant[1] < 0 || spec->constant[2] < 0)
-      return cli_fail("lcd", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
-  } else if (!strcmp(a, "--sky")) {
-    double s[3];
-    spec->kind = CV_LIGHT_SKY;
-    if (cli_parse_vec(argv[++*i], 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
-      return cli_fail("lcd", 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
-    spec->turbidity = s[0];
-    spec->sun_elevation_deg = s[1];
-    spec->sun_azimuth_deg = s[2];
-  } else {
-    double d;
-    if (cli_parse_double(argv[++*i], &d)) return cli_fail("lcd", 2, "%s: expected degrees, got '%s'", a, val);
-    if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
-    else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
-    else spec->roll_deg = d;
-    return -1; /* orientation only: not a lighting source */
-  }
-  *have = 1;
-  return -1;
-}
-
 static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd_error *e,
                          const cv_lcd_key *key, double seconds, const char *brdf,
                          const cv_lcd_readability *rd, const cv_lcd_read_params *rp,
@@ -383,7 +333,7 @@ int cmd_lcd(int argc, char **argv) {
   long long seed = -1;
   cv_light_spec spec;
   cv_light_spec_default(&spec);
-  for (int i = 1; i < argc; i++) {
+  for (int i = 1, st; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
@@ -395,11 +345,10 @@ int cmd_lcd(int argc, char **argv) {
     } else if (a[0] == '-' && !val) {
       cli_print_usage(help);
       return cli_fail("lcd", 2, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") || !strcmp(a, "--illuminance") ||
-               !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
-               !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
-      int rc = parse_light(a, argv, &i, &spec, &have_light, &weights);
-      if (rc >= 0) return rc;
+    } else if ((st = cli_parse_light("lcd", argc, argv, &i, &spec, &weights)) != 0) {
+      if (st < 0) return -st;
+      /* the car's orientation alone is no lighting source */
+      if (strcmp(a, "--yaw") && strcmp(a, "--pitch") && strcmp(a, "--roll")) have_light = 1;
     } else if (!strcmp(a, "-o")) {
       out = argv[++i];
     } else if (!strcmp(a, "--eye")) {
@@ -526,18 +475,8 @@ int cmd_lcd(int argc, char **argv) {
   cv_image *content = NULL, *img = NULL;
   cv_lcd_readability rd;
   memset(&rd, 0, sizeof rd);
-  if (weights) {
-    if (spec.kind != CV_LIGHT_ENV) return cli_fail("lcd", 2, "--weights needs --env");
-    double w[CV_MAX_ENV_MAPS], sum = 0;
-    if (cli_parse_vec(weights, spec.n_env, w))
-      return cli_fail("lcd", 2, "--weights: expected %d comma-separated numbers, got '%s'", spec.n_env, weights);
-    for (int k = 0; k < spec.n_env; k++) {
-      if (w[k] < 0) return cli_fail("lcd", 2, "--weights: negative weight %g", w[k]);
-      spec.weight[k] = w[k];
-      sum += w[k];
-    }
-    if (!(sum > 0)) return cli_fail("lcd", 2, "--weights: the weights sum to 0");
-  }
+  int wst = cli_apply_weights("lcd", &spec, weights);
+  if (wst) return wst;
   /* The BRDF first: a bad file fails before any long work. */
   cv_brdf_report brep;
   if (cv_brdf_load(lc.brdf, &brdf, &brep, &err)) {

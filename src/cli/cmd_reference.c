@@ -56,85 +56,10 @@ typedef struct {
   const char *weights;
 } light_opts;
 
-/* Parses one lighting option at argv[*i] (value at argv[*i + 1]).  Returns 1
- * if consumed, 0 if not a lighting option, -1 after printing an error. */
-static int parse_light(int argc, char **argv, int *i, light_opts *lo) {
-  const char *a = argv[*i], *val = *i + 1 < argc ? argv[*i + 1] : NULL;
-  cv_light_spec *spec = &lo->spec;
-  cv_err err;
-  cv_err_clear(&err);
-  int is_light = !strcmp(a, "--env") || !strcmp(a, "--weights") || !strcmp(a, "--scale") ||
-                 !strcmp(a, "--illuminance") ||
-                 !strcmp(a, "--env-constant") || !strcmp(a, "--sky") || !strcmp(a, "--yaw") ||
-                 !strcmp(a, "--pitch") || !strcmp(a, "--roll");
-  if (!is_light) return 0;
-  if (!val) return cli_fail("reference", 2, "option '%s' needs a value", a), -1;
-  ++*i;
-  if (!strcmp(a, "--env")) {
-    char buf[8192];
-    snprintf(buf, sizeof buf, "%s", val);
-    char *save = NULL;
-    spec->kind = CV_LIGHT_ENV;
-    spec->n_env = 0;
-    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-      if (spec->n_env == CV_MAX_ENV_MAPS)
-        return cli_fail("reference", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS), -1;
-      if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
-        return cli_fail("reference", 1, "--env: %s", err.msg), -1;
-      spec->n_env++;
-    }
-    for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
-  } else if (!strcmp(a, "--weights")) {
-    lo->weights = val;
-  } else if (!strcmp(a, "--scale")) {
-    if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
-      return cli_fail("reference", 2, "--scale: expected a non-negative number, got '%s'", val), -1;
-  } else if (!strcmp(a, "--illuminance")) {
-    if (cli_parse_illuminance(val, &spec->illuminance))
-      return cli_fail("reference", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val), -1;
-  } else if (!strcmp(a, "--env-constant")) {
-    spec->kind = CV_LIGHT_CONSTANT;
-    if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
-        spec->constant[2] < 0)
-      return cli_fail("reference", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val), -1;
-  } else if (!strcmp(a, "--sky")) {
-    double s[3];
-    spec->kind = CV_LIGHT_SKY;
-    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
-      return cli_fail("reference", 2,
-                      "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val),
-             -1;
-    spec->turbidity = s[0];
-    spec->sun_elevation_deg = s[1];
-    spec->sun_azimuth_deg = s[2];
-  } else {
-    double d;
-    if (cli_parse_double(val, &d))
-      return cli_fail("reference", 2, "%s: expected degrees, got '%s'", a, val), -1;
-    if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
-    else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
-    else spec->roll_deg = d;
-  }
-  return 1;
-}
-
 static int finish_light(light_opts *lo) {
-  cv_light_spec *spec = &lo->spec;
-  if (spec->kind == CV_LIGHT_NONE)
+  if (lo->spec.kind == CV_LIGHT_NONE)
     return cli_fail("reference", 2, "no lighting: give --env, --env-constant or --sky");
-  if (!lo->weights) return 0;
-  if (spec->kind != CV_LIGHT_ENV) return cli_fail("reference", 2, "--weights needs --env");
-  double w[CV_MAX_ENV_MAPS], sum = 0;
-  if (cli_parse_vec(lo->weights, spec->n_env, w))
-    return cli_fail("reference", 2, "--weights: expected %d comma-separated numbers, got '%s'",
-                    spec->n_env, lo->weights);
-  for (int k = 0; k < spec->n_env; k++) {
-    if (w[k] < 0) return cli_fail("reference", 2, "--weights: negative weight %g", w[k]);
-    spec->weight[k] = w[k];
-    sum += w[k];
-  }
-  if (!(sum > 0)) return cli_fail("reference", 2, "--weights: the weights sum to 0");
-  return 0;
+  return cli_apply_weights("reference", &lo->spec, lo->weights);
 }
 
 /* The scene's cleaned mesh: from a .prt (as `cave shade` sees it) or built
@@ -186,8 +111,8 @@ int cmd_reference(int argc, char **argv) {
       rp.quiet = 1;
       continue;
     }
-    int pl = parse_light(argc, argv, &i, &lo);
-    if (pl < 0) return 2;
+    int pl = cli_parse_light("reference", argc, argv, &i, &lo.spec, &lo.weights);
+    if (pl < 0) return -pl;
     if (pl) continue;
     if (a[0] == '-' && a[1] && !val) {
       cli_print_usage(help);

@@ -85,71 +85,6 @@ static void help(FILE *f) {
           "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");
 }
 
-/* Same option syntax as cmd_shade.c. */
-static int parse_light(const char *a, char **argv, int *i, int argc, cv_light_spec *spec,
-                       const char **weights, int *consumed) {
-  const char *val = *i + 1 < argc ? argv[*i + 1] : NULL;
-  cv_err err;
-  *consumed = 1;
-  if (!strcmp(a, "--no-sun")) {
-    spec->extract_sun = 0;
-    return 0;
-  }
-  if (strcmp(a, "--env") && strcmp(a, "--weights") && strcmp(a, "--scale") &&
-      strcmp(a, "--illuminance") &&
-      strcmp(a, "--env-constant") && strcmp(a, "--sky") && strcmp(a, "--yaw") &&
-      strcmp(a, "--pitch") && strcmp(a, "--roll")) {
-    *consumed = 0;
-    return 0;
-  }
-  if (!val) return cli_fail("render", 2, "option '%s' needs a value", a);
-  ++*i;
-  if (!strcmp(a, "--env")) {
-    char buf[8192];
-    snprintf(buf, sizeof buf, "%s", val);
-    char *save = NULL;
-    spec->kind = CV_LIGHT_ENV;
-    spec->n_env = 0;
-    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-      if (spec->n_env == CV_MAX_ENV_MAPS)
-        return cli_fail("render", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
-      if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
-        return cli_fail("render", 1, "--env: %s", err.msg);
-      spec->n_env++;
-    }
-    for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
-  } else if (!strcmp(a, "--weights")) {
-    *weights = val;
-  } else if (!strcmp(a, "--scale")) {
-    if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
-      return cli_fail("render", 2, "--scale: expected a non-negative number, got '%s'", val);
-  } else if (!strcmp(a, "--illuminance")) {
-    if (cli_parse_illuminance(val, &spec->illuminance))
-      return cli_fail("render", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
-  } else if (!strcmp(a, "--env-constant")) {
-    spec->kind = CV_LIGHT_CONSTANT;
-    if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
-        spec->constant[2] < 0)
-      return cli_fail("render", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
-  } else if (!strcmp(a, "--sky")) {
-    double s[3];
-    spec->kind = CV_LIGHT_SKY;
-    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
-      return cli_fail("render", 2,
-                      "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
-    spec->turbidity = s[0];
-    spec->sun_elevation_deg = s[1];
-    spec->sun_azimuth_deg = s[2];
-  } else {
-    double d;
-    if (cli_parse_double(val, &d)) return cli_fail("render", 2, "%s: expected degrees, got '%s'", a, val);
-    if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
-    else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
-    else spec->roll_deg = d;
-  }
-  return 0;
-}
-
 static double now_ms(void) {
   struct timespec ts;
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -186,14 +121,17 @@ int cmd_render(int argc, char **argv) {
   int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
-    int used = 0;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
     }
-    int st = parse_light(a, argv, &i, argc, &spec, &weights, &used);
-    if (st) return st;
-    if (used) continue;
+    if (!strcmp(a, "--no-sun")) {
+      spec.extract_sun = 0;
+      continue;
+    }
+    int st = cli_parse_light("render", argc, argv, &i, &spec, &weights);
+    if (st < 0) return -st;
+    if (st) continue;
     if (!strcmp(a, "--gpu")) {
       if (!val || cv_gpu_parse(val, &gpu))
         return cli_fail("render", 2, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", val ? val : "(nothing)");
@@ -250,19 +188,8 @@ int cmd_render(int argc, char **argv) {
   }
   if (spec.kind == CV_LIGHT_NONE)
     return cli_fail("render", 2, "no lighting: give --env, --env-constant or --sky");
-  if (weights) {
-    if (spec.kind != CV_LIGHT_ENV) return cli_fail("render", 2, "--weights needs --env");
-    double w[CV_MAX_ENV_MAPS], sum = 0;
-    if (cli_parse_vec(weights, spec.n_env, w))
-      return cli_fail("render", 2, "--weights: expected %d comma-separated numbers, got '%s'",
-                      spec.n_env, weights);
-    for (int k = 0; k < spec.n_env; k++) {
-      if (w[k] < 0) return cli_fail("render", 2, "--weights: negative weight %g", w[k]);
-      spec.weight[k] = w[k];
-      sum += w[k];
-    }
-    if (!(sum > 0)) return cli_fail("render", 2, "--weights: the weights sum to 0");
-  }
+  int wst = cli_apply_weights("render", &spec, weights);
+  if (wst) return wst;
 
   cv_err err;
   cv_err_clear(&err);

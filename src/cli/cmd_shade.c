@@ -121,7 +121,7 @@ int cmd_shade(int argc, char **argv) {
   const char *weights = NULL;
   cv_err err;
   cv_err_clear(&err);
-  for (int i = 1; i < argc; i++) {
+  for (int i = 1, st; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
@@ -139,46 +139,8 @@ int cmd_shade(int argc, char **argv) {
       in = a;
     } else if (!strcmp(a, "-o")) {
       out = argv[++i];
-    } else if (!strcmp(a, "--env")) {
-      char buf[8192];
-      snprintf(buf, sizeof buf, "%s", argv[++i]);
-      char *save = NULL;
-      spec.kind = CV_LIGHT_ENV;
-      spec.n_env = 0;
-      for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-        if (spec.n_env == CV_MAX_ENV_MAPS) return cli_fail("shade", 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
-        if (cv_resolve_env_path(tok, NULL, spec.env[spec.n_env], &err))
-          return cli_fail("shade", 1, "--env: %s", err.msg);
-        spec.n_env++;
-      }
-      for (int k = 0; k < spec.n_env; k++) spec.weight[k] = 1.0 / spec.n_env;
-    } else if (!strcmp(a, "--weights")) {
-      weights = argv[++i];
-    } else if (!strcmp(a, "--scale")) {
-      if (cli_parse_double(argv[++i], &spec.scale) || spec.scale < 0)
-        return cli_fail("shade", 2, "--scale: expected a non-negative number, got '%s'", val);
-    } else if (!strcmp(a, "--illuminance")) {
-      if (cli_parse_illuminance(argv[++i], &spec.illuminance))
-        return cli_fail("shade", 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
-    } else if (!strcmp(a, "--env-constant")) {
-      spec.kind = CV_LIGHT_CONSTANT;
-      if (cli_parse_vec(argv[++i], 3, spec.constant) || spec.constant[0] < 0 ||
-          spec.constant[1] < 0 || spec.constant[2] < 0)
-        return cli_fail("shade", 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
-    } else if (!strcmp(a, "--sky")) {
-      double s[3];
-      spec.kind = CV_LIGHT_SKY;
-      if (cli_parse_vec(argv[++i], 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
-        return cli_fail("shade", 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
-      spec.turbidity = s[0];
-      spec.sun_elevation_deg = s[1];
-      spec.sun_azimuth_deg = s[2];
-    } else if (!strcmp(a, "--yaw") || !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
-      double d;
-      if (cli_parse_double(argv[++i], &d)) return cli_fail("shade", 2, "%s: expected degrees, got '%s'", a, val);
-      if (!strcmp(a, "--yaw")) spec.yaw_deg = d;
-      else if (!strcmp(a, "--pitch")) spec.pitch_deg = d;
-      else spec.roll_deg = d;
+    } else if ((st = cli_parse_light("shade", argc, argv, &i, &spec, &weights)) != 0) {
+      if (st < 0) return -st;
     } else if (!strcmp(a, "--sun-samples")) {
       if (cli_parse_int(argv[++i], 1, 4096, &sun_samples))
         return cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
@@ -220,19 +182,8 @@ int cmd_shade(int argc, char **argv) {
   if (cli_check_output("shade", "-o", out)) return 1;
   if (spec.kind == CV_LIGHT_NONE)
     return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
-  if (weights) {
-    if (spec.kind != CV_LIGHT_ENV) return cli_fail("shade", 2, "--weights needs --env");
-    double w[CV_MAX_ENV_MAPS];
-    if (cli_parse_vec(weights, spec.n_env, w))
-      return cli_fail("shade", 2, "--weights: expected %d comma-separated numbers, got '%s'", spec.n_env, weights);
-    double sum = 0;
-    for (int k = 0; k < spec.n_env; k++) {
-      if (w[k] < 0) return cli_fail("shade", 2, "--weights: negative weight %g", w[k]);
-      spec.weight[k] = w[k];
-      sum += w[k];
-    }
-    if (!(sum > 0)) return cli_fail("shade", 2, "--weights: the weights sum to 0");
-  }
+  int wst = cli_apply_weights("shade", &spec, weights);
+  if (wst) return wst;
   if (have_view != have_look) return cli_fail("shade", 2, "--view and --look go together");
   int is_view = have_view;
   if (is_view && !cli_has_ext(out, ".exr") && !cli_has_ext(out, ".png"))

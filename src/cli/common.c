@@ -249,3 +249,84 @@ fail:
   cv_mesh_destroy(m);
   return st;
 }
+
+static int is_light_option(const char *a) {
+  static const char *const names[] = {"--env", "--weights", "--scale", "--illuminance",
+                                      "--env-constant", "--sky", "--yaw", "--pitch", "--roll"};
+  for (size_t k = 0; k < sizeof names / sizeof names[0]; k++)
+    if (!strcmp(a, names[k])) return 1;
+  return 0;
+}
+
+static int parse_env_list(const char *cmd, const char *val, cv_light_spec *spec) {
+  char buf[8192];
+  snprintf(buf, sizeof buf, "%s", val);
+  char *save = NULL;
+  cv_err err;
+  cv_err_clear(&err);
+  spec->kind = CV_LIGHT_ENV;
+  spec->n_env = 0;
+  for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+    if (spec->n_env == CV_MAX_ENV_MAPS) return cli_fail(cmd, 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
+    if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
+      return cli_fail(cmd, 1, "--env: %s", err.msg);
+    spec->n_env++;
+  }
+  for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
+  return 0;
+}
+
+int cli_parse_light(const char *cmd, int argc, char **argv, int *i, cv_light_spec *spec,
+                    const char **weights) {
+  const char *a = argv[*i], *val = *i + 1 < argc ? argv[*i + 1] : NULL;
+  if (!is_light_option(a)) return 0;
+  if (!val) return -cli_fail(cmd, 2, "option '%s' needs a value", a);
+  ++*i;
+  if (!strcmp(a, "--env")) {
+    int rc = parse_env_list(cmd, val, spec);
+    if (rc) return -rc;
+  } else if (!strcmp(a, "--weights")) {
+    *weights = val;
+  } else if (!strcmp(a, "--scale")) {
+    if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
+      return -cli_fail(cmd, 2, "--scale: expected a non-negative number, got '%s'", val);
+  } else if (!strcmp(a, "--illuminance")) {
+    if (cli_parse_illuminance(val, &spec->illuminance))
+      return -cli_fail(cmd, 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
+  } else if (!strcmp(a, "--env-constant")) {
+    spec->kind = CV_LIGHT_CONSTANT;
+    if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
+        spec->constant[2] < 0)
+      return -cli_fail(cmd, 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
+  } else if (!strcmp(a, "--sky")) {
+    double s[3];
+    spec->kind = CV_LIGHT_SKY;
+    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
+      return -cli_fail(cmd, 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
+    spec->turbidity = s[0];
+    spec->sun_elevation_deg = s[1];
+    spec->sun_azimuth_deg = s[2];
+  } else {
+    double d;
+    if (cli_parse_double(val, &d)) return -cli_fail(cmd, 2, "%s: expected degrees, got '%s'", a, val);
+    if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
+    else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
+    else spec->roll_deg = d;
+  }
+  return 1;
+}
+
+int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights) {
+  if (!weights) return 0;
+  if (spec->kind != CV_LIGHT_ENV) return cli_fail(cmd, 2, "--weights needs --env");
+  double w[CV_MAX_ENV_MAPS], sum = 0;
+  if (cli_parse_vec(weights, spec->n_env, w))
+    return cli_fail(cmd, 2, "--weights: expected %d comma-separated numbers, got '%s'", spec->n_env, weights);
+  for (int k = 0; k < spec->n_env; k++) {
+    if (w[k] < 0) return cli_fail(cmd, 2, "--weights: negative weight %g", w[k]);
+    spec->weight[k] = w[k];
+    sum += w[k];
+  }
+  if (!(sum > 0)) return cli_fail(cmd, 2, "--weights: the weights sum to 0");
+  return 0;
+}
