@@ -172,6 +172,8 @@ int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr
 
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
 
+uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i) { return (uint32_t)i; }
+
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
   return (int)(tr->fan_off[v + 1] - tr->fan_off[v]);
 }
@@ -523,6 +525,23 @@ int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t see
     for (size_t k = 0; k < count; k++) {
       vertex_direct(tr, verts[k], bands, rays, seed, acc, alb, albr);
       for (int i = 0; i < nc; i++) out[k * nc + i] = (float)acc[i];
+    }
+  }
+  return CV_OK;
+}
+
+int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const float *prev, const uint32_t *verts, size_t count, float *out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1) return CV_ERR_RANGE;
+  const size_t rec = 3 * (size_t)bands * (size_t)bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+#pragma omp for schedule(dynamic, 16)
+    for (size_t k = 0; k < count; k++) {
+      vertex_bounce(tr, verts[k], bands, rays, seed, prev, acc, NULL);
+      for (size_t i = 0; i < rec; i++) out[k * rec + i] = (float)acc[i];
     }
   }
   return CV_OK;

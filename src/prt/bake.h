@@ -66,6 +66,8 @@ void cv_tracer_set_window_sampling(cv_tracer *tr, int on);
 int cv_tracer_window_sampling(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */
 size_t cv_tracer_vertex_count(const cv_tracer *tr);
+/* The i-th vertex the bake's passes visit (0 <= i < vertex count). */
+uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i);
 /* Number of opaque triangles in vertex v's fan. */
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v);
 
@@ -78,6 +80,13 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
  * Used by the auto mode and the benchmark on vertex subsets. */
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out);
+
+/* One bounce pass of the listed vertices from the previous bounce's exit
+ * transfer prev (all vertices, layout of cv_prt_propagate): out[k*3*n*n + c*n*n
+ * + i], as the full pass computes it (without a texture's albedo split).
+ * Used by the benchmark. */
+int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const float *prev, const uint32_t *verts, size_t count, float *out);
 
 /* Full bake; *out owned by the caller.  With cv_prt_bake_tracer the
  * tracer's spread must equal p->spread.  meta.input_hash is set from
