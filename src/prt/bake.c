@@ -461,10 +461,43 @@ static inline void prefetch_range(const void *p, size_t n) {
   for (size_t k = 0; k < n; k += 64) __builtin_prefetch(c + k, 0, 1);
 }
 
+/* Adds one hit to the bounce sums: tmp = the previous bounce interpolated at
+ * the hit, acc += albedo(from) * tmp (and accr with the receiver's albedo). */
+static inline void bounce_accumulate(const cv_tracer *tr, const float *prev, size_t rec, int nc,
+                                     const cv_hit *h, uint32_t from, double *acc, double *accr) {
+  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  const uint32_t *tv = tr->m->tri + 3 * h->tri;
+  const float w0 = 1.0f - h->u - h->v, w1 = h->u, w2 = h->v;
+  const float *q0 = prev + (size_t)tv[0] * rec, *q1 = prev + (size_t)tv[1] * rec,
+              *q2 = prev + (size_t)tv[2] * rec;
+#pragma omp simd
+  for (size_t i = 0; i < rec; i++) tmp[i] = w0 * q0[i] + w1 * q1[i] + w2 * q2[i];
+  const float *al = tr->m->mats[tr->m->tri_mat[from]].albedo;
+  for (int c = 0; c < 3; c++) {
+    const double a = al[c];
+    double *o = acc + c * nc;
+    const float *t = tmp + c * nc;
+#pragma omp simd
+    for (int i = 0; i < nc; i++) o[i] += a * t[i];
+  }
+  if (accr) {
+    const float *ar = recv_albedo(tr->m, from);
+    for (int c = 0; c < 3; c++) {
+      const double a = ar[c];
+      double *o = accr + c * nc;
+      const float *t = tmp + c * nc;
+#pragma omp simd
+      for (int i = 0; i < nc; i++) o[i] += a * t[i];
+    }
+  }
+}
+
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
  * Each hit reads three vertex records (3 * nc floats each) scattered over
- * the whole previous bounce, so rays are traced in batches and each hit's
- * records are prefetched while the rest of the batch is traced; the
+ * the whole previous bounce, so the work is software-pipelined in batches of
+ * rays: batch k is traced (its hit triangles' index entries prefetched), then
+ * the records of batch k's hits are prefetched, then batch k-1 (whose
+ * records were requested one batch earlier) is accumulated.  The
  * accumulation keeps the ray order, so results are unchanged bit for bit. */
 #define BOUNCE_BATCH 8
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
@@ -473,41 +506,29 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
   if (accr) memset(accr, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
-  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   const size_t rec = 3 * (size_t)nc;
   vseq q;
   vseq_init(&q, seed, v);
-  for (int j0 = 0; j0 < rays; j0 += BOUNCE_BATCH) {
-    const int nb = rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH;
-    cv_hit hit[BOUNCE_BATCH];
-    uint32_t from[BOUNCE_BATCH];
-    int ok[BOUNCE_BATCH];
+  cv_hit hit[2][BOUNCE_BATCH];
+  uint32_t from[2][BOUNCE_BATCH];
+  int ok[2][BOUNCE_BATCH], nb_prev = 0;
+  for (int j0 = 0, cur = 0; j0 < rays + BOUNCE_BATCH; j0 += BOUNCE_BATCH, cur ^= 1) {
+    const int nb = j0 >= rays ? 0 : (rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH);
     for (int b = 0; b < nb; b++) {
       float org[3], dir[3];
-      from[b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org, dir);
-      ok[b] = cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &hit[b]);
-      if (ok[b]) {
-        const uint32_t *tv = tr->m->tri + 3 * hit[b].tri;
-        for (int k = 0; k < 3; k++) prefetch_range(prev + (size_t)tv[k] * rec, rec * sizeof(float));
-      }
+      from[cur][b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org, dir);
+      ok[cur][b] = cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &hit[cur][b]);
+      if (ok[cur][b]) __builtin_prefetch(tr->m->tri + 3 * hit[cur][b].tri, 0, 1);
     }
     for (int b = 0; b < nb; b++) {
-      if (!ok[b]) continue;
-      const cv_hit *h = &hit[b];
-      const uint32_t *tv = tr->m->tri + 3 * h->tri;
-      float w0 = 1.0f - h->u - h->v;
-      const float *q0 = prev + (size_t)tv[0] * rec, *q1 = prev + (size_t)tv[1] * rec,
-                  *q2 = prev + (size_t)tv[2] * rec;
-      for (size_t i = 0; i < rec; i++) tmp[i] = w0 * q0[i] + h->u * q1[i] + h->v * q2[i];
-      const float *al = tr->m->mats[tr->m->tri_mat[from[b]]].albedo;
-      for (int c = 0; c < 3; c++)
-        for (int i = 0; i < nc; i++) acc[c * nc + i] += (double)al[c] * tmp[c * nc + i];
-      if (accr) {
-        const float *ar = recv_albedo(tr->m, from[b]);
-        for (int c = 0; c < 3; c++)
-          for (int i = 0; i < nc; i++) accr[c * nc + i] += (double)ar[c] * tmp[c * nc + i];
-      }
+      if (!ok[cur][b]) continue;
+      const uint32_t *tv = tr->m->tri + 3 * hit[cur][b].tri;
+      for (int k = 0; k < 3; k++) prefetch_range(prev + (size_t)tv[k] * rec, rec * sizeof(float));
     }
+    const int o = cur ^ 1;
+    for (int b = 0; b < nb_prev; b++)
+      if (ok[o][b]) bounce_accumulate(tr, prev, rec, nc, &hit[o][b], from[o][b], acc, accr);
+    nb_prev = nb;
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
   for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
