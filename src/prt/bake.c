@@ -5,6 +5,7 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 #include "core/hash.h"
 #include "core/progress.h"
@@ -455,23 +456,138 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   }
 }
 
-/* Prefetches the bytes [p, p + n) into the cache (hint only). */
+/* Prefetches the cache lines of the bytes [p, p + n), n > 0 (hint only). */
 static inline void prefetch_range(const void *p, size_t n) {
-  const char *c = p;
-  for (size_t k = 0; k < n; k += 64) __builtin_prefetch(c + k, 0, 1);
+  uintptr_t a = (uintptr_t)p & ~(uintptr_t)63, e = (uintptr_t)p + n;
+  for (; a < e; a += 64) __builtin_prefetch((const void *)a, 0, 1);
+}
+
+/* --- the previous bounce as the bounce pass reads it ------------------------
+ * Each hit interpolates three vertex records scattered over the whole mesh, so
+ * the pass is bound by the bytes it pulls from memory.  A record holds a float
+ * scale (the largest |value|) and the 3 * n * n values divided by it as IEEE
+ * half floats (11 significant bits: relative rounding <= 2^-12 of the record's
+ * largest value); records are STRIDE bytes apart, a multiple of 32 so that a
+ * 25-coefficient record (154 bytes) spans exactly 3 cache lines instead of the
+ * 5-6 of 75 floats, in memory aligned for (and advised to use) 2 MB pages. */
+struct cv_bounce_records {
+  size_t nv, rec, stride; /* vertices, values per record, bytes per record */
+  unsigned char *data;
+  size_t bytes;
+};
+
+#define HUGE_PAGE ((size_t)2 << 20)
+
+/* Half float (bits) of x, |x| <= 1 and finite; rounds to nearest even
+ * (after F. Giesen's float_to_half_fast3_rtne, public domain). */
+static uint16_t half_from_float(float x) {
+  uint32_t f, sign;
+  memcpy(&f, &x, 4);
+  sign = f & 0x80000000u;
+  f ^= sign;
+  uint16_t o;
+  if (f < (113u << 23)) { /* below the smallest normal half: denormal via the FPU */
+    float d, magic;
+    uint32_t mb = (126u - 15u + 23u + 1u) << 23; /* 0.5 in the half's denormal ulp */
+    memcpy(&magic, &mb, 4);
+    memcpy(&d, &f, 4);
+    d += magic;
+    memcpy(&f, &d, 4);
+    o = (uint16_t)(f - mb);
+  } else {
+    uint32_t mant_odd = (f >> 13) & 1u;
+    f += ((uint32_t)(15 - 127) << 23) + 0xfffu;
+    f += mant_odd;
+    o = (uint16_t)(f >> 13);
+  }
+  return (uint16_t)(o | (sign >> 16));
+}
+
+/* Float of half bits h (finite halves only): exponent rebias by one multiply,
+ * which also makes denormals exact; branch-free so loops of it vectorise. */
+static inline float half_to_float(uint16_t h) {
+  uint32_t bits = (uint32_t)(h & 0x7fffu) << 13, sign = (uint32_t)(h & 0x8000u) << 16;
+  float f;
+  memcpy(&f, &bits, 4);
+  f *= 0x1p112f;
+  memcpy(&bits, &f, 4);
+  bits |= sign;
+  memcpy(&f, &bits, 4);
+  return f;
+}
+
+int cv_bounce_records_create(int bands, size_t nv, cv_bounce_records **out) {
+  *out = NULL;
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS) return CV_ERR_RANGE;
+  cv_bounce_records *r = calloc(1, sizeof *r);
+  if (!r) return CV_ERR_NOMEM;
+  r->nv = nv;
+  r->rec = 3 * (size_t)bands * (size_t)bands;
+  r->stride = (sizeof(float) + 2 * r->rec + 31) & ~(size_t)31;
+  r->bytes = (nv * r->stride + HUGE_PAGE - 1) / HUGE_PAGE * HUGE_PAGE;
+  if (r->bytes == 0) r->bytes = HUGE_PAGE;
+  r->data = aligned_alloc(HUGE_PAGE, r->bytes);
+  if (!r->data) {
+    free(r);
+    return CV_ERR_NOMEM;
+  }
+#ifdef MADV_HUGEPAGE
+  madvise(r->data, r->bytes, MADV_HUGEPAGE); /* a hint: fewer TLB misses */
+#endif
+  memset(r->data, 0, r->bytes);
+  *out = r;
+  return CV_OK;
+}
+
+void cv_bounce_records_destroy(cv_bounce_records *r) {
+  if (!r) return;
+  free(r->data);
+  free(r);
+}
+
+void cv_bounce_records_set(cv_bounce_records *r, size_t v, const float *val) {
+  unsigned char *p = r->data + v * r->stride;
+  float scale = 0;
+  for (size_t i = 0; i < r->rec; i++) scale = fmaxf(scale, fabsf(val[i]));
+  uint16_t *h = (uint16_t *)(void *)(p + sizeof(float));
+  if (!(scale > 0) || !isfinite(scale)) scale = 0;
+  const float inv = scale > 0 ? 1.0f / scale : 0.0f;
+  for (size_t i = 0; i < r->rec; i++) {
+    float x = val[i] * inv;
+    h[i] = half_from_float(x > 1.0f ? 1.0f : (x < -1.0f ? -1.0f : x));
+  }
+  memcpy(p, &scale, sizeof scale);
+}
+
+void cv_bounce_records_get(const cv_bounce_records *r, size_t v, float *val) {
+  const unsigned char *p = r->data + v * r->stride;
+  float scale;
+  memcpy(&scale, p, sizeof scale);
+  const uint16_t *h = (const uint16_t *)(const void *)(p + sizeof(float));
+  for (size_t i = 0; i < r->rec; i++) val[i] = scale * half_to_float(h[i]);
 }
 
 /* Adds one hit to the bounce sums: tmp = the previous bounce interpolated at
  * the hit, acc += albedo(from) * tmp (and accr with the receiver's albedo). */
-static inline void bounce_accumulate(const cv_tracer *tr, const float *prev, size_t rec, int nc,
+static inline void bounce_accumulate(const cv_tracer *tr, const cv_bounce_records *R, int nc,
                                      const cv_hit *h, uint32_t from, double *acc, double *accr) {
   float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   const uint32_t *tv = tr->m->tri + 3 * h->tri;
-  const float w0 = 1.0f - h->u - h->v, w1 = h->u, w2 = h->v;
-  const float *q0 = prev + (size_t)tv[0] * rec, *q1 = prev + (size_t)tv[1] * rec,
-              *q2 = prev + (size_t)tv[2] * rec;
+  const unsigned char *p0 = R->data + (size_t)tv[0] * R->stride,
+                      *p1 = R->data + (size_t)tv[1] * R->stride,
+                      *p2 = R->data + (size_t)tv[2] * R->stride;
+  float s0, s1, s2;
+  memcpy(&s0, p0, 4);
+  memcpy(&s1, p1, 4);
+  memcpy(&s2, p2, 4);
+  const float w0 = (1.0f - h->u - h->v) * s0, w1 = h->u * s1, w2 = h->v * s2;
+  const uint16_t *q0 = (const uint16_t *)(const void *)(p0 + 4),
+                 *q1 = (const uint16_t *)(const void *)(p1 + 4),
+                 *q2 = (const uint16_t *)(const void *)(p2 + 4);
+  const size_t rec = R->rec;
 #pragma omp simd
-  for (size_t i = 0; i < rec; i++) tmp[i] = w0 * q0[i] + w1 * q1[i] + w2 * q2[i];
+  for (size_t i = 0; i < rec; i++)
+    tmp[i] = w0 * half_to_float(q0[i]) + w1 * half_to_float(q1[i]) + w2 * half_to_float(q2[i]);
   const float *al = tr->m->mats[tr->m->tri_mat[from]].albedo;
   for (int c = 0; c < 3; c++) {
     const double a = al[c];
@@ -493,20 +609,19 @@ static inline void bounce_accumulate(const cv_tracer *tr, const float *prev, siz
 }
 
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
- * Each hit reads three vertex records (3 * nc floats each) scattered over
- * the whole previous bounce, so the work is software-pipelined in batches of
- * rays: batch k is traced (its hit triangles' index entries prefetched), then
- * the records of batch k's hits are prefetched, then batch k-1 (whose
- * records were requested one batch earlier) is accumulated.  The
- * accumulation keeps the ray order, so results are unchanged bit for bit. */
+ * Each hit reads three vertex records scattered over the whole previous
+ * bounce, so the work is software-pipelined in batches of rays: batch k is
+ * traced (its hit triangles' index entries prefetched), then the records of
+ * batch k's hits are prefetched, then batch k-1 (whose records were requested
+ * one batch earlier) is accumulated, in ray order. */
 #define BOUNCE_BATCH 8
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          const float *prev, double *acc, double *accr) {
+                          const cv_bounce_records *R, double *acc, double *accr) {
   int nc = bands * bands;
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
   if (accr) memset(accr, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
-  const size_t rec = 3 * (size_t)nc;
+  const size_t used = sizeof(float) + 2 * R->rec; /* bytes of a record that are read */
   vseq q;
   vseq_init(&q, seed, v);
   cv_hit hit[2][BOUNCE_BATCH];
@@ -523,11 +638,11 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     for (int b = 0; b < nb; b++) {
       if (!ok[cur][b]) continue;
       const uint32_t *tv = tr->m->tri + 3 * hit[cur][b].tri;
-      for (int k = 0; k < 3; k++) prefetch_range(prev + (size_t)tv[k] * rec, rec * sizeof(float));
+      for (int k = 0; k < 3; k++) prefetch_range(R->data + (size_t)tv[k] * R->stride, used);
     }
     const int o = cur ^ 1;
     for (int b = 0; b < nb_prev; b++)
-      if (ok[o][b]) bounce_accumulate(tr, prev, rec, nc, &hit[o][b], from[o][b], acc, accr);
+      if (ok[o][b]) bounce_accumulate(tr, R, nc, &hit[o][b], from[o][b], acc, accr);
     nb_prev = nb;
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
@@ -552,14 +667,16 @@ int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t see
 }
 
 int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
-                          const float *prev, const uint32_t *verts, size_t count, float *out) {
+                          const cv_bounce_records *prev, const uint32_t *verts, size_t count,
+                          float *out) {
   if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1) return CV_ERR_RANGE;
+  if (prev->rec != 3 * (size_t)bands * (size_t)bands || prev->nv != tr->m->nv) return CV_ERR_INVALID;
   const size_t rec = 3 * (size_t)bands * (size_t)bands;
 #pragma omp parallel
   {
     cv_rt_thread_init();
     double acc[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-#pragma omp for schedule(dynamic, 16)
+#pragma omp for schedule(dynamic, 1)
     for (size_t k = 0; k < count; k++) {
       vertex_bounce(tr, verts[k], bands, rays, seed, prev, acc, NULL);
       for (size_t i = 0; i < rec; i++) out[k * rec + i] = (float)acc[i];
@@ -648,30 +765,41 @@ int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, in
   const size_t nv = tr->m->nv;
   const int nc = bands * bands;
   if (bounces <= 0) return CV_OK;
-  float *cur = malloc(3 * nv * nc * sizeof(float) + 1);
-  if (!cur) return CV_ERR_NOMEM;
+  cv_bounce_records *src = NULL, *dst = NULL;
+  if (cv_bounce_records_create(bands, nv, &src) || cv_bounce_records_create(bands, nv, &dst)) {
+    cv_bounce_records_destroy(src);
+    return CV_ERR_NOMEM;
+  }
+  double t0 = cv_now_seconds();
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(src, v, prev + v * 3 * nc);
   for (int pass = 1; pass <= bounces; pass++) {
     char label[32];
     snprintf(label, sizeof label, "bake bounce %d", pass);
-    double t0 = cv_now_seconds();
     const int textured = tr->m->mat_tex != NULL;
     FOR_VERTICES(label, nv, quiet, {
       double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
+      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, src, acc, textured ? accr : NULL);
       const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
+      float *out = prev + v * 3 * nc; /* src holds the previous bounce: prev is free */
       for (int i = 0; i < 3 * nc; i++) {
-        cur[v * 3 * nc + i] = (float)acc[i];
+        out[i] = (float)acc[i];
         ti[v * 3 * nc + i] += (float)own[i];
       }
+      if (pass < bounces) cv_bounce_records_set(dst, v, out);
     });
-    memcpy(prev, cur, 3 * nv * nc * sizeof(float));
+    cv_bounce_records *t = src;
+    src = dst;
+    dst = t;
     if (stats && pass <= 16) {
       stats->seconds[pass] = cv_now_seconds() - t0;
       stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
       stats->total_rays += stats->rays[pass];
     }
+    t0 = cv_now_seconds();
   }
-  free(cur);
+  cv_bounce_records_destroy(src);
+  cv_bounce_records_destroy(dst);
   return CV_OK;
 }
 

@@ -81,12 +81,24 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out);
 
-/* One bounce pass of the listed vertices from the previous bounce's exit
- * transfer prev (all vertices, layout of cv_prt_propagate): out[k*3*n*n + c*n*n
- * + i], as the full pass computes it (without a texture's albedo split).
- * Used by the benchmark. */
+/* The previous bounce's exit transfer as the bounce passes read it: per
+ * vertex 3*n*n values stored as half floats relative to a float scale (the
+ * record's largest |value|), i.e. rounded to 2^-12 of that value; 3 cache
+ * lines per 25-coefficient record instead of 5-6 (docs/benchmarks.md). */
+typedef struct cv_bounce_records cv_bounce_records;
+/* Zeroed records for nv vertices of `bands` bands; CV_ERR_RANGE / NOMEM. */
+int cv_bounce_records_create(int bands, size_t nv, cv_bounce_records **out);
+void cv_bounce_records_destroy(cv_bounce_records *r);
+/* Stores / reads back vertex v's 3*n*n values (layout [c][i]; finite). */
+void cv_bounce_records_set(cv_bounce_records *r, size_t v, const float *val);
+void cv_bounce_records_get(const cv_bounce_records *r, size_t v, float *val);
+
+/* One bounce pass of the listed vertices from the previous bounce's records
+ * (all vertices): out[k*3*n*n + c*n*n + i], as the full pass computes it
+ * (without a texture's albedo split).  Used by the benchmark. */
 int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
-                          const float *prev, const uint32_t *verts, size_t count, float *out);
+                          const cv_bounce_records *prev, const uint32_t *verts, size_t count,
+                          float *out);
 
 /* Full bake; *out owned by the caller.  With cv_prt_bake_tracer the
  * tracer's spread must equal p->spread.  meta.input_hash is set from
@@ -99,7 +111,8 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
 
 /* Interreflection passes from a given bounce-0 exit transfer prev
  * ([v][c][i], RGB, albedo applied; overwritten with the last bounce) into ti
- * (same layout, accumulated: ti += bounces 1..B).  The bake calls this after
+ * (same layout, accumulated: ti += bounces 1..B); bounces read the previous
+ * one through cv_bounce_records (half floats).  The bake calls this after
  * its direct pass; tests seed it with a known transfer (furnace). */
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats);

@@ -91,7 +91,7 @@ static double cpu_seconds(void) {
  * full pass; the previous bounce is synthetic (its values do not change the
  * work).  Wall and CPU-second ratios: the machine is shared, and CPU seconds
  * are what the load does not stretch. */
-static void bounce_throughput(const cv_tracer *tr, int subset, int R) {
+static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset, int R) {
   enum { REPS = 5, RUN = 256, BANDS = 5, REC = 3 * BANDS * BANDS };
   const size_t nv = cv_tracer_vertex_count(tr);
   size_t runs = (size_t)subset / RUN > 0 ? (size_t)subset / RUN : 1, ns = 0;
@@ -108,18 +108,26 @@ static void bounce_throughput(const cv_tracer *tr, int subset, int R) {
   run_at[runs] = ns;
   size_t nr = ns * (size_t)R;
   float *org = malloc(3 * nr * sizeof(float)), *dir = malloc(3 * nr * sizeof(float));
+  uint32_t *from = malloc(nr * sizeof(uint32_t));
   float *prev = malloc(nv * REC * sizeof(float)), *out = malloc(ns * REC * sizeof(float));
   uint32_t x = 12345u;
   for (size_t i = 0; i < nv * REC; i++) {
     x ^= x << 13, x ^= x >> 17, x ^= x << 5;
     prev[i] = (float)(x >> 8) * (0.5f / 16777216.0f);
   }
+  cv_bounce_records *recs;
+  if (cv_bounce_records_create(BANDS, nv, &recs)) {
+    fprintf(stderr, "out of memory\n");
+    exit(1);
+  }
+  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(recs, v, prev + v * REC);
   for (size_t k = 0; k < ns; k++)
     for (int j = 0; j < R; j++)
-      cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j), NULL);
+      cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j),
+                       from + k * R + j);
   uint64_t hits = 0, h;
   double bare[REPS], bounce[REPS], bare_cpu[REPS], bounce_cpu[REPS];
-  cv_bake_bounce_subset(tr, BANDS, R / 8 > 0 ? R / 8 : 1, 1, prev, verts, ns, out); /* warm up */
+  cv_bake_bounce_subset(tr, BANDS, R / 8 > 0 ? R / 8 : 1, 1, recs, verts, ns, out); /* warm up */
   for (int k = 0; k < REPS; k++) {
     bare[k] = bounce[k] = bare_cpu[k] = bounce_cpu[k] = 0;
     hits = 0;
@@ -129,7 +137,7 @@ static void bounce_throughput(const cv_tracer *tr, int subset, int R) {
       bare[k] += bare_loop(tr, org + 3 * a * R, dir + 3 * a * R, n * R, 1, &h);
       double c1 = cpu_seconds(), t0 = cv_now_seconds();
       hits += h;
-      cv_bake_bounce_subset(tr, BANDS, R, 1, prev, verts + a, n, out + a * REC);
+      cv_bake_bounce_subset(tr, BANDS, R, 1, recs, verts + a, n, out + a * REC);
       bounce[k] += cv_now_seconds() - t0;
       bounce_cpu[k] += cpu_seconds() - c1;
       bare_cpu[k] += c1 - c0;
@@ -137,6 +145,34 @@ static void bounce_throughput(const cv_tracer *tr, int subset, int R) {
   }
   double check = 0;
   for (size_t i = 0; i < ns * REC; i++) check += out[i];
+  /* Brute force from the float values over the same rays: the error of the
+   * bake's records (and a check of its pipelined pass). */
+  double e2 = 0, r2 = 0, worst = 0;
+  for (size_t k = 0; k < ns; k++) {
+    double ref[REC] = {0}, ve2 = 0, vr2 = 0;
+    for (int j = 0; j < R; j++) {
+      cv_hit hit;
+      size_t i = k * R + j;
+      if (!cv_rt_intersect(cv_tracer_rt(tr), org + 3 * i, dir + 3 * i, 0, INFINITY, &hit)) continue;
+      const uint32_t *tv = m->tri + 3 * hit.tri;
+      const float *al = m->mats[m->tri_mat[from[i]]].albedo;
+      double w[3] = {1.0 - hit.u - hit.v, hit.u, hit.v};
+      for (int c = 0; c < 3; c++)
+        for (int q = 0; q < REC / 3; q++) {
+          double s = 0;
+          for (int t = 0; t < 3; t++) s += w[t] * prev[(size_t)tv[t] * REC + c * (REC / 3) + q];
+          ref[c * (REC / 3) + q] += al[c] * s / R;
+        }
+    }
+    for (int i = 0; i < REC; i++) {
+      double d = out[k * REC + i] - ref[i];
+      ve2 += d * d;
+      vr2 += ref[i] * ref[i];
+    }
+    e2 += ve2;
+    r2 += vr2;
+    if (vr2 > 0 && sqrt(ve2 / vr2) > worst) worst = sqrt(ve2 / vr2);
+  }
   double ratio[REPS], ratio_cpu[REPS];
   for (int k = 0; k < REPS; k++) {
     ratio[k] = bare[k] / bounce[k];
@@ -155,9 +191,13 @@ static void bounce_throughput(const cv_tracer *tr, int subset, int R) {
   printf("; CPU seconds:");
   for (int k = 0; k < REPS; k++) printf(" %.2f", ratio_cpu[k]);
   printf(", median %.2f; checksum of the bounce output %.9e\n\n", bench_median(ratio_cpu, REPS), check);
+  printf("bounce output against a brute-force float sum over the same rays: relative L2 %.2e, "
+         "worst vertex %.2e\n\n", r2 > 0 ? sqrt(e2 / r2) : 0.0, worst);
   free(org);
   free(dir);
   free(prev);
+  free(from);
+  cv_bounce_records_destroy(recs);
   free(out);
   free(verts);
   free(run_at);
@@ -260,7 +300,7 @@ int main(int argc, char **argv) {
     free(org);
     free(dir);
   }
-  bounce_throughput(tr, subset, R);
+  bounce_throughput(tr, m, subset, R);
 
   /* 2. Full bake. */
   if (!skip_full) {
