@@ -609,12 +609,17 @@ static inline void bounce_accumulate(const cv_tracer *tr, const cv_bounce_record
 }
 
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
- * Each hit reads three vertex records scattered over the whole previous
- * bounce, so the work is software-pipelined in batches of rays: batch k is
- * traced (its hit triangles' index entries prefetched), then the records of
- * batch k's hits are prefetched, then batch k-1 (whose records were requested
- * one batch earlier) is accumulated, in ray order. */
-#define BOUNCE_BATCH 8
+ * Rays are traced in batches of BOUNCE_BATCH consecutive samples as one Embree
+ * packet (rtcIntersect16): their origins share the vertex's fan, which makes
+ * them coherent enough that the packet beats 16 rtcIntersect1 calls
+ * (docs/benchmarks.md).  A batch is always samples j0..j0+15 of this vertex,
+ * so the result does not depend on threads.  Each hit reads three vertex
+ * records scattered over the whole previous bounce, so the work is
+ * software-pipelined: batch k is traced (its hit triangles' index entries
+ * prefetched), then the records of batch k's hits are prefetched, then batch
+ * k-1 (whose records were requested one batch earlier) is accumulated, in
+ * ray order. */
+#define BOUNCE_BATCH 16
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
                           const cv_bounce_records *R, double *acc, double *accr) {
   int nc = bands * bands;
@@ -629,11 +634,16 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   int ok[2][BOUNCE_BATCH], nb_prev = 0;
   for (int j0 = 0, cur = 0; j0 < rays + BOUNCE_BATCH; j0 += BOUNCE_BATCH, cur ^= 1) {
     const int nb = j0 >= rays ? 0 : (rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH);
-    for (int b = 0; b < nb; b++) {
-      float org[3], dir[3];
-      from[cur][b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org, dir);
-      ok[cur][b] = cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &hit[cur][b]);
-      if (ok[cur][b]) __builtin_prefetch(tr->m->tri + 3 * hit[cur][b].tri, 0, 1);
+    if (nb > 0) {
+      float org[3 * BOUNCE_BATCH], dir[3 * BOUNCE_BATCH];
+      uint8_t found[BOUNCE_BATCH];
+      for (int b = 0; b < nb; b++)
+        from[cur][b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org + 3 * b, dir + 3 * b);
+      cv_rt_intersect_packet(tr->rt, nb, org, dir, NULL, 0.0f, INFINITY, 0, hit[cur], found);
+      for (int b = 0; b < nb; b++) {
+        ok[cur][b] = found[b];
+        if (ok[cur][b]) __builtin_prefetch(tr->m->tri + 3 * hit[cur][b].tri, 0, 1);
+      }
     }
     for (int b = 0; b < nb; b++) {
       if (!ok[cur][b]) continue;

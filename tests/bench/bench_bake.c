@@ -184,7 +184,7 @@ static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset,
   printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
   double tb = bench_median(bare, REPS), tp = bench_median(bounce, REPS);
   printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | 1.00 |\n", tb, nr / tb / 1e6);
-  printf("| bake bounce pass (sampling, closest hit, %d-float records of 3 vertices, RGB sums) | %.3f | "
+  printf("| bake bounce pass (sampling, rtcIntersect16 packets of a vertex's rays, %d-value half records of 3 vertices, RGB sums) | %.3f | "
          "%.2f | **%.2f** |\n\n", REC, tp, nr / tp / 1e6, tb / tp);
   printf("bounce ratio per run (bare / bounce), wall:");
   for (int k = 0; k < REPS; k++) printf(" %.2f", ratio[k]);

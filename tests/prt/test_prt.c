@@ -636,6 +636,42 @@ static void write_bytes(const char *path, const void *b, size_t n) {
 /* Hostile .prt files: header counts far beyond the file's size are refused
  * before any allocation, naming the count; NaN or non-unit normals, negative
  * albedo and NaN transfer are refused naming the vertex and the field. */
+/* The bounce passes' half-float records: every value back within 2^-12 of its
+ * record's largest |value| (round to nearest), zeros and signs exact, records
+ * independent of each other. */
+static void test_bounce_records(void **state) {
+  (void)state;
+  enum { B = 5, REC = 3 * B * B, NV = 4 };
+  cv_bounce_records *r;
+  assert_int_equal(cv_bounce_records_create(B, NV, &r), CV_OK);
+  float val[NV][REC], back[REC];
+  uint32_t x = 7u;
+  for (int v = 0; v < NV; v++)
+    for (int i = 0; i < REC; i++) {
+      x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+      float u = (float)(x >> 8) / 16777216.0f;
+      /* v 0: zero record; 1: values in [0, 3); 2: signed, spanning 1e-9..1;
+       * 3: one large value over tiny ones (tiny ones fall in half denormals) */
+      val[v][i] = v == 0 ? 0.0f
+                  : v == 1 ? 3.0f * u
+                  : v == 2 ? (i % 2 ? -1.0f : 1.0f) * powf(10.0f, -9.0f * u)
+                           : (i == 7 ? 5.0f : 1e-6f * u);
+    }
+  for (int v = 0; v < NV; v++) cv_bounce_records_set(r, (size_t)v, val[v]);
+  for (int v = 0; v < NV; v++) {
+    float mx = 0;
+    for (int i = 0; i < REC; i++) mx = fmaxf(mx, fabsf(val[v][i]));
+    cv_bounce_records_get(r, (size_t)v, back);
+    for (int i = 0; i < REC; i++) {
+      assert_true(fabsf(back[i] - val[v][i]) <= mx * 0x1p-12f);
+      if (val[v][i] == 0.0f) assert_true(back[i] == 0.0f);
+      else assert_true(back[i] == 0.0f || (back[i] > 0) == (val[v][i] > 0));
+    }
+  }
+  cv_bounce_records_destroy(r);
+  assert_int_equal(cv_bounce_records_create(0, NV, &r), CV_ERR_RANGE);
+}
+
 static void test_hostile_files(void **state) {
   (void)state;
   const float alb[3] = {0.5f, 0.5f, 0.5f};
@@ -715,6 +751,7 @@ int main(void) {
       cmocka_unit_test(test_window_mis),
       cmocka_unit_test(test_hostile_files),
       cmocka_unit_test(test_textured_quad),
+      cmocka_unit_test(test_bounce_records),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
