@@ -77,6 +77,28 @@ static void transfer_error(const float *cur, const float *ref, size_t ns, int NC
   *global = gr2 > 0 ? sqrt(ge2 / gr2) : 0.0;
 }
 
+/* The bare loop with rays j0..j0+15 of each vertex (R per vertex) as one
+ * rtcIntersect16 packet, the packets the bounce pass traces. */
+static double bare_packet_loop(const cv_tracer *tr, const float *org, const float *dir, size_t nverts,
+                               int R) {
+  const cv_rt *rt = cv_tracer_rt(tr);
+  double t0 = cv_now_seconds();
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 1)
+    for (size_t k = 0; k < nverts; k++)
+      for (int j0 = 0; j0 < R; j0 += 16) {
+        cv_hit hit[16];
+        uint8_t found[16];
+        size_t i = k * (size_t)R + (size_t)j0;
+        cv_rt_intersect_packet(rt, R - j0 < 16 ? R - j0 : 16, org + 3 * i, dir + 3 * i, NULL, 0,
+                               INFINITY, 0, hit, found);
+      }
+  }
+  return cv_now_seconds() - t0;
+}
+
 /* CPU seconds used by the whole process (all threads). */
 static double cpu_seconds(void) {
   struct timespec ts;
@@ -126,10 +148,10 @@ static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset,
       cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j),
                        from + k * R + j);
   uint64_t hits = 0, h;
-  double bare[REPS], bounce[REPS], bare_cpu[REPS], bounce_cpu[REPS];
+  double bare[REPS], bounce[REPS], bare_cpu[REPS], bounce_cpu[REPS], packet[REPS];
   cv_bake_bounce_subset(tr, BANDS, R / 8 > 0 ? R / 8 : 1, 1, recs, verts, ns, out); /* warm up */
   for (int k = 0; k < REPS; k++) {
-    bare[k] = bounce[k] = bare_cpu[k] = bounce_cpu[k] = 0;
+    bare[k] = bounce[k] = bare_cpu[k] = bounce_cpu[k] = packet[k] = 0;
     hits = 0;
     for (size_t r = 0; r < runs; r++) {
       size_t a = run_at[r], n = run_at[r + 1] - a;
@@ -141,6 +163,7 @@ static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset,
       bounce[k] += cv_now_seconds() - t0;
       bounce_cpu[k] += cpu_seconds() - c1;
       bare_cpu[k] += c1 - c0;
+      packet[k] += bare_packet_loop(tr, org + 3 * a * R, dir + 3 * a * R, n, R);
     }
   }
   double check = 0;
@@ -182,8 +205,11 @@ static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset,
          "(same rays in both; median of %d alternating runs)\n\n", ns, runs, RUN, R, nr / 1e6,
          100.0 * hits / nr, REPS);
   printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
-  double tb = bench_median(bare, REPS), tp = bench_median(bounce, REPS);
+  double tb = bench_median(bare, REPS), tp = bench_median(bounce, REPS),
+         tk = bench_median(packet, REPS);
   printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | 1.00 |\n", tb, nr / tb / 1e6);
+  printf("| bare Embree closest hit, the bounce pass's rtcIntersect16 packets | %.3f | %.2f | %.2f |\n",
+         tk, nr / tk / 1e6, tb / tk);
   printf("| bake bounce pass (sampling, rtcIntersect16 packets of a vertex's rays, %d-value half records of 3 vertices, RGB sums) | %.3f | "
          "%.2f | **%.2f** |\n\n", REC, tp, nr / tp / 1e6, tb / tp);
   printf("bounce ratio per run (bare / bounce), wall:");
