@@ -237,6 +237,13 @@ int cmd_render(int argc, char **argv) {
     goto done;
   }
   printf("GL: %s\n", cv_renderer_gl_name(r));
+  cv_render_tex_info ti;
+  if (cv_renderer_textures(r, &ti))
+    printf("textures: %d materials, %d x %d texels per layer, %zu vertices added at UV seams\n",
+           ti.layers, ti.w, ti.h, ti.split_vertices);
+  if (ti.unread)
+    printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
+           ti.unread, ti.first_error);
   cv_lighting light = cv_scene_light_sh(sl);
   cv_render_light_stats ls;
   cv_frame_timing lt = {0};
