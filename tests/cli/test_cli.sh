@@ -134,6 +134,10 @@ if [ -r $R01 ]; then
   expect_ok "shade a textured view" $CAVE shade boxt.prt --env-constant 1,1,1 --view 1.5,1.2,2 --look 0,0,0 --size 320x240 -o boxt.png
   grep -q "^texture: material 'Texture': .*CesiumLogoFlat.png (211 x 211)" out.txt && [ -s boxt.png ] && ok "texture used in the view" || { bad "texture in the view"; cat out.txt; }
   expect_ok "shade a textured PLY" $CAVE shade boxt.prt --env-constant 1,1,1 -o boxt.ply
+  # ... and in the GL renderer (`cave render`; looked at: the logo on the box's front face)
+  printf '{ "walls": [ {"name": "front", "pa": [-1.5, 0, -1.5], "pb": [1.5, 0, -1.5], "pc": [-1.5, 3, -1.5], "res": [160, 160]} ],\n  "head": [0, 1.2, 0], "gaze": [0, 0, -1], "scene_offset": [0, -1, 2.2], "near": 0.05, "far": 50 }\n' >boxcave.json
+  expect_ok "render a textured glTF" $CAVE render boxcave.json --scene boxt.prt --env-constant 1,1,1 -o boxrnd
+  grep -q "^textures: 1 materials, 211 x 211 texels per layer" out.txt && [ -s boxrnd/front_L.png ] && ok "texture used by the renderer" || { bad "texture in the renderer"; cat out.txt; }
 else
   bad "assimp-testmodels missing (cluster/setup.sh installs it)"
 fi
