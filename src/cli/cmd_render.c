@@ -80,6 +80,8 @@ static void help(FILE *f) {
           "frame starts adapted to it (steady state), each later frame steps the Pattanaik\n"
           "model by --dt.  An empty cone keeps the state.  Drago's Lwmax is the maximum\n"
           "luminance of all walls' luminance passes.\n"
+          "Textures of a textured .prt multiply each pixel's radiance (docs/prt-format.md);\n"
+          "one that cannot be read is a warning and shows its mean albedo.\n"
           "\nexamples:\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --env forest.exr --illuminance auto -o out\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");

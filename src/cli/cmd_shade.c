@@ -262,6 +262,7 @@ int cmd_shade(int argc, char **argv) {
           memcpy(tex[i]->px, p->mats[i].albedo, 3 * sizeof(float));
           continue;
         }
+        cv_texture_match_mean(tex[i], p->mats[i].albedo); /* the colour factor */
         printf("texture: material '%s': %s (%d x %d)\n", p->mats[i].name, p->mat_tex[i],
                tex[i]->w, tex[i]->h);
       }

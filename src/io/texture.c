@@ -134,6 +134,19 @@ int cv_texture_load(const char *path, cv_image **out, cv_err *err) {
   return CV_OK;
 }
 
+void cv_texture_match_mean(cv_image *t, const float albedo[3]) {
+  const size_t n = (size_t)t->w * (size_t)t->h;
+  double acc[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < 3; k++) acc[k] += t->px[3 * i + k];
+  for (int k = 0; k < 3; k++) {
+    const double mean = acc[k] / (double)n;
+    if (!(mean > 0) || !isfinite(albedo[k])) continue;
+    const float f = (float)(albedo[k] / mean);
+    for (size_t i = 0; i < n; i++) t->px[3 * i + k] *= f;
+  }
+}
+
 static int wrap(long i, int n) {
   long r = i % n;
   return (int)(r < 0 ? r + n : r);

@@ -17,6 +17,14 @@
  * CV_ERR_NOMEM; the message names the file. */
 int cv_texture_load(const char *path, cv_image **out, cv_err *err);
 
+/* Scales each channel of the linear texture t so that its mean equals
+ * albedo, the material's stored albedo (the model's colour factor times the
+ * texture's mean, or an albedo override: docs/scene-config.md): per pixel
+ * the surface then has the albedo the bake gave other surfaces' bounces, the
+ * colour factor included (glTF: base colour = factor x texture).  Channels
+ * whose mean is 0 are left as they are. */
+void cv_texture_match_mean(cv_image *t, const float albedo[3]);
+
 /* Bilinear sample at (u, v), origin at the image's bottom-left (assimp's
  * convention: v = 0 is the last row), texel centres at (i + 0.5) / w,
  * coordinates wrapped (repeat).  rgb gets 3 floats. */

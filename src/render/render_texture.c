@@ -1,13 +1,16 @@
 /* Diffuse albedo textures in the renderer (a .prt with CV_PRT_TEXTURED; see
  * docs/prt-format.md).  The PRT stores a textured receiver's transfer
  * without its own albedo, so a pixel on a textured triangle is
- * texture(uv) x L(x), as in `cave shade --view`:
+ * texture(uv) x L(x), as in `cave shade --view` (the texture scaled so that
+ * its mean is the material's stored albedo: the model's colour factor,
+ * cv_texture_match_mean):
  *
  *  - the UVs are per triangle corner; vertices are split where the corners
  *    that share them differ in (u, v, texture), each copy carrying the
  *    vertex's transfer (cvr_texture_split): a vec3 attribute (u, v, layer),
  *    layer -1 on untextured triangles (shaders/geom.vert, prt.frag TEXTURE);
- *  - every textured material is one layer of a GL_TEXTURE_2D_ARRAY in
+ *  - every textured material (one per texture file and albedo) is a layer of
+ *    a GL_TEXTURE_2D_ARRAY in
  *    GL_SRGB8_ALPHA8 (the GL decodes sRGB to linear before filtering, the
  *    same IEC 61966-2-1 curve as cv_texture_load), mipmapped (trilinear),
  *    repeat wrapping, row order flipped so that v = 0 is the image's bottom
@@ -168,7 +171,7 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
   int w = 1, h = 1;
   for (size_t m = 0; m < p->nm; m++) {
     const int l = layer_of[m];
-    if (l < 0) continue;
+    if (l < 0 || alb[l]) continue; /* untextured, or a layer shared with an earlier material */
     alb[l] = p->mats[m].albedo;
     cv_err e;
     cv_err_clear(&e);
@@ -178,6 +181,7 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
                  e.msg);
       continue;
     }
+    cv_texture_match_mean(img[l], alb[l]); /* the colour factor (io/texture.h) */
     if (img[l]->w > w) w = img[l]->w;
     if (img[l]->h > h) h = img[l]->h;
   }
@@ -221,14 +225,49 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
   return st;
 }
 
+static const cv_prt *sort_prt; /* qsort has no context argument */
+
+/* Materials ordered by (texture file, albedo), then index. */
+static int cmp_mat(const void *a, const void *b) {
+  const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  int c = strcmp(sort_prt->mat_tex[x], sort_prt->mat_tex[y]);
+  if (!c) c = memcmp(sort_prt->mats[x].albedo, sort_prt->mats[y].albedo, sizeof(float[3]));
+  return c ? c : (x > y) - (x < y);
+}
+
+/* layer_of[m]: material m's layer, -1 if untextured (or a window).  Materials
+ * with the same texture file and albedo share a layer (CAD exports repeat
+ * materials).  Returns the layer count, -1 out of memory. */
+static int assign_layers(const cv_prt *p, int *layer_of) {
+  uint32_t *ord = malloc(p->nm * sizeof *ord + 1);
+  if (!ord) return -1;
+  size_t n = 0;
+  for (size_t m = 0; m < p->nm; m++) {
+    layer_of[m] = -1;
+    if (cv_prt_mat_textured(p, m) && !(p->mats[m].flags & CV_MAT_WINDOW)) ord[n++] = (uint32_t)m;
+  }
+  sort_prt = p;
+  qsort(ord, n, sizeof *ord, cmp_mat);
+  int nlayers = 0;
+  for (size_t i = 0; i < n; i++) {
+    const uint32_t m = ord[i], q = i ? ord[i - 1] : 0;
+    const int same = i && !strcmp(p->mat_tex[m], p->mat_tex[q]) &&
+                     !memcmp(p->mats[m].albedo, p->mats[q].albedo, sizeof(float[3]));
+    layer_of[m] = same ? layer_of[q] : nlayers++;
+  }
+  free(ord);
+  return nlayers;
+}
+
 int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err *err) {
   *split = NULL;
   if (!(p->flags & CV_PRT_TEXTURED) || !p->tri_uv || !p->mat_tex) return CV_OK;
   int *layer_of = malloc(p->nm * sizeof *layer_of + 1);
-  if (!layer_of) return cv_err_set(err, CV_ERR_NOMEM, "out of memory loading textures");
-  int nlayers = 0;
-  for (size_t m = 0; m < p->nm; m++)
-    layer_of[m] = cv_prt_mat_textured(p, m) && !(p->mats[m].flags & CV_MAT_WINDOW) ? nlayers++ : -1;
+  const int nlayers = layer_of ? assign_layers(p, layer_of) : -1;
+  if (nlayers < 0) {
+    free(layer_of);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory loading textures");
+  }
   int st = CV_OK;
   if (nlayers) {
     st = upload_layers(r, p, layer_of, nlayers, err);

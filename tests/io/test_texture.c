@@ -2,6 +2,7 @@
  *  - a JPEG written by libjpeg at quality 100 reads back as its sRGB values
  *    decoded to linear (within JPEG's error), grey JPEGs replicated;
  *  - PNG and JPEG are told by their bytes, not the file name;
+ *  - a texture scaled to its material's albedo (the colour factor);
  *  - missing, garbage and truncated files: an error naming the file, no crash;
  *  - embedded textures of an aiScene: compressed PNG bytes ("*0") written
  *    to the cache as they are, raw BGRA texels as a PNG, the same texture
@@ -125,6 +126,24 @@ static void test_bad_files(void **state) {
   assert_null(t);
 }
 
+/* cv_texture_match_mean: each channel scaled to the given mean (the
+ * material's albedo: colour factor x texture mean). */
+static void test_match_mean(void **state) {
+  (void)state;
+  cv_image *t;
+  assert_int_equal(cv_image_create(2, 2, 3, &t), CV_OK);
+  const float v[12] = {0.1f, 0.2f, 0.0f, 0.3f, 0.4f, 0.0f, 0.5f, 0.6f, 0.0f, 0.7f, 0.8f, 0.0f};
+  memcpy(t->px, v, sizeof v);
+  const float albedo[3] = {0.2f, 0.25f, 0.3f}; /* means were 0.4, 0.5, 0 */
+  cv_texture_match_mean(t, albedo);
+  for (int i = 0; i < 4; i++) {
+    assert_true(fabs(t->px[3 * i] - v[3 * i] * 0.5) < 1e-7);
+    assert_true(fabs(t->px[3 * i + 1] - v[3 * i + 1] * 0.5) < 1e-7);
+    assert_true(t->px[3 * i + 2] == 0.0f); /* a zero mean is left */
+  }
+  cv_image_destroy(t);
+}
+
 static uint8_t *slurp(const char *path, size_t *n) {
   FILE *f = fopen(path, "rb");
   assert_non_null(f);
@@ -211,6 +230,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_jpeg_read),
       cmocka_unit_test(test_bad_files),
+      cmocka_unit_test(test_match_mean),
       cmocka_unit_test(test_embedded),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -324,6 +324,19 @@ static void test_textured_quad(void **state) {
   assert_true(w_mean < 0.02); /* the mean is quantised to 8-bit sRGB, plus the bake's noise */
   memcpy(p->mat_tex[0], keep, sizeof keep);
   cv_renderer_destroy(r0);
+  /* materials with the same texture file share a layer when their albedos
+   * (colour factors) agree, not otherwise */
+  memcpy(p->mat_tex[1], keep, sizeof keep);
+  const float plain_alb[3] = {p->mats[1].albedo[0], p->mats[1].albedo[1], p->mats[1].albedo[2]};
+  memcpy(p->mats[1].albedo, p->mats[0].albedo, sizeof plain_alb);
+  OK(cv_renderer_create(p, &o, &r0, &err));
+  assert_int_equal(cv_renderer_textures(r0, &ti), 1);
+  cv_renderer_destroy(r0);
+  memcpy(p->mats[1].albedo, plain_alb, sizeof plain_alb);
+  OK(cv_renderer_create(p, &o, &r0, &err));
+  assert_int_equal(cv_renderer_textures(r0, &ti), 2);
+  cv_renderer_destroy(r0);
+  p->mat_tex[1][0] = '\0';
 
   free(rad);
   free(geom), free(border);
