@@ -90,6 +90,18 @@ static void test_jpeg_read(void **state) {
   cv_image_destroy(t);
 }
 
+static uint8_t *slurp(const char *path, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  assert_non_null(f);
+  fseek(f, 0, SEEK_END);
+  *n = (size_t)ftell(f);
+  rewind(f);
+  uint8_t *b = malloc(*n);
+  assert_int_equal(fread(b, 1, *n, f), *n);
+  fclose(f);
+  return b;
+}
+
 static void test_bad_files(void **state) {
   (void)state;
   cv_image *t = NULL;
@@ -117,6 +129,18 @@ static void test_bad_files(void **state) {
   printf("truncated JPEG: %s\n", err.msg);
   assert_non_null(strstr(err.msg, "cut.jpg"));
   assert_null(t);
+  /* the end of the scan cut off: libjpeg warns (premature end) and fills in
+   * grey; refused as well */
+  size_t nfull;
+  uint8_t *whole = slurp(full, &nfull);
+  f = fopen(path_of("end.jpg"), "wb");
+  fwrite(whole, 1, nfull - 40, f);
+  fclose(f);
+  free(whole);
+  assert_int_equal(cv_texture_load(path_of("end.jpg"), &t, &err), CV_ERR_FORMAT);
+  printf("JPEG without its end: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "corrupt JPEG"));
+  assert_null(t);
   /* only the header: an error from libjpeg itself (longjmp path) */
   f = fopen(path_of("head.jpg"), "wb");
   fwrite(buf, 1, 20, f);
@@ -142,18 +166,6 @@ static void test_match_mean(void **state) {
     assert_true(t->px[3 * i + 2] == 0.0f); /* a zero mean is left */
   }
   cv_image_destroy(t);
-}
-
-static uint8_t *slurp(const char *path, size_t *n) {
-  FILE *f = fopen(path, "rb");
-  assert_non_null(f);
-  fseek(f, 0, SEEK_END);
-  *n = (size_t)ftell(f);
-  rewind(f);
-  uint8_t *b = malloc(*n);
-  assert_int_equal(fread(b, 1, *n, f), *n);
-  fclose(f);
-  return b;
 }
 
 static void test_embedded(void **state) {
