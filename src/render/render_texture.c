@@ -7,12 +7,12 @@
  *
  *  - the UVs are per triangle corner; vertices are split where the corners
  *    that share them differ in (u, v, texture), each copy carrying the
- *    vertex's transfer (cvr_texture_split): a vec3 attribute (u, v, layer),
+ *    vertex's transfer (split_vertices): a vec3 attribute (u, v, layer),
  *    layer -1 on untextured triangles (shaders/geom.vert, prt.frag TEXTURE);
  *  - every textured material (one per texture file and albedo) is a layer of
- *    a GL_TEXTURE_2D_ARRAY in
- *    GL_SRGB8_ALPHA8 (the GL decodes sRGB to linear before filtering, the
- *    same IEC 61966-2-1 curve as cv_texture_load), mipmapped (trilinear),
+ *    a GL_TEXTURE_2D_ARRAY in GL_SRGB8_ALPHA8 (the GL decodes sRGB to linear
+ *    before filtering, with the IEC 61966-2-1 curve of cv_texture_load;
+ *    measured against it: docs/architecture.md), mipmapped (trilinear),
  *    repeat wrapping, row order flipped so that v = 0 is the image's bottom
  *    row as in cv_texture_sample.  The layers share one size, that of the
  *    largest texture; smaller ones are resampled bilinearly (in linear RGB,
