@@ -234,7 +234,7 @@ int cv_lcd_config_panels(cv_lcd_config *c, cv_err *err) {
   const char *file = c->source[0] ? c->source : "lcd";
   if (c->n_panels <= 0) {
     memset(&c->panels[0], 0, sizeof c->panels[0]);
-    snprintf(c->panels[0].name, sizeof c->panels[0].name, "cluster");
+    snprintf(c->panels[0].name, sizeof c->panels[0].name, "lcd");
     c->panels[0].content_luminance = -1;
     c->panels[0].black_luminance = -2;
     c->n_panels = 1;
@@ -249,6 +249,10 @@ int cv_lcd_config_panels(cv_lcd_config *c, cv_err *err) {
       p->black_luminance = c->black_luminance >= 0 ? c->black_luminance
                                                    : CV_LCD_BLACK_LEVEL * p->content_luminance;
     if (p->width <= 0) p->width = c->width, p->height = c->height;
+    if (p->black_luminance > p->content_luminance && !c->source[0]) /* options, no file */
+      return cv_err_set(err, CV_ERR_CONFIG,
+                        "panel '%s': white_luminance %g is below black_luminance %g (expected white >= black)",
+                        p->name, p->content_luminance, p->black_luminance);
     if (p->black_luminance > p->content_luminance)
       return cv_err_set(err, CV_ERR_CONFIG,
                         "%s: lcd.panels[%d].black_luminance: %g is above the white (content_luminance) %g",

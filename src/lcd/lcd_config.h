@@ -12,12 +12,12 @@
  *              "eye_tolerance": 0.005, "brdf_fraction": 0.9, "seed": 1,
  *              "env_width": 1024, "sun_samples": 16, "clamp": 0,
  *              "cr_min": 3, "age": 40, "pigment": 0.5,
- *              "panels": [ { "name": "cluster" },
- *                          { "name": "centre", "corners": [[x,y,z], [x,y,z], [x,y,z]],
+ *              "panels": [ { "name": "centre" },
+ *                          { "name": "cluster", "corners": [[x,y,z], [x,y,z], [x,y,z]],
  *                            "brdf": "...", "content": "nav.png", "resolution": [400, 240],
  *                            "content_luminance": 400, "black_luminance": 0.5 } ] } }
  *
- * Panels: without "panels" the block describes one panel, "cluster", on the
+ * Panels: without "panels" the block describes one panel, "lcd", on the
  * mesh's triangles tagged lcd.  A panel entry takes its rectangle from
  * "corners" (lower-left, lower-right, upper-left as the driver sees it, car
  * frame, metres; like a CAVE wall's pa, pb, pc) or, in at most one entry,
@@ -71,7 +71,7 @@ typedef struct cv_lcd_config {
   int sun_samples;            /* fan points per vertex for the sun's direct light in the
                                  PRT radiance (16) */
   double clamp;               /* per-sample radiance clamp; 0 = automatic (default) */
-  int n_panels;               /* 0: one panel "cluster" from the block's own fields */
+  int n_panels;               /* 0: one panel "lcd" from the block's own fields */
   cv_lcd_panel_config panels[CV_LCD_MAX_PANELS];
   char source[CV_PATH_MAX];   /* the file the panels came from ("" = defaults), for errors */
 } cv_lcd_config;
@@ -88,7 +88,7 @@ int cv_lcd_config_load_scene(const char *path, cv_lcd_config *c, cv_err *err);
 /* The black luminance in effect (black_luminance, or the default level). */
 double cv_lcd_config_black(const cv_lcd_config *c);
 /* Resolves the panels after every override of the block's fields (command
- * line options): with no "panels" one panel "cluster" from the block's
+ * line options): with no "panels" one panel "lcd" from the block's
  * fields; each panel's unset brdf, content, white, black and resolution
  * become the block's.  Errors (CV_ERR_CONFIG, naming the file and
  * lcd.panels[i].field): black above white. */
