@@ -380,7 +380,7 @@ expect_error "scene: lcd not an object" "lcd: expected an object" $CAVE bake lcd
 [ ! -e y.exr ] && [ ! -e y.prt ] && ok "lcd: no output left by config failures" || bad "lcd: a config failure left output"
 # several panels (lcd.panels): the mesh's panel (centre) and an instrument
 # cluster in front of the driver on the same dashboard face, by corners
-CL='"corners": [[-0.47, 0.5697, -0.9537], [-0.27, 0.5697, -0.9537], [-0.47, 0.6871, -0.9784]]'
+CL='"corners": [[-0.46, 0.6813, -0.9772], [-0.28, 0.6813, -0.9772], [-0.46, 0.7596, -0.9937]]'
 pan() { printf '{ "mesh": { "source": "cabin" }, "lcd": { "resolution": [40, 24], "spp": 4, "panels": [ { "name": "centre" }, %s ] } }\n' "$1" >"$2"; }
 pan "{ \"name\": \"cluster\", $CL, \"content_luminance\": 300 }" twop.json
 expect_ok "lcd two panels" $CAVE lcd twop.json --prt a.prt "${EYE[@]}" --sky 3,20,180 -o tp.exr
