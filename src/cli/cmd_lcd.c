@@ -84,6 +84,9 @@ static void help(FILE *f) {
           "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
           "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
           "colour bar CR 1..10 on a log scale below with the requirement marked white).\n"
+          "Several panels (the scene config's lcd.panels, docs/scene-config.md): figures per\n"
+          "panel, and panel.<name>.exr, .exr.json, .cr.png per panel; --drive: 13 CSV columns\n"
+          "per panel prefixed <name>.  `cave run --scene-config` uses the same model.\n"
           "\nexamples:\n"
           "  cave lcd scene.prt --eye -0.37,1.1,0.3 --env forest.exr --illuminance auto -o panel.exr --png\n"
           "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
