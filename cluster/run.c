@@ -568,6 +568,12 @@ static void print_layout(const cv_service *s, int ranks) {
     printf(", gpu %s\n", gpu);
   }
   if (s->n_gather) printf("  ranks %d-%d: gather-only\n", 1 + s->n_render, ranks - 1);
+  if (s->o.lcd && s->lcd_layout.n > 0) { /* the LCD model (docs/readability.md) */
+    printf("  LCD (%s):", s->o.scene_config[0] ? s->o.scene_config : "defaults");
+    for (int i = 0; i < s->lcd_layout.n; i++)
+      printf("%s %s %dx%d", i ? "," : "", s->lcd.panels[i].name, s->lcd_layout.w[i], s->lcd_layout.h[i]);
+    printf(" texels, %d spp per round, eye tolerance %g m\n", s->o.lcd_spp, s->o.lcd_tolerance);
+  }
 }
 
 static int mkdirs(const char *path) {
