@@ -277,7 +277,8 @@ int cvr_box_outside(const float mvp[16], const float *lo, const float *hi) {
  * (all of them when mvp is NULL or culling is off): part DRAW_ALL as runs
  * of consecutive chunks of buf_idx; DRAW_SUNLIT / DRAW_UNSUNLIT the
  * sun-facing / other triangles of those chunks from buf_idx_sun (the sun
- * split), in one glMultiDrawElements.  Every pass of a view submits the same
+ * split; DRAW_SHADOW those facing away or near grazing: the culled shadow
+ * map), in one glMultiDrawElements.  Every pass of a view submits the same
  * triangles, which the depth-EQUAL pass relies on.  Returns the triangles
  * submitted. */
 size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
@@ -291,6 +292,9 @@ size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
     } else if (part == DRAW_UNSUNLIT) {
       first += r->chunk_nf[c];
       n -= r->chunk_nf[c];
+    } else if (part == DRAW_SHADOW) {
+      first += r->chunk_na[c];
+      n -= r->chunk_na[c];
     }
     if (!n) continue;
     if (nrun && r->run[2 * (nrun - 1)] + r->run[2 * (nrun - 1) + 1] == first) {

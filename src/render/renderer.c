@@ -21,6 +21,8 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->cull_frustum = 1;
   o->sun_split = 1;
   o->gpu = CV_GPU_AUTO;
+  o->shadow_reuse = 0.5;
+  o->split_margin = 0.05;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
@@ -373,6 +375,7 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     }
     idx[i] = new_of[idx[i]];
   }
+  r->nv_used = next;
   for (size_t v = 0; v < p->nv; v++)
     if (new_of[v] == UINT32_MAX) {
       old_of[next] = (uint32_t)v;
@@ -431,9 +434,10 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   free(tf), free(th), free(old_of), free(new_of), free(alb);
   r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
   r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
+  r->chunk_na = malloc(r->nchunks * sizeof *r->chunk_na + 4);
   r->md_count = malloc(r->nchunks * sizeof *r->md_count + 4);
   r->md_off = malloc(r->nchunks * sizeof *r->md_off + 8);
-  if (!r->chunk_nf || !r->md_count || !r->md_off)
+  if (!r->chunk_nf || !r->chunk_na || !r->md_count || !r->md_off)
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
   return cvr_gl_check("scene upload", err);
 }
@@ -523,6 +527,8 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->idx_cpu);
   free(r->pos_cpu);
   free(r->chunk_nf);
+  free(r->chunk_na);
+  free(r->tri_n);
   free(r->md_count);
   free(r->md_off);
   free(r->run);

@@ -108,9 +108,21 @@ struct cv_renderer {
   int sun_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
+  /* Lighting changes (opts.shadow_cull, shadow_reuse, split_margin): the
+   * split is three parts per chunk, n_t . s > m (chunk_na of them), then
+   * |n_t . s| <= m, then n_t . s < -m (chunk_nf = the first two; the culled
+   * shadow map draws the last two), m = split_margin, for the direction
+   * split_s; tri_n the triangles' unit winding normals (built on first use);
+   * shadow_s the sun of the current shadow map, shadow_texel its texel (m);
+   * nv_used the vertices of opaque triangles (numbered first). */
+  uint32_t *chunk_na;
+  float *tri_n;
+  double split_s[3], shadow_s[3], shadow_texel, shadow_ext;
+  int split_valid, shadow_valid;
+  size_t nv_used;
 };
 
-enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
+enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
 
 #define CHUNK 1024
 
