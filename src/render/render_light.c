@@ -63,6 +63,11 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
   *texel = (float)(ext / r->o.shadow_res);
 }
 
+/* Whether the shadow map is culled (opts.shadow_cull; -1: the mesh is closed). */
+int cvr_shadow_culled(const cv_renderer *r) {
+  return r->o.shadow_cull < 0 ? r->closed : r->o.shadow_cull != 0;
+}
+
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   const int n = r->o.shadow_res;
   if (!r->fbo_shadow || r->shadow_res != n) {
@@ -100,7 +105,7 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   cvr_set_cull(r, 0);
   glUseProgram(r->prog_depth);
   cvr_uni_mat(r->prog_depth, "u_mvp", clip);
-  cvr_draw_mesh(r, NULL, r->o.shadow_cull && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
+  cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
   for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
   r->shadow_texel = texel;
   r->shadow_valid = 1;
@@ -273,7 +278,7 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
     }
     /* the split first: the culled shadow map draws a part of it */
     r->sun_split = 0;
-    if ((r->o.sun_split || r->o.shadow_cull) && (st = cvr_sun_split(r, sd, err))) return st;
+    if ((r->o.sun_split || cvr_shadow_culled(r)) && (st = cvr_sun_split(r, sd, err))) return st;
     r->sun_split = r->o.sun_split;
     t2 = cvr_tick(r);
     reused = shadow_reusable(r, sd);

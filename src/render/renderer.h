@@ -90,7 +90,10 @@ typedef struct cv_render_opts {
                         surface seen from the air is seen from its front (closed, consistently
                         wound meshes with normals towards the air, as cull_back asks): the
                         first opaque hit from a visible point towards the sun then faces away
-                        from it.  (default 0) */
+                        from it.  0: every triangle; -1 (default): 1 when the mesh (opaque and
+                        window triangles) is closed and consistently wound, i.e. every
+                        directed edge appears once and its reverse once
+                        (cv_renderer_mesh_closed) */
   double shadow_reuse; /* texels: a lighting change whose sun moved less than this (at the
                         map's extent) keeps the shadow map and its matrices (default 0.5;
                         0: redraw on every change with a sun) */
@@ -173,6 +176,11 @@ int cv_renderer_swap(cv_renderer *r, cv_err *err);
 int cv_renderer_window_poll(cv_renderer *r);
 /* The window's size (0 x 0 without one). */
 void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
+
+/* 1 when the scene's triangles (opaque and windows, degenerate ones left
+ * out) are closed and consistently wound: each directed edge once, its
+ * reverse once (checked at create; opts.shadow_cull -1 follows it). */
+int cv_renderer_mesh_closed(const cv_renderer *r);
 
 /* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
 const char *cv_renderer_gl_name(const cv_renderer *r);

@@ -120,6 +120,7 @@ struct cv_renderer {
   double split_s[3], shadow_s[3], shadow_texel, shadow_ext;
   int split_valid, shadow_valid;
   size_t nv_used;
+  int closed;         /* cv_renderer_mesh_closed */
 };
 
 enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
@@ -147,6 +148,7 @@ int cvr_cmp_u64(const void *a, const void *b);
 int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err *err);
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
 void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
+int cvr_shadow_culled(const cv_renderer *r);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);

@@ -267,8 +267,9 @@ int main(int argc, char **argv) {
   }
   const char *lp = getenv("LP_NUM_THREADS");
   printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[0]), lp ? lp : "(unset: all cores)");
-  printf("scene: %zu triangles, %zu vertices, %u bands; %d suns of a Preetham sky\n\n", prt->nt,
-         prt->nv, prt->bands, nsun);
+  printf("scene: %zu triangles, %zu vertices, %u bands, closed and consistently wound: %s; %d suns "
+         "of a Preetham sky\n\n", prt->nt, prt->nv, prt->bands,
+         cv_renderer_mesh_closed(R[0]) ? "yes" : "no", nsun);
   if (do_time) {
     static double T[NVAR][4][MAXR * MAXSUN];
     int n = 0;

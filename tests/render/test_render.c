@@ -416,15 +416,19 @@ static void test_gl_sun_cull_reuse(void **state) {
   cv_render_default_opts(&o);
   o.display_float = 1;
   o.shadow_cull = 1;
-  cv_renderer *rc;
+  cv_renderer *rc, *full;
   OK(cv_renderer_create(F.prt, &o, &rc, &err));
+  o.shadow_cull = 0;
+  OK(cv_renderer_create(F.prt, &o, &full, &err));
+  printf("cabin closed and consistently wound: %d\n", cv_renderer_mesh_closed(rc));
+  assert_int_equal(cv_renderer_mesh_closed(rc), 1); /* so the default (-1) culls */
   cv_frame_timing t = {0};
   OK(cv_renderer_set_lighting(rc, &l, NULL, &t, &err));
   assert_int_equal(t.shadow_reused, 0);
-  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  OK(cv_renderer_set_lighting(full, &l, NULL, NULL, &err));
   cv_image *bg = const_bg();
   OK(cv_renderer_set_background(rc, bg, &err));
-  OK(cv_renderer_set_background(F.r, bg, &err));
+  OK(cv_renderer_set_background(full, bg, &err));
   cv_image *a[2], *b[2];
   for (int k = 0; k < 2; k++) {
     pose pk = make_pose(k);
@@ -432,7 +436,7 @@ static void test_gl_sun_cull_reuse(void **state) {
     assert_int_equal(cv_image_create(pk.w, pk.h, 3, &a[k]), CV_OK);
     assert_int_equal(cv_image_create(pk.w, pk.h, 3, &b[k]), CV_OK);
     OK(cv_renderer_shade(rc, &vk, NULL, 0, NULL, a[k], NULL, &err));
-    OK(cv_renderer_shade(F.r, &vk, NULL, 0, NULL, b[k], NULL, &err));
+    OK(cv_renderer_shade(full, &vk, NULL, 0, NULL, b[k], NULL, &err));
     size_t differ = 0, np = (size_t)pk.w * pk.h;
     for (size_t i = 0; i < np; i++) {
       double d = 0;
@@ -469,6 +473,8 @@ static void test_gl_sun_cull_reuse(void **state) {
     }
   }
   cv_renderer_destroy(rc);
+  cv_renderer_destroy(full);
+  o.shadow_cull = 1;
   o.shadow_reuse = 0;
   OK(cv_renderer_create(F.prt, &o, &rc, &err));
   OK(cv_renderer_set_lighting(rc, &l, NULL, &t, &err));
@@ -478,6 +484,46 @@ static void test_gl_sun_cull_reuse(void **state) {
   for (int k = 0; k < 2; k++) cv_image_destroy(a[k]), cv_image_destroy(b[k]);
   cv_image_destroy(bg);
   cv_scene_light_destroy(sl);
+}
+
+/* cv_renderer_mesh_closed: a unit box wound outwards is closed; without one
+ * face, or with one face wound the other way, it is not. */
+static void test_mesh_closed(void **state) {
+  (void)state;
+  static const float P[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  static const uint32_t Q[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                   {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  for (int k = 0; k < 3; k++) { /* 0: closed, 1: a face missing, 2: a face flipped */
+    cv_mesh *m;
+    cv_err err;
+    uint32_t mat;
+    assert_int_equal(cv_mesh_create(&m), CV_OK);
+    assert_int_equal(cv_mesh_add_material(m, "grey", (const float[3]){0.5f, 0.5f, 0.5f}, 0, &mat), CV_OK);
+    for (int i = 0; i < 8; i++) assert_int_equal(cv_mesh_add_vertex(m, P[i][0], P[i][1], P[i][2], NULL), CV_OK);
+    for (int f = 0; f < 6; f++) {
+      if (k == 1 && f == 5) continue;
+      const uint32_t *q = Q[f];
+      if (k == 2 && f == 5) {
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[2], q[1], mat), CV_OK);
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[3], q[2], mat), CV_OK);
+      } else {
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[1], q[2], mat), CV_OK);
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[2], q[3], mat), CV_OK);
+      }
+    }
+    cv_bake_params bp = {.bands = 2, .rays = 4, .bounces = 0, .seed = 1,
+                         .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+    cv_prt *p;
+    OK(cv_prt_bake(m, &bp, &p, NULL, &err));
+    cv_renderer *r;
+    OK(cv_renderer_create(p, NULL, &r, &err));
+    printf("box %d: closed %d\n", k, cv_renderer_mesh_closed(r));
+    assert_int_equal(cv_renderer_mesh_closed(r), k == 0);
+    cv_renderer_destroy(r);
+    cv_prt_destroy(p);
+    cv_mesh_destroy(m);
+  }
 }
 
 /* Depth EQUAL after the z pre-pass leaves no hole: with the targets cleared
@@ -904,7 +950,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_sun_cull_reuse),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
