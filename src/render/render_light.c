@@ -256,19 +256,23 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
   glDisable(GL_RASTERIZER_DISCARD);
   glBindVertexArray(0);
-  /* Clamp count: sum of the captured w (exact in double). */
+  /* Clamp count: sum of the captured w (exact in double), only when asked
+   * for (mapping the buffer waits for the relight and reads 16 bytes a
+   * vertex back). */
   uint64_t clamped = 0;
-  glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
-  const float *m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)),
-                                    GL_MAP_READ_BIT);
-  if (m) {
-    for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
-    glUnmapBuffer(GL_ARRAY_BUFFER);
+  const float *m = NULL;
+  if (stats) {
+    glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
+    m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), GL_MAP_READ_BIT);
+    if (m) {
+      for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
+      glUnmapBuffer(GL_ARRAY_BUFFER);
+    }
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
   }
-  glBindBuffer(GL_ARRAY_BUFFER, 0);
   int st = cvr_gl_check("relighting", err);
   if (st) return st;
-  if (!m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
+  if (stats && !m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
   double t1 = cvr_tick(r), t2 = t1, t3 = t1;
   int reused = 0;
   r->has_sun = sun;

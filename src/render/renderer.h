@@ -187,8 +187,8 @@ const char *cv_renderer_gl_name(const cv_renderer *r);
 
 /* Sets the lighting: relights every vertex on the GPU (as cv_prt_relight
  * without its ray-traced sun) and, with a sun, renders its shadow map.
- * l->bands must be >= the PRT's bands.  stats (may be NULL) gets the clamp
- * count; t (may be NULL) relight_ms, split_ms, shadow_ms and shadow_reused.
+ * l->bands must be >= the PRT's bands.  stats (may be NULL: then the
+ * relit buffer is not read back) gets the clamp count; t (may be NULL) relight_ms, split_ms, shadow_ms and shadow_reused.
  * Errors: CV_ERR_RANGE (bands), CV_ERR_NONFINITE (lighting), CV_ERR_BACKEND. */
 int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
                              cv_frame_timing *t, cv_err *err);

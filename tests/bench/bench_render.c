@@ -17,7 +17,7 @@
  * Medians over the frames; every pass is bracketed by glFinish.
  *
  * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
- *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440] [--cpu]
+ *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440|N] [--cpu]
  *   [--tone-exact] [--no-sun-split]
  * --cpu: every pass timed in CPU ms of the whole process (all llvmpipe
  * threads: the work done, steady on a machine others load) instead of wall
@@ -166,7 +166,8 @@ int main(int argc, char **argv) {
   cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = 1000, .lwmax = 2e4};
   cv_drago_consts dc;
   cv_drago_prepare(&d, &dc);
-  const int sizes[2] = {720, 1440};
+  int sizes[2] = {720, 1440};
+  if (only > 0 && only != 720 && only != 1440) sizes[0] = only; /* any other size alone */
   cv_image *lum[NV];
   for (int i = 0; i < nviews; i++) cv_image_create(cave.lum_res, cave.lum_res, 1, &lum[i]);
   double stats_ms[MAXF];
