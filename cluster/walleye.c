@@ -160,6 +160,7 @@ static int walleye_setup(walleye *we, cv_err *err) {
   cv_render_opts ro;
   cv_render_default_opts(&ro);
   ro.timing = 1;
+  ro.cull_back = -1; /* on when the scene is closed and consistently wound */
   ro.gpu = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : we->o->gpu;
   if (window) {
     window_spec(we);

@@ -120,10 +120,11 @@ int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img) {
 
 /* ---------------------------------------------------------------- passes */
 
-/* Face culling of the view passes (opts.cull_back); the shadow map draws
- * both sides. */
+/* Face culling of the view passes (opts.cull_back; -1: on a closed mesh);
+ * the shadow map draws both sides (or, culled, the part facing away from
+ * the sun). */
 void cvr_set_cull(const cv_renderer *r, int on) {
-  if (on && r->o.cull_back) {
+  if (on && (r->o.cull_back < 0 ? r->closed : r->o.cull_back)) {
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
   } else {

@@ -70,7 +70,8 @@ typedef struct cv_render_opts {
                         display gets, quantised to k/255 (default) */
   int cull_frustum;  /* 1: skip chunks of 1024 triangles outside the view (default 1) */
   int cull_back;     /* 1: cull back faces (only for closed, consistently wound meshes
-                        such as the cabin; the CPU reference sees both sides) (default 0) */
+                        such as the cabin; the CPU reference sees both sides) (default 0);
+                        -1: when cv_renderer_mesh_closed (what `cave run` asks for) */
   int debug_clear;   /* 1: clear colour targets to -1 before shading (tests find holes) */
   int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests) */
   int sun_split;     /* 1: with a sun, draw the triangles facing away from it (n_t . s <= 0:
