@@ -18,11 +18,15 @@
  *
  * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
  *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440|N] [--cpu]
- *   [--tone-exact] [--no-sun-split]
+ *   [--tone-exact] [--no-sun-split] [--no-transfer] [--depth-less]
  * --cpu: every pass timed in CPU ms of the whole process (all llvmpipe
  * threads: the work done, steady on a machine others load) instead of wall
  * ms; --tone-exact / --no-sun-split: the renderer options of those names
- * (opts.tone_exact = 1, opts.sun_split = 0), for before/after tables.
+ * (opts.tone_exact = 1, opts.sun_split = 0), for before/after tables;
+ * --no-transfer: display-linear output without the Rec.709 curve in the
+ * shader, as `cave run` renders (its 8-bit codes come from a CPU table);
+ * --depth-less: no z pre-pass, one shading pass with depth LESS
+ * (opts.depth_less; "depth" is then only the clear).
  * Back faces are culled by default (the cabin is closed and consistently
  * wound; tests/render checks the image does not change). */
 #include <math.h>
@@ -84,6 +88,7 @@ static cv_prt *load_or_bake(void) {
 
 int main(int argc, char **argv) {
   int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
+  int transfer = 1, depth_less = 0;
 #ifdef CV_SOURCE_DIR
   const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
 #else
@@ -97,6 +102,8 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--cpu")) cpu = 1;
     else if (!strcmp(argv[i], "--tone-exact")) exact = 1;
     else if (!strcmp(argv[i], "--no-sun-split")) split = 0;
+    else if (!strcmp(argv[i], "--no-transfer")) transfer = 0;
+    else if (!strcmp(argv[i], "--depth-less")) depth_less = 1;
     else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--cave") && i + 1 < argc) cave_path = argv[++i];
     else frames = atoi(argv[i]);
@@ -120,6 +127,7 @@ int main(int argc, char **argv) {
   ro.tone_exact = exact;
   ro.sun_split = split;
   ro.shadow_reuse = 0; /* the same sun every change: time the map, do not keep it */
+  ro.depth_less = depth_less;
   cv_renderer *r;
   if (cv_renderer_create(prt, &ro, &r, &err)) {
     fprintf(stderr, "%s\n", err.msg);
@@ -138,9 +146,9 @@ int main(int argc, char **argv) {
   }
   cv_lighting l = cv_scene_light_sh(sl);
   const char *lp = getenv("LP_NUM_THREADS");
-  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s; sun split %s\n",
+  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s%s; sun split %s\n",
          cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)", cpu ? "CPU (all threads)" : "wall",
-         exact ? "log/pow" : "table + polynomial", split ? "on" : "off");
+         exact ? "log/pow" : "table + polynomial", transfer ? "" : " (no transfer)", split ? "on" : "off");
   printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
          "back faces %s, frustum culling %s, display target %s\n",
          prt->nt, prt->nv, prt->bands, half ? "half" : "float",
@@ -192,7 +200,7 @@ int main(int argc, char **argv) {
         v.w = v.h = S, v.supersample = 1;
         cv_frame_timing t = {0}, tu = {0};
         if (cv_renderer_luminance(r, &v, lum[i], &t, &err) ||
-            cv_renderer_shade(r, &v, &dc, 1, disp, NULL, &t, &err) ||
+            cv_renderer_shade(r, &v, &dc, transfer, disp, NULL, &t, &err) ||
             cv_renderer_unlit(r, &v, un, &tu, &err)) {
           fprintf(stderr, "%s\n", err.msg);
           return 1;
