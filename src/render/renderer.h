@@ -75,7 +75,7 @@ typedef struct cv_render_opts {
   int debug_clear;   /* 1: clear colour targets to -1 before shading (tests find holes) */
   int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests; also the
                         cheaper frame for small views on llvmpipe, where the pre-pass costs a
-                        whole geometry pass: `cave run` uses it up to 720^2 pixels) *
+                        whole geometry pass: `cave run` uses it up to 720^2 pixels) */
   int sun_split;     /* 1: with a sun, draw the triangles facing away from it (n_t . s <= 0:
                         no direct sun) with the shader without the sun's per-pixel code
                         (default 1; the image is the same) */
