@@ -734,6 +734,40 @@ static inline void env_fetch(const cv_image *img, uint32_t t, float tx, float ty
   }
 }
 
+/* The sun as a uniform disc of angular radius CV_LCD_SUN_HALF_ANGLE_DEG
+ * around sun_dir (its irradiance at normal incidence E = L pi sin^2(alpha)
+ * is the light's sun_E): radiance L, a frame around its centre, and the
+ * one-direction estimate's factor L Omega = E 2 / (1 + cos alpha) (a
+ * direction drawn uniformly in the cone has the density 1 / Omega). */
+typedef struct sun_disc {
+  float dir[3], t[3], b[3];
+  float cos_a;      /* cos(alpha) */
+  float L[3];       /* disc radiance */
+  float E_omega[3]; /* L Omega */
+} sun_disc;
+
+static void sun_disc_init(const cv_lcd_light *l, sun_disc *sf) {
+  const double a = CV_LCD_SUN_HALF_ANGLE_DEG * M_PI / 180, s = sin(a);
+  memcpy(sf->dir, l->sun_dir, sizeof sf->dir);
+  sf->cos_a = (float)cos(a);
+  for (int c = 0; c < 3; c++) {
+    sf->L[c] = (float)(l->sun_E[c] / (M_PI * s * s));
+    sf->E_omega[c] = (float)(l->sun_E[c] * 2 / (1 + cos(a)));
+  }
+  const float up[3] = {fabsf(sf->dir[1]) < 0.9f ? 0.0f : 1.0f, fabsf(sf->dir[1]) < 0.9f ? 1.0f : 0.0f, 0};
+  cross3(up, sf->dir, sf->t);
+  normalize3(sf->t);
+  cross3(sf->dir, sf->t, sf->b);
+}
+
+/* A direction uniform in the disc's cone from two hashed integers. */
+static inline void sun_disc_dir(const sun_disc *sf, uint32_t h0, uint32_t h1, float d[3]) {
+  const float u0 = (float)(h0 >> 8) * 0x1p-24f, u1 = (float)(h1 >> 8) * 0x1p-24f;
+  const float ct = 1 - u0 * (1 - sf->cos_a), st = sqrtf(fmaxf(0.0f, 1 - ct * ct));
+  const float ph = 6.28318530717958647692f * u1, a = st * cosf(ph), b = st * sinf(ph);
+  for (int k = 0; k < 3; k++) d[k] = ct * sf->dir[k] + a * sf->t[k] + b * sf->b[k];
+}
+
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                         uint32_t round, cv_lcd_accum *acc) {
   if (!g || !l || !p || !acc || p->w < 1 || p->h < 1 || p->x0 < 0 || p->y0 < 0 ||
@@ -770,6 +804,11 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   const cv_env_sampler *esm = esr;
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
+  /* without next-event estimation the rays that leave find the sun's disc */
+  const int sun_in_env = !p->sun && l->has_sun;
+  sun_disc sf;
+  memset(&sf, 0, sizeof sf);
+  if (l->has_sun) sun_disc_init(l, &sf);
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
   const int chunk = spp < CHUNK_SPP ? spp : CHUNK_SPP;
   /* blocks that hold a texel of the tile */
@@ -872,16 +911,20 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             for (int k = 0; k < 3; k++)
               o[k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + T->off[k];
             if (j == 0 && sun && T->in_tile) {
-              /* next-event estimate of the sun from sample 0's position, for the round */
-              const float cs = dot3(l->sun_dir, pn->normal);
+              /* next-event estimate of the sun from sample 0's position, for
+               * the round: one direction drawn uniformly in the solar disc */
+              float sd[3];
+              const uint32_t hs = cv_hash_combine(T->seed[STRAT_BRDF] ^ 0x5017u, round);
+              sun_disc_dir(&sf, hs, cv_hash_combine(hs, 0x9e3779b9u), sd);
+              const float cs = dot3(sd, pn->normal);
               if (cs > 0) {
                 cnt[CV_LCD_ACC_SHADOW]++;
-                if (cv_rt_reaches_env(g->rt, o, l->sun_dir, 0)) {
+                if (cv_rt_reaches_env(g->rt, o, sd, 0)) {
                   cnt[CV_LCD_ACC_SUNLIT]++;
                   const float th = acosf(cs > 1 ? 1 : cs);
-                  const float ph = fabsf(atan2f(dot3(l->sun_dir, T->bn), dot3(l->sun_dir, T->tn)));
+                  const float ph = fabsf(atan2f(dot3(sd, T->bn), dot3(sd, T->tn)));
                   cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, T->nee);
-                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * l->sun_E[c];
+                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * sf.E_omega[c];
                 }
               }
             }
@@ -987,6 +1030,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           } else if (bb.kind[q] == 2) {
             float L[3], fc[3], dint = rf[3];
             env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
+            if (sun_in_env && dot3(bb.sdir + 3 * q, sf.dir) >= sf.cos_a)
+              for (int c = 0; c < 3; c++) L[c] += sf.L[c];
             cnt[CV_LCD_ACC_ENV]++;
             if (win) {
               /* the deferred f cos and interior denominator of a window or

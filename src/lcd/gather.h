@@ -4,10 +4,15 @@
  * tabulated BRDF (brdf_sample.h) and traced ONE bounce: a ray leaving
  * through a window reads the environment (car frame), any other hit reads
  * the PRT exit radiance interpolated from the hit triangle's vertices.  The
- * sun is a directional light evaluated on the panel itself (next-event
- * estimation: one shadow ray per texel and round, from the round's first
- * sample position, its term added to every sample of the round), so it is
- * removed from the environment the rays read.  The PRT radiance read at
+ * sun is a uniform disc of the real solar angle (CV_LCD_SUN_HALF_ANGLE_DEG,
+ * irradiance sun_E at normal incidence) evaluated on the panel itself
+ * (next-event estimation: one shadow ray per texel and round towards a
+ * direction drawn uniformly in the disc, from the round's first sample
+ * position, its term added to every sample of the round), so it is removed
+ * from the environment the rays read.  With next-event estimation off
+ * (params.sun = 0, for comparisons) the rays that leave through a window
+ * inside the disc read its radiance instead: the plain estimators then find
+ * the sun only by chance (clamp: at least pi f_max L_sun to stay unbiased).  The PRT radiance read at
  * interior hits already holds the sun's direct light with ray-traced
  * visibility (cv_prt_relight with a tracer), computed once per lighting
  * state.
@@ -159,7 +164,8 @@ typedef struct cv_lcd_params {
                             in [0, 1), window_fraction + env_fraction < 1 (default
                             CV_LCD_ENV_FRACTION; ignored for a black map) */
   uint32_t seed;         /* sequence seed (default 1) */
-  int sun;               /* 1: sun next-event estimation (default 1) */
+  int sun;               /* 1: sun next-event estimation (default 1); 0: the rays read the
+                            solar disc (no light sampling of the sun) */
   int threads;           /* OpenMP threads, 0 = OpenMP's default */
   /* Benchmark hook: when non-NULL, the gather ray of sample j of round 0's
    * buffer texel (x, y) is stored at ray_log[6*((y*acc->w + x)*spp + j)]
@@ -171,6 +177,9 @@ typedef struct cv_lcd_params {
 #define CV_LCD_WINDOW_FRACTION 0.5
 /* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_ENV_FRACTION 0.0
+/* Angular radius of the solar disc (degrees; the sun's mean apparent
+ * diameter is 0.533 degrees). */
+#define CV_LCD_SUN_HALF_ANGLE_DEG 0.2666
 /* Openings (window materials) the window strategy aims at. */
 #define CV_LCD_MAX_OPENINGS 16
 
