@@ -26,6 +26,10 @@ struct cv_lcd_gather {
   int nopen;
   float **open_pos;
   int *open_nv;
+  /* interior light sampling: vertex positions (3 nv) and per triangle the
+   * unit normal and area (4 nt) */
+  float *pos;
+  float *tnA;
 };
 
 static inline float dot3(const float a[3], const float b[3]) {
@@ -328,6 +332,20 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
   }
   memcpy(g->tri, m->tri, 3 * m->nt * sizeof(uint32_t));
+  g->pos = malloc(3 * m->nv * sizeof(float) + 1);
+  g->tnA = malloc(4 * m->nt * sizeof(float) + 1);
+  if (!g->pos || !g->tnA) {
+    cv_lcd_gather_destroy(g);
+    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
+  }
+  memcpy(g->pos, m->pos, 3 * m->nv * sizeof(float));
+  for (size_t t = 0; t < m->nt; t++) {
+    float n[3];
+    cv_mesh_tri_normal(m, t, n); /* length: twice the area */
+    const float l = sqrtf(dot3(n, n));
+    for (int k = 0; k < 3; k++) g->tnA[4 * t + k] = l > 0 ? n[k] / l : 0.0f;
+    g->tnA[4 * t + 3] = 0.5f * l;
+  }
   if (g->has_windows && collect_openings(g, m)) {
     cv_lcd_gather_destroy(g);
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
@@ -343,6 +361,8 @@ void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   free(g->open_pos);
   free(g->open_nv);
   free(g->tri);
+  free(g->pos);
+  free(g->tnA);
   cv_brdf_sampler_destroy(g->smp);
   free(g);
 }
@@ -358,6 +378,7 @@ void cv_lcd_params_default(cv_lcd_params *p) {
   p->brdf_fraction = 0.9;
   p->window_fraction = CV_LCD_WINDOW_FRACTION;
   p->env_fraction = CV_LCD_ENV_FRACTION;
+  p->interior_fraction = CV_LCD_INTERIOR_FRACTION;
   p->seed = 1;
   p->sun = 1;
 }
@@ -386,6 +407,7 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
   h = cv_hash64_double(h, p->brdf_fraction);
   h = cv_hash64_double(h, p->window_fraction);
   if (p->env_fraction != 0) h = cv_hash64_double(h, p->env_fraction); /* keys without it unchanged */
+  if (p->interior_fraction != 0) h = cv_hash64_double(cv_hash64_u64(h, 0x1A7u), p->interior_fraction);
   h = cv_hash64_u64(h, p->seed);
   h = cv_hash64_u64(h, (uint64_t)p->sun);
   h = cv_hash64_double(h, clamp);
@@ -430,7 +452,7 @@ static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t
 }
 
 /* Strategies (gather.h). */
-enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, NSTRAT };
+enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, STRAT_INT, NSTRAT };
 
 /* Per-texel state of a block. */
 typedef struct texel_state {
@@ -469,13 +491,17 @@ typedef struct block_buf {
   /* the rays permuted into direction order (traced and shaded in order) */
   float *sorg, *sdir, *sfc;
   uint32_t *stex;
+  uint32_t *want, *swant;/* interior-strategy rays: the triangle aimed at (the sample counts
+                            only if it is the first hit); other rays: NO_TRI */
   uint32_t *htri;        /* hit triangle (kind 1) */
   float *huv;            /* its barycentrics u, v */
+  float *ht;             /* its distance */
   uint8_t *kind;
   texel_state *ts;       /* BLOCK * BLOCK */
 } block_buf;
 
 #define TEX_WIN 0x80000000u
+#define NO_TRI 0xFFFFFFFFu
 
 static void block_buf_free(block_buf *b) {
   free(b->org);
@@ -491,6 +517,9 @@ static void block_buf_free(block_buf *b) {
   free(b->stex);
   free(b->htri);
   free(b->huv);
+  free(b->ht);
+  free(b->want);
+  free(b->swant);
   free(b->kind);
   free(b->ts);
   memset(b, 0, sizeof *b);
@@ -512,10 +541,14 @@ static int block_buf_alloc(block_buf *b, size_t cap) {
   b->stex = malloc(cap * sizeof(uint32_t));
   b->htri = malloc(cap * sizeof(uint32_t));
   b->huv = malloc(2 * cap * sizeof(float));
+  b->ht = malloc(cap * sizeof(float));
+  b->want = malloc(cap * sizeof(uint32_t));
+  b->swant = malloc(cap * sizeof(uint32_t));
   b->kind = malloc(cap);
   b->ts = malloc(BLOCK * BLOCK * sizeof(texel_state));
   if (!b->org || !b->dir || !b->fc || !b->tex || !b->key || !b->ord || !b->tmp || !b->sorg ||
-      !b->sdir || !b->sfc || !b->stex || !b->htri || !b->huv || !b->kind || !b->ts) {
+      !b->sdir || !b->sfc || !b->stex || !b->htri || !b->huv || !b->kind || !b->ts || !b->ht ||
+      !b->want || !b->swant) {
     block_buf_free(b);
     return CV_ERR_NOMEM;
   }
@@ -673,6 +706,7 @@ static void trace_sorted(const cv_rt *rt, int has_windows, block_buf *b, size_t 
         b->htri[r] = ph[l].tri;
         b->huv[2 * r] = ph[l].u;
         b->huv[2 * r + 1] = ph[l].v;
+        b->ht[r] = ph[l].t;
         b->kind[r] = 1;
         continue;
       }
@@ -734,6 +768,124 @@ static inline void env_fetch(const cv_image *img, uint32_t t, float tx, float ty
   }
 }
 
+/* Interior light sampling: triangles drawn by area x mean luminance of the
+ * PRT exit radiance at their vertices (Walker's alias table, Vose's
+ * construction), a point uniform on the triangle; only triangles with a
+ * vertex in front of the panel's plane take part.  The density of a point
+ * (area measure) is pa[t] = luminance(t) / total; a direction d that first
+ * hits triangle t at distance r has the density pa[t] r^2 / |d . n_t|. */
+typedef struct int_table {
+  size_t n;
+  float *prob;   /* alias acceptance */
+  uint32_t *alias;
+  float *pa;     /* area density of each triangle's points (0: never drawn) */
+  double total;
+} int_table;
+
+static void int_table_free(int_table *it) {
+  free(it->prob);
+  free(it->alias);
+  free(it->pa);
+  memset(it, 0, sizeof *it);
+}
+
+static int int_table_build(const cv_lcd_gather *g, const cv_lcd_light *l, int_table *it) {
+  const size_t n = g->nt;
+  memset(it, 0, sizeof *it);
+  it->n = n;
+  it->prob = malloc(n * sizeof(float) + 1);
+  it->alias = malloc(n * sizeof(uint32_t) + 1);
+  it->pa = malloc(n * sizeof(float) + 1);
+  double *w = malloc(n * sizeof(double) + 1);
+  uint32_t *small = malloc(n * sizeof(uint32_t) + 1), *large = malloc(n * sizeof(uint32_t) + 1);
+  if (!it->prob || !it->alias || !it->pa || !w || !small || !large) {
+    free(w), free(small), free(large);
+    int_table_free(it);
+    return CV_ERR_NOMEM;
+  }
+  const cv_lcd_panel *pn = &g->panel;
+  double total = 0;
+  for (size_t t = 0; t < n; t++) {
+    const uint32_t *v = g->tri + 3 * t;
+    int front = 0;
+    double y = 0;
+    for (int j = 0; j < 3; j++) {
+      const float *q = g->pos + 3 * (size_t)v[j], *r = l->vrad + 3 * (size_t)v[j];
+      const float d[3] = {q[0] - pn->center[0], q[1] - pn->center[1], q[2] - pn->center[2]};
+      front |= dot3(d, pn->normal) > 1e-4f;
+      y += (0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2]) / 3;
+    }
+    w[t] = front && y > 0 ? y * g->tnA[4 * t + 3] : 0.0;
+    it->pa[t] = front && y > 0 ? (float)y : 0.0f;
+    total += w[t];
+  }
+  it->total = total;
+  if (!(total > 0)) {
+    free(w), free(small), free(large);
+    return CV_OK;
+  }
+  for (size_t t = 0; t < n; t++) it->pa[t] = (float)(it->pa[t] / total);
+  /* Vose: scaled weights, small and large worklists */
+  size_t ns = 0, nl = 0;
+  for (size_t t = 0; t < n; t++) {
+    w[t] = w[t] * (double)n / total;
+    if (w[t] < 1) small[ns++] = (uint32_t)t;
+    else large[nl++] = (uint32_t)t;
+  }
+  while (ns && nl) {
+    const uint32_t a = small[--ns], b = large[nl - 1];
+    it->prob[a] = (float)w[a];
+    it->alias[a] = b;
+    w[b] -= 1 - w[a];
+    if (w[b] < 1) {
+      nl--;
+      small[ns++] = b;
+    }
+  }
+  while (nl) it->prob[large[--nl]] = 1.0f, it->alias[large[nl]] = large[nl];
+  while (ns) it->prob[small[--ns]] = 1.0f, it->alias[small[ns]] = small[ns];
+  free(w), free(small), free(large);
+  return CV_OK;
+}
+
+/* An interior-strategy direction from o: u[0] picks the triangle (alias
+ * table; its remainder and u[1] the point), h a third uniform coordinate.
+ * Returns the triangle, or NO_TRI when the point is degenerate; *pd = the
+ * direction's density pa r^2 / |d . n| (1/sr). */
+static inline uint32_t interior_sample(const cv_lcd_gather *g, const int_table *it, const float o[3],
+                                       const float u[2], uint32_t h, float d[3], float *pd) {
+  const float x = u[0] * (float)it->n;
+  size_t i = (size_t)x;
+  if (i >= it->n) i = it->n - 1;
+  float fr = x - (float)i;
+  uint32_t t = (uint32_t)i;
+  if (fr >= it->prob[i]) t = it->alias[i];
+  const float s = sqrtf(u[1]), b1 = (float)(h >> 8) * 0x1p-24f;
+  const float w1 = (1 - b1) * s, w2 = b1 * s, w0 = 1 - s;
+  const uint32_t *v = g->tri + 3 * (size_t)t;
+  const float *p0 = g->pos + 3 * (size_t)v[0], *p1 = g->pos + 3 * (size_t)v[1], *p2 = g->pos + 3 * (size_t)v[2];
+  float r2 = 0;
+  for (int k = 0; k < 3; k++) {
+    d[k] = w0 * p0[k] + w1 * p1[k] + w2 * p2[k] - o[k];
+    r2 += d[k] * d[k];
+  }
+  if (!(r2 > 0)) return NO_TRI;
+  const float r = sqrtf(r2);
+  for (int k = 0; k < 3; k++) d[k] /= r;
+  const float c = fabsf(dot3(d, g->tnA + 4 * (size_t)t));
+  if (!(c > 1e-6f) || !(it->pa[t] > 0)) return NO_TRI;
+  *pd = it->pa[t] * r2 / c;
+  return t;
+}
+
+/* The density of the interior strategy for a ray that first hits triangle
+ * t at distance r along d. */
+static inline float interior_pdf(const cv_lcd_gather *g, const int_table *it, uint32_t t, float r,
+                                 const float d[3]) {
+  const float c = fabsf(dot3(d, g->tnA + 4 * (size_t)t));
+  return c > 1e-6f ? it->pa[t] * r * r / c : 0.0f;
+}
+
 /* The sun as a uniform disc of angular radius CV_LCD_SUN_HALF_ANGLE_DEG
  * around sun_dir (its irradiance at normal incidence E = L pi sin^2(alpha)
  * is the light's sun_E): radiance L, a frame around its centre, and the
@@ -774,7 +926,9 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       p->x0 + acc->w > p->w || p->y0 + acc->h > p->h || p->spp < 1 ||
       l->nv != g->nv || !(p->brdf_fraction >= 0 && p->brdf_fraction <= 1) ||
       !(p->window_fraction >= 0 && p->window_fraction < 1) ||
-      !(p->env_fraction >= 0 && p->env_fraction < 1) || !(p->window_fraction + p->env_fraction < 1) ||
+      !(p->env_fraction >= 0 && p->env_fraction < 1) ||
+      !(p->interior_fraction >= 0 && p->interior_fraction < 1) ||
+      !(p->window_fraction + p->env_fraction + p->interior_fraction < 1) ||
       !isfinite(p->eye[0]) || !isfinite(p->eye[1]) || !isfinite(p->eye[2]))
     return CV_ERR_INVALID;
   if (acc->data[CV_LCD_ACC_SPP] + p->spp > CV_LCD_MAX_SPP) return CV_ERR_RANGE;
@@ -795,12 +949,26 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     return CV_ERR_NOMEM;
   nstr[STRAT_ENV] = esr && esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
   if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
-  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN] - nstr[STRAT_ENV]));
-  nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_BRDF];
+  /* interior light tables from this light's vertex radiance */
+  int_table itab;
+  memset(&itab, 0, sizeof itab);
+  if (p->interior_fraction > 0 && int_table_build(g, l, &itab)) {
+    cv_env_sampler_destroy(esr);
+    return CV_ERR_NOMEM;
+  }
+  nstr[STRAT_INT] = itab.total > 0 ? (int)lround(p->interior_fraction * spp) : 0;
+  if (nstr[STRAT_INT] > spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV])
+    nstr[STRAT_INT] = spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV];
+  const int nbc = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_INT];
+  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * nbc);
+  nstr[STRAT_COS] = nbc - nstr[STRAT_BRDF];
   const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS],
-                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN]};
+                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN],
+                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN] + nstr[STRAT_ENV]};
   const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
-              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp;
+              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp,
+              ci = (float)nstr[STRAT_INT] / (float)spp;
+  const int_table *itp = &itab;
   const cv_env_sampler *esm = esr;
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
@@ -895,7 +1063,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           float uu[CHUNK_SPP][4];
           uint8_t sj[CHUNK_SPP];
           for (int j = j0; j < j0 + nj; j++) {
-            const int st = j >= first[STRAT_ENV] ? STRAT_ENV
+            const int st = j >= first[STRAT_INT] ? STRAT_INT
+                           : j >= first[STRAT_ENV] ? STRAT_ENV
                            : j >= first[STRAT_WIN] ? STRAT_WIN
                            : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
             sj[j - j0] = (uint8_t)st;
@@ -929,8 +1098,28 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
               }
             }
             float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, pe = 0, f[3] = {0, 0, 0};
+            float pint = 0;
+            uint32_t want = NO_TRI;
             int live = 0;
-            if (st == STRAT_BRDF) {
+            if (st == STRAT_INT) {
+              /* a point on a bright interior triangle; counts only if it is
+               * the ray's first hit */
+              const uint32_t hh = cv_hash_combine(T->seed[STRAT_INT], round * (uint32_t)spp + (uint32_t)j);
+              want = interior_sample(g, itp, o, u, hh, rd, &pint);
+              if (want != NO_TRI) {
+                wl[0] = dot3(rd, T->tn);
+                wl[1] = dot3(rd, T->bn);
+                wl[2] = dot3(rd, pn->normal);
+                live = wl[2] > 0;
+              }
+              if (live) {
+                th = acosf(wl[2] > 1 ? 1 : wl[2]);
+                ph = fabsf(atan2f(wl[1], wl[0]));
+                if (cb > 0)
+                  pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
+                cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
+              }
+            } else if (st == STRAT_BRDF) {
               live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
               if (live)
                 for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
@@ -956,8 +1145,10 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                 cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
               }
             }
-            const int defer = st >= STRAT_WIN;
-            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI;
+            const int defer = st == STRAT_WIN || st == STRAT_ENV;
+            /* the interior MIS denominator; an interior-strategy ray's own
+             * density is known now, the others' p_int when they hit */
+            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI + ci * pint;
             if (!(live && wl[2] > 0 && (dint > 0 || defer))) {
               /* no ray: the sample is the sun term alone */
               if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, clamp, inv_unit, T->s, T->s2, cnt);
@@ -971,6 +1162,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             }
             rf[3] = dint;
             bb.tex[n] = (uint32_t)i | (defer ? TEX_WIN : 0u);
+            bb.want[n] = want;
             bb.key[n] = dir_key(rd);
             if (p->ray_log && round == 0 && T->in_tile) {
               float *rl = p->ray_log + 6 * (T->aix * (size_t)spp + (size_t)j);
@@ -989,6 +1181,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           memcpy(bb.sdir + 3 * q, bb.dir + 3 * (size_t)r, 3 * sizeof(float));
           memcpy(bb.sfc + 4 * q, bb.fc + 4 * (size_t)r, 4 * sizeof(float));
           bb.stex[q] = bb.tex[r];
+          bb.swant[q] = bb.want[r];
         }
         trace_sorted(g->rt, g->has_windows, &bb, n);
         /* environment texels of the rays that left: computed and prefetched
@@ -1019,20 +1212,29 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           float v[3] = {T->nee[0], T->nee[1], T->nee[2]};
           if (bb.kind[q] == 1) {
             cnt[CV_LCD_ACC_HITS]++;
-            if (!win) { /* interior: MIS over BRDF and cosine sampling only */
-              const uint32_t *t = g->tri + 3 * (size_t)bb.htri[q];
+            /* interior: MIS over BRDF, cosine and interior sampling; an
+             * interior-strategy ray counts only on the triangle it aimed at */
+            const uint32_t ht = bb.htri[q], aim = bb.swant[q];
+            if (!win && (aim == NO_TRI || aim == ht)) {
+              const uint32_t *t = g->tri + 3 * (size_t)ht;
               const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
                           *r2 = l->vrad + 3 * (size_t)t[2];
               const float hu = bb.huv[2 * q], hv = bb.huv[2 * q + 1];
-              const float w0 = 1 - hu - hv, inv = 1 / rf[3];
+              float den = rf[3];
+              if (aim == NO_TRI && ci > 0) den += ci * interior_pdf(g, itp, ht, bb.ht[q], bb.sdir + 3 * q);
+              const float w0 = 1 - hu - hv, inv = 1 / den;
               for (int c = 0; c < 3; c++) v[c] += rf[c] * inv * (w0 * r0[c] + hu * r1[c] + hv * r2[c]);
             }
           } else if (bb.kind[q] == 2) {
             float L[3], fc[3], dint = rf[3];
+            cnt[CV_LCD_ACC_ENV]++;
+            if (bb.swant[q] != NO_TRI) { /* an interior-strategy ray: weight 0 outside */
+              add_sample(v, clamp, inv_unit, T->s, T->s2, cnt);
+              continue;
+            }
             env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
             if (sun_in_env && dot3(bb.sdir + 3 * q, sf.dir) >= sf.cos_a)
               for (int c = 0; c < 3; c++) L[c] += sf.L[c];
-            cnt[CV_LCD_ACC_ENV]++;
             if (win) {
               /* the deferred f cos and interior denominator of a window or
                * environment sample */
@@ -1067,6 +1269,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     block_buf_free(&bb);
   }
   cv_env_sampler_destroy(esr);
+  int_table_free(&itab);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;

@@ -163,6 +163,11 @@ typedef struct cv_lcd_params {
   double env_fraction;   /* share of the samples drawn from the environment map by luminance,
                             in [0, 1), window_fraction + env_fraction < 1 (default
                             CV_LCD_ENV_FRACTION; ignored for a black map) */
+  double interior_fraction; /* share of the samples drawn towards the interior by its
+                            exit radiance (points on triangles chosen by area x luminance of
+                            the PRT radiance), in [0, 1), with window_fraction and env_fraction
+                            below 1 (default CV_LCD_INTERIOR_FRACTION; ignored for a black
+                            interior) */
   uint32_t seed;         /* sequence seed (default 1) */
   int sun;               /* 1: sun next-event estimation (default 1); 0: the rays read the
                             solar disc (no light sampling of the sun) */
@@ -177,6 +182,8 @@ typedef struct cv_lcd_params {
 #define CV_LCD_WINDOW_FRACTION 0.5
 /* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_ENV_FRACTION 0.0
+/* Default interior_fraction (measured on the default cabin: docs/benchmarks.md). */
+#define CV_LCD_INTERIOR_FRACTION 0.0
 /* Angular radius of the solar disc (degrees; the sun's mean apparent
  * diameter is 0.533 degrees). */
 #define CV_LCD_SUN_HALF_ANGLE_DEG 0.2666

@@ -47,19 +47,22 @@ typedef struct {
   const char *name;
   double c, w, e; /* brdf_fraction, window_fraction, env_fraction */
   int sun;        /* params.sun: 1 next-event estimation, 0 the rays find the solar disc */
+  double i;       /* interior_fraction */
 } strategy;
 
-#define NSTRAT 7
+#define NSTRAT 9
 #define COSINE_STRAT 1
 #define PLAIN_COSINE_STRAT 6
 static const strategy strategies[NSTRAT] = {
-    {"BRDF sampling", 1.0, 0.0, 0.0, 1},
-    {"cosine sampling", 0.0, 0.0, 0.0, 1},
-    {"MIS BRDF + cosine (c = 0.9)", 0.9, 0.0, 0.0, 1},
-    {"MIS BRDF + cosine + window (c = 0.9, w = 0.5)", 0.9, 0.5, 0.0, 1},
-    {"MIS BRDF + cosine + env (c = 0.9, e = 0.25)", 0.9, 0.0, 0.25, 1},
-    {"MIS BRDF + cosine + window + env (c = 0.9, w = 0.25, e = 0.25)", 0.9, 0.25, 0.25, 1},
-    {"plain cosine sampling (no light sampling: the rays find the solar disc)", 0.0, 0.0, 0.0, 0}};
+    {"BRDF sampling", 1.0, 0.0, 0.0, 1, 0.0},
+    {"cosine sampling", 0.0, 0.0, 0.0, 1, 0.0},
+    {"MIS BRDF + cosine (c = 0.9)", 0.9, 0.0, 0.0, 1, 0.0},
+    {"MIS BRDF + cosine + window (c = 0.9, w = 0.5)", 0.9, 0.5, 0.0, 1, 0.0},
+    {"MIS BRDF + cosine + env (c = 0.9, e = 0.25)", 0.9, 0.0, 0.25, 1, 0.0},
+    {"MIS BRDF + cosine + window + env (c = 0.9, w = 0.25, e = 0.25)", 0.9, 0.25, 0.25, 1, 0.0},
+    {"plain cosine sampling (no light sampling: the rays find the solar disc)", 0.0, 0.0, 0.0, 0, 0.0},
+    {"MIS BRDF + cosine + window + interior (c = 0.9, w = 0.25, i = 0.5)", 0.9, 0.25, 0.0, 1, 0.5},
+    {"MIS BRDF + cosine + window + env + interior (c = 0.9, w = 0.2, e = 0.2, i = 0.4)", 0.9, 0.2, 0.2, 1, 0.4}};
 
 /* The row of the library's defaults (cv_lcd_params_default). */
 static int default_strategy(void) {
@@ -67,7 +70,8 @@ static int default_strategy(void) {
   cv_lcd_params_default(&d);
   for (int s = 0; s < NSTRAT; s++)
     if (strategies[s].c == d.brdf_fraction && strategies[s].w == d.window_fraction &&
-        strategies[s].e == d.env_fraction && strategies[s].sun == d.sun)
+        strategies[s].e == d.env_fraction && strategies[s].sun == d.sun &&
+        strategies[s].i == d.interior_fraction)
       return s;
   return -1;
 }
@@ -77,6 +81,7 @@ static void set_strategy(cv_lcd_params *p, int s) {
   p->window_fraction = strategies[s].w;
   p->env_fraction = strategies[s].e;
   p->sun = strategies[s].sun;
+  p->interior_fraction = strategies[s].i;
 }
 
 /* CPU time of the calling thread (a loaded machine inflates it less than
