@@ -30,6 +30,11 @@ struct cv_lcd_gather {
    * unit normal and area (4 nt) */
   float *pos;
   float *tnA;
+  float *envvis; /* ENV_RX x ENV_RY regions of VIS_H x VIS_W lat-long cells: the fraction of
+                    probe rays from the region that reach the environment (NULL: no windows) */
+  float *tgeo;  /* per triangle: unoccluded share of its light the panel receives, up to a
+                   constant: cos at the triangle x cos at the panel / r^2 from the panel
+                   centre, times the fraction of 5 panel points that see its centroid */
 };
 
 static inline float dot3(const float a[3], const float b[3]) {
@@ -314,6 +319,173 @@ static int collect_openings(cv_lcd_gather *g, const cv_mesh *m) {
   return CV_OK;
 }
 
+/* Regions of the panel for the environment strategy: ENV_RX x ENV_RY equal
+ * parts of the panel rectangle (a block belongs to the one that holds its
+ * centre); VIS_W x VIS_H lat-long cells (layout of light/env_sample.h). */
+#define ENV_RX 4
+#define ENV_RY 3
+#define VIS_W 128
+#define VIS_H 64
+
+/* Panel point at fractions (fx from the left, fy from the top), offset. */
+static void panel_point(const cv_lcd_panel *pn, float fx, float fy, float o[3]) {
+  float c[3];
+  for (int k = 0; k < 3; k++)
+    c[k] = pn->center[k] + pn->u[k] * (fx - 0.5f) * pn->size[0] + pn->v[k] * (0.5f - fy) * pn->size[1];
+  cv_rt_offset_origin(c, pn->normal, o);
+}
+
+/* envvis: from 4 points of each region (its quarters' centres), one ray
+ * each into the 4 quarters of each cell in front of the panel (one per
+ * point): the share that reaches the environment through a window. */
+static int env_visibility(cv_lcd_gather *g) {
+  const cv_lcd_panel *pn = &g->panel;
+  g->envvis = calloc((size_t)ENV_RX * ENV_RY * VIS_W * VIS_H, sizeof(float));
+  if (!g->envvis) return CV_ERR_NOMEM;
+  const int ncell = ENV_RX * ENV_RY * VIS_H;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 4)
+    for (int i = 0; i < ncell; i++) {
+      const int r = i / VIS_H, Y = i % VIS_H, rx = r % ENV_RX, ry = r / ENV_RX;
+      float o[4][3];
+      for (int k = 0; k < 4; k++)
+        panel_point(pn, ((float)rx + 0.25f + 0.5f * (float)(k & 1)) / ENV_RX,
+                    ((float)ry + 0.25f + 0.5f * (float)(k >> 1)) / ENV_RY, o[k]);
+      float *row = g->envvis + ((size_t)r * VIS_H + (size_t)Y) * VIS_W;
+      for (int X = 0; X < VIS_W; X++) {
+        int seen = 0;
+        for (int k = 0; k < 4; k++) {
+          const double u = (X + 0.25 + 0.5 * (k & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (k >> 1)) / VIS_H;
+          const double ph = 2 * M_PI * (u - 0.5);
+          const float d[3] = {(float)(sin(th) * sin(ph)), (float)cos(th), (float)(-sin(th) * cos(ph))};
+          if (dot3(d, pn->normal) > 0 && cv_rt_reaches_env(g->rt, o[k], d, 0.0f)) seen++;
+        }
+        row[X] = (float)seen / 4;
+      }
+    }
+  }
+  return CV_OK;
+}
+
+/* One environment table per region: src (restricted to the panel's front)
+ * with each cell's probability times (the region's visibility of it +
+ * ENV_VIS_FLOOR) x the luminance of f cos for the view from the region's
+ * centre (cell centre direction): the strategy then draws about
+ * L f cos V, the whole integrand but for the texel's own view and
+ * visibility.  Any weights keep the estimate unbiased (BRDF and cosine
+ * sampling cover every direction; the density is the table's own). */
+#define ENV_VIS_FLOOR 0.02f
+static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const float eye[3],
+                       cv_env_sampler **out) {
+  const cv_lcd_panel *pn = &g->panel;
+  const cv_brdf_sampler *smp = g->smp;
+  const int w = src->w, h = src->h;
+  float *cw = malloc((size_t)w * (size_t)h * sizeof(float));
+  float *dir = malloc(3 * (size_t)w * (size_t)h * sizeof(float));
+  if (!cw || !dir) {
+    free(cw);
+    free(dir);
+    return CV_ERR_NOMEM;
+  }
+  for (int y = 0; y < h; y++) {
+    const double ct = 0.5 * ((double)src->cos_edge[y] + src->cos_edge[y + 1]), st = sqrt(fmax(0.0, 1 - ct * ct));
+    for (int x = 0; x < w; x++) {
+      const double ph = 2 * M_PI * ((x + 0.5) / w - 0.5);
+      float *d = dir + 3 * ((size_t)y * (size_t)w + (size_t)x);
+      d[0] = (float)(st * sin(ph)), d[1] = (float)ct, d[2] = (float)(-st * cos(ph));
+    }
+  }
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) {
+    const float *vis = g->envvis + (size_t)r * VIS_H * VIS_W;
+    /* the view from the region's centre */
+    float c[3], wo[3], tn[3], bn[3];
+    const float fx = ((float)(r % ENV_RX) + 0.5f) / ENV_RX, fy = ((float)(r / ENV_RX) + 0.5f) / ENV_RY;
+    for (int k = 0; k < 3; k++) {
+      c[k] = pn->center[k] + pn->u[k] * (fx - 0.5f) * pn->size[0] + pn->v[k] * (0.5f - fy) * pn->size[1];
+      wo[k] = eye[k] - c[k];
+    }
+    normalize3(wo);
+    const float co = dot3(wo, pn->normal);
+    int kb = 0;
+    float tb = 0;
+    for (int k = 0; k < 3; k++) tn[k] = wo[k] - co * pn->normal[k];
+    if (!normalize3(tn)) memcpy(tn, pn->u, sizeof tn);
+    cross3(pn->normal, tn, bn);
+    cv_brdf_view_bins(smp, acosf(co > 1 ? 1 : (co < 0 ? 0 : co)), &kb, &tb);
+    for (int y = 0; y < h; y++) {
+      const int Y = (int)(((double)y + 0.5) * VIS_H / h);
+      for (int x = 0; x < w; x++) {
+        const size_t i = (size_t)y * (size_t)w + (size_t)x;
+        const float *d = dir + 3 * i;
+        const float z = dot3(d, pn->normal);
+        float fc = 0;
+        if (z > 0) {
+          float f[3];
+          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(atan2f(dot3(d, bn), dot3(d, tn)));
+          cv_brdf_eval_bins(smp, kb, tb, th, ph, f);
+          fc = (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) * z;
+        }
+        const int X = (int)(((double)x + 0.5) * VIS_W / w);
+        /* cells behind the plane by their centre keep src's front probes */
+        cw[i] = (vis[(size_t)Y * VIS_W + (size_t)X] + ENV_VIS_FLOOR) * (fc > 0 ? fc : 1e-6f);
+      }
+    }
+    if (cv_env_sampler_reweight(src, cw, &out[r])) {
+      free(cw);
+      free(dir);
+      return CV_ERR_NOMEM;
+    }
+  }
+  free(cw);
+  free(dir);
+  return CV_OK;
+}
+
+/* tgeo: how much of each triangle's exit radiance the panel can receive
+ * (the interior strategy's weights, gather.h), from the panel centre and 4
+ * points halfway to its corners; one shadow ray each (nt x 5 rays). */
+static void panel_view_factors(cv_lcd_gather *g) {
+  const cv_lcd_panel *pn = &g->panel;
+  float pts[5][3];
+  const float a[5] = {0, -0.25f, 0.25f, -0.25f, 0.25f}, b[5] = {0, -0.25f, -0.25f, 0.25f, 0.25f};
+  for (int i = 0; i < 5; i++) {
+    float c[3];
+    for (int k = 0; k < 3; k++)
+      c[k] = pn->center[k] + pn->u[k] * a[i] * pn->size[0] + pn->v[k] * b[i] * pn->size[1];
+    cv_rt_offset_origin(c, pn->normal, pts[i]);
+  }
+  const long nt = (long)g->nt;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 256)
+  for (long t = 0; t < nt; t++) {
+    const uint32_t *v = g->tri + 3 * (size_t)t;
+    float x[3];
+    for (int k = 0; k < 3; k++)
+      x[k] = (g->pos[3 * (size_t)v[0] + k] + g->pos[3 * (size_t)v[1] + k] + g->pos[3 * (size_t)v[2] + k]) / 3;
+    float d[3] = {x[0] - pts[0][0], x[1] - pts[0][1], x[2] - pts[0][2]};
+    const float r2 = dot3(d, d), r = sqrtf(r2);
+    g->tgeo[t] = 0;
+    if (!(r > 1e-4f)) continue;
+    for (int k = 0; k < 3; k++) d[k] /= r;
+    const float co = dot3(d, pn->normal), ct = -dot3(d, g->tnA + 4 * (size_t)t);
+    if (!(co > 0) || !(ct > 0)) continue; /* behind the panel, or facing away */
+    int seen = 0;
+    for (int i = 0; i < 5; i++) {
+      float e[3] = {x[0] - pts[i][0], x[1] - pts[i][1], x[2] - pts[i][2]};
+      const float l = sqrtf(dot3(e, e));
+      if (!(l > 1e-4f)) continue;
+      for (int k = 0; k < 3; k++) e[k] /= l;
+      seen += !cv_rt_occluded(g->rt, pts[i], e, 0.0f, l * 0.999f);
+    }
+    g->tgeo[t] = co * ct / r2 * (float)seen / 5;
+  }
+  }
+}
+
 int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
                          const cv_brdf *brdf, cv_lcd_gather **out, cv_err *err) {
   *out = NULL;
@@ -346,6 +518,15 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     for (int k = 0; k < 3; k++) g->tnA[4 * t + k] = l > 0 ? n[k] / l : 0.0f;
     g->tnA[4 * t + 3] = 0.5f * l;
   }
+  if (!(g->tgeo = malloc(m->nt * sizeof(float) + 1))) {
+    cv_lcd_gather_destroy(g);
+    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
+  }
+  panel_view_factors(g);
+  if (g->has_windows && env_visibility(g)) {
+    cv_lcd_gather_destroy(g);
+    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
+  }
   if (g->has_windows && collect_openings(g, m)) {
     cv_lcd_gather_destroy(g);
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
@@ -363,6 +544,8 @@ void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   free(g->tri);
   free(g->pos);
   free(g->tnA);
+  free(g->tgeo);
+  free(g->envvis);
   cv_brdf_sampler_destroy(g->smp);
   free(g);
 }
@@ -769,9 +952,11 @@ static inline void env_fetch(const cv_image *img, uint32_t t, float tx, float ty
 }
 
 /* Interior light sampling: triangles drawn by area x mean luminance of the
- * PRT exit radiance at their vertices (Walker's alias table, Vose's
- * construction), a point uniform on the triangle; only triangles with a
- * vertex in front of the panel's plane take part.  The density of a point
+ * PRT exit radiance at their vertices x tgeo (what the panel receives of
+ * them: view factor to the panel centre and visibility, computed once per
+ * gather) (Walker's alias table, Vose's construction), a point uniform on
+ * the triangle; only triangles with a vertex in front of the panel's plane
+ * take part.  The density of a point
  * (area measure) is pa[t] = luminance(t) / total; a direction d that first
  * hits triangle t at distance r has the density pa[t] r^2 / |d . n_t|. */
 typedef struct int_table {
@@ -815,8 +1000,10 @@ static int int_table_build(const cv_lcd_gather *g, const cv_lcd_light *l, int_ta
       front |= dot3(d, pn->normal) > 1e-4f;
       y += (0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2]) / 3;
     }
-    w[t] = front && y > 0 ? y * g->tnA[4 * t + 3] : 0.0;
-    it->pa[t] = front && y > 0 ? (float)y : 0.0f;
+    /* luminance x what the panel receives of it (view factor, visibility) */
+    const double e = front && y > 0 ? y * (double)g->tgeo[t] : 0.0;
+    w[t] = e * g->tnA[4 * t + 3];
+    it->pa[t] = (float)e;
     total += w[t];
   }
   it->total = total;
@@ -969,7 +1156,16 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
               cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp,
               ci = (float)nstr[STRAT_INT] / (float)spp;
   const int_table *itp = &itab;
-  const cv_env_sampler *esm = esr;
+  /* the environment tables cut further, per region of the panel, to the
+   * cells that the region's window rectangles hold */
+  cv_env_sampler *ereg[ENV_RX * ENV_RY];
+  memset(ereg, 0, sizeof ereg);
+  if (nstr[STRAT_ENV] > 0 && g->envvis && env_regions(g, esr, p->eye, ereg)) {
+    for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
+    cv_env_sampler_destroy(esr);
+    int_table_free(&itab);
+    return CV_ERR_NOMEM;
+  }
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
   /* without next-event estimation the rays that leave find the sun's disc */
@@ -1003,6 +1199,9 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       const int tx0 = (bx0 + bi % nbx) * BLOCK, ty0 = (by0 + bi / nbx) * BLOCK;
       const int bw = w - tx0 < BLOCK ? w - tx0 : BLOCK, bh = h - ty0 < BLOCK ? h - ty0 : BLOCK;
       const int nbt = bw * bh;
+      /* the region that holds the block's centre */
+      const int erx = (int)((2 * tx0 + bw) * ENV_RX / (2 * w)), ery = (int)((2 * ty0 + bh) * ENV_RY / (2 * h));
+      const cv_env_sampler *esm = ereg[0] ? ereg[ery * ENV_RX + erx] : esr;
       win_rects wr;
       wr.n = 0;
       wr.total = 0;
@@ -1269,6 +1468,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     block_buf_free(&bb);
   }
   cv_env_sampler_destroy(esr);
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
   int_table_free(&itab);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];

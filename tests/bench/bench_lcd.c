@@ -50,7 +50,7 @@ typedef struct {
   double i;       /* interior_fraction */
 } strategy;
 
-#define NSTRAT 9
+#define NSTRAT 11
 #define COSINE_STRAT 1
 #define PLAIN_COSINE_STRAT 6
 static const strategy strategies[NSTRAT] = {
@@ -62,7 +62,9 @@ static const strategy strategies[NSTRAT] = {
     {"MIS BRDF + cosine + window + env (c = 0.9, w = 0.25, e = 0.25)", 0.9, 0.25, 0.25, 1, 0.0},
     {"plain cosine sampling (no light sampling: the rays find the solar disc)", 0.0, 0.0, 0.0, 0, 0.0},
     {"MIS BRDF + cosine + window + interior (c = 0.9, w = 0.25, i = 0.5)", 0.9, 0.25, 0.0, 1, 0.5},
-    {"MIS BRDF + cosine + window + env + interior (c = 0.9, w = 0.2, e = 0.2, i = 0.4)", 0.9, 0.2, 0.2, 1, 0.4}};
+    {"MIS BRDF + cosine + window + env + interior (c = 0.9, w = 0.2, e = 0.2, i = 0.4)", 0.9, 0.2, 0.2, 1, 0.4},
+    {"MIS BRDF + cosine + env (c = 0.9, e = 0.5)", 0.9, 0.0, 0.5, 1, 0.0},
+    {"MIS BRDF + window + env (c = 1, w = 0.3, e = 0.4)", 1.0, 0.3, 0.4, 1, 0.0}};
 
 /* The row of the library's defaults (cv_lcd_params_default). */
 static int default_strategy(void) {
