@@ -714,6 +714,33 @@ static void test_determinism(void **state) {
     for (int x = 0; x < p.w / 2; x++)
       assert_memory_equal(half->data + cv_lcd_acc_rgb(half, x, y),
                           A->data + cv_lcd_acc_rgb(A, x + p.w / 2, y), 3 * sizeof(int64_t));
+  { /* the same with every strategy on: window, environment (per-region
+     * tables) and interior samples */
+    cv_lcd_params p2 = p;
+    p2.window_fraction = 0.2, p2.env_fraction = 0.2, p2.interior_fraction = 0.2;
+    cv_lcd_accum *A2, *B2, *H2;
+    assert_int_equal(cv_lcd_accum_create(p.w, p.h, clamp, &A2), CV_OK);
+    assert_int_equal(cv_lcd_accum_create(p.w, p.h, clamp, &B2), CV_OK);
+    assert_int_equal(cv_lcd_accum_create(p.w / 2, p.h, clamp, &H2), CV_OK);
+    p2.threads = 1;
+    for (uint32_t r = 0; r < 3; r++) assert_int_equal(cv_lcd_render_round(s.g, l, &p2, r, A2), CV_OK);
+    p2.threads = 2;
+    for (uint32_t r = 3; r-- > 0;) assert_int_equal(cv_lcd_render_round(s.g, l, &p2, r, B2), CV_OK);
+    assert_memory_equal(A2->data, B2->data, A2->n * sizeof(int64_t));
+    cv_lcd_params q2 = p2;
+    q2.x0 = p.w / 2;
+    for (uint32_t r = 0; r < 3; r++) assert_int_equal(cv_lcd_render_round(s.g, l, &q2, r, H2), CV_OK);
+    for (int y = 0; y < p.h; y++)
+      for (int x = 0; x < p.w / 2; x++)
+        assert_memory_equal(H2->data + cv_lcd_acc_rgb(H2, x, y),
+                            A2->data + cv_lcd_acc_rgb(A2, x + p.w / 2, y), 3 * sizeof(int64_t));
+    /* and they differ from the default mix's */
+    assert_true(memcmp(A2->data + CV_LCD_ACC_HEADER, A->data + CV_LCD_ACC_HEADER,
+                       (size_t)(A->n - CV_LCD_ACC_HEADER) * sizeof(int64_t)) != 0);
+    cv_lcd_accum_destroy(A2);
+    cv_lcd_accum_destroy(B2);
+    cv_lcd_accum_destroy(H2);
+  }
   /* the check can fail: other rounds give other sums */
   assert_int_equal(cv_lcd_accum_create(p.w, p.h, clamp, &T), CV_OK);
   for (uint32_t r = 0; r < 6; r++) assert_int_equal(cv_lcd_render_round(s.g, l, &p, r == 5 ? 6 : r, T), CV_OK);
