@@ -861,13 +861,12 @@ static void sort_by_key(const uint16_t *key, size_t n, uint32_t *ord, uint32_t *
  * sorted arrays): kind 2 (environment) or 3 (lost). */
 static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, int ne) {
   float po[3 * CV_RT_PACKET_MAX] = {0}, pd[3 * CV_RT_PACKET_MAX] = {0};
-  cv_hit ph[CV_RT_PACKET_MAX];
   uint8_t pf[CV_RT_PACKET_MAX];
   for (int l = 0; l < ne; l++) {
     memcpy(po + 3 * l, b->sorg + 3 * (size_t)esc[l], 3 * sizeof(float));
     memcpy(pd + 3 * l, b->sdir + 3 * (size_t)esc[l], 3 * sizeof(float));
   }
-  cv_rt_window_hit_packet(rt, ne, po, pd, NULL, 0.0f, 1, ph, pf);
+  cv_rt_window_any_packet(rt, ne, po, pd, 0.0f, 1, pf); /* crossing or not: no hit record */
   for (int l = 0; l < ne; l++) b->kind[esc[l]] = pf[l] ? 2 : 3;
 }
 

@@ -31,20 +31,33 @@
  *   e: the environment map by luminance (light sampling, light/env_sample.h:
  *      a marginal and conditional CDF over the car-frame table, uniform in
  *      each cell, restricted to the cells in front of the panel, rebuilt
- *      from the light's tables in each call that uses it, about 0.1 ms),
- *      n_e samples; p_e is exact for any direction, and a sample counts
- *      only when its ray leaves through a window.
- * with n_w = round(window_fraction spp), n_e = round(env_fraction spp)
- * (n_w + n_e <= spp - 1: n_e is cut first), n_b = round(brdf_fraction (spp
- * - n_w - n_e)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
+ *      from the light's tables in each call that uses it), n_e samples.
+ *      With windows, each of 4 x 3 regions of the panel has its own table:
+ *      every cell's probability times (the share of probe rays from the
+ *      region that reach the sky through a window in that cell, traced once
+ *      in cv_lcd_gather_create, + 0.02) times the luminance of f cos for the
+ *      view from the region's centre, so that the strategy draws about the
+ *      product L f cos V (about 10 ms a round for 12 tables of 256 x 128
+ *      cells).  p_e is exact for any direction (the block's region table),
+ *      and a sample counts only when its ray leaves through a window.
+ *   i: the interior by its exit radiance (interior_fraction): a triangle by
+ *      area x mean luminance of vrad x a view factor to the panel centre x
+ *      the share of 5 panel points that see its centroid (alias table per
+ *      call; view factors once per gather), a point uniform on it; the
+ *      sample counts only when that point is the ray's first hit; n_i
+ *      samples; p_i of a ray that first hits triangle t at distance r is
+ *      p_area(t) r^2 / |cos_t|.
+ * with n_w = round(window_fraction spp), n_e = round(env_fraction spp),
+ * n_i = round(interior_fraction spp) (n_w + n_e + n_i <= spp - 1: n_i, then
+ * n_e are cut first), n_b = round(brdf_fraction (spp - n_w - n_e - n_i)),
+ * n_c = the rest, and c_s = n_s / spp.  The incident light is split
  * into what the interior returns and what the environment sends through a
  * window, and each part is its own MIS integral: the environment part over
- * four strategies, the interior part over b and c only (the window and
- * environment strategies' weights are 0 there, so their samples that hit
- * the interior add nothing and no other sample needs p_w or p_e):
- *   L = f cos L_int / (c_b p_b + c_c p_c)                        (interior hit)
+ * b, c, w, e, the interior part over b, c, i (each strategy's weight is 0
+ * in the other part, so its samples there add nothing):
+ *   L = f cos L_int / (c_b p_b + c_c p_c + c_i p_i)              (interior hit)
  *     = f cos L_env / (c_b p_b + c_c p_c + c_w p_w + c_e p_e)    (through a window)
- *     + f(s, w_o) cos(theta_s) E_sun V(s)                       (sun, every sample)
+ *     + f(s, w_o) cos(theta_s) L_sun Omega_sun V(s), s in the disc   (sun, every sample)
  * The sun is a delta light: only next-event estimation can reach it, so it
  * takes no MIS weight.
  * The window strategy puts samples where the sky is, which dominates the
