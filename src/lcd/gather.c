@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <omp.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,6 +33,9 @@ struct cv_lcd_gather {
   float *tnA;
   float *envvis; /* ENV_RX x ENV_RY regions of VIS_H x VIS_W lat-long cells: the fraction of
                     probe rays from the region that reach the environment (NULL: no windows) */
+  /* the two tables above and below: computed on the first round that
+   * needs them (geometry only: the same whoever computes them) */
+  atomic_int envvis_ready, tgeo_ready;
   float *tgeo;  /* per triangle: unoccluded share of its light the panel receives, up to a
                    constant: cos at the triangle x cos at the panel / r^2 from the panel
                    centre, times the fraction of 5 panel points that see its centroid */
@@ -446,8 +450,9 @@ static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const 
 /* tgeo: how much of each triangle's exit radiance the panel can receive
  * (the interior strategy's weights, gather.h), from the panel centre and 4
  * points halfway to its corners; one shadow ray each (nt x 5 rays). */
-static void panel_view_factors(cv_lcd_gather *g) {
+static int panel_view_factors(cv_lcd_gather *g) {
   const cv_lcd_panel *pn = &g->panel;
+  if (!(g->tgeo = malloc(g->nt * sizeof(float) + 1))) return CV_ERR_NOMEM;
   float pts[5][3];
   const float a[5] = {0, -0.25f, 0.25f, -0.25f, 0.25f}, b[5] = {0, -0.25f, -0.25f, 0.25f, 0.25f};
   for (int i = 0; i < 5; i++) {
@@ -484,6 +489,33 @@ static void panel_view_factors(cv_lcd_gather *g) {
     g->tgeo[t] = co * ct / r2 * (float)seen / 5;
   }
   }
+  return CV_OK;
+}
+
+/* The lazily computed tables a round needs (want_vis: envvis, want_tgeo:
+ * tgeo), computed once under a lock by the first call that needs them. */
+static int gather_lazy(const cv_lcd_gather *cg, int want_vis, int want_tgeo) {
+  cv_lcd_gather *g = (cv_lcd_gather *)cg; /* the cache is not part of the value */
+  int st = CV_OK;
+  if ((want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) ||
+      (want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire))) {
+#pragma omp critical(cv_lcd_gather_lazy)
+    {
+      if (want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) {
+        free(g->envvis);
+        g->envvis = NULL;
+        st = env_visibility(g);
+        if (st == CV_OK) atomic_store_explicit(&g->envvis_ready, 1, memory_order_release);
+      }
+      if (st == CV_OK && want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire)) {
+        free(g->tgeo);
+        g->tgeo = NULL;
+        st = panel_view_factors(g);
+        if (st == CV_OK) atomic_store_explicit(&g->tgeo_ready, 1, memory_order_release);
+      }
+    }
+  }
+  return st;
 }
 
 int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
@@ -518,15 +550,8 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     for (int k = 0; k < 3; k++) g->tnA[4 * t + k] = l > 0 ? n[k] / l : 0.0f;
     g->tnA[4 * t + 3] = 0.5f * l;
   }
-  if (!(g->tgeo = malloc(m->nt * sizeof(float) + 1))) {
-    cv_lcd_gather_destroy(g);
-    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
-  }
-  panel_view_factors(g);
-  if (g->has_windows && env_visibility(g)) {
-    cv_lcd_gather_destroy(g);
-    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
-  }
+  atomic_init(&g->envvis_ready, 0);
+  atomic_init(&g->tgeo_ready, 0);
   if (g->has_windows && collect_openings(g, m)) {
     cv_lcd_gather_destroy(g);
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
@@ -1138,7 +1163,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
   /* interior light tables from this light's vertex radiance */
   int_table itab;
   memset(&itab, 0, sizeof itab);
-  if (p->interior_fraction > 0 && int_table_build(g, l, &itab)) {
+  if (gather_lazy(g, p->env_fraction > 0 && esr && g->has_windows, p->interior_fraction > 0) ||
+      (p->interior_fraction > 0 && int_table_build(g, l, &itab))) {
     cv_env_sampler_destroy(esr);
     return CV_ERR_NOMEM;
   }

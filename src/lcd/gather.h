@@ -34,19 +34,20 @@
  *      from the light's tables in each call that uses it), n_e samples.
  *      With windows, each of 4 x 3 regions of the panel has its own table:
  *      every cell's probability times (the share of probe rays from the
- *      region that reach the sky through a window in that cell, traced once
- *      in cv_lcd_gather_create, + 0.02) times the luminance of f cos for the
- *      view from the region's centre, so that the strategy draws about the
- *      product L f cos V (about 10 ms a round for 12 tables of 256 x 128
- *      cells).  p_e is exact for any direction (the block's region table),
- *      and a sample counts only when its ray leaves through a window.
+ *      region that reach the sky through a window in that cell + 0.02)
+ *      times the luminance of f cos for the view from the region's centre,
+ *      so that the strategy draws about the product L f cos V (12 tables
+ *      of 256 x 128 cells a round; the probe rays are traced once per
+ *      gather, by the first round that uses the strategy).  p_e is exact
+ *      for any direction (the block's region table), and a sample counts
+ *      only when its ray leaves through a window.
  *   i: the interior by its exit radiance (interior_fraction): a triangle by
  *      area x mean luminance of vrad x a view factor to the panel centre x
  *      the share of 5 panel points that see its centroid (alias table per
- *      call; view factors once per gather), a point uniform on it; the
- *      sample counts only when that point is the ray's first hit; n_i
- *      samples; p_i of a ray that first hits triangle t at distance r is
- *      p_area(t) r^2 / |cos_t|.
+ *      call; the view factors once per gather, by the first round that
+ *      uses the strategy), a point uniform on it; the sample counts only
+ *      when that point is the ray's first hit; n_i samples; p_i of a ray
+ *      that first hits triangle t at distance r is p_area(t) r^2 / |cos_t|.
  * with n_w = round(window_fraction spp), n_e = round(env_fraction spp),
  * n_i = round(interior_fraction spp) (n_w + n_e + n_i <= spp - 1: n_i, then
  * n_e are cut first), n_b = round(brdf_fraction (spp - n_w - n_e - n_i)),
