@@ -1,8 +1,17 @@
 /* Benchmark of the LCD panel final gather (issue 5; Dmitriev et al. 2004,
  * section 4.3) on the default cabin under blender-data's forest.exr.
  *
- *   bench_lcd [--tess N] [--env NAME] [--crop WxH] [--ref-spp N] [--max-spp N]
- *             [--reps N] [--dat FILE]
+ *   bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] [--ref-spp N]
+ *             [--max-spp N] [--reps N] [--dat FILE]
+ *
+ * --sky: the Preetham sky (turbidity 3) with its sun at that elevation and
+ * azimuth (degrees, clockwise from ahead) instead of the map.  Strategies:
+ * the gather's mixes (gather.h: BRDF, cosine, window, environment and
+ * interior fractions, the sun next-event estimated) and plain cosine
+ * sampling (params.sun = 0: no light sampling, the rays find the solar
+ * disc; its clamp raised above the disc's f L pi so that it stays
+ * unbiased).  With a sun, the samples plain cosine sampling needs to 1%
+ * are also computed from the sun term (the disc is too small for a run).
  *
  * 1. Speed: one 400 x 300 round of 40 samples per texel on ONE thread, for
  *    each sampling strategy (median and range of --reps runs, alternating
