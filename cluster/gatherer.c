@@ -102,7 +102,13 @@ int cv_gather_run(cv_service *s) {
       beat_t = cv_service_now();
     }
     if (!quit_since) maybe_abandon(s, &red, alive_mb, first_state);
-    if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+    if (w && red) {
+      cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+      uint64_t rounds;
+      double ms, cpu_ms;
+      cv_lcd_worker_totals(w, &rounds, &ms, &cpu_ms);
+      cv_lcd_reduce_set_work(red, rounds, ms, cpu_ms);
+    }
     else if (w && s->lcd_me > 0) cv_lcd_worker_send_ready(w, send_round, NULL, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
      * brings the last pooled rounds), but not for ever. */
