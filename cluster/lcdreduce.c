@@ -11,7 +11,9 @@
  *           offer from the header (the master's current key first, else the
  *           newest snapshot), and MPI_Iallreduce (sum) adds the fixed-point
  *           LCD buffers of the offers of that key (cv_lcd_accum words; zeros
- *           from the others, whose offers go back to their pools).
+ *           from the others, whose offers go back to their pools), chunk by
+ *           chunk (CHUNK_WORDS).  The master is a leaf of the sum's tree
+ *           (cv_comm_lcd_group): the gather ranks do the adding.
  *
  * So every sum is of one key.  The master tests the request once per poll
  * (each frame and in its waiting loops) and starts the next epoch at most
@@ -29,13 +31,20 @@
 #include "service_internal.h"
 
 enum { PH_IDLE, PH_HEADER, PH_DATA, PH_DONE };
+/* The data sum goes in chunks of at most this many words (512 KB), one
+ * MPI_Iallreduce after the other: what Open MPI copies or adds on the
+ * master inside one MPI call (the test of a poll, or any other call that
+ * runs its progress engine) is then at most one chunk, not the whole 4.8 MB
+ * of a 400 x 300 image, so a poll in the master's wait loop stays short. */
+enum { CHUNK_WORDS = 1 << 16 };
 /* header: master's key, quit flag, then one slot per member: offered (1),
  * LCD key (4 words), clamp (bits), frame of the key, first round, rounds;
  * and, offer or not, the member's totals (cv_lcd_reduce_set_work): rounds
- * rendered, their wall and CPU time (us) */
-enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 12 };
+ * rendered, their wall and CPU time, its MPI thread's CPU time (us) */
+enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 13 };
 enum { S_OFFER = 0, S_KEY = 1, S_CLAMP = 5, S_FRAME = 6, S_FIRST = 7, S_N = 8, S_WROUNDS = 9,
-       S_WUS = 10, S_WCPU_US = 11 };
+       S_WUS = 10, S_WCPU_US = 11, S_WCOMM_US = 12 };
+enum { WORK = 4 }; /* the words from S_WROUNDS */
 _Static_assert(sizeof(cv_lcd_key) == 4 * sizeof(int64_t), "an LCD key is 4 words");
 
 /* Rounds of one key from one worker: first, first + stride, ... (n). */
@@ -49,6 +58,7 @@ struct cv_lcd_reduce {
   int w, h, budget, stride, members, me;
   size_t words, hdr_n;
   int64_t *hdr, *data;
+  size_t off, len; /* the data chunk in flight: data[off, off + len) */
   int phase;
   double t_start;
   int quit_epoch;
@@ -59,9 +69,9 @@ struct cv_lcd_reduce {
   /* contributor: rounds since the offer, and the offer in flight */
   pool pool, offer;
   /* contributor: its work so far (sent in its header slot) */
-  int64_t work[3];
+  int64_t work[WORK];
   /* master: each member's work from the last header */
-  int64_t *member_work; /* 3 per member */
+  int64_t *member_work; /* WORK per member */
   /* totals */
   uint64_t epochs, data_epochs, nrounds;
   double ms_sum;
@@ -87,7 +97,7 @@ int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int 
   r->hdr = calloc(r->hdr_n, sizeof *r->hdr);
   r->data = calloc(r->words, sizeof *r->data);
   r->rounds = calloc((size_t)budget, sizeof *r->rounds);
-  r->member_work = calloc(3 * (size_t)members, sizeof *r->member_work);
+  r->member_work = calloc(WORK * (size_t)members, sizeof *r->member_work);
   if (!r->hdr || !r->data || !r->rounds || !r->member_work) {
     cv_lcd_reduce_destroy(r);
     return CV_ERR_NOMEM;
@@ -154,10 +164,7 @@ static void start_header(cv_lcd_reduce *r, double now) {
     memcpy(&r->hdr[H_KEY], &r->announce, sizeof r->announce);
     r->hdr[H_QUIT] = r->announce_quit;
   } else {
-    int64_t *s = slot(r, r->me);
-    s[S_WROUNDS] = r->work[0];
-    s[S_WUS] = r->work[1];
-    s[S_WCPU_US] = r->work[2];
+    memcpy(slot(r, r->me) + S_WROUNDS, r->work, sizeof r->work);
   }
   if (r->me > 0 && r->pool.acc && r->pool.n > 0) { /* offer the pool, frozen */
     r->offer = r->pool;
@@ -230,13 +237,22 @@ static void offer_back(cv_lcd_reduce *r) {
   pool_clear(o);
 }
 
+/* Starts the sum of the data chunk at r->off: this member's offer there, or
+ * zeros.  0 on success. */
+static int start_chunk(cv_lcd_reduce *r) {
+  r->len = r->words - r->off < CHUNK_WORDS ? r->words - r->off : CHUNK_WORDS;
+  if (r->offer.acc) memcpy(r->data + r->off, r->offer.acc->data + r->off, r->len * sizeof *r->data);
+  else memset(r->data + r->off, 0, r->len * sizeof *r->data);
+  return cv_comm_lcd_iallreduce(r->data + r->off, r->len);
+}
+
 static void header_done(cv_lcd_reduce *r, double now) {
   r->quit_epoch = r->hdr[H_QUIT] != 0;
   if (r->me == 0)
     for (int m = 1; m < r->members; m++) {
       const int64_t *s = slot(r, m);
-      if (s[S_WROUNDS] >= r->member_work[3 * m]) /* totals only grow */
-        memcpy(r->member_work + 3 * (size_t)m, s + S_WROUNDS, 3 * sizeof(int64_t));
+      if (s[S_WROUNDS] >= r->member_work[WORK * m]) /* totals only grow */
+        memcpy(r->member_work + WORK * (size_t)m, s + S_WROUNDS, WORK * sizeof(int64_t));
     }
   const int best = chosen(r);
   if (r->me > 0 && r->offer.acc && (best < 0 || !matches(r, r->me, best))) offer_back(r);
@@ -244,9 +260,8 @@ static void header_done(cv_lcd_reduce *r, double now) {
     finish_epoch(r, now);
     return;
   }
-  if (r->offer.acc) memcpy(r->data, r->offer.acc->data, r->words * sizeof *r->data);
-  else memset(r->data, 0, r->words * sizeof *r->data);
-  if (cv_comm_lcd_iallreduce(r->data, r->words)) {
+  r->off = 0;
+  if (start_chunk(r)) {
     finish_epoch(r, now);
     return;
   }
@@ -295,6 +310,11 @@ static int poll_step(cv_lcd_reduce *r, double now, double min_period, cv_lcd_red
       break;
     case PH_DATA:
       if (!cv_comm_lcd_test()) return 0;
+      r->off += r->len;
+      if (r->off < r->words) { /* the next chunk: tested by the next poll */
+        if (start_chunk(r)) finish_epoch(r, now);
+        return 0;
+      }
       data_done(r, now, fn, user);
       break;
     default: /* idle */
@@ -326,10 +346,11 @@ int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_r
   return done;
 }
 
-void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double cpu_ms) {
+void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double cpu_ms, double comm_cpu_ms) {
   r->work[0] = (int64_t)rounds;
   r->work[1] = (int64_t)(ms * 1e3);
   r->work[2] = (int64_t)(cpu_ms * 1e3);
+  r->work[3] = (int64_t)(comm_cpu_ms * 1e3);
 }
 
 double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since) {
@@ -354,10 +375,13 @@ void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {
   st->poll_ms_max = r->poll_ms_max;
   st->poll_cpu_ms_max = r->poll_cpu_ms_max;
   st->gather_rounds = 0;
-  st->gather_ms = st->gather_cpu_ms = 0;
+  st->gather_ms = st->gather_cpu_ms = st->gather_comm_cpu_ms = st->gather_comm_cpu_ms_max = 0;
   for (int m = 1; r->me == 0 && m < r->members; m++) {
-    st->gather_rounds += (uint64_t)r->member_work[3 * m];
-    st->gather_ms += (double)r->member_work[3 * m + 1] * 1e-3;
-    st->gather_cpu_ms += (double)r->member_work[3 * m + 2] * 1e-3;
+    const int64_t *w = r->member_work + WORK * (size_t)m;
+    st->gather_rounds += (uint64_t)w[0];
+    st->gather_ms += (double)w[1] * 1e-3;
+    st->gather_cpu_ms += (double)w[2] * 1e-3;
+    st->gather_comm_cpu_ms += (double)w[3] * 1e-3;
+    if ((double)w[3] * 1e-3 > st->gather_comm_cpu_ms_max) st->gather_comm_cpu_ms_max = (double)w[3] * 1e-3;
   }
 }

@@ -149,6 +149,9 @@ void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_uint(ml, "gather_rounds", st.gather_rounds);
   cv_metrics_double(ml, "gather_round_ms", st.gather_rounds ? st.gather_ms / (double)st.gather_rounds : 0);
   cv_metrics_double(ml, "gather_round_cpu_ms", st.gather_rounds ? st.gather_cpu_ms / (double)st.gather_rounds : 0);
+  cv_metrics_double(ml, "gather_cpu_ms", st.gather_cpu_ms);
+  cv_metrics_double(ml, "gather_comm_cpu_ms", st.gather_comm_cpu_ms);
+  cv_metrics_double(ml, "gather_comm_cpu_ms_max", st.gather_comm_cpu_ms_max);
   cv_metrics_bool(ml, "abandoned", m->lcd_red_abandoned); /* a member died: rounds point-to-point */
   cv_metrics_uint(ml, "p2p_rounds", m->lcd_gather_p2p);   /* gather ranks' rounds taken point-to-point */
   cv_metrics_object_end(ml);

@@ -12,10 +12,12 @@
 #   poll cpu ms/epoch, max   the master's CPU time in the allreduce's polls
 #                            per epoch with rounds (MPI_Test and the sum into
 #                            the image), and its largest single poll
-#   master cpu ms/epoch      the master thread's CPU time per data epoch
-#                            beyond the G = 0 run's rate (everything G adds:
-#                            Open MPI's progress in any call, sums, states,
-#                            heartbeats)
+#   gather MPI cpu / round cpu  the gather ranks' MPI threads' CPU time
+#                            (pooling rounds, their share of the sum,
+#                            polling) over their rounds' CPU time, and the
+#                            busiest rank's MPI-thread CPU per epoch (ms)
+#   master cpu s/s           the master thread's CPU seconds per second of
+#                            the run (mostly its polling loops)
 #   master_ms p50/p99        per-frame master work, wall (with preemption)
 #   master_cpu_ms p50/p99    the same intervals in thread CPU time
 # The gather ranks run under `nice -n GATHER_NICE` (default 19): on a farm
@@ -54,10 +56,9 @@ cat > still.json <<'JSON'
 JSON
 
 echo "# bench_farm: $(date -u +%FT%TZ), $CORES cores, gather ranks at nice $NICE, LCD $LCD_SIZE x $LCD_SPP spp, $FRAMES frames at $FPS/s"
-echo "| G | rep | round ms | round cpu ms | Msamples/s/rank (CPU) | rounds/s summed | epochs | epoch ms | poll cpu ms/epoch | poll cpu ms max | poll wall ms max | master cpu ms/epoch | master_ms p50 | p99 | master_cpu_ms p50 | p99 |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| G | rep | round ms | round cpu ms | Msamples/s/rank (CPU) | rounds/s summed | epochs | epoch ms | poll cpu ms/epoch | poll cpu ms max | poll wall ms max | gather MPI cpu / round cpu | busiest gather MPI cpu ms/epoch | master cpu s/s | master_ms p50 | p99 | master_cpu_ms p50 | p99 |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for rep in $(seq 1 "$REPS"); do
-  base_rate=""
   for g in ${GATHER:-0 1 2 4 8 16 32}; do
     out="g${g}r$rep"
     rm -rf "$out"
@@ -68,9 +69,9 @@ for rep in $(seq 1 "$REPS"); do
     [ "$g" -gt 0 ] && APP+=(: -np "$g" nice -n "$NICE" "$CAVE" "${ARGS[@]}")
     timeout 900 "${MPI[@]}" "${APP[@]}" >"$out.log" 2>&1 \
       || { echo "| $g | $rep | run failed: $(tail -1 "$out.log") |"; continue; }
-    row=$(python3 - "$out/metrics.jsonl" "$g" "$rep" "$LCD_SIZE" "$LCD_SPP" "${base_rate:-}" <<'PY'
+    python3 - "$out/metrics.jsonl" "$g" "$rep" "$LCD_SIZE" "$LCD_SPP" <<'PY'
 import json, sys
-path, g, rep, size, spp, base = sys.argv[1:7]
+path, g, rep, size, spp = sys.argv[1:6]
 s = [json.loads(l) for l in open(path) if '"summary"' in l][-1]
 w, h = (int(v) for v in size.split("x"))
 texels_spp = w * h * int(spp)
@@ -80,18 +81,15 @@ f = lambda v, d=3: f"{v:.{d}g}" if isinstance(v, float) else str(v)
 cols = []
 if a and a["gather_rounds"] > 0:
     de = max(a["data_epochs"], 1)
-    extra = (rate - float(base)) * s["seconds"] * 1e3 / de if base else float("nan")
     cols = [f(a["gather_round_ms"]), f(a["gather_round_cpu_ms"]),
             f(texels_spp / (a["gather_round_cpu_ms"] * 1e-3) / 1e6),
             f(s["lcd_rounds"] / s["seconds"]), f"{a['data_epochs']}/{a['epochs']}", f(a["epoch_ms_mean"]),
-            f(a["poll_cpu_ms"] / de), f(a["poll_cpu_ms_max"]), f(a["poll_ms_max"]), f(extra)]
+            f(a["poll_cpu_ms"] / de), f(a["poll_cpu_ms_max"]), f(a["poll_ms_max"]),
+            f(a["gather_comm_cpu_ms"] / a["gather_cpu_ms"]), f(a["gather_comm_cpu_ms_max"] / max(a["epochs"], 1))]
 else:
-    cols = ["-"] * 10
-cols += [f(s["master_ms_p50"]), f(s["master_ms_p99"]), f(s["master_cpu_ms_p50"]), f(s["master_cpu_ms_p99"])]
-print(f"| {g} | {rep} | " + " | ".join(cols) + f" |\t{rate}")
+    cols = ["-"] * 11
+cols += [f(rate), f(s["master_ms_p50"]), f(s["master_ms_p99"]), f(s["master_cpu_ms_p50"]), f(s["master_cpu_ms_p99"])]
+print(f"| {g} | {rep} | " + " | ".join(cols) + " |")
 PY
-)
-    [ "$g" = 0 ] && base_rate="${row##*$'\t'}"
-    echo "${row%$'\t'*}"
   done
 done
