@@ -118,9 +118,10 @@ int cv_gather_run(cv_service *s) {
     }
     else if (w && s->lcd_me > 0) cv_lcd_worker_send_ready(w, send_round, NULL, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
-     * brings the last pooled rounds), but not for ever. */
+     * brings the last pooled rounds), but not for ever: longer than the
+     * master waits for it (10 s, lcd_reduce_finish), so it gives up first. */
     const int red_done = red ? cv_lcd_reduce_poll(red, cv_service_now(), 0, NULL, NULL) : 1;
-    if (quit_since && (red_done || cv_service_now() - quit_since > 5)) break;
+    if (quit_since && (red_done || cv_service_now() - quit_since > 15)) break;
     cv_comm_progress();
     if (*s->stop) { /* wait for the master's quit, but not for ever */
       if (stop_since == 0) stop_since = cv_service_now();
@@ -128,6 +129,10 @@ int cv_gather_run(cv_service *s) {
     }
     struct timespec ts = {0, 1000000};
     nanosleep(&ts, NULL);
+  }
+  if (red && cv_lcd_reduce_in_flight(red)) { /* its buffers stay MPI's; no MPI_Finalize */
+    fprintf(stderr, "cave run: rank %d: LCD sum still in flight at the end: given up\n", s->rank);
+    cv_lcd_reduce_abandon(red);
   }
   cv_lcd_worker_destroy(w);
   cv_lcd_reduce_destroy(red);

@@ -11,9 +11,9 @@
  *           offer from the header (the master's current key first, else the
  *           newest snapshot), and MPI_Iallreduce (sum) adds the fixed-point
  *           LCD buffers of the offers of that key (cv_lcd_accum words; zeros
- *           from the others, whose offers go back to their pools), chunk by
- *           chunk (CHUNK_WORDS).  The master is a leaf of the sum's tree
- *           (cv_comm_lcd_group): the gather ranks do the adding.
+ *           from the others, whose offers go back to their pools).  The
+ *           master is a leaf of the sum's tree (cv_comm_lcd_group): the
+ *           gather ranks do the adding.
  *
  * So every sum is of one key.  The master tests the request once per poll
  * (each frame and in its waiting loops) and starts the next epoch at most
@@ -31,12 +31,6 @@
 #include "service_internal.h"
 
 enum { PH_IDLE, PH_HEADER, PH_DATA, PH_DONE };
-/* The data sum goes in chunks of at most this many words (512 KB), one
- * MPI_Iallreduce after the other: what Open MPI copies or adds on the
- * master inside one MPI call (the test of a poll, or any other call that
- * runs its progress engine) is then at most one chunk, not the whole 4.8 MB
- * of a 400 x 300 image, so a poll in the master's wait loop stays short. */
-enum { CHUNK_WORDS = 1 << 16 };
 /* header: master's key, quit flag, then one slot per member: offered (1),
  * LCD key (4 words), clamp (bits), frame of the key, first round, rounds;
  * and, offer or not, the member's totals (cv_lcd_reduce_set_work): rounds
@@ -58,8 +52,8 @@ struct cv_lcd_reduce {
   int w, h, budget, stride, members, me;
   size_t words, hdr_n;
   int64_t *hdr, *data;
-  size_t off, len; /* the data chunk in flight: data[off, off + len) */
   int phase;
+  int leak; /* abandoned with a sum in flight: MPI may still write hdr, data */
   double t_start;
   int quit_epoch;
   /* master */
@@ -116,8 +110,10 @@ void cv_lcd_reduce_destroy(cv_lcd_reduce *r) {
   if (!r) return;
   pool_clear(&r->pool);
   pool_clear(&r->offer);
-  free(r->hdr);
-  free(r->data);
+  if (!r->leak) { /* else left to MPI: the sum in flight may still write them */
+    free(r->hdr);
+    free(r->data);
+  }
   free(r->rounds);
   free(r->member_work);
   free(r);
@@ -237,15 +233,6 @@ static void offer_back(cv_lcd_reduce *r) {
   pool_clear(o);
 }
 
-/* Starts the sum of the data chunk at r->off: this member's offer there, or
- * zeros.  0 on success. */
-static int start_chunk(cv_lcd_reduce *r) {
-  r->len = r->words - r->off < CHUNK_WORDS ? r->words - r->off : CHUNK_WORDS;
-  if (r->offer.acc) memcpy(r->data + r->off, r->offer.acc->data + r->off, r->len * sizeof *r->data);
-  else memset(r->data + r->off, 0, r->len * sizeof *r->data);
-  return cv_comm_lcd_iallreduce(r->data + r->off, r->len);
-}
-
 static void header_done(cv_lcd_reduce *r, double now) {
   r->quit_epoch = r->hdr[H_QUIT] != 0;
   if (r->me == 0)
@@ -260,8 +247,9 @@ static void header_done(cv_lcd_reduce *r, double now) {
     finish_epoch(r, now);
     return;
   }
-  r->off = 0;
-  if (start_chunk(r)) {
+  if (r->offer.acc) memcpy(r->data, r->offer.acc->data, r->words * sizeof *r->data);
+  else memset(r->data, 0, r->words * sizeof *r->data);
+  if (cv_comm_lcd_iallreduce(r->data, r->words)) {
     finish_epoch(r, now);
     return;
   }
@@ -310,11 +298,6 @@ static int poll_step(cv_lcd_reduce *r, double now, double min_period, cv_lcd_red
       break;
     case PH_DATA:
       if (!cv_comm_lcd_test()) return 0;
-      r->off += r->len;
-      if (r->off < r->words) { /* the next chunk: tested by the next poll */
-        if (start_chunk(r)) finish_epoch(r, now);
-        return 0;
-      }
       data_done(r, now, fn, user);
       break;
     default: /* idle */
@@ -353,12 +336,17 @@ void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double
   r->work[3] = (int64_t)(comm_cpu_ms * 1e3);
 }
 
+int cv_lcd_reduce_in_flight(const cv_lcd_reduce *r) {
+  return r->phase == PH_HEADER || r->phase == PH_DATA;
+}
+
 double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since) {
   if (r->phase != PH_HEADER && r->phase != PH_DATA) return 0;
   return now - (r->t_start > since ? r->t_start : since);
 }
 
 void cv_lcd_reduce_abandon(cv_lcd_reduce *r) {
+  if (r->phase == PH_HEADER || r->phase == PH_DATA) r->leak = 1;
   cv_comm_lcd_abandon();
   pool_clear(&r->offer);
   r->phase = PH_DONE;

@@ -56,9 +56,12 @@ void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double
 /* Seconds the epoch in flight has waited since max(its start, since); 0
  * when none is in flight. */
 double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since);
+/* 1 while a sum is in flight (its buffers belong to MPI). */
+int cv_lcd_reduce_in_flight(const cv_lcd_reduce *r);
 /* Gives the sum up for good (a member died, cv_comm_lcd_abandon): the
  * epoch in flight and the rounds it offered are dropped, poll returns 1
- * from now on; the totals stay. */
+ * from now on; the totals stay.  With a sum in flight its buffers are never
+ * freed (MPI may still write them). */
 void cv_lcd_reduce_abandon(cv_lcd_reduce *r);
 
 /* Totals: epochs finished, those that carried rounds, and the mean time

@@ -128,6 +128,11 @@ void lcd_reduce_finish(master *m) {
     struct timespec ts = {0, 1000000};
     nanosleep(&ts, NULL);
   }
+  if (cv_lcd_reduce_in_flight(m->lcd_red)) { /* its buffers stay MPI's; no MPI_Finalize */
+    fprintf(stderr, "cave run: master: the last LCD sum did not finish in 10 s: given up\n");
+    cv_lcd_reduce_abandon(m->lcd_red);
+    m->lcd_red_abandoned = 1;
+  }
 }
 
 void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
