@@ -23,7 +23,10 @@
 # The gather ranks run under `nice -n GATHER_NICE` (default 19): on a farm
 # they have nodes of their own, here they would otherwise take the master's
 # core in turns and its wall times would be the scheduler's (GATHER_NICE=0
-# shows that).
+# shows that).  --gather-timeout 60: a niced gather rank starved by other
+# jobs on the machine is not taken for dead.  A run whose mpirun failed but
+# whose summary was written still counts (the rc is noted).  At the end,
+# farm_model.py projects the farm from these runs.
 # Usage: bench_farm.sh BUILD_DIR [REPS]
 # Environment: GATHER ("0 1 2 4 8 16 32"), FRAMES (200), FPS (10),
 # LCD_SIZE (400x300), LCD_SPP (4), GATHER_NICE (19), BENCH_WORK (/tmp/bench_farm).
@@ -31,6 +34,7 @@ set -euo pipefail
 BUILD="${1:?usage: bench_farm.sh BUILD_DIR [REPS]}"
 REPS="${2:-1}"
 CAVE="$(cd "$BUILD" && pwd)/cave"
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 WORK="${BENCH_WORK:-/tmp/bench_farm}"
 FRAMES="${FRAMES:-200}"
 FPS="${FPS:-10}"
@@ -55,7 +59,7 @@ cat > still.json <<'JSON'
  "keyframes": [{"t": 0, "yaw": 30, "weights": [1]}, {"t": 10, "yaw": 30}]}
 JSON
 
-echo "# bench_farm: $(date -u +%FT%TZ), $CORES cores, gather ranks at nice $NICE, LCD $LCD_SIZE x $LCD_SPP spp, $FRAMES frames at $FPS/s"
+echo "# bench_farm: $(date -u +%FT%TZ), $CORES cores, gather ranks at nice $NICE, LCD $LCD_SIZE x $LCD_SPP spp, $FRAMES frames at $FPS/s" | tee bench.txt
 echo "| G | rep | round ms | round cpu ms | Msamples/s/rank (CPU) | rounds/s summed | epochs | epoch ms | poll cpu ms/epoch | poll cpu ms max | poll wall ms max | gather MPI cpu / round cpu | busiest gather MPI cpu ms/epoch | master cpu s/s | master_ms p50 | p99 | master_cpu_ms p50 | p99 |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for rep in $(seq 1 "$REPS"); do
@@ -64,11 +68,16 @@ for rep in $(seq 1 "$REPS"); do
     rm -rf "$out"
     ARGS=(run wall1.json --scene scene.prt --drive still.json --size 32 --frames "$FRAMES" --max-fps "$FPS"
       --no-compensation --no-idle-lcd --write-every 0 --lcd-size "$LCD_SIZE" --lcd-spp "$LCD_SPP"
-      --lcd-budget 100000 --quiet -o "$out")
+      --lcd-budget 100000 --gather-timeout 60 --quiet -o "$out")
     APP=(-np 2 "$CAVE" "${ARGS[@]}")
     [ "$g" -gt 0 ] && APP+=(: -np "$g" nice -n "$NICE" "$CAVE" "${ARGS[@]}")
-    timeout 900 "${MPI[@]}" "${APP[@]}" >"$out.log" 2>&1 \
-      || { echo "| $g | $rep | run failed: $(tail -1 "$out.log") |"; continue; }
+    rc=0
+    timeout 900 "${MPI[@]}" "${APP[@]}" >"$out.log" 2>&1 || rc=$?
+    if ! grep -q '"summary"' "$out/metrics.jsonl" 2>/dev/null; then
+      echo "| $g | $rep | run failed (rc $rc): $(grep -m1 'cave run' "$out.log") |"
+      continue
+    fi
+    [ $rc -ne 0 ] && echo "(G = $g, rep $rep: mpirun rc $rc after the summary: $(grep -m1 'cave run' "$out.log"))" >&2
     python3 - "$out/metrics.jsonl" "$g" "$rep" "$LCD_SIZE" "$LCD_SPP" <<'PY'
 import json, sys
 path, g, rep, size, spp = sys.argv[1:6]
@@ -93,3 +102,5 @@ print(f"| {g} | {rep} | " + " | ".join(cols) + " |")
 PY
   done
 done
+echo
+python3 "$HERE/farm_model.py" "$WORK"
