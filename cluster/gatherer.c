@@ -42,6 +42,13 @@ static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_mailbox *alive_
   *red = NULL;
 }
 
+/* This (the MPI) thread's CPU time, ms. */
+static double thread_cpu_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
 /* Reports set-up success ('O') or failure ('F' + message) to the master. */
 void cv_service_ready(int ok, const char *msg) {
   char buf[512];
@@ -77,12 +84,8 @@ int cv_gather_run(cv_service *s) {
     fprintf(stderr, "cave run: rank %d: LCD reduction: out of memory\n", s->rank);
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
   cv_mailbox *alive_mb = cv_mailbox_open(0, CV_TAG_ALIVE, 16);
-  double stop_since = 0, quit_since = 0, first_state = 0, beat_t = 0, comm_cpu0;
-  {
-    struct timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    comm_cpu0 = (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-  }
+  double stop_since = 0, quit_since = 0, first_state = 0, beat_t = 0;
+  const double comm_cpu0 = thread_cpu_ms();
   uint32_t beats = 0;
   int rc = st ? 1 : 0;
   for (;;) {
@@ -112,9 +115,7 @@ int cv_gather_run(cv_service *s) {
       uint64_t rounds;
       double ms, cpu_ms;
       cv_lcd_worker_totals(w, &rounds, &ms, &cpu_ms);
-      struct timespec ts;
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts); /* this (MPI) thread */
-      cv_lcd_reduce_set_work(red, rounds, ms, cpu_ms, (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6 - comm_cpu0);
+      cv_lcd_reduce_set_work(red, rounds, ms, cpu_ms, thread_cpu_ms() - comm_cpu0);
     }
     else if (w && s->lcd_me > 0) cv_lcd_worker_send_ready(w, send_round, NULL, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
