@@ -78,7 +78,7 @@ for rep in $(seq 1 "$REPS"); do
       continue
     fi
     [ $rc -ne 0 ] && echo "(G = $g, rep $rep: mpirun rc $rc after the summary: $(grep -m1 'cave run' "$out.log"))" >&2
-    python3 - "$out/metrics.jsonl" "$g" "$rep" "$LCD_SIZE" "$LCD_SPP" <<'PY'
+    python3 - "$out/metrics.jsonl" "$g" "$rep" "$LCD_SIZE" "$LCD_SPP" <<'PY' || echo "| $g | $rep | metrics not read |"
 import json, sys
 path, g, rep, size, spp = sys.argv[1:6]
 s = [json.loads(l) for l in open(path) if '"summary"' in l][-1]
@@ -94,7 +94,8 @@ if a and a["gather_rounds"] > 0:
             f(texels_spp / (a["gather_round_cpu_ms"] * 1e-3) / 1e6),
             f(s["lcd_rounds"] / s["seconds"]), f"{a['data_epochs']}/{a['epochs']}", f(a["epoch_ms_mean"]),
             f(a["poll_cpu_ms"] / de), f(a["poll_cpu_ms_max"]), f(a["poll_ms_max"]),
-            f(a["gather_comm_cpu_ms"] / a["gather_cpu_ms"]), f(a["gather_comm_cpu_ms_max"] / max(a["epochs"], 1))]
+            f(a["gather_comm_cpu_ms"] / a["gather_cpu_ms"]) if "gather_comm_cpu_ms" in a else "-",
+            f(a["gather_comm_cpu_ms_max"] / max(a["epochs"], 1)) if "gather_comm_cpu_ms_max" in a else "-"]
 else:
     cols = ["-"] * 11
 cols += [f(rate), f(s["master_ms_p50"]), f(s["master_ms_p99"]), f(s["master_cpu_ms_p50"]), f(s["master_cpu_ms_p99"])]
