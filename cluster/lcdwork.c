@@ -49,7 +49,7 @@ struct cv_lcd_worker {
   msg_node *head, *tail;
   size_t queued;
   uint64_t rounds_done;
-  double ms_total;
+  double ms_total, cpu_ms_total; /* rounds' wall and thread CPU time */
   char error[640];
   pthread_t th;
   int started;
@@ -104,8 +104,9 @@ static void worker_error(cv_lcd_worker *w, const char *what, const char *msg) {
 /* Renders one round into a message and queues it for the owner. */
 static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_key *key,
                          double clamp, uint32_t round, uint32_t frame) {
-  struct timespec t0, t1;
+  struct timespec t0, t1, c0, c1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
   cv_lcd_accum *acc = NULL;
   int st = cv_lcd_accum_create(w->s->lcd_layout.W, w->s->lcd_layout.H, clamp, &acc);
   if (st == CV_OK) st = cv_lcd_panels_round(w->ps, ll, &w->p, round, acc);
@@ -119,6 +120,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     return;
   }
   clock_gettime(CLOCK_MONOTONIC, &t1);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
   cv_lcd_msg h;
   memset(&h, 0, sizeof h);
   h.key = *key;
@@ -144,6 +146,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     w->queued++;
     w->rounds_done++;
     w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
+    w->cpu_ms_total += (double)(c1.tv_sec - c0.tv_sec) * 1e3 + (double)(c1.tv_nsec - c0.tv_nsec) * 1e-6;
     pthread_mutex_unlock(&w->mu);
   } else {
     free(node);
@@ -294,6 +297,14 @@ int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size
     n++;
   }
   return n;
+}
+
+void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total) {
+  pthread_mutex_lock(&w->mu);
+  *rounds_done = w->rounds_done;
+  *ms_total = w->ms_total;
+  *cpu_ms_total = w->cpu_ms_total;
+  pthread_mutex_unlock(&w->mu);
 }
 
 const char *cv_lcd_worker_error(cv_lcd_worker *w) { return w->error[0] ? w->error : NULL; }
