@@ -713,7 +713,9 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint32_t spread_bits;
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   /* The estimator's identity: bump when the sampling changes results. */
-  const uint32_t estimator = p->cosine_only ? 1u : 2u;
+  /* +2 with bounces: the bounce passes read half-float records of the
+   * previous bounce and trace 16-ray packets (results move by ~1e-4). */
+  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 2u : 0u);
   uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
                      (uint32_t)p->bounces, p->seed, spread_bits, estimator};
   h = cv_hash64_update(h, hdr, sizeof hdr);
