@@ -15,7 +15,7 @@ static void help(FILE *f) {
   fprintf(f,
           "usage: cave bake <scene.json | mesh.obj|.ply|.gltf|.glb | default> -o scene.prt\n"
           "                 [--bands N|auto] [--rays N|auto] [--bounces N] [--seed S]\n"
-          "                 [--budget E] [--spread F] [--cosine-only] [--tess N]\n"
+          "                 [--budget E] [--spread F] [--cosine-only] [--tail on|off] [--tess N]\n"
           "                 [--threads N] [--force] [--quiet]\n"
           "                 [--units U] [--up y|z] [--model-scale S] [--rotate X,Y,Z]\n"
           "                 [--translate X,Y,Z]\n\n"
@@ -30,6 +30,8 @@ static void help(FILE *f) {
           "  --budget E      relative error budget for auto (default 0.05)\n"
           "  --seed S        sampling seed (same seed, same bytes)\n"
           "  --cosine-only   direct pass without window importance sampling\n"
+          "  --tail on|off   add the bounces after the last as a geometric series (the\n"
+          "                  last bounce x r/(1-r), r = ratio of the last two; default off)\n"
           "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
           "                  cover (1 = the paper's whole fan; default 0.5)\n"
           "  --tess N        built-in cabin subdivision (1..64; scene default 2, ~38K triangles)\n"
@@ -53,7 +55,7 @@ int cmd_bake(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   const char *bands_s = NULL, *rays_s = NULL, *bounces_s = NULL, *seed_s = NULL,
              *budget_s = NULL, *tess_s = NULL;
-  int force = 0, quiet = 0, threads = 0, cosine_only = -1;
+  int force = 0, quiet = 0, threads = 0, cosine_only = -1, tail = -1;
   double spread = -1;
   cli_place_opts place = {.given = 0};
   cv_placement_default(&place.p);
@@ -77,6 +79,11 @@ int cmd_bake(int argc, char **argv) {
       bands_s = argv[++i];
     } else if (!strcmp(a, "--rays") && v) {
       rays_s = argv[++i];
+    } else if (!strcmp(a, "--tail") && v) {
+      if (!strcmp(v, "on")) tail = 1;
+      else if (!strcmp(v, "off")) tail = 0;
+      else return cli_fail("bake", 2, "--tail: expected on or off, got '%s'", v);
+      i++;
     } else if (!strcmp(a, "--bounces") && v) {
       bounces_s = argv[++i];
     } else if (!strcmp(a, "--spread") && v) {
@@ -164,6 +171,7 @@ int cmd_bake(int argc, char **argv) {
   if (threads > 0) omp_set_num_threads(threads);
   if (spread >= 0) cfg.spread = spread;
   if (cosine_only >= 0) cfg.window_sampling = !cosine_only;
+  if (tail >= 0) cfg.tail = tail;
 
   if (cli_load_scene_mesh(&cfg, stdout, &m, &err)) {
     rc = cli_fail("bake", 1, "%s", err.msg);
@@ -171,7 +179,7 @@ int cmd_bake(int argc, char **argv) {
   }
   cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
                        .seed = cfg.seed, .spread = (float)cfg.spread,
-                       .cosine_only = !cfg.window_sampling, .quiet = quiet};
+                       .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = quiet};
   float est_error = -1.0f;
   if (cfg.light.kind != CV_LIGHT_NONE) {
     /* The scene's lighting: reported here (sun found or not, its energy) and
@@ -223,8 +231,9 @@ int cmd_bake(int argc, char **argv) {
   }
   cv_tracer_set_spread(tr, bp.spread);
   cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, spread %g, seed %u, %s, %d threads\n",
-         m->nv, bp.bands, bp.rays, bp.bounces, (double)bp.spread, bp.seed,
+  printf("bake: %zu vertices, %d bands, %d rays, %d bounces%s, spread %g, seed %u, %s, %d threads\n",
+         m->nv, bp.bands, bp.rays, bp.bounces, bp.tail && bp.bounces ? " + tail" : "",
+         (double)bp.spread, bp.seed,
          cv_tracer_window_sampling(tr) ? "window importance sampling" : "cosine sampling",
          omp_get_max_threads());
   fflush(stdout);
@@ -237,6 +246,10 @@ int cmd_bake(int argc, char **argv) {
   for (int b = 0; b <= bp.bounces; b++)
     printf("  pass %d (%s): %.2f s, %.2f Mrays/s\n", b, b ? "bounce" : "direct", bs.seconds[b],
            bs.seconds[b] > 0 ? bs.rays[b] / bs.seconds[b] / 1e6 : 0.0);
+  if (bp.tail && bp.bounces > 0)
+    printf("  tail: bounce ratio %.4f %.4f %.4f (RGB), last bounce x r/(1-r) added%s\n",
+           bs.tail_ratio[0], bs.tail_ratio[1], bs.tail_ratio[2],
+           bs.tail_clamped ? " (a ratio was clamped to 0..0.9)" : "");
   printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices only on window openings (no transfer)\n",
          bs.total_seconds, (unsigned long long)bs.total_rays,
          bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,

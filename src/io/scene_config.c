@@ -272,7 +272,7 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
 
 static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   static const char *const keys[] = {"bands", "rays", "bounces", "seed", "spread", "window_sampling",
-                                     "error_budget", NULL};
+                                     "error_budget", "tail", NULL};
   int st = only_keys(x, o, "prt", keys);
   if (st) return st;
   const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "bands");
@@ -298,6 +298,11 @@ static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   if (ws) {
     if (!cJSON_IsBool(ws)) return fail(x, "prt.window_sampling", "expected true or false%s", "");
     c->window_sampling = cJSON_IsTrue(ws);
+  }
+  const cJSON *tl = cJSON_GetObjectItemCaseSensitive(o, "tail");
+  if (tl) {
+    if (!cJSON_IsBool(tl)) return fail(x, "prt.tail", "expected true or false%s", "");
+    c->tail = cJSON_IsTrue(tl);
   }
   return get_num(x, o, "error_budget", "prt", 1e-4, 1.0, &c->error_budget);
 }

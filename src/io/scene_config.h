@@ -64,6 +64,7 @@ typedef struct cv_scene_config {
   uint32_t seed;
   double spread;            /* 0..1, fraction of each vertex's fan sampled */
   int window_sampling;      /* 1: MIS towards the windows in the direct pass */
+  int tail;                 /* 1: geometric tail of the missing bounces (bake.h) */
   double error_budget;      /* relative, for auto */
   cv_light_spec light;      /* kind NONE when the config names no lighting */
 } cv_scene_config;

@@ -546,7 +546,7 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint32_t spread_bits;
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   /* The estimator's identity: bump when the sampling changes results. */
-  const uint32_t estimator = p->cosine_only ? 1u : 2u;
+  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->tail && p->bounces > 0 ? 16u : 0u);
   uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
                      (uint32_t)p->bounces, p->seed, spread_bits, estimator};
   h = cv_hash64_update(h, hdr, sizeof hdr);
@@ -603,6 +603,33 @@ int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake
     cv_progress_destroy(prog_);                                                \
   } while (0)
 
+/* Interreflection pass `pass`: cur = the bounce carried by prev (albedo
+ * applied), ti += the same without a textured receiver's own albedo. */
+static void propagate_pass(const cv_tracer *tr, int bands, int rays, uint32_t seed, int pass,
+                           int quiet, const float *prev, float *cur, float *ti,
+                           cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  char label[32];
+  snprintf(label, sizeof label, "bake bounce %d", pass);
+  double t0 = cv_now_seconds();
+  const int textured = tr->m->mat_tex != NULL;
+  FOR_VERTICES(label, nv, quiet, {
+    double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
+    const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
+    for (int i = 0; i < 3 * nc; i++) {
+      cur[v * 3 * nc + i] = (float)acc[i];
+      ti[v * 3 * nc + i] += (float)own[i];
+    }
+  });
+  if (stats && pass <= 16) {
+    stats->seconds[pass] = cv_now_seconds() - t0;
+    stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
+    stats->total_rays += stats->rays[pass];
+  }
+}
+
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats) {
   const size_t nv = tr->m->nv;
@@ -611,27 +638,86 @@ int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, in
   float *cur = malloc(3 * nv * nc * sizeof(float) + 1);
   if (!cur) return CV_ERR_NOMEM;
   for (int pass = 1; pass <= bounces; pass++) {
-    char label[32];
-    snprintf(label, sizeof label, "bake bounce %d", pass);
-    double t0 = cv_now_seconds();
-    const int textured = tr->m->mat_tex != NULL;
-    FOR_VERTICES(label, nv, quiet, {
-      double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
-      const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
-      for (int i = 0; i < 3 * nc; i++) {
-        cur[v * 3 * nc + i] = (float)acc[i];
-        ti[v * 3 * nc + i] += (float)own[i];
-      }
-    });
+    propagate_pass(tr, bands, rays, seed, pass, quiet, prev, cur, ti, stats);
     memcpy(prev, cur, 3 * nv * nc * sizeof(float));
-    if (stats && pass <= 16) {
-      stats->seconds[pass] = cv_now_seconds() - t0;
-      stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
-      stats->total_rays += stats->rays[pass];
-    }
   }
   free(cur);
+  return CV_OK;
+}
+
+/* Area of each vertex's share of its opaque fan (a third of each triangle). */
+static double vertex_area(const cv_tracer *tr, uint32_t v) {
+  double a = 0;
+  for (uint32_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) {
+    const uint32_t *t = tr->m->tri + 3 * (tr->fan_tri[k] >> 2);
+    const float *p0 = tr->m->pos + 3 * t[0], *p1 = tr->m->pos + 3 * t[1], *p2 = tr->m->pos + 3 * t[2];
+    double e1[3], e2[3];
+    for (int c = 0; c < 3; c++) {
+      e1[c] = (double)p1[c] - p0[c];
+      e2[c] = (double)p2[c] - p0[c];
+    }
+    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+           cz = e1[0] * e2[1] - e1[1] * e2[0];
+    a += sqrt(cx * cx + cy * cy + cz * cz) / 6.0;
+  }
+  return a;
+}
+
+int cv_prt_tail_ratio(const cv_tracer *tr, int bands, const float *before, const float *last,
+                      double ratio[3]) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  double num[3] = {0, 0, 0}, den[3] = {0, 0, 0};
+  for (size_t v = 0; v < nv; v++) {
+    double a = vertex_area(tr, (uint32_t)v);
+    for (int c = 0; c < 3; c++) {
+      num[c] += a * last[(v * 3 + c) * nc];
+      den[c] += a * before[(v * 3 + c) * nc];
+    }
+  }
+  int clamped = 0;
+  for (int c = 0; c < 3; c++) {
+    double r = den[c] > 0 ? num[c] / den[c] : 0.0;
+    if (!(r >= 0)) r = 0, clamped = 1;
+    if (r > CV_BAKE_TAIL_MAX_RATIO) r = CV_BAKE_TAIL_MAX_RATIO, clamped = 1;
+    ratio[c] = r;
+  }
+  return clamped;
+}
+
+/* Passes 1..bounces as cv_prt_propagate, then the geometric tail: every
+ * vertex's last bounce B (without a textured receiver's own albedo) times
+ * r / (1 - r), r per channel from cv_prt_tail_ratio of bounces B and B - 1
+ * (B - 1 = 0: the direct exit transfer). */
+static int propagate_with_tail(const cv_tracer *tr, const cv_bake_params *p, float *prev,
+                               float *ti, cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = p->bands * p->bands;
+  const size_t n = 3 * nv * (size_t)nc;
+  float *cur = malloc(n * sizeof(float) + 1), *last = malloc(n * sizeof(float) + 1);
+  if (!cur || !last) {
+    free(cur);
+    free(last);
+    return CV_ERR_NOMEM;
+  }
+  for (int pass = 1; pass <= p->bounces; pass++) {
+    if (pass == p->bounces) memcpy(last, ti, n * sizeof(float));
+    propagate_pass(tr, p->bands, p->rays, p->seed, pass, p->quiet, prev, cur, ti, stats);
+    if (pass < p->bounces) memcpy(prev, cur, n * sizeof(float));
+  }
+  double r[3];
+  stats->tail_clamped = cv_prt_tail_ratio(tr, p->bands, prev, cur, r);
+  for (int c = 0; c < 3; c++) stats->tail_ratio[c] = r[c];
+  for (size_t v = 0; v < nv; v++)
+    for (int c = 0; c < 3; c++) {
+      const double f = r[c] / (1.0 - r[c]);
+      for (int i = 0; i < nc; i++) {
+        const size_t k = (v * 3 + c) * (size_t)nc + (size_t)i;
+        ti[k] += (float)(f * ((double)ti[k] - last[k]));
+      }
+    }
+  free(cur);
+  free(last);
   return CV_OK;
 }
 
@@ -696,8 +782,9 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   stats->rays[0] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)p->rays;
   stats->total_rays = stats->rays[0];
   if (prev) {
-    st = cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev, prt->ti,
-                          stats);
+    st = p->tail && p->bounces > 0 ? propagate_with_tail(tr, p, prev, prt->ti, stats)
+                 : cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev,
+                                    prt->ti, stats);
     free(prev);
     if (st) {
       cv_prt_destroy(prt);

@@ -30,6 +30,9 @@
  * ample against overlaps much thinner than the fan) for lower variance:
  * measured in docs/benchmarks.md. */
 #define CV_BAKE_DEFAULT_SPREAD 0.5f
+/* Largest per-channel ratio of successive bounces the tail estimate accepts
+ * (a tail of r / (1 - r) = 9 times the last bounce). */
+#define CV_BAKE_TAIL_MAX_RATIO 0.9
 
 typedef struct cv_bake_params {
   int bands;      /* SH bands, 2..8 */
@@ -38,6 +41,8 @@ typedef struct cv_bake_params {
   uint32_t seed;
   float spread;   /* 0..1, see CV_BAKE_DEFAULT_SPREAD */
   int cosine_only;/* 1: direct pass without window importance sampling */
+  int tail;       /* 1: add the geometric tail of the bounces after the last one
+                     (cv_prt_tail_ratio); no effect with bounces = 0 */
   int quiet;      /* 1: no progress bar */
 } cv_bake_params;
 
@@ -47,6 +52,8 @@ typedef struct cv_bake_stats {
   double total_seconds;
   uint64_t total_rays;
   uint64_t empty_fans;  /* vertices with no opaque triangle (transfer 0) */
+  double tail_ratio[3]; /* with tail: the per-channel ratio r used (else 0) */
+  int tail_clamped;     /* with tail: 1 if a ratio was clamped to [0, CV_BAKE_TAIL_MAX_RATIO] */
 } cv_bake_stats;
 
 /* Per-scene sampling context: the ray tracer plus each vertex's fan. */
@@ -94,6 +101,16 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
  * its direct pass; tests seed it with a known transfer (furnace). */
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats);
+
+/* The bounces a bake leaves out, estimated as a geometric series: with
+ * `before` and `last` the exit transfers of the last two bounces ([v][c][i],
+ * albedo applied), ratio[c] = sum_v A_v last[v][c][0] / sum_v A_v before[v][c][0]
+ * (A_v a third of v's opaque fan area; DC coefficients = the response to a
+ * constant sky), clamped to [0, CV_BAKE_TAIL_MAX_RATIO]; bounce B + k is
+ * taken as ratio^k times bounce B, so the tail is last * r / (1 - r).
+ * Returns 1 if a ratio was clamped. */
+int cv_prt_tail_ratio(const cv_tracer *tr, int bands, const float *before, const float *last,
+                      double ratio[3]);
 
 /* Fingerprint of everything a bake depends on: mesh geometry, materials,
  * parameters and the format version. */

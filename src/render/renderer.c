@@ -428,8 +428,9 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * nt * sizeof *idx + 4), idx, GL_STATIC_DRAW);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
-  free(tf), free(th), free(old_of), free(new_of), free(alb);
+  free(tf), free(th), free(old_of), free(alb);
   r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
+  r->new_of = new_of;                 /* kept for the split window lights */
   r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
   r->md_count = malloc(r->nchunks * sizeof *r->md_count + 4);
   r->md_off = malloc(r->nchunks * sizeof *r->md_off + 8);
@@ -516,12 +517,14 @@ void cv_renderer_destroy(cv_renderer *r) {
       for (int f = 0; f < NVARIANT; f++) glDeleteProgram(r->prog_var[k][f]);
     glDeleteBuffers(1, &r->buf_tone);
     glDeleteTextures(1, &r->tex_tone);
+    cvr_split_free(r);
   }
   cv_egl_close(&r->egl);
   cv_window_destroy(r->win);
   free(r->chunk_box);
   free(r->idx_cpu);
   free(r->pos_cpu);
+  free(r->new_of);
   free(r->chunk_nf);
   free(r->md_count);
   free(r->md_off);

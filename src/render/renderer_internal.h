@@ -106,6 +106,15 @@ struct cv_renderer {
   float *pos_cpu;
   GLuint buf_idx_sun;
   int sun_split;
+  /* Split window lights (cv_renderer_set_split, render_split.c): new_of maps
+   * a PRT vertex to its renumbered index; tex_split (texture buffer, RGBA32F
+   * per vertex in renderer order, used while n_split > 0) holds their direct
+   * light, added in relight.vert before the clamp; split_sh their SH
+   * projection sum_k E_k y_i(s_k) ([3*i + c]) for the interreflected transfer. */
+  uint32_t *new_of;
+  GLuint buf_split, tex_split;
+  double split_sh[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  int n_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
 };
@@ -137,6 +146,8 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
 void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
+void cvr_split_bind(const cv_renderer *r, GLuint prog);
+void cvr_split_free(cv_renderer *r);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);
 GLuint cvr_make_tex(GLenum fmt, int w, int h);
 int cvr_fbo_complete(const char *what, int w, int h, cv_err *err);
