@@ -170,6 +170,8 @@ float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on) { tr->window_mis = !!on; }
 int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr->nwin > 0; }
 
+const cv_mesh *cv_tracer_mesh(const cv_tracer *tr) { return tr->m; }
+
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
 
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
@@ -355,9 +357,14 @@ static const float *recv_albedo(const cv_mesh *m, uint32_t t) {
   return m->mat_tex && m->mat_tex[i][0] ? k_one : m->mats[i].albedo;
 }
 
-static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          double *acc, double alb[3], double albr[3]) {
+/* With rf non-NULL, rgb[3] also gets the same estimator of
+ * (1/pi) integral L(w) V cos dw for rf's radiance (same rays as acc). */
+static void vertex_direct_rf(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                             double *acc, double alb[3], double albr[3],
+                             const cv_radiance_fn *rf, double rgb[3]) {
   int nc = bands * bands;
+  float Lr[3];
+  if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
   float y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   memset(acc, 0, (size_t)nc * sizeof(double));
   alb[0] = alb[1] = alb[2] = 0;
@@ -409,6 +416,10 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
       if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
       cv_sh_eval(bands, dir, y);
       for (int i = 0; i < nc; i++) acc[i] += y[i];
+      if (rf) {
+        rf->fn(rf->ctx, dir, Lr);
+        for (int c = 0; c < 3; c++) rgb[c] += Lr[c];
+      }
       continue;
     }
     if (u[6] < a) {
@@ -445,8 +456,14 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     double w = (cos_o / M_PI) / (a * p_win + (1 - a) * p_cos);
     cv_sh_eval(bands, dir, y);
     for (int i = 0; i < nc; i++) acc[i] += w * y[i];
+    if (rf) {
+      rf->fn(rf->ctx, dir, Lr);
+      for (int c = 0; c < 3; c++) rgb[c] += w * Lr[c];
+    }
   }
   for (int i = 0; i < nc; i++) acc[i] /= rays;
+  if (rgb)
+    for (int c = 0; c < 3; c++) rgb[c] /= rays;
   for (int k = 0; k < 3; k++) {
     alb[k] /= rays;
     albr[k] /= rays;
@@ -509,6 +526,33 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
   for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
+}
+
+static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                          double *acc, double alb[3], double albr[3]) {
+  vertex_direct_rf(tr, v, bands, rays, seed, acc, alb, albr, NULL, NULL);
+}
+
+int cv_bake_direct_radiance_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                                   const cv_radiance_fn *rf, const uint32_t *verts, size_t count,
+                                   float *td, float *rgb, float *alb_out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1 || !rf || !rf->fn) return CV_ERR_RANGE;
+  int nc = bands * bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3], albr[3], L[3];
+#pragma omp for schedule(dynamic, 4)
+    for (size_t k = 0; k < count; k++) {
+      vertex_direct_rf(tr, verts[k], bands, rays, seed, acc, alb, albr, rf, L);
+      for (int i = 0; i < nc; i++) td[k * nc + i] = (float)acc[i];
+      for (int c = 0; c < 3; c++) {
+        rgb[3 * k + c] = (float)L[c];
+        alb_out[3 * k + c] = (float)alb[c];
+      }
+    }
+  }
+  return CV_OK;
 }
 
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
@@ -797,37 +841,50 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   return CV_OK;
 }
 
-int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
-                  uint32_t seed, float *out_rgb) {
+/* Direct light of one vertex from a directional light (see cv_sun_direct). */
+static void sun_vertex(const cv_tracer *tr, uint32_t v, const float s[3], const double E[3],
+                       int samples, uint32_t sseed, float *out3) {
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  double acc[3] = {0, 0, 0};
+  vseq q;
+  vseq_init(&q, sseed, v);
+  for (int j = 0; j < samples; j++) {
+    float u[6], p[3], org[3];
+    vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
+    uint32_t t = fan_point(tr, v, u, p);
+    const float *n = tr->tri_n + 3 * t;
+    float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+    if (c <= 0) continue;
+    cv_rt_offset_origin(p, n, org);
+    if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
+    const float *a = recv_albedo(tr->m, t);
+    for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
+  }
+  for (int k = 0; k < 3; k++) out3[k] += (float)(E[k] / M_PI * acc[k] / samples);
+}
+
+int cv_sun_direct_subset(const cv_tracer *tr, const double sun_dir[3], const double E[3],
+                         int samples, uint32_t seed, const uint32_t *verts, size_t count,
+                         float *out_rgb) {
   if (samples < 1) return CV_ERR_RANGE;
   double l = sqrt(sun_dir[0] * sun_dir[0] + sun_dir[1] * sun_dir[1] + sun_dir[2] * sun_dir[2]);
   if (!(l > 0) || !isfinite(l)) return CV_ERR_INVALID;
   const float s[3] = {(float)(sun_dir[0] / l), (float)(sun_dir[1] / l), (float)(sun_dir[2] / l)};
-  const size_t nv = tr->m->nv;
+  const size_t nv = verts ? count : tr->m->nv;
   const uint32_t sseed = cv_hash_combine(seed, 0x5317u);
 #pragma omp parallel
   {
     cv_rt_thread_init();
 #pragma omp for schedule(dynamic, 256)
-    for (size_t v = 0; v < nv; v++) {
-      if (tr->fan_off[v + 1] == tr->fan_off[v]) continue;
-      double acc[3] = {0, 0, 0};
-      vseq q;
-      vseq_init(&q, sseed, (uint32_t)v);
-      for (int j = 0; j < samples; j++) {
-        float u[6], p[3], org[3];
-        vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
-        uint32_t t = fan_point(tr, (uint32_t)v, u, p);
-        const float *n = tr->tri_n + 3 * t;
-        float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
-        if (c <= 0) continue;
-        cv_rt_offset_origin(p, n, org);
-        if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
-        const float *a = recv_albedo(tr->m, t);
-        for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
-      }
-      for (int k = 0; k < 3; k++) out_rgb[3 * v + k] += (float)(E[k] / M_PI * acc[k] / samples);
+    for (size_t k = 0; k < nv; k++) {
+      const uint32_t v = verts ? verts[k] : (uint32_t)k;
+      sun_vertex(tr, v, s, E, samples, sseed, out_rgb + 3 * (verts ? k : (size_t)v));
     }
   }
   return CV_OK;
+}
+
+int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
+                  uint32_t seed, float *out_rgb) {
+  return cv_sun_direct_subset(tr, sun_dir, E, samples, seed, NULL, 0, out_rgb);
 }

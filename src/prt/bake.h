@@ -71,6 +71,8 @@ float cv_tracer_spread(const cv_tracer *tr);
  * only when the mesh has window triangles). */
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on);
 int cv_tracer_window_sampling(const cv_tracer *tr);
+/* The tracer's mesh (its own copy). */
+const cv_mesh *cv_tracer_mesh(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */
 size_t cv_tracer_vertex_count(const cv_tracer *tr);
 /* Number of opaque triangles in vertex v's fan. */
@@ -85,6 +87,23 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
  * Used by the auto mode and the benchmark on vertex subsets. */
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out);
+
+/* Radiance arriving from unit direction d (car frame), RGB; called from
+ * several threads at once. */
+typedef struct cv_radiance_fn {
+  void (*fn)(const void *ctx, const float d[3], float rgb[3]);
+  const void *ctx;
+} cv_radiance_fn;
+
+/* The direct pass's estimator on the listed vertices, with the same rays
+ * giving both the SH transfer td (count x bands^2, as cv_bake_direct_subset)
+ * and, for rf's radiance, rgb (3 per vertex) = (1/pi) integral L V cos dw:
+ * the all-frequency direct light that td's SH lighting approximates (the
+ * two share their Monte Carlo noise).  alb_out (3 per vertex): the fan's
+ * hat-weighted material albedo. */
+int cv_bake_direct_radiance_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                                   const cv_radiance_fn *rf, const uint32_t *verts, size_t count,
+                                   float *td, float *rgb, float *alb_out);
 
 /* Full bake; *out owned by the caller.  With cv_prt_bake_tracer the
  * tracer's spread must equal p->spread.  meta.input_hash is set from
@@ -125,5 +144,11 @@ int cv_bake_params_validate(const cv_bake_params *p, cv_err *err);
  * the car frame; E is the sun's RGB irradiance at normal incidence. */
 int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
                   uint32_t seed, float *out_rgb);
+
+/* cv_sun_direct on the listed vertices only: out_rgb[3k+c] += vertex
+ * verts[k]'s direct light (same samples and result as the full call). */
+int cv_sun_direct_subset(const cv_tracer *tr, const double sun_dir[3], const double E[3],
+                         int samples, uint32_t seed, const uint32_t *verts, size_t count,
+                         float *out_rgb);
 
 #endif
