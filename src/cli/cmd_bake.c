@@ -39,7 +39,7 @@ static void help(FILE *f) {
           "  LIGHT           --env FILE[,FILE...] | --env-constant R,G,B | --sky T,ELEV,AZIM\n"
           "                  (as cave shade): overrides the config's lighting\n"
           "  --tail on|off   add the bounces after the last as a geometric series (the\n"
-          "                  last bounce x r/(1-r), r = ratio of the last two; default off)\n"
+          "                  last bounce x r/(1-r), r = ratio of the last two; default on)\n"
           "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
           "                  cover (1 = the paper's whole fan; default 0.5)\n"
           "  --tess N        built-in cabin subdivision (1..64; scene default 2, ~38K triangles)\n"

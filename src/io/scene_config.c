@@ -35,6 +35,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->seed = 1;
   c->spread = 0.5;
   c->window_sampling = 1;
+  c->tail = 1;
   c->error_budget = 0.05;
   cv_placement_default(&c->place);
   cv_light_spec_default(&c->light);
