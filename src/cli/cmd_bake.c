@@ -25,7 +25,7 @@ static void help(FILE *f) {
           "triangles; only rays that leave through a window see the sky (directions drawn\n"
           "by MIS of the cosine lobe and the window openings); N bounces.\n"
           "'default' bakes the built-in cabin.  Options override the scene config.\n\n"
-          "  --bands N|auto  SH bands 2..8 (N*N coefficients; config default 5)\n"
+          "  --bands N|auto  SH bands 2..8 (N*N coefficients; config default 8)\n"
           "  --rays N|auto   rays per vertex per pass (default 1024)\n"
           "  --bounces N     interreflection bounces 0..16 (default 2)\n"
           "  --budget E      relative error budget for auto (default 0.05)\n"

@@ -29,7 +29,7 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->cabin_tess = CV_SCENE_DEFAULT_TESS;
   c->clean_enabled = 1;
   c->weld_tolerance = c->crease_angle_deg = c->crack_width = c->sliver_aspect = -1;
-  c->bands = 5;
+  c->bands = 8; /* with prt.tail and --split 64: the issue 13 targets (docs/reference.md) */
   c->rays = 1024;
   c->bounces = 2;
   c->seed = 1;

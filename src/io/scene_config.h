@@ -73,7 +73,7 @@ typedef struct cv_scene_config {
  * config without mesh.tess, configs/scenes/default.json): ~38K triangles. */
 #define CV_SCENE_DEFAULT_TESS 2
 
-/* Defaults: built-in cabin at tess CV_SCENE_DEFAULT_TESS, cleaning on, 5 bands, 1024 rays,
+/* Defaults: built-in cabin at tess CV_SCENE_DEFAULT_TESS, cleaning on, 8 bands, 1024 rays,
  * 2 bounces + tail, seed 1, budget 0.05, no lighting. */
 void cv_scene_config_default(cv_scene_config *c);
 /* Light defaults (no kind, scale 1, sun extraction on, sky T=3 ...). */
