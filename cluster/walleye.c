@@ -38,6 +38,10 @@
 #include "tonemap/foveal.h"
 #include "view/offaxis.h"
 
+/* Wall-eyes of at most this many shaded pixels skip the z pre-pass
+ * (opts.depth_less), see walleye_setup. */
+#define CV_WALLEYE_ONE_PASS_PIXELS (720L * 720L)
+
 static int send_to_master(const uint8_t *buf, size_t len, void *user) {
   (void)user;
   return cv_comm_send(buf, len, 0, CV_TAG_LCD);
@@ -160,6 +164,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
   cv_render_opts ro;
   cv_render_default_opts(&ro);
   ro.timing = 1;
+  ro.cull_back = -1; /* on when the scene is closed and consistently wound */
+  /* Small wall-eyes shade in one depth-LESS pass: the z pre-pass is a whole
+   * geometry pass, which at 360^2 costs more than shading the overdraw
+   * (docs/benchmarks.md, "Where a CAVE frame's time goes"). */
+  ro.depth_less = (long)we->w * we->h * s->cave.supersample * s->cave.supersample <= CV_WALLEYE_ONE_PASS_PIXELS;
   ro.gpu = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : we->o->gpu;
   if (window) {
     window_spec(we);
@@ -167,6 +176,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
   }
   st = cv_renderer_create(we->prt, &ro, &we->r, err);
   if (st) return st;
+  cv_render_tex_info ti;
+  cv_renderer_textures(we->r, &ti);
+  if (ti.unread) /* shown with their mean albedo (renderer.h) */
+    fprintf(stderr, "cave run: rank %d: warning: %d textures could not be read and show their mean "
+            "albedo; first: %s\n", we->s->rank, ti.unread, ti.first_error);
   st = cv_service_lightmix(s, (int)we->prt->bands, &we->mix, err);
   if (st) return st;
   size_t np = 0;

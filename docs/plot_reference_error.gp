@@ -15,7 +15,7 @@ set grid
 set key outside right
 set title "End-to-end error, two views x forest/sunset/city (reference noise floor 2.5-4.0%)"
 f = "docs/reference_error.csv"
-sel(v, m, t, k) = sprintf("< awk -F, '$1==\"%s\" && $2==\"%s\" && $5==%d && $6==%d' %s | sort -t, -k3n", v, m, t, k, f)
+sel(v, m, t, k) = sprintf("< awk -F, '$1==\"%s\" && $2==\"%s\" && $4==2 && $5==%d && $6==%d' %s", v, m, t, k, f)
 L = "driver:forest driver:sunset driver:city seats:forest seats:sunset seats:city"
 vw(i) = word(L, i)[1:strstrt(word(L, i), ":") - 1]
 mp(i) = word(L, i)[strstrt(word(L, i), ":") + 1:]

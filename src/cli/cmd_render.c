@@ -84,6 +84,8 @@ static void help(FILE *f) {
           "frame starts adapted to it (steady state), each later frame steps the Pattanaik\n"
           "model by --dt.  An empty cone keeps the state.  Drago's Lwmax is the maximum\n"
           "luminance of all walls' luminance passes.\n"
+          "Textures of a textured .prt multiply each pixel's radiance (docs/prt-format.md);\n"
+          "one that cannot be read is a warning and shows its mean albedo.\n"
           "\nexamples:\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --env forest.exr --illuminance auto -o out\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");
@@ -137,7 +139,7 @@ static int render_split(const cv_prt *prt, cv_scene_light *sl, cv_renderer *r, i
   }
   const int n = cv_scene_light_extra(sl, &ex);
   if (!(direct = calloc(3 * prt->nv + 1, sizeof *direct)) ||
-      cv_split_direct(prt, tr, ex, n, 16, direct) || cv_prt_fold_texture_means(prt, direct)) {
+      cv_split_direct(prt, tr, ex, n, 16, direct)) {
     rc = cli_fail("render", 1, "--split: out of memory for the split lights' direct light");
     goto out;
   }
@@ -288,6 +290,13 @@ int cmd_render(int argc, char **argv) {
     goto done;
   }
   printf("GL: %s\n", cv_renderer_gl_name(r));
+  cv_render_tex_info ti;
+  if (cv_renderer_textures(r, &ti))
+    printf("textures: %d materials, %d x %d texels per layer, %zu vertices added at UV seams\n",
+           ti.layers, ti.w, ti.h, ti.split_vertices);
+  if (ti.unread)
+    printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
+           ti.unread, ti.first_error);
   if (split && (rc = render_split(prt, sl, r, split, split_grid)) != 0) goto done;
   rc = 1;
   cv_lighting light = cv_scene_light_sh(sl);

@@ -120,10 +120,11 @@ int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img) {
 
 /* ---------------------------------------------------------------- passes */
 
-/* Face culling of the view passes (opts.cull_back); the shadow map draws
- * both sides. */
+/* Face culling of the view passes (opts.cull_back; -1: on a closed mesh);
+ * the shadow map draws both sides (or, culled, the part facing away from
+ * the sun). */
 void cvr_set_cull(const cv_renderer *r, int on) {
-  if (on && r->o.cull_back) {
+  if (on && (r->o.cull_back < 0 ? r->closed : r->o.cull_back)) {
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
   } else {
@@ -181,6 +182,10 @@ void cvr_bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const
     cvr_uni_v3(p, "u_sun_e", r->sun_e);
     cvr_uni_f(p, "u_shadow_bias", r->shadow_bias);
     cvr_uni_f(p, "u_sigma", facing * (float)r->shadow_detsign);
+  }
+  if (r->tex_albedo) {
+    glActiveTexture(GL_TEXTURE0 + U_ALBEDO);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_albedo);
   }
   glActiveTexture(GL_TEXTURE0 + U_SHADOW);
   glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
@@ -277,7 +282,8 @@ int cvr_box_outside(const float mvp[16], const float *lo, const float *hi) {
  * (all of them when mvp is NULL or culling is off): part DRAW_ALL as runs
  * of consecutive chunks of buf_idx; DRAW_SUNLIT / DRAW_UNSUNLIT the
  * sun-facing / other triangles of those chunks from buf_idx_sun (the sun
- * split), in one glMultiDrawElements.  Every pass of a view submits the same
+ * split; DRAW_SHADOW those facing away or near grazing: the culled shadow
+ * map), in one glMultiDrawElements.  Every pass of a view submits the same
  * triangles, which the depth-EQUAL pass relies on.  Returns the triangles
  * submitted. */
 size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
@@ -291,6 +297,9 @@ size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
     } else if (part == DRAW_UNSUNLIT) {
       first += r->chunk_nf[c];
       n -= r->chunk_nf[c];
+    } else if (part == DRAW_SHADOW) {
+      first += r->chunk_na[c];
+      n -= r->chunk_na[c];
     }
     if (!n) continue;
     if (nrun && r->run[2 * (nrun - 1)] + r->run[2 * (nrun - 1) + 1] == first) {
@@ -342,7 +351,8 @@ int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out
   double t0 = cvr_tick(r);
   if ((st = cvr_ensure_lum(r, out->w, out->h, err))) return st;
   GLuint pg, pb, pn = 0;
-  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
+  const int split = r->has_sun && r->sun_split,
+            panel = (r->panel_on ? F_PANEL : 0) | (r->tex_albedo ? F_TEX : 0);
   if ((st = cvr_variant(r, K_PRT, F_LUM | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
       (split && (st = cvr_variant(r, K_PRT, F_LUM | panel, &pn, err))) ||
       (st = cvr_variant(r, K_BG, F_LUM, &pb, err)))
@@ -429,7 +439,8 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
     if (!r->tone_ok) flags |= F_EXACT;
   }
   GLuint pg, pb, pn = 0;
-  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
+  const int split = r->has_sun && r->sun_split,
+            panel = (r->panel_on ? F_PANEL : 0) | (r->tex_albedo ? F_TEX : 0);
   if ((st = cvr_ensure_main(r, W, H, cvr_disp_fmt(r, 0, ss), err)) || (ss > 1 && (st = cvr_ensure_res(r, v->w, v->h, err))) ||
       (st = cvr_variant(r, K_PRT, flags | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
       (split && (st = cvr_variant(r, K_PRT, flags | panel, &pn, err))) ||

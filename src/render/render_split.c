@@ -33,17 +33,21 @@ int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
       for (int c = 0; c < 3; c++) sh[3 * i + c] += E[c] * y[i];
   }
   float *rgba = malloc(4 * r->nv * sizeof *rgba + 4);
-  if (!rgba) return cv_err_set(err, CV_ERR_NOMEM, "out of memory for the split lights");
-  for (size_t v = 0; v < r->nv; v++) {
-    float *o = rgba + 4 * (size_t)r->new_of[v];
+  if (!rgba || !r->wl_src) {
+    free(rgba);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory for the split lights");
+  }
+  for (size_t v = 0; v < r->nv; v++) { /* renderer vertex v shows PRT vertex wl_src[v] */
+    float *o = rgba + 4 * v;
+    const size_t src = r->wl_src[v];
     for (int c = 0; c < 3; c++) {
-      const float x = direct_rgb[3 * v + c];
+      const float x = direct_rgb[3 * src + c];
       if (!isfinite(x)) {
         free(rgba);
         return cv_err_set(err, CV_ERR_NONFINITE, "split lights: direct light of vertex %zu is %g",
-                          v, (double)x);
+                          src, (double)x);
       }
-      o[c] = x;
+      o[c] = r->wl_usc ? x * r->wl_usc[3 * v + c] : x;
     }
     o[3] = 0;
   }
@@ -51,10 +55,10 @@ int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
     free(rgba);
     return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   }
-  if (!r->tex_split) {
-    r->tex_split = cvr_make_tbo(&r->buf_split, GL_RGBA32F, rgba, 4 * r->nv * sizeof *rgba);
+  if (!r->tex_wl) {
+    r->tex_wl = cvr_make_tbo(&r->buf_wl, GL_RGBA32F, rgba, 4 * r->nv * sizeof *rgba);
   } else {
-    glBindBuffer(GL_TEXTURE_BUFFER, r->buf_split);
+    glBindBuffer(GL_TEXTURE_BUFFER, r->buf_wl);
     glBufferSubData(GL_TEXTURE_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof *rgba), rgba);
     glBindBuffer(GL_TEXTURE_BUFFER, 0);
   }
@@ -66,16 +70,16 @@ int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
 
 /* Binds the split lights for the relight program p (in use). */
 void cvr_split_bind(const cv_renderer *r, GLuint p) {
-  const int on = r->n_split > 0 && r->tex_split;
+  const int on = r->n_split > 0 && r->tex_wl;
   glUniform1i(glGetUniformLocation(p, "u_split_on"), on);
   glUniform1i(glGetUniformLocation(p, "u_split"), U_SPLIT);
   glActiveTexture(GL_TEXTURE0 + U_SPLIT);
-  glBindTexture(GL_TEXTURE_BUFFER, on ? r->tex_split : 0);
+  glBindTexture(GL_TEXTURE_BUFFER, on ? r->tex_wl : 0);
   glActiveTexture(GL_TEXTURE0);
 }
 
 void cvr_split_free(cv_renderer *r) {
-  if (r->tex_split) glDeleteTextures(1, &r->tex_split);
-  if (r->buf_split) glDeleteBuffers(1, &r->buf_split);
-  r->tex_split = r->buf_split = 0;
+  if (r->tex_wl) glDeleteTextures(1, &r->tex_wl);
+  if (r->buf_wl) glDeleteBuffers(1, &r->buf_wl);
+  r->tex_wl = r->buf_wl = 0;
 }

@@ -8,6 +8,8 @@
  *   tex_transfer texture buffer over the transfer: per vertex nc texels
  *                (td_i, ti_R,i, ti_G,i, ti_B,i) then the albedo
  *   buf_alb      vertex albedo, attribute 2 (the sun's direct term)
+ *   buf_uvl      textured scenes: (u, v, layer) per vertex, attribute 3;
+ *                tex_albedo the texture array (render_texture.c)
  *   fbo_main     shading targets (display, HDR: RGBA32F textures) + depth
  *   fbo_res      the supersampling resolve targets; fbo_lum the luminance pass
  *   fbo_shadow   the sun's shadow map (depth texture with compare mode) */
@@ -21,9 +23,13 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->cull_frustum = 1;
   o->sun_split = 1;
   o->gpu = CV_GPU_AUTO;
+  o->shadow_cull = -1;
+  o->shadow_reuse = 0.5;
+  o->split_margin = 0.05;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
+int cv_renderer_mesh_closed(const cv_renderer *r) { return r->closed; }
 int cv_renderer_is_software(const cv_renderer *r) { return r->egl.software; }
 int cv_renderer_hw_devices(const cv_renderer *r) { return r->egl.hw_devices; }
 const char *cv_renderer_platform(const cv_renderer *r) { return r->egl.platform; }
@@ -90,7 +96,7 @@ void cvr_set_samplers(GLuint p) {
     int unit;
   } tab[] = {{"u_transfer", U_TRANSFER}, {"u_shadow", U_SHADOW},
              {"u_bg", U_BG}, {"u_src", U_SRC}, {"u_panel", U_PANEL},
-             {"u_tone", U_TONE}};
+             {"u_tone", U_TONE}, {"u_albedo", U_ALBEDO}};
   glUseProgram(p);
   for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
     GLint loc = glGetUniformLocation(p, tab[i].name);
@@ -133,12 +139,13 @@ int cvr_build(const char *vs_name, const char *fs_name, const char *defines, con
 int cvr_variant(cv_renderer *r, int kind, int flags, GLuint *out, cv_err *err) {
   if (!r->prog_var[kind][flags]) {
     char defs[320];
-    snprintf(defs, sizeof defs, "%s%s%s%s%s%s%s#define LUT_DRAGO_SEGS %d\n",
+    snprintf(defs, sizeof defs, "%s%s%s%s%s%s%s%s#define LUT_DRAGO_SEGS %d\n",
              flags & F_SUN ? "#define SUN\n" : "",
              flags & F_TRANSFER ? "#define TRANSFER\n" : "",
              flags & F_DISP ? "#define OUT_DISPLAY\n" : "", flags & F_HDR ? "#define OUT_HDR\n" : "",
              flags & F_LUM ? "#define OUT_LUM\n" : "", flags & F_PANEL ? "#define PANEL\n" : "",
-             flags & F_EXACT ? "#define DRAGO_EXACT\n" : "", LUT_DRAGO_SEGS);
+             flags & F_EXACT ? "#define DRAGO_EXACT\n" : "",
+             flags & F_TEX ? "#define TEXTURE\n" : "", LUT_DRAGO_SEGS);
     int st = kind == K_PRT ? cvr_build("geom.vert", "prt.frag", defs, NULL, &r->prog_var[kind][flags], err)
                            : cvr_build("fullscreen.vert", "background.frag", defs, NULL,
                                    &r->prog_var[kind][flags], err);
@@ -289,7 +296,79 @@ int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err
   return cvr_gl_check("background upload", err);
 }
 
+/* Directed edge (a, b) as one key; 0 is free (a == b never stored). */
+static uint64_t edge_key(uint32_t a, uint32_t b) { return (uint64_t)a << 32 | b; }
+
+static uint64_t edge_hash(uint64_t k) {
+  k ^= k >> 33;
+  k *= 0xff51afd7ed558ccdull;
+  k ^= k >> 33;
+  return k;
+}
+
+/* Per vertex the first vertex at exactly the same position (vertices split
+ * at material boundaries are one point of the surface); NULL when out of
+ * memory. */
+static uint32_t *weld_positions(const cv_prt *p) {
+  size_t cap = 1;
+  while (cap < 2 * p->nv + 2) cap <<= 1;
+  uint32_t *slot = malloc(cap * sizeof *slot), *id = malloc(p->nv * sizeof *id + 4);
+  if (!slot || !id) {
+    free(slot), free(id);
+    return NULL;
+  }
+  memset(slot, 0xff, cap * sizeof *slot);
+  for (size_t v = 0; v < p->nv; v++) {
+    uint32_t b[3];
+    memcpy(b, p->pos + 3 * v, sizeof b);
+    size_t h = edge_hash(edge_hash((uint64_t)b[0] << 32 | b[1]) ^ b[2]) & (cap - 1);
+    while (slot[h] != UINT32_MAX && memcmp(p->pos + 3 * (size_t)slot[h], p->pos + 3 * v, sizeof b))
+      h = (h + 1) & (cap - 1);
+    if (slot[h] == UINT32_MAX) slot[h] = (uint32_t)v;
+    id[v] = slot[h];
+  }
+  free(slot);
+  return id;
+}
+
+/* 1 when every directed edge of p's non-degenerate triangles, vertices
+ * welded by position, occurs once and its reverse once (closed, consistently
+ * wound), by an open-addressing set of the edges; 0 otherwise or out of
+ * memory. */
+static int mesh_closed(const cv_prt *p) {
+  size_t cap = 1;
+  while (cap < 6 * p->nt + 2) cap <<= 1;
+  uint64_t *set = calloc(cap, sizeof *set);
+  uint32_t *id = weld_positions(p);
+  if (!set || !id) {
+    free(set), free(id);
+    return 0;
+  }
+  int closed = 1;
+  for (size_t t = 0; t < p->nt && closed; t++) {
+    const uint32_t v[3] = {id[p->tri[3 * t]], id[p->tri[3 * t + 1]], id[p->tri[3 * t + 2]]};
+    if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0]) continue;
+    for (int e = 0; e < 3 && closed; e++) {
+      const uint64_t k = edge_key(v[e], v[(e + 1) % 3]);
+      size_t h = edge_hash(k) & (cap - 1);
+      while (set[h] && set[h] != k) h = (h + 1) & (cap - 1);
+      if (set[h] == k) closed = 0; /* the same directed edge twice */
+      set[h] = k;
+    }
+  }
+  for (size_t h = 0; h < cap && closed; h++) {
+    if (!set[h]) continue;
+    const uint64_t r = edge_key((uint32_t)set[h], (uint32_t)(set[h] >> 32));
+    size_t g = edge_hash(r) & (cap - 1);
+    while (set[g] && set[g] != r) g = (g + 1) & (cap - 1);
+    if (set[g] != r) closed = 0; /* a border edge, or neighbours wound apart */
+  }
+  free(set), free(id);
+  return closed;
+}
+
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
+  r->closed = mesh_closed(p);
   const int nc = r->nc;
   GLint max_tbo = 0;
   glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_tbo);
@@ -373,12 +452,15 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     }
     idx[i] = new_of[idx[i]];
   }
+  r->nv_used = next;
   for (size_t v = 0; v < p->nv; v++)
     if (new_of[v] == UINT32_MAX) {
       old_of[next] = (uint32_t)v;
       new_of[v] = next++;
     }
-  /* No textures here yet: a textured receiver gets its mean albedo back. */
+  /* Sampled textures (render_texture.c: p is then the split PRT, without
+   * the texture flag, so the scale is 1) multiply the pixels; a textured
+   * PRT drawn without them gets its mean albedo back. */
   float *usc = malloc(3 * p->nv * sizeof *usc + 4);
   if (!usc || cv_prt_untextured_scale(p, usc)) {
     free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb), free(usc);
@@ -400,6 +482,10 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     for (int c = 0; c < 3; c++) o[4 * nc + c] = p->albedo[3 * v + c] * usc[3 * v + c];
     o[4 * nc + 3] = 0;
   }
+  /* The split window lights' direct light gets the same factors (by renderer vertex). */
+  if ((p->flags & CV_PRT_TEXTURED) && (r->wl_usc = malloc(3 * p->nv * sizeof *r->wl_usc + 4)))
+    for (size_t v = 0; v < p->nv; v++)
+      for (int c = 0; c < 3; c++) r->wl_usc[3 * v + c] = usc[3 * old_of[v] + c];
   free(usc);
   if (th)
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
@@ -423,18 +509,38 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * p->nv * sizeof(float)), alb, GL_STATIC_DRAW);
   glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, 0, 0);
   glEnableVertexAttribArray(2);
+  if (r->tex_uvl) { /* (u, v, layer) in the renumbered order */
+    float *uvl = malloc(3 * p->nv * sizeof *uvl + 4);
+    if (!uvl) {
+      free(idx), free(tf), free(th), free(old_of), free(new_of), free(alb), free(pos);
+      return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
+    }
+    for (size_t v = 0; v < p->nv; v++)
+      for (int j = 0; j < 3; j++) uvl[3 * v + j] = r->tex_uvl[3 * old_of[v] + j];
+    glGenBuffers(1, &r->buf_uvl);
+    glBindBuffer(GL_ARRAY_BUFFER, r->buf_uvl);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * p->nv * sizeof(float)), uvl, GL_STATIC_DRAW);
+    glVertexAttribPointer(3, 3, GL_FLOAT, GL_FALSE, 0, 0);
+    glEnableVertexAttribArray(3);
+    free(uvl);
+  }
   glGenBuffers(1, &r->buf_idx);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx);
   glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * nt * sizeof *idx + 4), idx, GL_STATIC_DRAW);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
-  free(tf), free(th), free(old_of), free(alb);
+  /* Each renderer vertex's PRT vertex, for the split window lights. */
+  r->wl_src = malloc(p->nv * sizeof *r->wl_src + 4);
+  if (r->wl_src)
+    for (size_t v = 0; v < p->nv; v++)
+      r->wl_src[v] = r->tex_orig ? r->tex_orig[old_of[v]] : old_of[v];
+  free(tf), free(th), free(old_of), free(new_of), free(alb);
   r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
-  r->new_of = new_of;                 /* kept for the split window lights */
   r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
+  r->chunk_na = malloc(r->nchunks * sizeof *r->chunk_na + 4);
   r->md_count = malloc(r->nchunks * sizeof *r->md_count + 4);
   r->md_off = malloc(r->nchunks * sizeof *r->md_off + 8);
-  if (!r->chunk_nf || !r->md_count || !r->md_off)
+  if (!r->chunk_nf || !r->chunk_na || !r->md_count || !r->md_off)
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
   return cvr_gl_check("scene upload", err);
 }
@@ -466,10 +572,22 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &tex_max);
   if (tex_max < r->max_rb) r->max_rb = tex_max;
   r->nc = (int)(prt->bands * prt->bands);
+  cv_prt *split = NULL; /* textured: vertices split at UV seams (render_texture.c) */
+  if ((st = cvr_texture_prepare(r, prt, &split, err))) {
+    cv_renderer_destroy(r);
+    return st;
+  }
+  if (split) prt = split;
   r->nv = prt->nv;
   char defs[64];
   snprintf(defs, sizeof defs, "#define NC %d\n", r->nc);
-  if ((st = cvr_upload_scene(r, prt, err)) ||
+  st = cvr_upload_scene(r, prt, err);
+  cv_prt_destroy(split);
+  free(r->tex_uvl);
+  r->tex_uvl = NULL;
+  free(r->tex_orig);
+  r->tex_orig = NULL;
+  if (st ||
       (st = cvr_build("relight.vert", NULL, defs, "v_out", &r->prog_relight, err)) ||
       (st = cvr_build("geom.vert", "depth.frag", "#define DEPTH_ONLY\n", NULL, &r->prog_depth, err)) ||
       (st = cvr_build("geom.vert", "unlit.frag", "", NULL, &r->prog_unlit, err)) ||
@@ -495,11 +613,11 @@ void cv_renderer_destroy(cv_renderer *r) {
   if (!r) return;
   if (r->egl.dpy && cv_egl_make_current(&r->egl) == CV_OK) {
     GLuint bufs[] = {r->buf_pos, r->buf_rad, r->buf_idx, r->buf_transfer, r->buf_alb,
-                     r->buf_idx_sun};
-    glDeleteBuffers(6, bufs);
+                     r->buf_idx_sun, r->buf_uvl};
+    glDeleteBuffers(7, bufs);
     GLuint tex[] = {r->tex_transfer, r->tex_bg, r->tex_shadow, r->tex_disp, r->tex_hdr,
-                    r->tex_panel};
-    glDeleteTextures(6, tex);
+                    r->tex_panel, r->tex_albedo};
+    glDeleteTextures(7, tex);
     GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
                     r->rb_tiny};
     glDeleteRenderbuffers(6, rbs);
@@ -524,12 +642,17 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->chunk_box);
   free(r->idx_cpu);
   free(r->pos_cpu);
-  free(r->new_of);
+  free(r->wl_src);
+  free(r->wl_usc);
+  free(r->tex_orig);
   free(r->chunk_nf);
+  free(r->chunk_na);
+  free(r->tri_n);
   free(r->md_count);
   free(r->md_off);
   free(r->run);
   free(r->rgba8);
+  free(r->tex_uvl);
   free(r);
 }
 

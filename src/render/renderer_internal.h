@@ -5,6 +5,7 @@
  *   render_passes.c   targets, read-back, the luminance / depth / shading
  *                     passes, Drago tables, the unlit reference
  *   render_present.c  window presentation and swap
+ *   render_texture.c  albedo textures: vertex split at UV seams, texture array
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -26,10 +27,12 @@
 #include "view/cave.h"
 #include "sh/sh.h"
 
-enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64 };
-#define NVARIANT 128
+enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64,
+       F_TEX = 128 /* albedo textures (render_texture.c) */ };
+#define NVARIANT 256
 enum { K_PRT = 0, K_BG = 1 };
-enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6 }; /* texture units */
+enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6,
+       U_ALBEDO = 7 }; /* texture units */
 
 /* Drago table (common.glsl, cv_drago_table): Ld as a function of y = x / Lwmax'
  * over [2^-126, 1), a piecewise cubic with one RGBA32F texel of
@@ -106,20 +109,45 @@ struct cv_renderer {
   float *pos_cpu;
   GLuint buf_idx_sun;
   int sun_split;
-  /* Split window lights (cv_renderer_set_split, render_split.c): new_of maps
-   * a PRT vertex to its renumbered index; tex_split (texture buffer, RGBA32F
-   * per vertex in renderer order, used while n_split > 0) holds their direct
-   * light, added in relight.vert before the clamp; split_sh their SH
-   * projection sum_k E_k y_i(s_k) ([3*i + c]) for the interreflected transfer. */
-  uint32_t *new_of;
-  GLuint buf_split, tex_split;
+  /* Split window lights (cv_renderer_set_split, render_split.c): wl_src
+   * gives each renderer vertex its PRT vertex (renumbering and texture seam
+   * copies undone); tex_wl (texture buffer, RGBA32F per renderer vertex,
+   * used while n_split > 0) holds their direct light, added in relight.vert
+   * before the clamp; split_sh their SH projection sum_k E_k y_i(s_k)
+   * ([3*i + c]) for the interreflected transfer.  tex_orig: per vertex of
+   * the seam-split PRT its original vertex, until the upload. */
+  uint32_t *wl_src, *tex_orig;
+  float *wl_usc; /* textured PRT drawn without its textures: their mean albedo folded back
+                    (cv_prt_untextured_scale) per renderer vertex; else NULL */
+  GLuint buf_wl, tex_wl;
   double split_sh[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   int n_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
+  /* Lighting changes (opts.shadow_cull, shadow_reuse, split_margin): the
+   * split is three parts per chunk, n_t . s > m (chunk_na of them), then
+   * |n_t . s| <= m, then n_t . s < -m (chunk_nf = the first two; the culled
+   * shadow map draws the last two), m = split_margin, for the direction
+   * split_s; tri_n the triangles' unit winding normals (built on first use);
+   * shadow_s the sun of the current shadow map, shadow_texel its texel (m);
+   * nv_used the vertices of opaque triangles (numbered first). */
+  uint32_t *chunk_na;
+  float *tri_n;
+  double split_s[3], shadow_s[3], shadow_texel, shadow_ext;
+  int split_valid, shadow_valid;
+  size_t nv_used;
+  int closed;         /* cv_renderer_mesh_closed */
+  /* albedo textures (render_texture.c): the array (0 = none), its layers and
+   * size, textures that could not be read (+ the first message), vertices
+   * added by the split, and (u, v, layer) per vertex until the upload */
+  GLuint tex_albedo, buf_uvl;
+  int tex_layers, tex_w, tex_h, tex_missing;
+  size_t tex_split;
+  char tex_msg[320];
+  float *tex_uvl;
 };
 
-enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
+enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
 
 #define CHUNK 1024
 
@@ -144,6 +172,7 @@ int cvr_cmp_u64(const void *a, const void *b);
 int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err *err);
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
 void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
+int cvr_shadow_culled(const cv_renderer *r);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);
@@ -169,5 +198,6 @@ size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part);
 void cvr_draw_fullscreen(const cv_renderer *r);
 void cvr_depth_pass(cv_renderer *r, const float mvp[16], int W, int H);
 void cvr_shading_depth_state(const cv_renderer *r);
+int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err *err);
 
 #endif
