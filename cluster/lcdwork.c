@@ -18,6 +18,7 @@
 
 #include "lcd/brdf.h"
 #include "lcd/gather.h"
+#include "lcd/panels.h"
 #include "lcdwork.h"
 #include "prt/bake.h"
 #include "service_internal.h"
@@ -34,9 +35,11 @@ struct cv_lcd_worker {
   int index, idle;
   cv_mesh *mesh;
   cv_tracer *tr;
-  cv_brdf *brdf;
-  cv_lcd_gather *g;
+  cv_lcd_panels *ps;    /* the scene config's panels (s->lcd), as `cave lcd` renders them */
   cv_lcd_params p;
+  cv_lcd_veil_params vp;
+  cv_lcd_figure veil[CV_LCD_MAX_PANELS]; /* of the current key (traced once per key) */
+  int have_veil;
   /* state shared with the owner (mutex) */
   pthread_mutex_t mu;
   pthread_cond_t cv;
@@ -46,7 +49,7 @@ struct cv_lcd_worker {
   msg_node *head, *tail;
   size_t queued;
   uint64_t rounds_done;
-  double ms_total;
+  double ms_total, cpu_ms_total; /* rounds' wall and thread CPU time */
   char error[640];
   pthread_t th;
   int started;
@@ -57,21 +60,19 @@ static int worker_init(cv_lcd_worker *w, cv_err *err) {
   if (st) return cv_err_set(err, st, "LCD: cannot rebuild the scene mesh from %s", w->s->o.scene_path);
   st = cv_tracer_create(w->mesh, &w->tr, err);
   if (st) return st;
-  cv_lcd_panel panel;
-  st = cv_lcd_panel_from_mesh(w->mesh, &panel, err);
-  if (st) return st;
-  cv_antiglare_params ap;
-  cv_antiglare_default(&ap);
-  st = cv_brdf_antiglare(&ap, 91, 181, &w->brdf);
-  if (st) return cv_err_set(err, st, "LCD: cannot tabulate the anti-glare BRDF");
-  st = cv_lcd_gather_create(cv_tracer_rt(w->tr), w->mesh, &panel, w->brdf, &w->g, err);
+  const cv_lcd_config *lc = &w->s->lcd;
+  st = cv_lcd_panels_create(lc, &w->s->lcd_layout, cv_tracer_rt(w->tr), w->mesh, &w->ps, err);
   if (st) return st;
   cv_lcd_params_default(&w->p);
-  w->p.w = w->s->o.lcd_w;
-  w->p.h = w->s->o.lcd_h;
-  w->p.spp = w->s->o.lcd_spp;
-  w->p.seed = w->s->o.seed;
+  w->p.w = w->s->lcd_layout.w[0];
+  w->p.h = w->s->lcd_layout.h[0];
+  w->p.spp = lc->spp;
+  w->p.seed = lc->seed;
+  w->p.brdf_fraction = lc->brdf_fraction;
   w->p.threads = 1;
+  cv_lcd_veil_params_default(&w->vp);
+  w->vp.age = lc->age;
+  w->vp.pigment = lc->pigment;
   return CV_OK;
 }
 
@@ -84,7 +85,9 @@ static int snapshot_lighting(cv_lcd_worker *w, const cv_frame_state *fs, cv_lcd_
   cv_drive_to_light_spec(w->s->drive, &fs->drive, &spec);
   cv_lcd_light *nl = NULL;
   int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, err);
-  if (st == CV_OK) st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, 4, 256, &nl, err);
+  if (st == CV_OK)
+    st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, w->s->lcd.sun_samples,
+                                 w->s->lcd.env_width, &nl, err);
   cv_scene_light_destroy(sl);
   if (st) return st;
   cv_lcd_light_destroy(*ll);
@@ -101,11 +104,15 @@ static void worker_error(cv_lcd_worker *w, const char *what, const char *msg) {
 /* Renders one round into a message and queues it for the owner. */
 static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_key *key,
                          double clamp, uint32_t round, uint32_t frame) {
-  struct timespec t0, t1;
+  struct timespec t0, t1, c0, c1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
   cv_lcd_accum *acc = NULL;
-  if (cv_lcd_accum_create(w->p.w, w->p.h, clamp, &acc) != CV_OK ||
-      cv_lcd_render_round(w->g, ll, &w->p, round, acc) != CV_OK) {
+  int st = cv_lcd_accum_create(w->s->lcd_layout.W, w->s->lcd_layout.H, clamp, &acc);
+  if (st == CV_OK) st = cv_lcd_panels_round(w->ps, ll, &w->p, round, acc);
+  for (int i = 0; st == CV_OK && w->have_veil && i < w->s->lcd_layout.n; i++)
+    st = cv_lcd_accum_set_veil(acc, i, w->veil[i].value, w->veil[i].se);
+  if (st != CV_OK) {
     cv_lcd_accum_destroy(acc);
     char m[64];
     snprintf(m, sizeof m, "round %u failed", round);
@@ -113,6 +120,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     return;
   }
   clock_gettime(CLOCK_MONOTONIC, &t1);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
   cv_lcd_msg h;
   memset(&h, 0, sizeof h);
   h.key = *key;
@@ -138,6 +146,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     w->queued++;
     w->rounds_done++;
     w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
+    w->cpu_ms_total += (double)(c1.tv_sec - c0.tv_sec) * 1e3 + (double)(c1.tv_nsec - c0.tv_nsec) * 1e-6;
     pthread_mutex_unlock(&w->mu);
   } else {
     free(node);
@@ -200,12 +209,12 @@ static void *worker_main(void *arg) {
       }
       light_key = fs.light_key;
       have_light = 1;
-      clamp = cv_lcd_default_clamp(ll, w->brdf);
+      clamp = cv_lcd_panels_clamp(w->ps, ll, w->s->lcd.clamp);
       have_key = 0;
     }
     float eye[3];
     for (int a = 0; a < 3; a++) eye[a] = (float)(fs.head[a] + w->s->cave.scene_offset[a]);
-    const uint64_t setup = cv_lcd_setup_hash(w->g, &w->p, clamp, w->s->o.lcd_tolerance, 0);
+    const uint64_t setup = cv_lcd_panels_setup_hash(w->ps, &w->p, clamp, w->s->o.lcd_tolerance, 0);
     cv_lcd_key nk;
     if (cv_lcd_key_make(eye, w->s->o.lcd_tolerance, light_key, setup, &nk) != CV_OK ||
         cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) { /* not the master's key */
@@ -218,6 +227,10 @@ static void *worker_main(void *arg) {
       k = 0;
       key_frame = fs.frame;
       cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
+      /* the key's veils (a pure function of its eye and lighting: every
+       * contributor stores the same values in its rounds) */
+      double sun_deg[CV_LCD_MAX_PANELS];
+      w->have_veil = cv_lcd_panels_veils(w->ps, ll, w->p.eye, &w->vp, w->veil, sun_deg) == CV_OK;
     }
     const uint32_t round = (uint32_t)w->index + k * count;
     if (round >= (uint32_t)w->s->o.lcd_budget) continue;
@@ -286,6 +299,14 @@ int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size
   return n;
 }
 
+void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total) {
+  pthread_mutex_lock(&w->mu);
+  *rounds_done = w->rounds_done;
+  *ms_total = w->ms_total;
+  *cpu_ms_total = w->cpu_ms_total;
+  pthread_mutex_unlock(&w->mu);
+}
+
 const char *cv_lcd_worker_error(cv_lcd_worker *w) { return w->error[0] ? w->error : NULL; }
 
 void cv_lcd_worker_destroy(cv_lcd_worker *w) {
@@ -303,8 +324,7 @@ void cv_lcd_worker_destroy(cv_lcd_worker *w) {
     free(n->buf);
     free(n);
   }
-  cv_lcd_gather_destroy(w->g);
-  cv_brdf_destroy(w->brdf);
+  cv_lcd_panels_destroy(w->ps);
   cv_tracer_destroy(w->tr);
   cv_mesh_destroy(w->mesh);
   pthread_mutex_destroy(&w->mu);

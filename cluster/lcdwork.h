@@ -23,6 +23,9 @@ void cv_lcd_worker_post(cv_lcd_worker *w, const cv_frame_state *fs);
  * so far. */
 int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size_t, void *),
                              void *user, uint64_t *rounds_done, double *ms_total);
+/* Totals so far: rounds finished, their wall time and the worker thread's
+ * CPU time in them (CLOCK_THREAD_CPUTIME_ID), ms. */
+void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total);
 /* Last error of the thread, or NULL. */
 const char *cv_lcd_worker_error(cv_lcd_worker *w);
 /* Stops the thread (after its current round) and frees everything. */

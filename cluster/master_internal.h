@@ -111,8 +111,12 @@ typedef struct master {
     uint32_t rounds;      /* rounds it holds */
     uint32_t frame;       /* frame whose head and lighting it is of */
     double t;             /* service time it was computed */
-    cv_lcd_figure L_r, cr, area, vl;
-    double L_a, cr_min;
+    double cr_min;
+    int veil;             /* the rounds carried the veil (always, but from older ranks) */
+    struct {              /* per panel (s->lcd.panels) */
+      cv_lcd_figure L_r, L_v, cr, area, vl;
+      double L_a;
+    } p[CV_LCD_MAX_PANELS];
   } lread;
   /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
   cv_mailbox **rep_mb;
@@ -173,6 +177,8 @@ typedef struct master {
   FILE *mf;
   cv_metrics_line *ml;
   double *frame_ms, *overhead_ms;
+  double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
+  double run_cpu0_ms;      /* its CPU time when the frames started */
   double *frame_t;        /* cap: service time each frame started */
   size_t cap;             /* entries of the per-frame histories */
   size_t nframes_done;

@@ -199,13 +199,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
       st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
       if (st) return st;
     }
-  if (s->o.lcd) {
-    /* The panel frame, to show the LCD image on it. */
-    cv_mesh *mesh;
-    if (cv_prt_to_mesh(we->prt, &mesh) == CV_OK) {
-      we->have_panel = cv_lcd_panel_from_mesh(mesh, &we->panel, NULL) == CV_OK;
-      cv_mesh_destroy(mesh);
-    }
+  if (s->o.lcd && s->lcd_layout.n > 0) {
+    /* The first panel's frame, to show its part of the LCD image on it (the
+     * renderer shows one panel). */
+    we->panel = s->lcd_layout.rect[0];
+    we->have_panel = 1;
   }
   const int index = cv_service_contributor(s, s->rank);
   if (index >= 0) {
@@ -266,6 +264,11 @@ static void idle(walleye *we) {
     memcpy(&h, data, sizeof h);
     if ((size_t)len != sizeof h + 3 * (size_t)h.w * h.h * sizeof(float)) continue;
     cv_image img = {.w = h.w, .h = h.h, .c = 3, .px = (float *)(void *)(uintptr_t)(data + sizeof h)};
+    /* the first panel: the top rows of the stacked image (lcd/panels.h),
+     * as wide as the image when the first panel is the widest */
+    if (we->s->lcd_layout.n > 0 && h.w == we->s->lcd_layout.W && h.h == we->s->lcd_layout.H &&
+        we->s->lcd_layout.w[0] == h.w)
+      img.h = we->s->lcd_layout.h[0];
     cv_err err;
     if (we->have_panel &&
         cv_renderer_set_panel(we->r, we->panel.center, we->panel.u, we->panel.v, we->panel.size, &img, &err))
