@@ -171,6 +171,8 @@ float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on) { tr->window_mis = !!on; }
 int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr->nwin > 0; }
 
+const cv_mesh *cv_tracer_mesh(const cv_tracer *tr) { return tr->m; }
+
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
 
 uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i) { return (uint32_t)i; }
@@ -358,9 +360,14 @@ static const float *recv_albedo(const cv_mesh *m, uint32_t t) {
   return m->mat_tex && m->mat_tex[i][0] ? k_one : m->mats[i].albedo;
 }
 
-static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          double *acc, double alb[3], double albr[3]) {
+/* With rf non-NULL, rgb[3] also gets the same estimator of
+ * (1/pi) integral L(w) V cos dw for rf's radiance (same rays as acc). */
+static void vertex_direct_rf(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                             double *acc, double alb[3], double albr[3],
+                             const cv_radiance_fn *rf, double rgb[3]) {
   int nc = bands * bands;
+  float Lr[3];
+  if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
   float y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   memset(acc, 0, (size_t)nc * sizeof(double));
   alb[0] = alb[1] = alb[2] = 0;
@@ -412,6 +419,10 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
       if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
       cv_sh_eval(bands, dir, y);
       for (int i = 0; i < nc; i++) acc[i] += y[i];
+      if (rf) {
+        rf->fn(rf->ctx, dir, Lr);
+        for (int c = 0; c < 3; c++) rgb[c] += Lr[c];
+      }
       continue;
     }
     if (u[6] < a) {
@@ -448,8 +459,14 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     double w = (cos_o / M_PI) / (a * p_win + (1 - a) * p_cos);
     cv_sh_eval(bands, dir, y);
     for (int i = 0; i < nc; i++) acc[i] += w * y[i];
+    if (rf) {
+      rf->fn(rf->ctx, dir, Lr);
+      for (int c = 0; c < 3; c++) rgb[c] += w * Lr[c];
+    }
   }
   for (int i = 0; i < nc; i++) acc[i] /= rays;
+  if (rgb)
+    for (int c = 0; c < 3; c++) rgb[c] /= rays;
   for (int k = 0; k < 3; k++) {
     alb[k] /= rays;
     albr[k] /= rays;
@@ -659,6 +676,33 @@ static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, 
   for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
 }
 
+static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                          double *acc, double alb[3], double albr[3]) {
+  vertex_direct_rf(tr, v, bands, rays, seed, acc, alb, albr, NULL, NULL);
+}
+
+int cv_bake_direct_radiance_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                                   const cv_radiance_fn *rf, const uint32_t *verts, size_t count,
+                                   float *td, float *rgb, float *alb_out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1 || !rf || !rf->fn) return CV_ERR_RANGE;
+  int nc = bands * bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3], albr[3], L[3];
+#pragma omp for schedule(dynamic, 4)
+    for (size_t k = 0; k < count; k++) {
+      vertex_direct_rf(tr, verts[k], bands, rays, seed, acc, alb, albr, rf, L);
+      for (int i = 0; i < nc; i++) td[k * nc + i] = (float)acc[i];
+      for (int c = 0; c < 3; c++) {
+        rgb[3 * k + c] = (float)L[c];
+        alb_out[3 * k + c] = (float)alb[c];
+      }
+    }
+  }
+  return CV_OK;
+}
+
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out) {
   if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1) return CV_ERR_RANGE;
@@ -714,8 +758,10 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   /* The estimator's identity: bump when the sampling changes results. */
   /* +2 with bounces: the bounce passes read half-float records of the
-   * previous bounce and trace 16-ray packets (results move by ~1e-4). */
-  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 2u : 0u);
+   * previous bounce and trace 16-ray packets (results move by ~1e-4);
+   * +16 with the geometric tail. */
+  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 2u : 0u) +
+                             (p->tail && p->bounces > 0 ? 16u : 0u);
   uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
                      (uint32_t)p->bounces, p->seed, spread_bits, estimator};
   h = cv_hash64_update(h, hdr, sizeof hdr);
@@ -772,46 +818,135 @@ int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake
     cv_progress_destroy(prog_);                                                \
   } while (0)
 
+/* Stores every vertex's 3*n*n values of vals (layout as the transfer) in r. */
+static void records_fill(cv_bounce_records *r, const float *vals, size_t nv) {
+  const size_t rec = r->rec;
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(r, v, vals + v * rec);
+}
+
+/* Interreflection pass `pass`: cur = the bounce carried by the records prev (albedo
+ * applied), ti += the same without a textured receiver's own albedo. */
+static void propagate_pass(const cv_tracer *tr, int bands, int rays, uint32_t seed, int pass,
+                           int quiet, const cv_bounce_records *prev, float *cur, float *ti,
+                           cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  char label[32];
+  snprintf(label, sizeof label, "bake bounce %d", pass);
+  double t0 = cv_now_seconds();
+  const int textured = tr->m->mat_tex != NULL;
+  FOR_VERTICES(label, nv, quiet, {
+    double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
+    const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
+    for (int i = 0; i < 3 * nc; i++) {
+      cur[v * 3 * nc + i] = (float)acc[i];
+      ti[v * 3 * nc + i] += (float)own[i];
+    }
+  });
+  if (stats && pass <= 16) {
+    stats->seconds[pass] = cv_now_seconds() - t0;
+    stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
+    stats->total_rays += stats->rays[pass];
+  }
+}
+
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats) {
   const size_t nv = tr->m->nv;
-  const int nc = bands * bands;
   if (bounces <= 0) return CV_OK;
-  cv_bounce_records *src = NULL, *dst = NULL;
-  if (cv_bounce_records_create(bands, nv, &src) || cv_bounce_records_create(bands, nv, &dst)) {
-    cv_bounce_records_destroy(src);
-    return CV_ERR_NOMEM;
-  }
-  double t0 = cv_now_seconds();
-#pragma omp parallel for schedule(static)
-  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(src, v, prev + v * 3 * nc);
+  cv_bounce_records *src = NULL;
+  if (cv_bounce_records_create(bands, nv, &src)) return CV_ERR_NOMEM;
+  records_fill(src, prev, nv);
   for (int pass = 1; pass <= bounces; pass++) {
-    char label[32];
-    snprintf(label, sizeof label, "bake bounce %d", pass);
-    const int textured = tr->m->mat_tex != NULL;
-    FOR_VERTICES(label, nv, quiet, {
-      double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, src, acc, textured ? accr : NULL);
-      const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
-      float *out = prev + v * 3 * nc; /* src holds the previous bounce: prev is free */
-      for (int i = 0; i < 3 * nc; i++) {
-        out[i] = (float)acc[i];
-        ti[v * 3 * nc + i] += (float)own[i];
-      }
-      if (pass < bounces) cv_bounce_records_set(dst, v, out);
-    });
-    cv_bounce_records *t = src;
-    src = dst;
-    dst = t;
-    if (stats && pass <= 16) {
-      stats->seconds[pass] = cv_now_seconds() - t0;
-      stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
-      stats->total_rays += stats->rays[pass];
-    }
-    t0 = cv_now_seconds();
+    /* src holds the previous bounce, so prev is free to take this one. */
+    propagate_pass(tr, bands, rays, seed, pass, quiet, src, prev, ti, stats);
+    if (pass < bounces) records_fill(src, prev, nv);
   }
   cv_bounce_records_destroy(src);
-  cv_bounce_records_destroy(dst);
+  return CV_OK;
+}
+
+/* Area of each vertex's share of its opaque fan (a third of each triangle). */
+static double vertex_area(const cv_tracer *tr, uint32_t v) {
+  double a = 0;
+  for (uint32_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) {
+    const uint32_t *t = tr->m->tri + 3 * (tr->fan_tri[k] >> 2);
+    const float *p0 = tr->m->pos + 3 * t[0], *p1 = tr->m->pos + 3 * t[1], *p2 = tr->m->pos + 3 * t[2];
+    double e1[3], e2[3];
+    for (int c = 0; c < 3; c++) {
+      e1[c] = (double)p1[c] - p0[c];
+      e2[c] = (double)p2[c] - p0[c];
+    }
+    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+           cz = e1[0] * e2[1] - e1[1] * e2[0];
+    a += sqrt(cx * cx + cy * cy + cz * cz) / 6.0;
+  }
+  return a;
+}
+
+int cv_prt_tail_ratio(const cv_tracer *tr, int bands, const float *before, const float *last,
+                      double ratio[3]) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  double num[3] = {0, 0, 0}, den[3] = {0, 0, 0};
+  for (size_t v = 0; v < nv; v++) {
+    double a = vertex_area(tr, (uint32_t)v);
+    for (int c = 0; c < 3; c++) {
+      num[c] += a * last[(v * 3 + c) * nc];
+      den[c] += a * before[(v * 3 + c) * nc];
+    }
+  }
+  int clamped = 0;
+  for (int c = 0; c < 3; c++) {
+    double r = den[c] > 0 ? num[c] / den[c] : 0.0;
+    if (!(r >= 0)) r = 0, clamped = 1;
+    if (r > CV_BAKE_TAIL_MAX_RATIO) r = CV_BAKE_TAIL_MAX_RATIO, clamped = 1;
+    ratio[c] = r;
+  }
+  return clamped;
+}
+
+/* Passes 1..bounces as cv_prt_propagate, then the geometric tail: every
+ * vertex's last bounce B (without a textured receiver's own albedo) times
+ * r / (1 - r), r per channel from cv_prt_tail_ratio of bounces B and B - 1
+ * (B - 1 = 0: the direct exit transfer). */
+static int propagate_with_tail(const cv_tracer *tr, const cv_bake_params *p, float *prev,
+                               float *ti, cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = p->bands * p->bands;
+  const size_t n = 3 * nv * (size_t)nc;
+  float *cur = malloc(n * sizeof(float) + 1), *last = malloc(n * sizeof(float) + 1);
+  cv_bounce_records *rec = NULL;
+  if (!cur || !last || cv_bounce_records_create(p->bands, nv, &rec)) {
+    free(cur);
+    free(last);
+    return CV_ERR_NOMEM;
+  }
+  records_fill(rec, prev, nv);
+  for (int pass = 1; pass <= p->bounces; pass++) {
+    if (pass == p->bounces) memcpy(last, ti, n * sizeof(float));
+    propagate_pass(tr, p->bands, p->rays, p->seed, pass, p->quiet, rec, cur, ti, stats);
+    if (pass < p->bounces) {
+      memcpy(prev, cur, n * sizeof(float));
+      records_fill(rec, cur, nv);
+    }
+  }
+  cv_bounce_records_destroy(rec);
+  double r[3];
+  stats->tail_clamped = cv_prt_tail_ratio(tr, p->bands, prev, cur, r);
+  for (int c = 0; c < 3; c++) stats->tail_ratio[c] = r[c];
+  for (size_t v = 0; v < nv; v++)
+    for (int c = 0; c < 3; c++) {
+      const double f = r[c] / (1.0 - r[c]);
+      for (int i = 0; i < nc; i++) {
+        const size_t k = (v * 3 + c) * (size_t)nc + (size_t)i;
+        ti[k] += (float)(f * ((double)ti[k] - last[k]));
+      }
+    }
+  free(cur);
+  free(last);
   return CV_OK;
 }
 
@@ -876,8 +1011,9 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   stats->rays[0] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)p->rays;
   stats->total_rays = stats->rays[0];
   if (prev) {
-    st = cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev, prt->ti,
-                          stats);
+    st = p->tail && p->bounces > 0 ? propagate_with_tail(tr, p, prev, prt->ti, stats)
+                 : cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev,
+                                    prt->ti, stats);
     free(prev);
     if (st) {
       cv_prt_destroy(prt);
@@ -890,37 +1026,50 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   return CV_OK;
 }
 
-int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
-                  uint32_t seed, float *out_rgb) {
+/* Direct light of one vertex from a directional light (see cv_sun_direct). */
+static void sun_vertex(const cv_tracer *tr, uint32_t v, const float s[3], const double E[3],
+                       int samples, uint32_t sseed, float *out3) {
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  double acc[3] = {0, 0, 0};
+  vseq q;
+  vseq_init(&q, sseed, v);
+  for (int j = 0; j < samples; j++) {
+    float u[6], p[3], org[3];
+    vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
+    uint32_t t = fan_point(tr, v, u, p);
+    const float *n = tr->tri_n + 3 * t;
+    float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+    if (c <= 0) continue;
+    cv_rt_offset_origin(p, n, org);
+    if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
+    const float *a = recv_albedo(tr->m, t);
+    for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
+  }
+  for (int k = 0; k < 3; k++) out3[k] += (float)(E[k] / M_PI * acc[k] / samples);
+}
+
+int cv_sun_direct_subset(const cv_tracer *tr, const double sun_dir[3], const double E[3],
+                         int samples, uint32_t seed, const uint32_t *verts, size_t count,
+                         float *out_rgb) {
   if (samples < 1) return CV_ERR_RANGE;
   double l = sqrt(sun_dir[0] * sun_dir[0] + sun_dir[1] * sun_dir[1] + sun_dir[2] * sun_dir[2]);
   if (!(l > 0) || !isfinite(l)) return CV_ERR_INVALID;
   const float s[3] = {(float)(sun_dir[0] / l), (float)(sun_dir[1] / l), (float)(sun_dir[2] / l)};
-  const size_t nv = tr->m->nv;
+  const size_t nv = verts ? count : tr->m->nv;
   const uint32_t sseed = cv_hash_combine(seed, 0x5317u);
 #pragma omp parallel
   {
     cv_rt_thread_init();
 #pragma omp for schedule(dynamic, 256)
-    for (size_t v = 0; v < nv; v++) {
-      if (tr->fan_off[v + 1] == tr->fan_off[v]) continue;
-      double acc[3] = {0, 0, 0};
-      vseq q;
-      vseq_init(&q, sseed, (uint32_t)v);
-      for (int j = 0; j < samples; j++) {
-        float u[6], p[3], org[3];
-        vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
-        uint32_t t = fan_point(tr, (uint32_t)v, u, p);
-        const float *n = tr->tri_n + 3 * t;
-        float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
-        if (c <= 0) continue;
-        cv_rt_offset_origin(p, n, org);
-        if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
-        const float *a = recv_albedo(tr->m, t);
-        for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
-      }
-      for (int k = 0; k < 3; k++) out_rgb[3 * v + k] += (float)(E[k] / M_PI * acc[k] / samples);
+    for (size_t k = 0; k < nv; k++) {
+      const uint32_t v = verts ? verts[k] : (uint32_t)k;
+      sun_vertex(tr, v, s, E, samples, sseed, out_rgb + 3 * (verts ? k : (size_t)v));
     }
   }
   return CV_OK;
+}
+
+int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
+                  uint32_t seed, float *out_rgb) {
+  return cv_sun_direct_subset(tr, sun_dir, E, samples, seed, NULL, 0, out_rgb);
 }
