@@ -292,6 +292,16 @@ void cv_lcd_reduce_abandon(cv_lcd_reduce *r) {
   r->phase = PH_DONE;
 }
 
+int cv_lcd_reduce_unsent(const cv_lcd_reduce *r, int which, cv_lcd_key *key, uint32_t *first,
+                         uint32_t *n) {
+  const pool *p = which == 0 ? &r->offer : &r->pool;
+  if (!p->acc || p->n == 0) return -1;
+  *key = p->key;
+  *first = p->first;
+  *n = p->n;
+  return 0;
+}
+
 void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {
   st->epochs = r->epochs;
   st->data_epochs = r->data_epochs;

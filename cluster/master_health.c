@@ -21,6 +21,7 @@
 #include "comm.h"
 #include "lcdreduce.h"
 #include "master_internal.h"
+#include "service/lcdshare.h"
 
 int master_health_setup(master *m) {
   m->alive_t = calloc((size_t)m->s->size, sizeof *m->alive_t);
@@ -73,6 +74,22 @@ static void gather_dead(master *m, int r, double silent) {
     cv_lcd_reduce_abandon(m->lcd_red);
     m->lcd_red_abandoned = 1;
   }
+  /* its rounds: shared by the live contributors from the next frame state on
+   * (lcd_dead, lcdshare.h) */
+  const int first_gather = m->s->o.lcd_idle ? m->s->n_render : 0;
+  const uint64_t dead = master_health_lcd_dead(m);
+  int live = 0;
+  for (int c = 0; c < m->s->n_contributors; c++) live += !cv_lcd_contributor_dead(c, first_gather, dead);
+  if (m->s->o.lcd && live == 0)
+    fprintf(stderr, "cave run: master: no LCD contributor is left: the LCD image stays at %u rounds\n",
+            m->lcd_rounds);
+}
+
+uint64_t master_health_lcd_dead(const master *m) {
+  uint64_t d = 0;
+  for (int g = 0; m->dead && g < m->s->n_gather && g < 64; g++)
+    if (m->dead[1 + m->s->n_render + g]) d |= 1ull << g;
+  return d;
 }
 
 static void walleye_dead(master *m, int r, double silent) {
