@@ -55,6 +55,7 @@ struct cv_lcd_worker {
   uint8_t *taken;
   uint32_t cursor;
   uint64_t dead;
+  uint32_t floor; /* the master has the dead ones' rounds of the current key below it */
   int have_cur;
   cv_lcd_key cur;
   char error[640];
@@ -162,9 +163,11 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
 static uint32_t next_owned(cv_lcd_worker *w) {
   const uint32_t budget = (uint32_t)w->s->o.lcd_budget;
   const int first_gather = w->s->o.lcd_idle ? w->s->n_render : 0;
+  const int count = w->s->n_contributors;
   while (w->cursor < budget &&
          (w->taken[w->cursor] ||
-          cv_lcd_round_owner(w->cursor, w->s->n_contributors, first_gather, w->dead) != w->index))
+          cv_lcd_round_owner(w->cursor, count, first_gather, w->dead) != w->index ||
+          (w->cursor < w->floor && cv_lcd_contributor_dead((int)(w->cursor % (uint32_t)count), first_gather, w->dead))))
     w->cursor++;
   return w->cursor;
 }
@@ -206,6 +209,9 @@ static void *worker_main(void *arg) {
           w->dead = fs.lcd_dead;
           w->cursor = 0;
         }
+        /* the dead ones' rounds the master has (of its key, when it is ours) */
+        w->floor = w->have_cur && fs.lcd_key == cv_service_lcd_key(w->cur.eye_q, w->cur.light_hash)
+                       ? fs.lcd_dead_floor : 0;
       }
       /* work: a newer state than the key's (a new snapshot), or rounds
        * left for the key; at most 4 rounds waiting for the owner */
@@ -246,6 +252,7 @@ static void *worker_main(void *arg) {
       cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
       memset(w->taken, 0, (size_t)w->s->o.lcd_budget);
       w->cursor = 0;
+      w->floor = fs.lcd_dead_floor; /* fs is of this key */
       w->cur = key;
       w->have_cur = 1;
     }

@@ -357,6 +357,7 @@ static void frame_lcd_key(master *m, cv_frame_state *fs) {
   fs->lcd_key = m->lcd_key;
   fs->lcd_rounds = m->lcd_rounds;
   fs->lcd_dead = master_health_lcd_dead(m); /* their rounds shared (docs/dead-rank.md) */
+  fs->lcd_dead_floor = master_health_lcd_floor(m);
 }
 
 static int send_state(master *m, const cv_frame_state *fs) {

@@ -92,6 +92,20 @@ uint64_t master_health_lcd_dead(const master *m) {
   return d;
 }
 
+uint32_t master_health_lcd_floor(const master *m) {
+  const uint64_t dead = master_health_lcd_dead(m);
+  if (!dead || !m->seen) return 0;
+  const int count = m->s->n_contributors, first_gather = m->s->o.lcd_idle ? m->s->n_render : 0;
+  uint32_t floor = (uint32_t)m->s->o.lcd_budget;
+  for (int c = 0; c < count; c++) {
+    if (!cv_lcd_contributor_dead(c, first_gather, dead)) continue;
+    uint32_t r = (uint32_t)c;
+    while (r < floor && m->seen[r]) r += (uint32_t)count;
+    if (r < floor) floor = r;
+  }
+  return floor;
+}
+
 static void walleye_dead(master *m, int r, double silent) {
   if (m->stop_code) return;
   const cv_output *o = &m->s->cave.outputs[r - 1];

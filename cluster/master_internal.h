@@ -259,6 +259,9 @@ void master_health_sent(master *m);
 void master_health_poll(master *m);
 /* The frame state's lcd_dead: bit g for gather-only rank g declared dead. */
 uint64_t master_health_lcd_dead(const master *m);
+/* The frame state's lcd_dead_floor: the lowest round of the current key
+ * that a dead gather rank owned and the master has not summed (0: none dead). */
+uint32_t master_health_lcd_floor(const master *m);
 /* "dead_ranks": [ranks] */
 void master_health_metrics(master *m, cv_metrics_line *ml);
 

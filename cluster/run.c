@@ -542,6 +542,7 @@ int cmd_run(int argc, char **argv) {
     fprintf(stderr, "cave run: MPI_Init failed\n");
     return 1;
   }
+  cv_comm_set_stop_flag(&g_stop); /* a rank declared dead leaves (docs/dead-rank.md) */
   check_all(&s, s.size, desktop_view, &pb);
   if (!pb.n && mkdirs(s.o.out_dir)) problem(&pb, "-o: %s: cannot create: %s", s.o.out_dir, strerror(errno));
   if (pb.n) {
