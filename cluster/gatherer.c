@@ -32,7 +32,7 @@ static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_lcd_worker *w, 
   if (!*red) return;
   const double waited = first_state > 0 ? cv_lcd_reduce_waiting(*red, cv_service_now(), first_state) : 0;
   if (!told && waited <= s->o.gather_timeout_s) return;
-  if (told) fprintf(stderr, "cave run: rank %d: a gather rank died: LCD rounds point-to-point\n", s->rank);
+  if (told) fprintf(stderr, "cave run: rank %d: told a gather rank died: LCD rounds point-to-point\n", s->rank);
   else fprintf(stderr, "cave run: rank %d: LCD sum waited %.1f s: LCD rounds point-to-point\n", s->rank, waited);
   for (int which = 0; w && which < 4; which++) {
     cv_lcd_key key;
@@ -109,8 +109,11 @@ int cv_gather_run(cv_service *s) {
     /* the master's death notices: another gather rank (the allreduce is
      * given up), or this one (it was stalled: it leaves at once) */
     int told = 0;
-    while (alive_mb && (len = cv_mailbox_take(alive_mb, &data, NULL)) >= 0)
-      if (cv_comm_dead_notice(data, len)) told = 1;
+    while (alive_mb && (len = cv_mailbox_take(alive_mb, &data, NULL)) >= 0) {
+      int32_t dead;
+      if (cv_comm_dead_notice(data, len) && (memcpy(&dead, data + 1, sizeof dead), dead > s->n_render))
+        told = 1; /* a gather rank ('D' + int32 rank): the allreduce would wait for it */
+    }
     if (cv_comm_declared_dead()) break;
     if (!quit_since) maybe_abandon(s, &red, w, first_state, told);
     if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
