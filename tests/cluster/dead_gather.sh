@@ -11,7 +11,7 @@
 #     shared (rank 11 renders them), the LCD reaches its budget and lcd.exr is
 #     the same bytes as the reference's, the job ends by itself;
 #  3. 12 ranks (one gather rank, the wall-eyes' idle LCD threads on): rank 11
-#     SIGSTOPped after 20 frames until it is declared dead, then SIGCONTed: its
+#     SIGSTOPped after 4 frames until it is declared dead, then SIGCONTed: its
 #     rounds left go to the wall-eyes, it leaves by itself when it runs again,
 #     the LCD is again the reference's bytes (another rank count), the job ends
 #     by itself;
@@ -167,7 +167,7 @@ echo "stderr: $(grep -v -e '^\s*$' -e PMIX run.err | head -8 | cut -c1-200 | tr 
 # --- 3. a stalled gather rank (SIGSTOP, then SIGCONT) ----------------------------
 for attempt in 1 2; do
   start 12 stall --frames 150 --lcd-wait
-  wait_frames stall 11 20 || echo "NOTE: the stall run did not reach 20 frames"
+  wait_frames stall 11 4 || echo "NOTE: the stall run did not reach 4 frames"
   r_stop=$(nrounds stall)
   t0=$(now)
   kill -STOP "$(cat stall/pids/rank11.pid)" 2>/dev/null || echo "NOTE: no rank 11 to stop"
