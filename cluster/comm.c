@@ -19,6 +19,10 @@ static size_t g_nsends, g_capsends;
 /* The render ranks' communicator and its barrier in flight (same rule). */
 static MPI_Comm g_render = MPI_COMM_NULL;
 static MPI_Request g_barrier = MPI_REQUEST_NULL;
+/* per world rank: a member of g_render; the swap barrier given up (a member
+ * died: it would never complete) */
+static unsigned char *g_in_render;
+static int g_barrier_abandoned;
 /* The LCD reduction's communicator and its sum in flight (same rule). */
 static MPI_Comm g_lcd = MPI_COMM_NULL;
 static MPI_Request g_lcd_req = MPI_REQUEST_NULL;
@@ -81,7 +85,9 @@ static void take_notices(void) {
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   take_notices();
-  if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
+  if (g_render != MPI_COMM_NULL && !g_barrier_abandoned) MPI_Comm_free(&g_render);
+  free(g_in_render);
+  g_in_render = NULL;
   if (g_lcd != MPI_COMM_NULL && !g_lcd_abandoned) MPI_Comm_free(&g_lcd);
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
@@ -345,16 +351,44 @@ int cv_comm_render_group(int render) {
   MPI_Comm c;
   if (MPI_Comm_split(MPI_COMM_WORLD, render ? 1 : MPI_UNDEFINED, 0, &c) != MPI_SUCCESS) return -1;
   g_render = c;
+  if (c != MPI_COMM_NULL && (g_in_render = calloc((size_t)g_size, 1))) { /* its members' world ranks */
+    MPI_Group wg, rg;
+    int n = 0;
+    MPI_Comm_group(MPI_COMM_WORLD, &wg);
+    MPI_Comm_group(c, &rg);
+    MPI_Group_size(rg, &n);
+    int *a = malloc((size_t)(n > 0 ? n : 1) * sizeof *a), *b = malloc((size_t)(n > 0 ? n : 1) * sizeof *b);
+    if (a && b) {
+      for (int i = 0; i < n; i++) a[i] = i;
+      if (MPI_Group_translate_ranks(rg, n, a, wg, b) == MPI_SUCCESS)
+        for (int i = 0; i < n; i++)
+          if (b[i] >= 0 && b[i] < g_size) g_in_render[b[i]] = 1;
+    }
+    free(a);
+    free(b);
+    MPI_Group_free(&rg);
+    MPI_Group_free(&wg);
+  }
   return 0;
 }
 
+/* A member of the swap barrier died (or this rank was declared dead): the
+ * barrier would never complete; given up for good. */
+static int barrier_dead(void) {
+  if (g_barrier_abandoned) return 1;
+  int dead = g_self_dead;
+  for (int r = 0; !dead && g_in_render && g_dead && r < g_size; r++) dead = g_in_render[r] && g_dead[r];
+  if (dead) g_barrier_abandoned = 1;
+  return dead;
+}
+
 int cv_comm_render_barrier_start(void) {
-  if (g_render == MPI_COMM_NULL || g_barrier != MPI_REQUEST_NULL) return -1;
+  if (g_render == MPI_COMM_NULL || g_barrier != MPI_REQUEST_NULL || barrier_dead()) return -1;
   return MPI_Ibarrier(g_render, &g_barrier) == MPI_SUCCESS ? 0 : -1;
 }
 
 int cv_comm_render_barrier_test(void) {
-  if (g_barrier == MPI_REQUEST_NULL) return 1;
+  if (g_barrier == MPI_REQUEST_NULL || barrier_dead()) return 1;
   int done = 0;
   MPI_Test(&g_barrier, &done, MPI_STATUS_IGNORE);
   return done;

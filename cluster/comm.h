@@ -83,7 +83,9 @@ void cv_comm_barrier(void);
 int cv_comm_render_group(int render);
 /* Starts a non-blocking barrier among the render ranks (MPI_Ibarrier on
  * their communicator); cv_comm_render_barrier_test polls it: 1 done, 0 not
- * yet.  One barrier at a time per rank. */
+ * yet.  One barrier at a time per rank.  Once a render rank is known dead
+ * (or this one was declared dead) the barrier is given up: start fails,
+ * test says done (docs/dead-rank.md). */
 int cv_comm_render_barrier_start(void);
 int cv_comm_render_barrier_test(void);
 /* The LCD reduction's communicator (the master and the gather-only ranks,

@@ -15,8 +15,10 @@
 #     rounds left go to the wall-eyes, it leaves by itself when it runs again,
 #     the LCD is again the reference's bytes (another rank count), the job ends
 #     by itself;
-#  4. a SIGKILLed wall-eye (rank 3): the run stops by itself, naming it on
-#     stderr and in the summary's stop_reason and dead_ranks, and the job ends.
+#  4. a SIGKILLed wall-eye (rank 3), without the swap lock, with it
+#     (--barrier) and scheduled swaps, and with --swap-sync barrier: the run
+#     stops by itself, naming it on stderr and in the summary's stop_reason
+#     and dead_ranks, and the job ends.
 # Prints the measured figures.
 # Usage: dead_gather.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
 set -uo pipefail
@@ -193,18 +195,24 @@ cmp -s stall/lcd.exr ref/lcd.exr && ok "lcd.exr (12 ranks, stalled gather rank) 
   || bad "lcd.exr after the stall differs from the reference's"
 
 # --- 4. a dead wall-eye: the run stops by itself, naming it -----------------------
-start 12 wall --frames 0
-wait_frames wall 3 10 || bad "the wall run did not reach 10 frames"
-t0=$(now)
-kill -9 "$(cat wall/pids/rank3.pid)" 2>/dev/null || bad "no rank 3 to kill"
-finish wall 60
-dt=$(since "$t0")
-reason=$(tail -1 wall/metrics.jsonl | python3 -c "import json,sys; l=json.loads(sys.stdin.read()); print(l.get('type'), l.get('stop_reason'), l.get('dead_ranks'))")
-# (the master exits with status 1, but mpirun --enable-recovery reports 0
-# whatever its ranks' status, even after MPI_Abort: measured, docs/dead-rank.md)
-grep -q 'stopping: rank 3 (wall-eye of wall [0-9]*) silent' wall.err \
-  && [ "${reason#summary rank 3 }" != "$reason" ] && [ "$ended" = 1 ] \
-  && ok "a dead wall-eye stops the run; the job ended ${dt} s after the kill (mpirun status $rc): $reason" \
-  || bad "dead wall-eye: ended $ended, status $rc after ${dt} s; last line: $reason; $(grep -i 'rank 3' wall.err | head -2)"
+# (no swap lock, the headless default; the swap lock (--barrier) with
+# scheduled swaps; with --swap-sync barrier, where the others wait in an MPI
+# barrier with the dead one: given up once it is known dead)
+for mode in none scheduled barrier; do
+  case $mode in none) SW=() ;; *) SW=(--barrier --swap-sync $mode) ;; esac
+  start 12 wall --frames 0 "${SW[@]}"
+  wait_frames wall 3 10 || bad "the wall run did not reach 10 frames"
+  t0=$(now)
+  kill -9 "$(cat wall/pids/rank3.pid)" 2>/dev/null || bad "no rank 3 to kill"
+  finish wall 60
+  dt=$(since "$t0")
+  reason=$(tail -1 wall/metrics.jsonl | python3 -c "import json,sys; l=json.loads(sys.stdin.read()); print(l.get('type'), l.get('stop_reason'), l.get('dead_ranks'))")
+  # (the master exits with status 1, but mpirun --enable-recovery reports 0
+  # whatever its ranks' status, even after MPI_Abort: measured, docs/dead-rank.md)
+  grep -q 'stopping: rank 3 (wall-eye of wall [0-9]*) silent' wall.err \
+    && [ "${reason#summary rank 3 }" != "$reason" ] && [ "$ended" = 1 ] \
+    && ok "swap lock $mode: a dead wall-eye stops the run; the job ended ${dt} s after the kill (mpirun status $rc): $reason" \
+    || bad "swap lock $mode: dead wall-eye: ended $ended, status $rc after ${dt} s; last line: $reason; $(grep -i 'rank 3' wall.err | head -2)"
+done
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
