@@ -9,8 +9,12 @@
  *                it for ever, is given up on the master, and the surviving
  *                gather ranks, told by the death notice every rank gets
  *                (cv_comm_notify_dead), send their rounds point-to-point
- *                (the render ranks' path); the frames never waited for it.
- * With a dead rank no rank calls MPI_Finalize (it would wait for it).
+ *                (the render ranks' path); the frames never waited for it;
+ *                its LCD rounds go to the live contributors (the frame
+ *                state's lcd_dead and lcd_dead_floor, src/service/lcdshare.c).
+ * The notice goes to the dead rank too: one only stalled leaves when it
+ * runs again.  With a dead rank no rank calls MPI_Finalize (it would wait
+ * for it).
  *   wall-eye     (silent: no report for S s while one was owed)
  *                its walls cannot be shown: the run stops cleanly, naming
  *                it (summary stop_reason, exit status 1). */
