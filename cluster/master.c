@@ -862,7 +862,9 @@ int cv_master_run(cv_service *s) {
   if (!s->o.quiet) printf("cave run: %zu frames; metrics in the out folder\n", m->nframes_done);
   if (m->stop_code)
     printf("cave run: stopped on request: %s\n", m->stop_reason);
-  cv_comm_flush(10);
+  /* with a dead rank the others leave without MPI_Finalize: a large send
+   * (rendezvous) to one that quit before taking it never completes */
+  cv_comm_flush(cv_comm_dead_count() > 0 ? 2 : 10);
   const int lost = m->stop_code == CV_WIN_LOST || m->stop_code == MASTER_STOP_DEAD;
   master_free(m);
   return lost ? 1 : 0;
