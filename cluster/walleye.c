@@ -167,6 +167,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
   }
   st = cv_renderer_create(we->prt, &ro, &we->r, err);
   if (st) return st;
+  cv_render_tex_info ti;
+  cv_renderer_textures(we->r, &ti);
+  if (ti.unread) /* shown with their mean albedo (renderer.h) */
+    fprintf(stderr, "cave run: rank %d: warning: %d textures could not be read and show their mean "
+            "albedo; first: %s\n", we->s->rank, ti.unread, ti.first_error);
   st = cv_service_lightmix(s, (int)we->prt->bands, &we->mix, err);
   if (st) return st;
   size_t np = 0;

@@ -3,7 +3,7 @@
 // the depth-only pass and the shading pass compute bit-identical depths and
 // the shading pass can test with GL_EQUAL (Dmitriev et al. 2004, section 4.2).
 // DEPTH_ONLY drops the varyings; SUN adds the sun's (prt.frag), PANEL the
-// position for the LCD test.
+// position for the LCD test, TEXTURE the albedo texture's (u, v) and layer.
 
 layout(location = 0) in vec3 a_pos;  // scene frame, metres
 layout(location = 1) in vec4 a_rad;  // relit radiance (relight.vert); w unused
@@ -15,6 +15,11 @@ out vec3 v_rad;
 #endif
 #ifdef PANEL
 out vec3 v_pos;
+#endif
+#ifdef TEXTURE
+layout(location = 3) in vec3 a_uvl;  // u, v (origin at the image's bottom-left), layer (-1: none)
+out vec2 v_uv;
+flat out float v_layer;
 #endif
 #ifdef SUN
 layout(location = 2) in vec3 a_alb;  // vertex albedo (the sun's direct term)
@@ -31,6 +36,10 @@ void main() {
 #endif
 #ifdef PANEL
   v_pos = a_pos;
+#endif
+#ifdef TEXTURE
+  v_uv = a_uvl.xy;
+  v_layer = a_uvl.z;
 #endif
 #ifdef SUN
   // Affine in the position, so the (perspective-correct) interpolation is

@@ -59,10 +59,24 @@ uniform vec3 u_panel_c, u_panel_u, u_panel_v, u_panel_n;
 uniform vec2 u_panel_half;
 #endif
 
+#ifdef TEXTURE
+// Albedo textures (render_texture.c): the PRT stores a textured receiver's
+// transfer without its albedo, so the texel (sRGB decoded by the GL,
+// trilinear, repeat) multiplies the radiance.  Sampled outside the branch:
+// implicit derivatives need uniform control flow.
+in vec2 v_uv;
+flat in float v_layer;  // -1: untextured triangle
+uniform sampler2DArray u_albedo;
+#endif
+
 void main() {
   vec3 L = v_rad;
 #ifdef SUN
   L += cv_sun_direct();
+#endif
+#ifdef TEXTURE
+  vec3 texel = texture(u_albedo, vec3(v_uv, max(v_layer, 0.0))).rgb;
+  if (v_layer >= 0.0) L *= texel;
 #endif
 #ifdef PANEL
   vec3 d = v_pos - u_panel_c;

@@ -80,6 +80,8 @@ static void help(FILE *f) {
           "frame starts adapted to it (steady state), each later frame steps the Pattanaik\n"
           "model by --dt.  An empty cone keeps the state.  Drago's Lwmax is the maximum\n"
           "luminance of all walls' luminance passes.\n"
+          "Textures of a textured .prt multiply each pixel's radiance (docs/prt-format.md);\n"
+          "one that cannot be read is a warning and shows its mean albedo.\n"
           "\nexamples:\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --env forest.exr --illuminance auto -o out\n"
           "  cave render configs/caves/cave5.json --scene scene.prt --sky 3,35,0 --frames 30 --dt 1/30 -o out\n");
@@ -237,6 +239,13 @@ int cmd_render(int argc, char **argv) {
     goto done;
   }
   printf("GL: %s\n", cv_renderer_gl_name(r));
+  cv_render_tex_info ti;
+  if (cv_renderer_textures(r, &ti))
+    printf("textures: %d materials, %d x %d texels per layer, %zu vertices added at UV seams\n",
+           ti.layers, ti.w, ti.h, ti.split_vertices);
+  if (ti.unread)
+    printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
+           ti.unread, ti.first_error);
   cv_lighting light = cv_scene_light_sh(sl);
   cv_render_light_stats ls;
   cv_frame_timing lt = {0};

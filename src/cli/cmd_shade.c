@@ -38,7 +38,8 @@ static void help(FILE *f) {
           "all-frequency answer to window light; docs/reference.md).\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
           "A view multiplies each pixel on a textured material by its texture (the PNG\n"
-          "named in the .prt, bilinear, sRGB decoded); the PLY shows the mean albedo.\n"
+          "or JPEG named in the .prt, bilinear, sRGB decoded; one that cannot be read is\n"
+          "a warning and shows its mean albedo); the PLY shows the mean albedo.\n"
           "\nexamples:\n"
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
           "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
@@ -247,15 +248,26 @@ int cmd_shade(int argc, char **argv) {
         rc = cli_fail("shade", 1, "out of memory");
         goto done;
       }
+      size_t unread = 0;
       for (size_t i = 0; i < p->nm; i++) {
         if (!cv_prt_mat_textured(p, i)) continue;
         if (cv_texture_load(p->mat_tex[i], &tex[i], &err)) {
-          rc = cli_fail("shade", 1, "material '%s' texture: %s", p->mats[i].name, err.msg);
-          goto done;
+          /* as the renderer does: the material's stored albedo (the
+           * texture's mean) as a 1 x 1 texture, counted */
+          if (!unread++) printf("warning: material '%s' texture: %s\n", p->mats[i].name, err.msg);
+          if (cv_image_create(1, 1, 3, &tex[i])) {
+            rc = cli_fail("shade", 1, "out of memory");
+            goto done;
+          }
+          memcpy(tex[i]->px, p->mats[i].albedo, 3 * sizeof(float));
+          continue;
         }
+        cv_texture_match_mean(tex[i], p->mats[i].albedo); /* the colour factor */
         printf("texture: material '%s': %s (%d x %d)\n", p->mats[i].name, p->mat_tex[i],
                tex[i]->w, tex[i]->h);
       }
+      if (unread)
+        printf("warning: %zu textures could not be read and show their mean albedo\n", unread);
     }
     render_view(p, tr, sl, rad, tex, &v, img, &escaped);
     if (escaped)

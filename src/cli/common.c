@@ -196,9 +196,12 @@ int cli_import_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out,
     if (report && is.textures_averaged)
       fprintf(report, "scene: %zu textured materials use their texture's mean albedo\n",
               is.textures_averaged);
+    if (report && is.textures_embedded)
+      fprintf(report, "scene: %zu embedded textures written to the texture cache\n",
+              is.textures_embedded);
     if (report && is.textures_unread)
-      fprintf(report, "warning: %zu material textures not read (missing, embedded or not PNG): "
-              "their colour is used alone\n", is.textures_unread);
+      fprintf(report, "warning: %zu material textures not read (their colour is used alone); "
+              "first: %s\n", is.textures_unread, is.texture_error);
     cv_placement_report pr;
     if ((st = cv_mesh_place(m, &c->place, &is.frame, &pr, err))) {
       cv_err_prefix(err, "%s", c->mesh_path);

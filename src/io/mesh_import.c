@@ -2,6 +2,7 @@
 #include "io/mesh_import.h"
 
 #include "io/texture.h"
+#include "io/texture_embed.h"
 
 #include <assimp/cimport.h>
 #include <assimp/material.h>
@@ -14,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 void cv_import_opts_default(cv_import_opts *o) {
   memset(o, 0, sizeof *o);
@@ -149,12 +151,11 @@ static float clamp01(float x, size_t *nclamp) {
   return x > 1.0f ? 1.0f : 0.0f; /* NaN and negatives -> 0 */
 }
 
-/* Mean linear RGB of the PNG texture at path (cv_texture_load).  Returns 0
- * and fills mean[3], or -1 (the file is missing or not a readable PNG). */
-static int texture_mean(const char *path, double mean[3]) {
+/* Mean linear RGB of the PNG or JPEG texture at path (cv_texture_load).
+ * Returns 0 and fills mean[3], or -1 (*e: missing, unreadable). */
+static int texture_mean(const char *path, double mean[3], cv_err *e) {
   cv_image *im = NULL;
-  cv_err e;
-  if (!ends_with_ci(path, ".png") || cv_texture_load(path, &im, &e) != CV_OK) return -1;
+  if (cv_texture_load(path, &im, e) != CV_OK) return -1;
   double acc[3] = {0, 0, 0};
   const size_t n = (size_t)im->w * (size_t)im->h;
   for (size_t i = 0; i < n; i++)
@@ -166,25 +167,50 @@ static int texture_mean(const char *path, double mean[3]) {
 
 /* The material's diffuse texture (glTF base colour, else diffuse) resolved
  * against the model's folder into out; 0 if the material has none.  An
- * embedded texture ("*N") is reported as a texture that cannot be read. */
-static int texture_path(const struct aiMaterial *am, const char *model, char *out, size_t n) {
+ * embedded texture ("*N", or a name the scene's embedded textures carry
+ * and no file has) is written to the texture cache and out names that file
+ * (io/texture_embed.h; s->textures_embedded); -1 if that fails (*e). */
+static int texture_path(const struct aiScene *sc, const struct aiMaterial *am, const char *model,
+                        char *out, size_t n, cv_import_stats *s, cv_err *e) {
   struct aiString tp;
   if (aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tp, NULL, NULL, NULL, NULL, NULL,
                            NULL) != aiReturn_SUCCESS &&
       aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tp, NULL, NULL, NULL, NULL, NULL,
                            NULL) != aiReturn_SUCCESS)
     return 0;
+  if (sc->mNumTextures || tp.data[0] == '*') {
+    int emb = cv_texture_embedded_file(sc, tp.data, out, n, e);
+    if (emb) {
+      s->textures_embedded += emb > 0;
+      return emb;
+    }
+  }
   const char *slash = strrchr(model, '/');
   int dir = slash ? (int)(slash - model) + 1 : 0;
   if (tp.data[0] == '/' || dir == 0) snprintf(out, n, "%s", tp.data);
   else snprintf(out, n, "%.*s%s", dir, model, tp.data);
+  if (access(out, F_OK) != 0 && strchr(tp.data, '\\')) {
+    /* Windows separators (".\\wood.jpg" in MTL files written on Windows) */
+    const size_t off = strlen(out) - strlen(tp.data);
+    for (char *p = out + off; *p; p++)
+      if (*p == '\\') *p = '/';
+  }
   char abs[PATH_MAX]; /* absolute, so that a .prt works from any directory */
   if (realpath(out, abs) && strlen(abs) < n) memcpy(out, abs, strlen(abs) + 1);
   return 1;
 }
 
-static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *model,
-                        const cv_import_opts *o, uint8_t *ov_used, cv_import_stats *s) {
+/* Counts an unread texture, keeping the first reason. */
+static void texture_unread(cv_import_stats *s, const char *nm, const char *why) {
+  if (s->textures_unread++) return;
+  char line[640];
+  snprintf(line, sizeof line, "material '%.40s': %.512s", nm, why);
+  snprintf(s->texture_error, sizeof s->texture_error, "%.319s", line);
+}
+
+static int add_material(cv_mesh *m, const struct aiScene *sc, const struct aiMaterial *am,
+                        const char *model, const cv_import_opts *o, uint8_t *ov_used,
+                        cv_import_stats *s) {
   struct aiString name;
   char nm[64] = "unnamed";
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS) {
@@ -202,17 +228,21 @@ static int add_material(cv_mesh *m, const struct aiMaterial *am, const char *mod
   }
   char tex[4096];
   double mean[3];
-  int textured = 0;
-  if (texture_path(am, model, tex, sizeof tex)) {
+  int textured = 0, tp;
+  cv_err e;
+  cv_err_clear(&e);
+  if ((tp = texture_path(sc, am, model, tex, sizeof tex, s, &e)) < 0) {
+    texture_unread(s, nm, e.msg);
+  } else if (tp) {
     if (strlen(tex) >= CV_TEX_PATH_MAX) {
-      s->textures_unread++; /* path too long to keep */
-    } else if (texture_mean(tex, mean) == 0) {
+      texture_unread(s, nm, "texture path longer than 255 bytes"); /* too long to keep */
+    } else if (texture_mean(tex, mean, &e) == 0) {
       textured = 1;
       /* the colour factor multiplies the texture (glTF 2.0 spec; MTL Kd x map_Kd) */
       for (int k = 0; k < 3; k++) alb[k] = (float)((alb[k] < 0 ? 1.0 : alb[k]) * mean[k]);
       s->textures_averaged++;
     } else {
-      s->textures_unread++;
+      texture_unread(s, nm, e.msg);
     }
   }
   if (alb[0] < 0) {
@@ -370,7 +400,7 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
   for (unsigned i = 0; i < sc->mNumMaterials; i++) {
     if (matmap[i] < 0) continue;
     matmap[i] = (int32_t)m->nm;
-    if (add_material(m, sc->mMaterials[i], path, opts, ov_used, s)) {
+    if (add_material(m, sc, sc->mMaterials[i], path, opts, ov_used, s)) {
       st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
       goto done;
     }

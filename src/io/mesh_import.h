@@ -79,8 +79,11 @@ typedef struct cv_import_stats {
   size_t overrides_applied; /* overrides that matched a kept material */
   size_t overrides_unused;  /* overrides whose name matched no kept material */
   size_t textures_averaged; /* materials whose albedo is their diffuse texture's mean */
-  size_t textures_unread;   /* materials whose texture is missing, embedded or not a PNG
-                               (their colour is used alone) */
+  size_t textures_unread;   /* materials whose texture could not be read: missing, not a
+                               PNG or JPEG, corrupt (their colour is used alone) */
+  size_t textures_embedded; /* textures embedded in the model, written to the texture
+                               cache (io/texture_embed.h) */
+  char texture_error[320];  /* why the first unread texture was not read ("" if none) */
   cv_file_frame frame;      /* units and up axis the file declares (glTF: metres, Y up by
                                its specification; FBX: UnitScaleFactor (cm) and UpAxis
                                metadata; COLLADA and IFC: converted by assimp, so

@@ -182,6 +182,10 @@ void cvr_bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const
     cvr_uni_f(p, "u_shadow_bias", r->shadow_bias);
     cvr_uni_f(p, "u_sigma", facing * (float)r->shadow_detsign);
   }
+  if (r->tex_albedo) {
+    glActiveTexture(GL_TEXTURE0 + U_ALBEDO);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_albedo);
+  }
   glActiveTexture(GL_TEXTURE0 + U_SHADOW);
   glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
   glActiveTexture(GL_TEXTURE0 + U_BG);
@@ -342,7 +346,8 @@ int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out
   double t0 = cvr_tick(r);
   if ((st = cvr_ensure_lum(r, out->w, out->h, err))) return st;
   GLuint pg, pb, pn = 0;
-  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
+  const int split = r->has_sun && r->sun_split,
+            panel = (r->panel_on ? F_PANEL : 0) | (r->tex_albedo ? F_TEX : 0);
   if ((st = cvr_variant(r, K_PRT, F_LUM | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
       (split && (st = cvr_variant(r, K_PRT, F_LUM | panel, &pn, err))) ||
       (st = cvr_variant(r, K_BG, F_LUM, &pb, err)))
@@ -429,7 +434,8 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
     if (!r->tone_ok) flags |= F_EXACT;
   }
   GLuint pg, pb, pn = 0;
-  const int split = r->has_sun && r->sun_split, panel = r->panel_on ? F_PANEL : 0;
+  const int split = r->has_sun && r->sun_split,
+            panel = (r->panel_on ? F_PANEL : 0) | (r->tex_albedo ? F_TEX : 0);
   if ((st = cvr_ensure_main(r, W, H, cvr_disp_fmt(r, 0, ss), err)) || (ss > 1 && (st = cvr_ensure_res(r, v->w, v->h, err))) ||
       (st = cvr_variant(r, K_PRT, flags | (r->has_sun ? F_SUN : 0) | panel, &pg, err)) ||
       (split && (st = cvr_variant(r, K_PRT, flags | panel, &pn, err))) ||

@@ -8,6 +8,8 @@
  *   tex_transfer texture buffer over the transfer: per vertex nc texels
  *                (td_i, ti_R,i, ti_G,i, ti_B,i) then the albedo
  *   buf_alb      vertex albedo, attribute 2 (the sun's direct term)
+ *   buf_uvl      textured scenes: (u, v, layer) per vertex, attribute 3;
+ *                tex_albedo the texture array (render_texture.c)
  *   fbo_main     shading targets (display, HDR: RGBA32F textures) + depth
  *   fbo_res      the supersampling resolve targets; fbo_lum the luminance pass
  *   fbo_shadow   the sun's shadow map (depth texture with compare mode) */
@@ -90,7 +92,7 @@ void cvr_set_samplers(GLuint p) {
     int unit;
   } tab[] = {{"u_transfer", U_TRANSFER}, {"u_shadow", U_SHADOW},
              {"u_bg", U_BG}, {"u_src", U_SRC}, {"u_panel", U_PANEL},
-             {"u_tone", U_TONE}};
+             {"u_tone", U_TONE}, {"u_albedo", U_ALBEDO}};
   glUseProgram(p);
   for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
     GLint loc = glGetUniformLocation(p, tab[i].name);
@@ -133,12 +135,13 @@ int cvr_build(const char *vs_name, const char *fs_name, const char *defines, con
 int cvr_variant(cv_renderer *r, int kind, int flags, GLuint *out, cv_err *err) {
   if (!r->prog_var[kind][flags]) {
     char defs[320];
-    snprintf(defs, sizeof defs, "%s%s%s%s%s%s%s#define LUT_DRAGO_SEGS %d\n",
+    snprintf(defs, sizeof defs, "%s%s%s%s%s%s%s%s#define LUT_DRAGO_SEGS %d\n",
              flags & F_SUN ? "#define SUN\n" : "",
              flags & F_TRANSFER ? "#define TRANSFER\n" : "",
              flags & F_DISP ? "#define OUT_DISPLAY\n" : "", flags & F_HDR ? "#define OUT_HDR\n" : "",
              flags & F_LUM ? "#define OUT_LUM\n" : "", flags & F_PANEL ? "#define PANEL\n" : "",
-             flags & F_EXACT ? "#define DRAGO_EXACT\n" : "", LUT_DRAGO_SEGS);
+             flags & F_EXACT ? "#define DRAGO_EXACT\n" : "",
+             flags & F_TEX ? "#define TEXTURE\n" : "", LUT_DRAGO_SEGS);
     int st = kind == K_PRT ? cvr_build("geom.vert", "prt.frag", defs, NULL, &r->prog_var[kind][flags], err)
                            : cvr_build("fullscreen.vert", "background.frag", defs, NULL,
                                    &r->prog_var[kind][flags], err);
@@ -378,7 +381,9 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
       old_of[next] = (uint32_t)v;
       new_of[v] = next++;
     }
-  /* No textures here yet: a textured receiver gets its mean albedo back. */
+  /* Sampled textures (render_texture.c: p is then the split PRT, without
+   * the texture flag, so the scale is 1) multiply the pixels; a textured
+   * PRT drawn without them gets its mean albedo back. */
   float *usc = malloc(3 * p->nv * sizeof *usc + 4);
   if (!usc || cv_prt_untextured_scale(p, usc)) {
     free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb), free(usc);
@@ -423,6 +428,21 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * p->nv * sizeof(float)), alb, GL_STATIC_DRAW);
   glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, 0, 0);
   glEnableVertexAttribArray(2);
+  if (r->tex_uvl) { /* (u, v, layer) in the renumbered order */
+    float *uvl = malloc(3 * p->nv * sizeof *uvl + 4);
+    if (!uvl) {
+      free(idx), free(tf), free(th), free(old_of), free(new_of), free(alb), free(pos);
+      return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
+    }
+    for (size_t v = 0; v < p->nv; v++)
+      for (int j = 0; j < 3; j++) uvl[3 * v + j] = r->tex_uvl[3 * old_of[v] + j];
+    glGenBuffers(1, &r->buf_uvl);
+    glBindBuffer(GL_ARRAY_BUFFER, r->buf_uvl);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * p->nv * sizeof(float)), uvl, GL_STATIC_DRAW);
+    glVertexAttribPointer(3, 3, GL_FLOAT, GL_FALSE, 0, 0);
+    glEnableVertexAttribArray(3);
+    free(uvl);
+  }
   glGenBuffers(1, &r->buf_idx);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx);
   glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * nt * sizeof *idx + 4), idx, GL_STATIC_DRAW);
@@ -465,10 +485,20 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &tex_max);
   if (tex_max < r->max_rb) r->max_rb = tex_max;
   r->nc = (int)(prt->bands * prt->bands);
+  cv_prt *split = NULL; /* textured: vertices split at UV seams (render_texture.c) */
+  if ((st = cvr_texture_prepare(r, prt, &split, err))) {
+    cv_renderer_destroy(r);
+    return st;
+  }
+  if (split) prt = split;
   r->nv = prt->nv;
   char defs[64];
   snprintf(defs, sizeof defs, "#define NC %d\n", r->nc);
-  if ((st = cvr_upload_scene(r, prt, err)) ||
+  st = cvr_upload_scene(r, prt, err);
+  cv_prt_destroy(split);
+  free(r->tex_uvl);
+  r->tex_uvl = NULL;
+  if (st ||
       (st = cvr_build("relight.vert", NULL, defs, "v_out", &r->prog_relight, err)) ||
       (st = cvr_build("geom.vert", "depth.frag", "#define DEPTH_ONLY\n", NULL, &r->prog_depth, err)) ||
       (st = cvr_build("geom.vert", "unlit.frag", "", NULL, &r->prog_unlit, err)) ||
@@ -494,11 +524,11 @@ void cv_renderer_destroy(cv_renderer *r) {
   if (!r) return;
   if (r->egl.dpy && cv_egl_make_current(&r->egl) == CV_OK) {
     GLuint bufs[] = {r->buf_pos, r->buf_rad, r->buf_idx, r->buf_transfer, r->buf_alb,
-                     r->buf_idx_sun};
-    glDeleteBuffers(6, bufs);
+                     r->buf_idx_sun, r->buf_uvl};
+    glDeleteBuffers(7, bufs);
     GLuint tex[] = {r->tex_transfer, r->tex_bg, r->tex_shadow, r->tex_disp, r->tex_hdr,
-                    r->tex_panel};
-    glDeleteTextures(6, tex);
+                    r->tex_panel, r->tex_albedo};
+    glDeleteTextures(7, tex);
     GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
                     r->rb_tiny};
     glDeleteRenderbuffers(6, rbs);
@@ -527,6 +557,7 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->md_off);
   free(r->run);
   free(r->rgba8);
+  free(r->tex_uvl);
   free(r);
 }
 

@@ -114,12 +114,28 @@ typedef struct cv_frame_timing {
   double unlit_ms;      /* unlit reference pass (cv_renderer_unlit) */
 } cv_frame_timing;
 
+/* Albedo textures of a textured PRT (CV_PRT_TEXTURED; render_texture.c):
+ * a pixel on a textured triangle is texture(uv) x the relit radiance, as in
+ * `cave shade --view`.  A texture that cannot be read is not an error: its
+ * material shows its stored albedo (the texture's mean) and is counted. */
+typedef struct cv_render_tex_info {
+  int layers;            /* textured materials (layers of the texture array); 0: none */
+  int w, h;              /* the layers' size in texels (the largest texture's, halved
+                            until the array fits 1 GiB and the GL's limits) */
+  int unread;            /* textures that could not be read (shown as their mean) */
+  size_t split_vertices; /* vertices added where triangle corners' UVs differ */
+  char first_error[320]; /* the first unread texture's message, "" if none */
+} cv_render_tex_info;
+
 /* Relighting counts of the last cv_renderer_set_lighting. */
 typedef struct cv_render_light_stats {
   uint64_t clamped; /* vertex channels negative (SH ringing) or non-finite, set to 0 */
 } cv_render_light_stats;
 
 typedef struct cv_renderer cv_renderer;
+
+/* Albedo textures: fills info (cv_render_tex_info above); returns info->layers. */
+int cv_renderer_textures(const cv_renderer *r, cv_render_tex_info *info);
 
 /* Starts EGL + GL, uploads the PRT's opaque triangles, positions and
  * transfer (copied: prt may be freed afterwards), builds the programs.

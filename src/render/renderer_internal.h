@@ -5,6 +5,7 @@
  *   render_passes.c   targets, read-back, the luminance / depth / shading
  *                     passes, Drago tables, the unlit reference
  *   render_present.c  window presentation and swap
+ *   render_texture.c  albedo textures: vertex split at UV seams, texture array
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -26,10 +27,12 @@
 #include "view/cave.h"
 #include "sh/sh.h"
 
-enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64 };
-#define NVARIANT 128
+enum { F_SUN = 1, F_TRANSFER = 2, F_DISP = 4, F_HDR = 8, F_LUM = 16, F_PANEL = 32, F_EXACT = 64,
+       F_TEX = 128 /* albedo textures (render_texture.c) */ };
+#define NVARIANT 256
 enum { K_PRT = 0, K_BG = 1 };
-enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6 }; /* texture units */
+enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 6,
+       U_ALBEDO = 7 }; /* texture units */
 
 /* Drago table (common.glsl, cv_drago_table): Ld as a function of y = x / Lwmax'
  * over [2^-126, 1), a piecewise cubic with one RGBA32F texel of
@@ -108,6 +111,14 @@ struct cv_renderer {
   int sun_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
+  /* albedo textures (render_texture.c): the array (0 = none), its layers and
+   * size, textures that could not be read (+ the first message), vertices
+   * added by the split, and (u, v, layer) per vertex until the upload */
+  GLuint tex_albedo, buf_uvl;
+  int tex_layers, tex_w, tex_h, tex_missing;
+  size_t tex_split;
+  char tex_msg[320];
+  float *tex_uvl;
 };
 
 enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
@@ -158,5 +169,6 @@ size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part);
 void cvr_draw_fullscreen(const cv_renderer *r);
 void cvr_depth_pass(cv_renderer *r, const float mvp[16], int W, int H);
 void cvr_shading_depth_state(const cv_renderer *r);
+int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err *err);
 
 #endif

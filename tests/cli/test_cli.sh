@@ -134,6 +134,34 @@ if [ -r $R01 ]; then
   expect_ok "shade a textured view" $CAVE shade boxt.prt --env-constant 1,1,1 --view 1.5,1.2,2 --look 0,0,0 --size 320x240 -o boxt.png
   grep -q "^texture: material 'Texture': .*CesiumLogoFlat.png (211 x 211)" out.txt && [ -s boxt.png ] && ok "texture used in the view" || { bad "texture in the view"; cat out.txt; }
   expect_ok "shade a textured PLY" $CAVE shade boxt.prt --env-constant 1,1,1 -o boxt.ply
+  # ... and in the GL renderer (`cave render`; looked at: the logo on the box's front face)
+  printf '{ "walls": [ {"name": "front", "pa": [-1.5, 0, -1.5], "pb": [1.5, 0, -1.5], "pc": [-1.5, 3, -1.5], "res": [160, 160]} ],\n  "head": [0, 1.2, 0], "gaze": [0, 0, -1], "scene_offset": [0, -1, 2.2], "near": 0.05, "far": 50 }\n' >boxcave.json
+  expect_ok "render a textured glTF" $CAVE render boxcave.json --scene boxt.prt --env-constant 1,1,1 -o boxrnd
+  grep -q "^textures: 1 materials, 211 x 211 texels per layer" out.txt && [ -s boxrnd/front_L.png ] && ok "texture used by the renderer" || { bad "texture in the renderer"; cat out.txt; }
+  # embedded textures (a .glb's buffer): written to the texture cache, used like a file
+  export CAVE_TEXTURE_DIR=$PWD/texcache
+  BOXB=/usr/share/assimp/models/glTF2/BoxTextured-glTF-Binary/BoxTextured.glb
+  expect_ok "bake a glb with an embedded texture" $CAVE bake $BOXB -o boxb.prt --bands 3 --rays 16 --bounces 0
+  grep -q "^scene: 1 embedded textures written to the texture cache" out.txt && ok "embedded texture extracted" || { bad "embedded texture"; cat out.txt; }
+  expect_ok "render a glb with an embedded texture" $CAVE render boxcave.json --scene boxb.prt --env-constant 1,1,1 -o boxbrnd
+  grep -q "^textures: 1 materials, 211 x 211 texels per layer" out.txt && ok "embedded texture in the renderer" || { bad "embedded texture in the renderer"; cat out.txt; }
+  expect_ok "shade a glb with an embedded texture" $CAVE shade boxb.prt --env-constant 1,1,1 --view 1.5,1.2,2 --look 0,0,0 --size 64x48 -o boxb.png
+  grep -q "^texture: material 'Texture': .*texcache/embedded-[0-9a-f]*.png (211 x 211)" out.txt && ok "embedded texture in the view" || { bad "embedded texture in the view"; cat out.txt; }
+  # JPEG textures (spider.obj: four .jpg named with Windows separators)
+  expect_ok "materials with JPEG textures" $CAVE materials /usr/share/assimp/models/OBJ/spider.obj
+  grep -q "^scene: 4 textured materials use their texture's mean albedo" out.txt && ok "JPEG textures averaged" || { bad "JPEG textures"; cat out.txt; }
+  expect_ok "bake with JPEG textures" $CAVE bake /usr/share/assimp/models/OBJ/spider.obj --units cm -o spider.prt --bands 2 --rays 8 --bounces 0 --quiet
+  expect_ok "render with JPEG textures" $CAVE render boxcave.json --scene spider.prt --env-constant 1,1,1 --size 32 -o spiderrnd
+  grep -q "^textures: 4 materials" out.txt && ok "JPEG textures in the renderer" || { bad "JPEG textures in the renderer"; cat out.txt; }
+  # a texture gone after the bake: a warning, the mean albedo, exit 0
+  mkdir -p gone && cp /usr/share/assimp/models/glTF2/BoxTextured-glTF/* gone/
+  expect_ok "bake a textured glTF (copy)" $CAVE bake gone/BoxTextured.gltf -o gone.prt --bands 2 --rays 8 --bounces 0 --quiet
+  rm gone/CesiumLogoFlat.png
+  expect_ok "shade with a missing texture" $CAVE shade gone.prt --env-constant 1,1,1 --view 1.5,1.2,2 --look 0,0,0 --size 32x24 -o gone.png
+  grep -q "^warning: 1 textures could not be read and show their mean albedo" out.txt && ok "missing texture warned (shade)" || { bad "missing texture (shade)"; cat out.txt; }
+  expect_ok "render with a missing texture" $CAVE render boxcave.json --scene gone.prt --env-constant 1,1,1 --size 32 -o gonernd
+  grep -q "^warning: 1 textures could not be read and show their mean albedo; first: material 'Texture' texture: .*CesiumLogoFlat.png: cannot open" out.txt && ok "missing texture warned (render)" || { bad "missing texture (render)"; cat out.txt; }
+  unset CAVE_TEXTURE_DIR
 else
   bad "assimp-testmodels missing (cluster/setup.sh installs it)"
 fi
