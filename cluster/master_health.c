@@ -72,7 +72,7 @@ void master_health_sent(master *m) {
 static void gather_dead(master *m, int r, double silent) {
   fprintf(stderr,
           "cave run: master: rank %d (gather-only) silent for %.1f s: declared dead; "
-          "the LCD goes on without it\n",
+          "its LCD rounds go to the others\n",
           r, silent);
   if (m->lcd_red && !m->lcd_red_abandoned) { /* the others learn it from the notice */
     cv_lcd_reduce_abandon(m->lcd_red);
