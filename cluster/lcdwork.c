@@ -19,6 +19,7 @@
 
 #include "lcd/brdf.h"
 #include "lcd/gather.h"
+#include "lcd/panels.h"
 #include "lcdwork.h"
 #include "prt/bake.h"
 #include "service/lcdshare.h"
@@ -36,9 +37,11 @@ struct cv_lcd_worker {
   int index, idle;
   cv_mesh *mesh;
   cv_tracer *tr;
-  cv_brdf *brdf;
-  cv_lcd_gather *g;
+  cv_lcd_panels *ps;    /* the scene config's panels (s->lcd), as `cave lcd` renders them */
   cv_lcd_params p;
+  cv_lcd_veil_params vp;
+  cv_lcd_figure veil[CV_LCD_MAX_PANELS]; /* of the current key (traced once per key) */
+  int have_veil;
   /* state shared with the owner (mutex) */
   pthread_mutex_t mu;
   pthread_cond_t cv;
@@ -68,21 +71,19 @@ static int worker_init(cv_lcd_worker *w, cv_err *err) {
   if (st) return cv_err_set(err, st, "LCD: cannot rebuild the scene mesh from %s", w->s->o.scene_path);
   st = cv_tracer_create(w->mesh, &w->tr, err);
   if (st) return st;
-  cv_lcd_panel panel;
-  st = cv_lcd_panel_from_mesh(w->mesh, &panel, err);
-  if (st) return st;
-  cv_antiglare_params ap;
-  cv_antiglare_default(&ap);
-  st = cv_brdf_antiglare(&ap, 91, 181, &w->brdf);
-  if (st) return cv_err_set(err, st, "LCD: cannot tabulate the anti-glare BRDF");
-  st = cv_lcd_gather_create(cv_tracer_rt(w->tr), w->mesh, &panel, w->brdf, &w->g, err);
+  const cv_lcd_config *lc = &w->s->lcd;
+  st = cv_lcd_panels_create(lc, &w->s->lcd_layout, cv_tracer_rt(w->tr), w->mesh, &w->ps, err);
   if (st) return st;
   cv_lcd_params_default(&w->p);
-  w->p.w = w->s->o.lcd_w;
-  w->p.h = w->s->o.lcd_h;
-  w->p.spp = w->s->o.lcd_spp;
-  w->p.seed = w->s->o.seed;
+  w->p.w = w->s->lcd_layout.w[0];
+  w->p.h = w->s->lcd_layout.h[0];
+  w->p.spp = lc->spp;
+  w->p.seed = lc->seed;
+  w->p.brdf_fraction = lc->brdf_fraction;
   w->p.threads = 1;
+  cv_lcd_veil_params_default(&w->vp);
+  w->vp.age = lc->age;
+  w->vp.pigment = lc->pigment;
   return CV_OK;
 }
 
@@ -95,7 +96,9 @@ static int snapshot_lighting(cv_lcd_worker *w, const cv_frame_state *fs, cv_lcd_
   cv_drive_to_light_spec(w->s->drive, &fs->drive, &spec);
   cv_lcd_light *nl = NULL;
   int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, err);
-  if (st == CV_OK) st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, 4, 256, &nl, err);
+  if (st == CV_OK)
+    st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, w->s->lcd.sun_samples,
+                                 w->s->lcd.env_width, &nl, err);
   cv_scene_light_destroy(sl);
   if (st) return st;
   cv_lcd_light_destroy(*ll);
@@ -115,8 +118,11 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
   cv_lcd_accum *acc = NULL;
-  if (cv_lcd_accum_create(w->p.w, w->p.h, clamp, &acc) != CV_OK ||
-      cv_lcd_render_round(w->g, ll, &w->p, round, acc) != CV_OK) {
+  int st = cv_lcd_accum_create(w->s->lcd_layout.W, w->s->lcd_layout.H, clamp, &acc);
+  if (st == CV_OK) st = cv_lcd_panels_round(w->ps, ll, &w->p, round, acc);
+  for (int i = 0; st == CV_OK && w->have_veil && i < w->s->lcd_layout.n; i++)
+    st = cv_lcd_accum_set_veil(acc, i, w->veil[i].value, w->veil[i].se);
+  if (st != CV_OK) {
     cv_lcd_accum_destroy(acc);
     char m[64];
     snprintf(m, sizeof m, "round %u failed", round);
@@ -232,24 +238,31 @@ static void *worker_main(void *arg) {
       }
       light_key = fs.light_key;
       have_light = 1;
-      clamp = cv_lcd_default_clamp(ll, w->brdf);
+      clamp = cv_lcd_panels_clamp(w->ps, ll, w->s->lcd.clamp);
       have_key = 0;
     }
     float eye[3];
     for (int a = 0; a < 3; a++) eye[a] = (float)(fs.head[a] + w->s->cave.scene_offset[a]);
-    const uint64_t setup = cv_lcd_setup_hash(w->g, &w->p, clamp, w->s->o.lcd_tolerance, 0);
+    const uint64_t setup = cv_lcd_panels_setup_hash(w->ps, &w->p, clamp, w->s->o.lcd_tolerance, 0);
     cv_lcd_key nk;
     if (cv_lcd_key_make(eye, w->s->o.lcd_tolerance, light_key, setup, &nk) != CV_OK ||
         cv_service_lcd_key(nk.eye_q, light_key) != fs.lcd_key) { /* not the master's key */
       have_fs = 0;
       continue;
     }
-    pthread_mutex_lock(&w->mu);
-    if (!have_key || !cv_lcd_key_equal(&nk, &key)) {
+    const int new_key = !have_key || !cv_lcd_key_equal(&nk, &key);
+    if (new_key) {
       key = nk;
       have_key = 1;
       key_frame = fs.frame;
       cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
+      /* the key's veils (a pure function of its eye and lighting: every
+       * contributor stores the same values in its rounds) */
+      double sun_deg[CV_LCD_MAX_PANELS];
+      w->have_veil = cv_lcd_panels_veils(w->ps, ll, w->p.eye, &w->vp, w->veil, sun_deg) == CV_OK;
+    }
+    pthread_mutex_lock(&w->mu);
+    if (new_key) { /* its rounds start over */
       memset(w->taken, 0, (size_t)w->s->o.lcd_budget);
       w->cursor = 0;
       w->floor = fs.lcd_dead_floor; /* fs is of this key */
@@ -353,8 +366,7 @@ void cv_lcd_worker_destroy(cv_lcd_worker *w) {
     free(n->buf);
     free(n);
   }
-  cv_lcd_gather_destroy(w->g);
-  cv_brdf_destroy(w->brdf);
+  cv_lcd_panels_destroy(w->ps);
   cv_tracer_destroy(w->tr);
   cv_mesh_destroy(w->mesh);
   pthread_mutex_destroy(&w->mu);

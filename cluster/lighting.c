@@ -28,12 +28,13 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->reflectance = -1; /* the config's screens.reflectance */
   o->compensation_ms = 20;
   o->lcd = 1;
-  o->lcd_w = 400;
-  o->lcd_h = 300;
-  o->lcd_spp = 40;
+  /* the LCD model is the scene config's lcd block, as in `cave lcd` (run.c) */
+  o->lcd_w = 0;
+  o->lcd_h = 0;
+  o->lcd_spp = 0;
   o->lcd_budget = 64;
-  o->lcd_tolerance = 0.02;
-  o->lcd_luminance = CV_LCD_WHITE_DEFAULT; /* the same panel white as `cave lcd` */
+  o->lcd_tolerance = 0;
+  o->lcd_luminance = -1;
   o->lcd_idle = 1;
   o->seed = 1;
   o->present = CV_PRESENT_FILES;

@@ -41,7 +41,7 @@ if [ "$(id -u)" -eq 0 ]; then MPI+=(--allow-run-as-root); fi
 # appear in metrics.jsonl with their key and age; the LCD image of the last
 # pose is then summed to its budget of 16 rounds (640 samples per texel).
 "${MPI[@]}" "$CAVE" run "$CAVE_ROOT/configs/caves/cave5.json" \
-  --scene "$OUT/default.prt" \
+  --scene "$OUT/default.prt" --scene-config "$CAVE_ROOT/configs/scenes/default.json" \
   --drive "$CAVE_ROOT/configs/drives/default.json" \
   --head-path "$CAVE_ROOT/configs/heads/default.txt" \
   --frames "$FRAMES" --dt 0.3 --size "$SIZE" --write-every 12 \

@@ -170,9 +170,8 @@ static int master_setup(master *m, cv_err *err) {
         cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->n_contributors,
                              s->lcd_members, 0, &m->lcd_red))
       return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory (LCD reduction)");
-    st = cv_lcd_content_load(s->o.lcd_content, s->o.lcd_w, s->o.lcd_h, m->lcd_aspect,
-                             s->o.lcd_luminance, CV_LCD_BLACK_LEVEL * s->o.lcd_luminance,
-                             &m->lcd_content, err);
+    /* every panel's content at its white and black, stacked (lcd/panels.h) */
+    st = cv_lcd_layout_content(&s->lcd, &s->lcd_layout, &m->lcd_content, err);
     if (st) return st;
   }
   m->cap = s->o.frames > 0 ? (size_t)s->o.frames + 64 : 1u << 16;

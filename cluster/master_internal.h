@@ -111,8 +111,12 @@ typedef struct master {
     uint32_t rounds;      /* rounds it holds */
     uint32_t frame;       /* frame whose head and lighting it is of */
     double t;             /* service time it was computed */
-    cv_lcd_figure L_r, cr, area, vl;
-    double L_a, cr_min;
+    double cr_min;
+    int veil;             /* the rounds carried the veil (always, but from older ranks) */
+    struct {              /* per panel (s->lcd.panels) */
+      cv_lcd_figure L_r, L_v, cr, area, vl;
+      double L_a;
+    } p[CV_LCD_MAX_PANELS];
   } lread;
   /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
   cv_mailbox **rep_mb;

@@ -216,9 +216,10 @@ void lcd_publish(master *m, int force) {
   m->lcd_sent_rounds = m->lcd_rounds;
 }
 
-/* The figures from the reflection alone: the veil needs the eye's view
- * traced (cave lcd does it), which the master, holding no geometry, does
- * not; the adaptation is the shared (Pattanaik) one. */
+/* The figures of every panel, as `cave lcd` computes them: the reflection
+ * from the panel's rows of the stacked sum, the veil from the rounds (each
+ * contributor traced it from the key's eye: lcdwork.c); the adaptation is
+ * the shared (Pattanaik) one. */
 void lcd_readability_update(master *m) {
   /* the current key's estimate when it has rounds, else the newest
    * snapshot of an earlier key (while the head or the lighting moves) */
@@ -233,28 +234,54 @@ void lcd_readability_update(master *m) {
   }
   if (!acc || rounds == 0 || (m->lread.valid && m->lread.key == key && m->lread.rounds == rounds))
     return;
-  cv_lcd_read_params rp;
-  cv_lcd_read_params_default(&rp);
-  rp.white = m->s->o.lcd_luminance;
-  rp.black = CV_LCD_BLACK_LEVEL * rp.white;
-  rp.adaptation = m->have_adapt ? cv_adapt_lwa(&m->ad) : 0;
-  const cv_lcd_figure no_veil = {0, 0};
-  cv_lcd_readability rd;
-  cv_err err;
-  if (cv_lcd_readability_compute(acc, &rp, &no_veil, &rd, &err) != CV_OK) return;
+  const cv_lcd_config *lc = &m->s->lcd;
+  const cv_lcd_layout *L = &m->s->lcd_layout;
+  for (int i = 0; i < L->n; i++) {
+    cv_lcd_read_params rp;
+    cv_lcd_read_params_default(&rp);
+    rp.white = lc->panels[i].content_luminance;
+    rp.black = lc->panels[i].black_luminance;
+    rp.cr_min = lc->cr_min;
+    rp.adaptation = m->have_adapt ? cv_adapt_lwa(&m->ad) : 0;
+    cv_lcd_accum *crop = NULL;
+    cv_lcd_figure lv = {0, 0};
+    cv_lcd_readability rd;
+    cv_err err;
+    if (cv_lcd_layout_crop(L, acc, i, &crop) != CV_OK) return;
+    m->lread.veil = cv_lcd_accum_veil(crop, 0, &lv.value, &lv.se);
+    const int st = cv_lcd_readability_compute(crop, &rp, &lv, &rd, &err);
+    cv_lcd_accum_destroy(crop);
+    if (st != CV_OK) return;
+    m->lread.p[i].L_r = rd.L_r;
+    m->lread.p[i].L_v = rd.L_v;
+    m->lread.p[i].cr = rd.cr_mean;
+    m->lread.p[i].area = rd.frac_ok;
+    m->lread.p[i].vl = rd.vl;
+    m->lread.p[i].L_a = rd.L_a.value;
+    m->lread.cr_min = rd.cr_min;
+    cv_lcd_readability_free(&rd);
+  }
   m->lread.valid = 1;
   m->lread.key = key;
   m->lread.rounds = rounds;
   m->lread.frame = frame;
   /* its age: since the frame whose head and lighting it is of started */
   m->lread.t = frame < m->cap && m->frame_t[frame] > 0 ? m->frame_t[frame] : cv_service_now();
-  m->lread.L_r = rd.L_r;
-  m->lread.cr = rd.cr_mean;
-  m->lread.area = rd.frac_ok;
-  m->lread.vl = rd.vl;
-  m->lread.L_a = rd.L_a.value;
-  m->lread.cr_min = rd.cr_min;
-  cv_lcd_readability_free(&rd);
+}
+
+/* One panel's figures (cd/m2, ratios, shares; docs/metrics.md). */
+static void panel_metrics(master *m, cv_metrics_line *ml, int i) {
+  cv_metrics_double(ml, "reflected_luminance", m->lread.p[i].L_r.value);
+  cv_metrics_double(ml, "reflected_luminance_se", m->lread.p[i].L_r.se);
+  cv_metrics_double(ml, "veiling_luminance", m->lread.p[i].L_v.value);
+  cv_metrics_double(ml, "veiling_luminance_se", m->lread.p[i].L_v.se);
+  cv_metrics_double(ml, "contrast_ratio", m->lread.p[i].cr.value);
+  cv_metrics_double(ml, "contrast_ratio_se", m->lread.p[i].cr.se);
+  cv_metrics_double(ml, "area_meeting_cr_min", m->lread.p[i].area.value);
+  cv_metrics_double(ml, "area_meeting_cr_min_se", m->lread.p[i].area.se);
+  cv_metrics_double(ml, "visibility_level", m->lread.p[i].vl.value);
+  cv_metrics_double(ml, "visibility_level_se", m->lread.p[i].vl.se);
+  cv_metrics_double(ml, "adaptation_luminance", m->lread.p[i].L_a);
 }
 
 void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
@@ -267,17 +294,17 @@ void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_uint(ml, "frame", m->lread.frame);
   cv_metrics_double(ml, "age_s", cv_service_now() - m->lread.t);
   cv_metrics_bool(ml, "current", m->lread.key == m->lcd_key);
-  cv_metrics_double(ml, "reflected_luminance", m->lread.L_r.value);
-  cv_metrics_double(ml, "reflected_luminance_se", m->lread.L_r.se);
-  cv_metrics_double(ml, "contrast_ratio", m->lread.cr.value);
-  cv_metrics_double(ml, "contrast_ratio_se", m->lread.cr.se);
   cv_metrics_double(ml, "cr_min", m->lread.cr_min);
-  cv_metrics_double(ml, "area_meeting_cr_min", m->lread.area.value);
-  cv_metrics_double(ml, "area_meeting_cr_min_se", m->lread.area.se);
-  cv_metrics_double(ml, "visibility_level", m->lread.vl.value);
-  cv_metrics_double(ml, "visibility_level_se", m->lread.vl.se);
-  cv_metrics_double(ml, "adaptation_luminance", m->lread.L_a);
-  cv_metrics_bool(ml, "veil_included", 0);
+  cv_metrics_bool(ml, "veil_included", m->lread.veil);
+  /* the first panel's figures here too (one-panel scenes read them here) */
+  panel_metrics(m, ml, 0);
+  cv_metrics_object_begin(ml, "panels");
+  for (int i = 0; i < m->s->lcd_layout.n; i++) {
+    cv_metrics_object_begin(ml, m->s->lcd.panels[i].name);
+    panel_metrics(m, ml, i);
+    cv_metrics_object_end(ml);
+  }
+  cv_metrics_object_end(ml);
   cv_metrics_object_end(ml);
 }
 

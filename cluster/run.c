@@ -95,12 +95,17 @@ static void help(FILE *f) {
           "  --compensation-ms T  time slot of the compensation solve per frame (default 20;\n"
           "                       warm-started from the previous frame)\n"
           "  --no-compensation    no scattering compensation\n"
-          "  --lcd-size WxH       LCD texels (default 400x300)\n"
-          "  --lcd-spp N          samples per texel per round (default 40)\n"
+          "  --scene-config FILE  scene config (configs/scenes/) whose \"lcd\" block sets the LCD\n"
+          "                       model as in `cave lcd` (panels, BRDF, content, white/black,\n"
+          "                       texels, samples, tolerance; docs/scene-config.md); the\n"
+          "                       --lcd-* options below override it\n"
+          "  --lcd-size WxH       LCD texels of each panel (default lcd.resolution: 400 wide,\n"
+          "                       height from the panel's aspect)\n"
+          "  --lcd-spp N          samples per texel per round (default lcd.spp: 40)\n"
           "  --lcd-budget R       rounds per camera/lighting key (default 64)\n"
-          "  --lcd-tolerance M    camera-key quantisation, metres (default 0.02)\n"
-          "  --lcd-content FILE   panel content image (default: built-in test pattern)\n"
-          "  --lcd-luminance L    panel white in cd/m2 (default 500)\n"
+          "  --lcd-tolerance M    camera-key quantisation, metres (default lcd.eye_tolerance: 0.005)\n"
+          "  --lcd-content FILE   panel content image (default lcd.content: built-in test pattern)\n"
+          "  --lcd-luminance L    panel white in cd/m2 (default lcd.content_luminance: 500)\n"
           "  --no-lcd             no LCD final gather\n"
           "  --no-idle-lcd        wall-eyes do not contribute LCD rounds\n"
           "  --lcd-wait           after the frames, wait until the LCD budget is summed\n"
@@ -242,6 +247,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--lcd-content")) {
       NEED();
       PATH(lcd_content);
+    } else if (!strcmp(a, "--scene-config")) {
+      NEED();
+      PATH(scene_config);
     } else if (!strcmp(a, "-o")) {
       NEED();
       PATH(out_dir);
@@ -320,7 +328,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--seed")) {
       NEED();
       if (cv_parse_int(v, 0, 2147483647, &n)) problem(pb, "--seed: expected 0..2^31-1, got '%s'", v);
-      else o->seed = (uint32_t)n;
+      else o->seed = (uint32_t)n, o->seed_set = 1;
     } else if (a[0] == '-') {
       problem(pb, "unknown option '%s' (cave run --help lists them)", a);
     } else if (!o->cave_path[0]) {
@@ -394,6 +402,69 @@ static void check_present(cv_service *s, problems *pb) {
               s->cave.walls[s->cave.outputs[i].wall].name);
 }
 
+/* The LCD model (s->lcd, s->lcd_layout), the same as `cave lcd`'s: the
+ * defaults, the scene config's lcd block, then the --lcd-* options; the
+ * panels placed on the baked scene.  Sets o->lcd_w/h (the stacked buffer),
+ * lcd_spp, lcd_tolerance, lcd_luminance from it.  Every rank runs this and
+ * gets the same result. */
+static void lcd_model(cv_service *s, problems *pb) {
+  cv_run_opts *o = &s->o;
+  cv_lcd_config *c = &s->lcd;
+  cv_err err;
+  cv_lcd_config_default(c);
+  if (o->scene_config[0]) {
+    cv_scene_config sc;
+    cv_scene_config_default(&sc);
+    int st = cv_scene_config_load(o->scene_config, &sc, &err);
+    cv_scene_config_free(&sc);
+    if (st || cv_lcd_config_load_scene(o->scene_config, c, &err)) {
+      problem(pb, "--scene-config: %s", err.msg);
+      return;
+    }
+  }
+  if (o->lcd_w > 0) c->width = o->lcd_w, c->height = o->lcd_h;
+  if (o->lcd_spp > 0) c->spp = o->lcd_spp;
+  if (o->lcd_tolerance > 0) c->eye_tolerance = o->lcd_tolerance;
+  if (o->lcd_content[0]) snprintf(c->content, sizeof c->content, "%s", o->lcd_content);
+  if (o->seed_set) c->seed = o->seed;
+  if (o->lcd_luminance >= 0) {
+    c->content_luminance = o->lcd_luminance;
+    for (int i = 0; i < c->n_panels; i++) c->panels[i].content_luminance = o->lcd_luminance;
+  }
+  if (o->lcd_w > 0)
+    for (int i = 0; i < c->n_panels; i++) c->panels[i].width = c->panels[i].height = 0;
+  if (cv_lcd_config_panels(c, &err)) {
+    problem(pb, "--scene-config: %s", err.msg);
+    return;
+  }
+  for (int i = 0; i < c->n_panels; i++) {
+    const char *b = c->panels[i].brdf;
+    if (strncmp(b, "builtin:", 8) && !file_readable(b))
+      problem(pb, "%s: lcd.panels[%d].brdf: %s: cannot open: %s", o->scene_config, i, b, strerror(errno));
+  }
+  o->lcd_spp = c->spp;
+  o->lcd_tolerance = c->eye_tolerance;
+  o->lcd_luminance = c->panels[0].content_luminance;
+  if (!o->lcd || !o->scene_path[0] || !file_readable(o->scene_path)) return;
+  cv_prt *prt = NULL;
+  cv_mesh *m = NULL;
+  if (cv_prt_read(o->scene_path, &prt, &err)) return; /* reported with --scene */
+  if (cv_prt_to_mesh(prt, &m)) {
+    problem(pb, "--scene: %s: cannot rebuild its mesh", o->scene_path);
+  } else if (cv_lcd_layout_make(c, m, &s->lcd_layout, &err)) {
+    if (o->scene_config[0]) problem(pb, "--scene-config: %s", err.msg);
+    else problem(pb, "--scene: %s: %s (--no-lcd runs without the LCD)", o->scene_path, err.msg);
+  } else {
+    o->lcd_w = s->lcd_layout.W;
+    o->lcd_h = s->lcd_layout.H;
+    if (o->lcd_w > 4096 || o->lcd_h > 4096)
+      problem(pb, "--lcd-size: the panels take %dx%d texels together (4096 x 4096 at most)", o->lcd_w,
+              o->lcd_h);
+  }
+  cv_mesh_destroy(m);
+  cv_prt_destroy(prt);
+}
+
 /* Every check that can be made before anything starts; fills s. */
 static void check_all(cv_service *s, int size, const char *desktop_view, problems *pb) {
   cv_run_opts *o = &s->o;
@@ -463,6 +534,7 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     problem(pb, "--display and --no-compensation contradict each other");
   if (o->lcd_content[0] && !file_readable(o->lcd_content))
     problem(pb, "--lcd-content: %s: cannot open: %s", o->lcd_content, strerror(errno));
+  lcd_model(s, pb);
   if (s->n_walls > 0 && o->compensate) {
     cv_display *d;
     if (cv_service_display(s, &d, &err)) problem(pb, "--display: %s", err.msg);
@@ -497,6 +569,12 @@ static void print_layout(const cv_service *s, int ranks) {
     printf(", gpu %s\n", gpu);
   }
   if (s->n_gather) printf("  ranks %d-%d: gather-only\n", 1 + s->n_render, ranks - 1);
+  if (s->o.lcd && s->lcd_layout.n > 0) { /* the LCD model (docs/readability.md) */
+    printf("  LCD (%s):", s->o.scene_config[0] ? s->o.scene_config : "defaults");
+    for (int i = 0; i < s->lcd_layout.n; i++)
+      printf("%s %s %dx%d", i ? "," : "", s->lcd.panels[i].name, s->lcd_layout.w[i], s->lcd_layout.h[i]);
+    printf(" texels, %d spp per round, eye tolerance %g m\n", s->o.lcd_spp, s->o.lcd_tolerance);
+  }
 }
 
 static int mkdirs(const char *path) {

@@ -17,6 +17,8 @@
 
 #include "core/status.h"
 #include "io/scene_config.h"
+#include "lcd/lcd_config.h"
+#include "lcd/panels.h"
 #include "prt/prt.h"
 #include "service/drive.h"
 #include "service/framestate.h"
@@ -49,7 +51,8 @@ typedef struct cv_run_opts {
   char out_dir[CV_PATHLEN];
   char display_path[CV_PATHLEN]; /* compensation display; "" = generated from the walls */
   char metrics_path[CV_PATHLEN]; /* "" = <out>/metrics.jsonl */
-  char lcd_content[CV_PATHLEN];  /* "" = built-in test pattern */
+  char lcd_content[CV_PATHLEN];  /* "" = the scene config's (built-in test pattern) */
+  char scene_config[CV_PATHLEN]; /* scene config whose "lcd" block sets the LCD model; "" = defaults */
   int dtrack_port;               /* > 0: live DTrack on this UDP port */
   char dtrack_host[64];          /* bind address, default 127.0.0.1 */
   int dtrack_body;               /* body id of the head, default 1 */
@@ -79,13 +82,15 @@ typedef struct cv_run_opts {
   double reflectance;            /* screens of the generated display (default 0.8) */
   double compensation_ms;        /* time slot of the solve per frame (default 20) */
   int lcd;                       /* 1: LCD final gather (default) */
-  int lcd_w, lcd_h, lcd_spp;     /* 400 x 300, 40 */
+  int lcd_w, lcd_h, lcd_spp;     /* after set-up: the stacked panels' buffer (panels.h) and
+                                    samples per round; options: 0 = the scene config's */
   int lcd_budget;                /* rounds per key before a texel is final (default 64) */
-  double lcd_tolerance;          /* camera-key quantisation, metres (default 0.02) */
-  double lcd_luminance;          /* panel white, cd/m2 (default 500) */
+  double lcd_tolerance;          /* camera-key quantisation, metres (0 = the config's, 0.005) */
+  double lcd_luminance;          /* panel white, cd/m2 (< 0 = the config's, 500) */
   int lcd_idle;                  /* 1: wall-eye idle threads contribute rounds (default 1) */
   int lcd_wait;                  /* 1: after the frames, wait until the LCD budget is summed */
   uint32_t seed;
+  int seed_set;                  /* --seed given: it also sets the LCD sequences' seed */
   int quiet;
 } cv_run_opts;
 
@@ -100,6 +105,8 @@ typedef struct cv_service {
   int n_contributors;  /* LCD: wall-eye idle threads (if on) + gather ranks */
   int lcd_members, lcd_me; /* LCD allreduce group (master + gather ranks): size, this rank (-1) */
   cv_cave cave;
+  cv_lcd_config lcd;        /* the LCD model: the scene config's lcd block + options (run.c) */
+  cv_lcd_layout lcd_layout; /* its panels, stacked (o.lcd_w x o.lcd_h) */
   cv_drive *drive;
   volatile sig_atomic_t *stop; /* set by SIGINT / SIGTERM */
 } cv_service;

@@ -10,7 +10,7 @@ CAVE_PACKAGES=(
   libpng-dev libjpeg62-turbo-dev libcmocka-dev libopenmpi-dev openmpi-bin
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libx11-dev
   xvfb xauth xdotool x11-utils python3
-  gnuplot-nox
+  gnuplot-nox linux-perf
   blender-data assimp-testmodels python3-jsonschema
 )
 

@@ -38,6 +38,10 @@
 #include "tonemap/foveal.h"
 #include "view/offaxis.h"
 
+/* Wall-eyes of at most this many shaded pixels skip the z pre-pass
+ * (opts.depth_less), see walleye_setup. */
+#define CV_WALLEYE_ONE_PASS_PIXELS (720L * 720L)
+
 static int send_to_master(const uint8_t *buf, size_t len, void *user) {
   (void)user;
   return cv_comm_send(buf, len, 0, CV_TAG_LCD);
@@ -160,6 +164,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
   cv_render_opts ro;
   cv_render_default_opts(&ro);
   ro.timing = 1;
+  ro.cull_back = -1; /* on when the scene is closed and consistently wound */
+  /* Small wall-eyes shade in one depth-LESS pass: the z pre-pass is a whole
+   * geometry pass, which at 360^2 costs more than shading the overdraw
+   * (docs/benchmarks.md, "Where a CAVE frame's time goes"). */
+  ro.depth_less = (long)we->w * we->h * s->cave.supersample * s->cave.supersample <= CV_WALLEYE_ONE_PASS_PIXELS;
   ro.gpu = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : we->o->gpu;
   if (window) {
     window_spec(we);
@@ -190,13 +199,11 @@ static int walleye_setup(walleye *we, cv_err *err) {
       st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
       if (st) return st;
     }
-  if (s->o.lcd) {
-    /* The panel frame, to show the LCD image on it. */
-    cv_mesh *mesh;
-    if (cv_prt_to_mesh(we->prt, &mesh) == CV_OK) {
-      we->have_panel = cv_lcd_panel_from_mesh(mesh, &we->panel, NULL) == CV_OK;
-      cv_mesh_destroy(mesh);
-    }
+  if (s->o.lcd && s->lcd_layout.n > 0) {
+    /* The first panel's frame, to show its part of the LCD image on it (the
+     * renderer shows one panel). */
+    we->panel = s->lcd_layout.rect[0];
+    we->have_panel = 1;
   }
   const int index = cv_service_contributor(s, s->rank);
   if (index >= 0) {
@@ -257,6 +264,11 @@ static void idle(walleye *we) {
     memcpy(&h, data, sizeof h);
     if ((size_t)len != sizeof h + 3 * (size_t)h.w * h.h * sizeof(float)) continue;
     cv_image img = {.w = h.w, .h = h.h, .c = 3, .px = (float *)(void *)(uintptr_t)(data + sizeof h)};
+    /* the first panel: the top rows of the stacked image (lcd/panels.h),
+     * as wide as the image when the first panel is the widest */
+    if (we->s->lcd_layout.n > 0 && h.w == we->s->lcd_layout.W && h.h == we->s->lcd_layout.H &&
+        we->s->lcd_layout.w[0] == h.w)
+      img.h = we->s->lcd_layout.h[0];
     cv_err err;
     if (we->have_panel &&
         cv_renderer_set_panel(we->r, we->panel.center, we->panel.u, we->panel.v, we->panel.size, &img, &err))

@@ -21,6 +21,7 @@
 #include "io/tonemap_simple.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/panels.h"
 #include "lcd/readability.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
@@ -83,6 +84,9 @@ static void help(FILE *f) {
           "Outputs: panel.exr (linear RGB radiance), panel.exr.json (samples, error estimate,\n"
           "readability), panel.cr.png (CR over the panel, white contour at the requirement,\n"
           "colour bar CR 1..10 on a log scale below with the requirement marked white).\n"
+          "Several panels (the scene config's lcd.panels, docs/scene-config.md): figures per\n"
+          "panel, and panel.<name>.exr, .exr.json, .cr.png per panel; --drive: 13 CSV columns\n"
+          "per panel prefixed <name>.  `cave run --scene-config` uses the same model.\n"
           "\nexamples:\n"
           "  cave lcd scene.prt --eye -0.37,1.1,0.3 --env forest.exr --illuminance auto -o panel.exr --png\n"
           "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
@@ -125,55 +129,6 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
   return cv_outfile_commit(&o, err);
 }
 
-typedef struct eye_ctx {
-  const cv_lcd_gather *g;
-  const cv_lcd_light *l;
-  float eye[3];
-} eye_ctx;
-
-static double eye_luminance(void *ctx, const double dir[3]) {
-  const eye_ctx *c = ctx;
-  const float d[3] = {(float)dir[0], (float)dir[1], (float)dir[2]};
-  float rgb[3];
-  cv_lcd_eye_radiance(c->g, c->l, c->eye, d, rgb);
-  return cv_luminance(rgb[0], rgb[1], rgb[2]);
-}
-
-/* The veil at the eye looking at the panel centre: the surroundings seen
- * (environment through the windows, interior) plus the sun when visible.
- * *sun_deg: the sun's glare angle (-1: no sun or hidden). */
-static int panel_veil(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],
-                      const cv_lcd_veil_params *vp, cv_lcd_figure *lv, double *sun_deg) {
-  const cv_lcd_panel *pn = cv_lcd_gather_panel(g);
-  double gaze[3], len = 0;
-  for (int k = 0; k < 3; k++) {
-    gaze[k] = (double)pn->center[k] - eye[k];
-    len += gaze[k] * gaze[k];
-  }
-  len = sqrt(len);
-  if (!(len > 0)) return CV_ERR_INVALID;
-  for (int k = 0; k < 3; k++) gaze[k] /= len;
-  eye_ctx c = {g, l, {eye[0], eye[1], eye[2]}};
-  cv_lcd_point_source sun;
-  int nsrc = 0;
-  *sun_deg = -1;
-  if (cv_lcd_sun_visible(g, l, eye)) {
-    double sl = 0;
-    for (int k = 0; k < 3; k++) sl += (double)l->sun_dir[k] * l->sun_dir[k];
-    sl = sqrt(sl);
-    double cosg = 0;
-    for (int k = 0; k < 3; k++) {
-      sun.dir[k] = l->sun_dir[k] / sl;
-      cosg += sun.dir[k] * gaze[k];
-    }
-    sun.E = cv_luminance(l->sun_E[0], l->sun_E[1], l->sun_E[2]);
-    *sun_deg = acos(cosg > 1 ? 1 : (cosg < -1 ? -1 : cosg)) * 180 / M_PI;
-    nsrc = 1;
-  }
-  cv_rt_thread_init();
-  return cv_lcd_veil(gaze, vp, eye_luminance, &c, &sun, nsrc, lv);
-}
-
 /* Writes the CR heat map (panel over a colour bar). */
 static int write_heatmap(const char *path, const cv_lcd_readability *rd, cv_err *err) {
   const int bar = rd->h / 12 > 8 ? rd->h / 12 : 8;
@@ -198,7 +153,7 @@ typedef struct drive_job {
 /* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
  * CR with its error bars against time, the requirement as a line, the steps
  * below it marked.  Returns 1 when written. */
-static int drive_plot(const char *csv, const char *png, double cr_min) {
+static int drive_plot(const char *csv, const char *png, double cr_min, const cv_lcd_config *lc) {
   if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
   FILE *g = popen("gnuplot", "w");
   if (!g) return 0;
@@ -206,26 +161,63 @@ static int drive_plot(const char *csv, const char *png, double cr_min) {
           "set terminal pngcairo size 1000,450 font ',10'\n"
           "set output '%s'\n"
           "set datafile separator ','\n"
-          "set key autotitle columnhead top right\n"
+          "set key top right\n"
           "set xlabel 'drive time (s)'\nset ylabel 'contrast ratio'\nset grid\n"
           "set title 'LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
           "misses the required %g:1 (ISO 15008)'\n"
-          "plot '%s' using 1:11:12 with yerrorbars lc rgb '#3b528b' pt 7 ps 0.6 title 'CR', "
-          "'' using 1:11 with lines lc rgb '#3b528b' notitle, "
-          "'' using 1:($11 < %g ? $11 : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' title 'unreadable', "
-          "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n",
-          png, cr_min, csv, cr_min, cr_min, cr_min);
+          "plot ",
+          png, cr_min);
+  static const char *const col[CV_LCD_MAX_PANELS] = {"#3b528b", "#21918c", "#5ec962", "#440154"};
+  for (int i = 0; i < lc->n_panels; i++) {
+    const int c = 11 + 13 * i; /* the panel's CR column (1-based), its s.e. next */
+    fprintf(g,
+            "'%s' using 1:%d:%d with yerrorbars lc rgb '%s' pt 7 ps 0.6 title 'CR %s', "
+            "'' using 1:%d with lines lc rgb '%s' notitle, "
+            "'' using 1:($%d < %g ? $%d : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' %s, ",
+            csv, c, c + 1, col[i], lc->panels[i].name, c, col[i], c, cr_min, c,
+            i == 0 ? "title 'unreadable'" : "notitle");
+  }
+  fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", cr_min, cr_min);
   return pclose(g) == 0;
 }
 
+/* Readability parameters of panel i: the block's, with the panel's white and
+ * black. */
+static cv_lcd_read_params panel_rp(const cv_lcd_read_params *rp, const cv_lcd_config *lc, int i) {
+  cv_lcd_read_params q = *rp;
+  q.white = lc->panels[i].content_luminance;
+  q.black = lc->panels[i].black_luminance;
+  return q;
+}
+
+/* Figures of panel i from the stacked sum (its veil from the buffer's slot). */
+static int panel_figures(const cv_lcd_panels *ps, const cv_lcd_accum *acc, int i,
+                         const cv_lcd_read_params *rp, cv_lcd_accum **crop, cv_lcd_readability *rd,
+                         cv_err *err) {
+  int st = cv_lcd_layout_crop(&ps->L, acc, i, crop);
+  if (st) return cv_err_set(err, st, "panel %d: %s", i, cv_status_str(st));
+  cv_lcd_figure lv = {0, 0};
+  cv_lcd_accum_veil(*crop, 0, &lv.value, &lv.se);
+  return cv_lcd_readability_compute(*crop, rp, &lv, rd, err);
+}
+
+/* The veils of every panel into one round's buffer. */
+static int store_veils(cv_lcd_accum *round_buf, int n, const cv_lcd_figure *lv) {
+  for (int i = 0; i < n; i++) {
+    int st = cv_lcd_accum_set_veil(round_buf, i, lv[i].value, lv[i].se);
+    if (st) return st;
+  }
+  return CV_OK;
+}
+
 static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
-                     const cv_lcd_gather *g, const cv_brdf *brdf, const cv_lcd_config *lc,
-                     const cv_lcd_params *par0, const cv_lcd_read_params *rp,
-                     const cv_lcd_veil_params *vp) {
+                     const cv_lcd_panels *ps, const cv_lcd_config *lc, const cv_lcd_params *par0,
+                     const cv_lcd_read_params *rp, const cv_lcd_veil_params *vp) {
   cv_err err;
   cv_err_clear(&err);
   cv_drive *d = NULL;
   cv_head_path *hp = NULL;
+  const int np = ps->L.n, multi = np > 1;
   if (cv_drive_load(j->drive_path, &d, &err)) return cli_fail("lcd", 1, "--drive: %s", err.msg);
   if (j->head_path && cv_head_path_load(j->head_path, &hp, &err)) {
     cv_drive_destroy(d);
@@ -239,13 +231,21 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     cv_head_path_destroy(hp);
     return cli_fail("lcd", 1, "%s", err.msg);
   }
-  fprintf(o.f, "t_s,yaw_deg,eye_x,eye_y,eye_z,sun_glare_deg,L_r,L_r_se,L_v,L_v_se,CR,CR_se,"
-               "area_meeting,area_meeting_se,VL,VL_se,L_a,readable\n");
+  /* one panel: the plain column names; several: each panel's 13 columns
+   * prefixed with its name */
+  static const char *const cols[13] = {"sun_glare_deg", "L_r", "L_r_se", "L_v", "L_v_se", "CR",
+                                       "CR_se", "area_meeting", "area_meeting_se", "VL", "VL_se",
+                                       "L_a", "readable"};
+  fprintf(o.f, "t_s,yaw_deg,eye_x,eye_y,eye_z");
+  for (int i = 0; i < np; i++)
+    for (int c = 0; c < 13; c++)
+      fprintf(o.f, ",%s%s%s", multi ? lc->panels[i].name : "", multi ? "." : "", cols[c]);
+  fprintf(o.f, "\n");
   printf("drive: %s, %.1f s, %d steps of %.2f s; eye from %s\n", j->drive_path, dur, n < 1 ? 1 : n,
          j->dt, j->head_path ? j->head_path : "--eye");
-  int rc = 0, n_bad = 0, worst_k = 0;
-  double worst = INFINITY;
-  const uint64_t setup = cv_lcd_setup_hash(g, par0, 0, lc->eye_tolerance, p->meta.input_hash);
+  int rc = 0, n_bad[CV_LCD_MAX_PANELS] = {0}, worst_k[CV_LCD_MAX_PANELS] = {0};
+  double worst[CV_LCD_MAX_PANELS];
+  for (int i = 0; i < np; i++) worst[i] = INFINITY;
   for (int k = 0; k < (n < 1 ? 1 : n) && !rc; k++) {
     const double t = k * j->dt;
     cv_drive_state ds;
@@ -254,9 +254,9 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     cv_drive_to_light_spec(d, &ds, &spec);
     cv_scene_light *sl = NULL;
     cv_lcd_light *light = NULL;
-    cv_lcd_accum *acc = NULL;
-    cv_lcd_readability rd;
-    memset(&rd, 0, sizeof rd);
+    cv_lcd_accum *acc = NULL, *round_buf = NULL;
+    cv_lcd_progress prog;
+    memset(&prog, 0, sizeof prog);
     float eye[3];
     if (hp) {
       cv_head_pose hpose;
@@ -267,39 +267,58 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     }
     cv_lcd_params par = *par0;
     cv_lcd_key key;
-    cv_lcd_figure lv;
-    double sun_deg = -1;
+    cv_lcd_figure lv[CV_LCD_MAX_PANELS];
+    double sun_deg[CV_LCD_MAX_PANELS];
     if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
         cv_lcd_light_from_scene(sl, &spec, p, tr, lc->sun_samples, lc->env_width, &light, &err)) {
       rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, err.msg);
-    } else if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
-      rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
     } else {
-      cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
-      const double clamp = lc->clamp > 0 ? lc->clamp : cv_lcd_default_clamp(light, brdf);
-      int st = cv_lcd_accum_create(par.w, par.h, clamp, &acc);
-      for (int r = 0; r < lc->rounds && !st; r++)
-        st = cv_lcd_render_round(g, light, &par, (uint32_t)r, acc);
-      if (!st) st = panel_veil(g, light, par.eye, vp, &lv, &sun_deg);
-      if (st || cv_lcd_readability_compute(acc, rp, &lv, &rd, &err))
-        rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, st ? cv_status_str(st) : err.msg);
+      const double clamp = cv_lcd_panels_clamp(ps, light, lc->clamp);
+      const uint64_t setup = cv_lcd_panels_setup_hash(ps, &par, clamp, lc->eye_tolerance, p->meta.input_hash);
+      if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
+        rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
+      } else {
+        cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
+        int st = cv_lcd_panels_veils(ps, light, par.eye, vp, lv, sun_deg);
+        if (!st) st = cv_lcd_accum_create(ps->L.W, ps->L.H, clamp, &round_buf);
+        for (int r = 0; r < lc->rounds && !st; r++) {
+          cv_lcd_accum_clear(round_buf);
+          st = cv_lcd_panels_round(ps, light, &par, (uint32_t)r, round_buf);
+          if (!st) st = store_veils(round_buf, np, lv);
+          if (!st) st = cv_lcd_progress_submit(&prog, &key, round_buf, NULL);
+        }
+        acc = prog.acc;
+        if (st) rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, cv_status_str(st));
+      }
     }
-    if (!rc) {
-      const int ok = rd.cr_mean.value >= rp->cr_min;
-      n_bad += !ok;
-      if (rd.cr_mean.value < worst) worst = rd.cr_mean.value, worst_k = k;
-      fprintf(o.f, "%.3f,%.2f,%.4f,%.4f,%.4f,%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d\n",
-              t, ds.yaw_deg, par.eye[0], par.eye[1], par.eye[2], sun_deg, rd.L_r.value, rd.L_r.se,
-              rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se, rd.frac_ok.value,
-              rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value, ok);
-      printf("t %6.2f s yaw %5.1f: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, L_v %.4g "
-             "cd/m2, VL %.3g +- %.2g%s\n",
-             t, ds.yaw_deg, rd.cr_mean.value, rd.cr_mean.se, 100 * rd.frac_ok.value, rp->cr_min,
-             rd.L_r.value, rd.L_v.value, rd.vl.value, rd.vl.se, ok ? "" : "  UNREADABLE");
-      fflush(stdout);
+    if (!rc) fprintf(o.f, "%.3f,%.2f,%.4f,%.4f,%.4f", t, ds.yaw_deg, par.eye[0], par.eye[1], par.eye[2]);
+    for (int i = 0; i < np && !rc; i++) {
+      cv_lcd_readability rd;
+      memset(&rd, 0, sizeof rd);
+      cv_lcd_accum *crop = NULL;
+      const cv_lcd_read_params q = panel_rp(rp, lc, i);
+      if (panel_figures(ps, acc, i, &q, &crop, &rd, &err)) {
+        rc = cli_fail("lcd", 1, "drive t=%.2f s: %s: %s", t, lc->panels[i].name, err.msg);
+      } else {
+        const int ok = rd.cr_mean.value >= rp->cr_min;
+        n_bad[i] += !ok;
+        if (rd.cr_mean.value < worst[i]) worst[i] = rd.cr_mean.value, worst_k[i] = k;
+        fprintf(o.f, ",%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d", sun_deg[i],
+                rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se,
+                rd.frac_ok.value, rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value, ok);
+        printf("t %6.2f s yaw %5.1f%s%s: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, "
+               "L_v %.4g cd/m2, VL %.3g +- %.2g%s\n",
+               t, ds.yaw_deg, multi ? " " : "", multi ? lc->panels[i].name : "", rd.cr_mean.value,
+               rd.cr_mean.se, 100 * rd.frac_ok.value, rp->cr_min, rd.L_r.value, rd.L_v.value,
+               rd.vl.value, rd.vl.se, ok ? "" : "  UNREADABLE");
+      }
+      cv_lcd_readability_free(&rd);
+      cv_lcd_accum_destroy(crop);
     }
-    cv_lcd_readability_free(&rd);
-    cv_lcd_accum_destroy(acc);
+    if (!rc) fprintf(o.f, "\n");
+    fflush(stdout);
+    cv_lcd_progress_free(&prog);
+    cv_lcd_accum_destroy(round_buf);
     cv_lcd_light_destroy(light);
     cv_scene_light_destroy(sl);
   }
@@ -310,11 +329,13 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     return rc;
   }
   if (cv_outfile_commit(&o, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  printf("drive: CR below %g:1 at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
-         rp->cr_min, n_bad, n < 1 ? 1 : n, n_bad * j->dt, dur, worst, worst_k * j->dt);
+  for (int i = 0; i < np; i++)
+    printf("drive%s%s: CR below %g:1 at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
+           multi ? " " : "", multi ? lc->panels[i].name : "", rp->cr_min, n_bad[i], n < 1 ? 1 : n,
+           n_bad[i] * j->dt, dur, worst[i], worst_k[i] * j->dt);
   char png[CV_PATH_MAX];
   snprintf(png, sizeof png, "%.*s.png", (int)(strlen(j->csv) - 4), j->csv);
-  if (drive_plot(j->csv, png, rp->cr_min)) printf("wrote %s and %s\n", j->csv, png);
+  if (drive_plot(j->csv, png, rp->cr_min, lc)) printf("wrote %s and %s\n", j->csv, png);
   else printf("wrote %s (no plot: gnuplot is not installed)\n", j->csv);
   return 0;
 }
@@ -439,7 +460,12 @@ int cmd_lcd(int argc, char **argv) {
                  lc.height < 1 || lc.width > 16384 || lc.height > 16384))
     return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", size_s);
   if (brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", brdf_s);
-  if (content_s) snprintf(lc.content, sizeof lc.content, "%s", content_s);
+  if (content_s) {
+    FILE *cf = fopen(content_s, "rb");
+    if (!cf) return cli_fail("lcd", 1, "--content: %s: cannot open", content_s);
+    fclose(cf);
+    snprintf(lc.content, sizeof lc.content, "%s", content_s);
+  }
   if (lum >= 0) lc.content_luminance = lum;
   if (seed >= 0) lc.seed = (uint32_t)seed;
   if (sampling) lc.brdf_fraction = !strcmp(sampling, "brdf") ? 1.0 : !strcmp(sampling, "cosine") ? 0.0 : 0.9;
@@ -448,16 +474,25 @@ int cmd_lcd(int argc, char **argv) {
   if (cr_min >= 1) lc.cr_min = cr_min;
   if (age >= 0) lc.age = age;
   if (pigment >= 0) lc.pigment = pigment;
-  rp.white = lc.content_luminance;
-  rp.black = cv_lcd_config_black(&lc);
+  if (lum >= 0 || black >= 0) { /* the options set the white and black of every panel */
+    for (int i = 0; i < lc.n_panels; i++) {
+      if (lum >= 0) lc.panels[i].content_luminance = lum;
+      if (black >= 0) lc.panels[i].black_luminance = black;
+    }
+  }
+  if (cv_lcd_config_panels(&lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  rp.white = lc.panels[0].content_luminance;
+  rp.black = lc.panels[0].black_luminance;
   rp.cr_min = lc.cr_min;
   vp.age = lc.age;
   vp.pigment = lc.pigment;
-  if (cv_lcd_read_params_check(&rp, &err)) return cli_fail("lcd", 2, "%s", err.msg);
+  for (int i = 0; i < lc.n_panels; i++) {
+    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
+    if (cv_lcd_read_params_check(&q, &err))
+      return cli_fail("lcd", 2, "panel '%s': %s", lc.panels[i].name, err.msg);
+  }
   if (heat_s && !cli_has_ext(heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", heat_s);
-  char heatp[CV_PATH_MAX];
-  if (heat_s) snprintf(heatp, sizeof heatp, "%s", heat_s);
-  else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)(strlen(out) - 4), out);
+  const int multi = lc.n_panels > 1;
 
   int rc = 1;
   cv_scene_config cfg;
@@ -467,32 +502,32 @@ int cmd_lcd(int argc, char **argv) {
   cv_tracer *tr = NULL;
   cv_scene_light *sl = NULL;
   cv_lcd_light *light = NULL;
-  cv_brdf *brdf = NULL;
-  cv_lcd_gather *g = NULL;
-  cv_lcd_accum *acc = NULL, *round_buf = NULL;
+  cv_lcd_panels *ps = NULL;
+  cv_lcd_accum *round_buf = NULL;
   cv_lcd_progress prog;
   memset(&prog, 0, sizeof prog);
-  cv_image *content = NULL, *img = NULL;
-  cv_lcd_readability rd;
-  memset(&rd, 0, sizeof rd);
+  cv_image *content = NULL;
   int wst = cli_apply_weights("lcd", &spec, weights);
   if (wst) return wst;
-  /* The BRDF first: a bad file fails before any long work. */
-  cv_brdf_report brep;
-  if (cv_brdf_load(lc.brdf, &brdf, &brep, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
-    goto done;
+  /* The BRDFs first: a bad file fails before any long work. */
+  for (int i = 0; i < lc.n_panels; i++) {
+    cv_brdf_report brep;
+    cv_brdf *brdf = NULL;
+    if (cv_brdf_load(lc.panels[i].brdf, &brdf, &brep, &err))
+      return cli_fail("lcd", 1, "%s%s%s", multi ? lc.panels[i].name : "", multi ? ": " : "", err.msg);
+    printf("brdf%s%s: %s, %dx%dx%d grid; directional albedo max %.4f at %.0f deg",
+           multi ? " " : "", multi ? lc.panels[i].name : "", brdf->source, brdf->n_theta,
+           brdf->n_theta, brdf->n_phi, brep.albedo_max, brep.albedo_max_deg);
+    if (brep.merl_missing)
+      printf("; MERL: %llu missing samples read as 0 (%llu grid points on them)",
+             (unsigned long long)brep.merl_missing, (unsigned long long)brep.merl_missing_used);
+    printf("\n");
+    if (brep.albedo_violations)
+      printf("warning: brdf: directional albedo above 1 at %d view angles (from %.0f deg): the "
+             "table reflects more light than it receives\n",
+             brep.albedo_violations, brep.first_violation_deg);
+    cv_brdf_destroy(brdf);
   }
-  printf("brdf: %s, %dx%dx%d grid; directional albedo max %.4f at %.0f deg", brdf->source,
-         brdf->n_theta, brdf->n_theta, brdf->n_phi, brep.albedo_max, brep.albedo_max_deg);
-  if (brep.merl_missing)
-    printf("; MERL: %llu missing samples read as 0 (%llu grid points on them)",
-           (unsigned long long)brep.merl_missing, (unsigned long long)brep.merl_missing_used);
-  printf("\n");
-  if (brep.albedo_violations)
-    printf("warning: brdf: directional albedo above 1 at %d view angles (from %.0f deg): the "
-           "table reflects more light than it receives\n",
-           brep.albedo_violations, brep.first_violation_deg);
   if (cli_has_ext(in, ".json")) {
     if (cv_scene_config_load(in, &cfg, &err)) {
       rc = cli_fail("lcd", 1, "%s", err.msg);
@@ -513,6 +548,13 @@ int cmd_lcd(int argc, char **argv) {
       }
     } else {
       if (cli_load_scene_mesh(&cfg, stdout, &m, &err) || cv_tracer_create(m, &tr, &err)) {
+        rc = cli_fail("lcd", 1, "%s", err.msg);
+        goto done;
+      }
+      /* the panels against the scene before the bake: a panel outside it
+       * fails at once */
+      cv_lcd_layout L0;
+      if (cv_lcd_layout_make(&lc, m, &L0, &err)) {
         rc = cli_fail("lcd", 1, "%s", err.msg);
         goto done;
       }
@@ -546,30 +588,30 @@ int cmd_lcd(int argc, char **argv) {
     rc = cli_fail("lcd", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
     goto done;
   }
-  cv_lcd_panel panel;
-  if (cv_lcd_panel_from_mesh(m, &panel, &err) ||
-      cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
-    rc = cli_fail("lcd", 1, "%s: %s", in, err.msg);
+  cv_lcd_layout L;
+  if (cv_lcd_layout_make(&lc, m, &L, &err) ||
+      cv_lcd_panels_create(&lc, &L, cv_tracer_rt(tr), m, &ps, &err)) {
+    rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
-  if (lc.height < 1) { /* square texels: the panel's aspect */
-    const double hh = floor(lc.width * (double)panel.size[1] / panel.size[0] + 0.5);
-    lc.height = hh < 1 ? 1 : (hh > 16384 ? 16384 : (int)hh);
+  /* the content before the long work: a bad file fails here */
+  if (cv_lcd_layout_content(&lc, &L, &content, &err)) {
+    rc = cli_fail("lcd", 1, "content: %s", err.msg);
+    goto done;
   }
+  cv_lcd_params par;
+  cv_lcd_params_default(&par);
+  par.w = L.w[0];
+  par.h = L.h[0];
+  par.spp = lc.spp;
+  par.brdf_fraction = lc.brdf_fraction;
+  /* brdf / cosine alone: no window samples (mis: the default share) */
+  if (sampling && strcmp(sampling, "mis")) par.window_fraction = 0;
+  par.seed = lc.seed;
   if (drive_s) {
-    cv_lcd_params dpar;
-    cv_lcd_params_default(&dpar);
-    dpar.w = lc.width, dpar.h = lc.height, dpar.spp = lc.spp, dpar.seed = lc.seed;
-    dpar.brdf_fraction = lc.brdf_fraction;
-    if (sampling && strcmp(sampling, "mis")) dpar.window_fraction = 0;
-    /* the content is not part of the figures, but a missing file is an error */
-    if (cv_lcd_content_load(lc.content, 1, 1, 0, rp.white, rp.black, &content, &err)) {
-      rc = cli_fail("lcd", 1, "content: %s", err.msg);
-      goto done;
-    }
     drive_job dj = {drive_s, head_s, out, {offset[0], offset[1], offset[2]},
                     {eye[0], eye[1], eye[2]}, dt};
-    rc = lcd_drive(&dj, p, tr, g, brdf, &lc, &dpar, &rp, &vp);
+    rc = lcd_drive(&dj, p, tr, ps, &lc, &par, &rp, &vp);
     goto done;
   }
   if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
@@ -580,43 +622,38 @@ int cmd_lcd(int argc, char **argv) {
   cv_scene_light_print(stdout, sl);
   printf("lcd sun: %s; %llu vertex radiance values were not finite or negative (set to 0)\n",
          light->sun_source, (unsigned long long)light->vrad_fixed);
-  printf("panel: %.0f x %.0f mm at %.3f %.3f %.3f, normal %.3f %.3f %.3f; %dx%d texels\n",
-         1000 * panel.size[0], 1000 * panel.size[1], panel.center[0], panel.center[1],
-         panel.center[2], panel.normal[0], panel.normal[1], panel.normal[2], lc.width, lc.height);
-  cv_lcd_params par;
-  cv_lcd_params_default(&par);
-  par.w = lc.width;
-  par.h = lc.height;
-  par.spp = lc.spp;
-  par.brdf_fraction = lc.brdf_fraction;
-  /* brdf / cosine alone: no window samples (mis: the default share) */
-  if (sampling && strcmp(sampling, "mis")) par.window_fraction = 0;
-  par.seed = lc.seed;
-  double clamp = lc.clamp > 0 ? lc.clamp : cv_lcd_default_clamp(light, brdf);
+  for (int i = 0; i < L.n; i++) {
+    const cv_lcd_panel *pn = &L.rect[i];
+    printf("panel %s: %.0f x %.0f mm at %.3f %.3f %.3f, normal %.3f %.3f %.3f; %dx%d texels\n",
+           lc.panels[i].name, 1000 * pn->size[0], 1000 * pn->size[1], pn->center[0], pn->center[1],
+           pn->center[2], pn->normal[0], pn->normal[1], pn->normal[2], L.w[i], L.h[i]);
+  }
+  double clamp = cv_lcd_panels_clamp(ps, light, lc.clamp);
   const float ef[3] = {(float)eye[0], (float)eye[1], (float)eye[2]};
   cv_lcd_key key;
-  uint64_t setup = cv_lcd_setup_hash(g, &par, clamp, lc.eye_tolerance, p->meta.input_hash);
+  uint64_t setup = cv_lcd_panels_setup_hash(ps, &par, clamp, lc.eye_tolerance, p->meta.input_hash);
   if (cv_lcd_key_make(ef, lc.eye_tolerance, light->hash, setup, &key)) {
     rc = cli_fail("lcd", 2, "--eye: %g,%g,%g is not representable with tolerance %g", eye[0],
                   eye[1], eye[2], lc.eye_tolerance);
     goto done;
   }
   cv_lcd_key_eye(&key, lc.eye_tolerance, par.eye);
-  if (cv_lcd_accum_create(par.w, par.h, clamp, &round_buf)) {
-    rc = cli_fail("lcd", 1, "cannot allocate a %dx%d panel", par.w, par.h);
+  if (cv_lcd_accum_create(L.W, L.H, clamp, &round_buf)) {
+    rc = cli_fail("lcd", 1, "cannot allocate a %dx%d panel buffer", L.W, L.H);
     goto done;
   }
-  /* the content before the long work: a missing file fails here */
-  if (cv_lcd_content_load(lc.content, par.w, par.h, (double)panel.size[0] / panel.size[1], rp.white,
-                          rp.black, &content, &err)) {
-    rc = cli_fail("lcd", 1, "content: %s", err.msg);
+  cv_lcd_figure lv[CV_LCD_MAX_PANELS];
+  double sun_deg[CV_LCD_MAX_PANELS];
+  if (cv_lcd_panels_veils(ps, light, par.eye, &vp, lv, sun_deg)) {
+    rc = cli_fail("lcd", 1, "readability: the eye is at a panel's centre");
     goto done;
   }
   double setup_s = cv_now_seconds() - t0;
   t0 = cv_now_seconds();
   for (int r = 0; r < lc.rounds; r++) {
     cv_lcd_accum_clear(round_buf);
-    int st = cv_lcd_render_round(g, light, &par, (uint32_t)r, round_buf);
+    int st = cv_lcd_panels_round(ps, light, &par, (uint32_t)r, round_buf);
+    if (!st) st = store_veils(round_buf, L.n, lv);
     if (!st) st = cv_lcd_progress_submit(&prog, &key, round_buf, NULL);
     if (st) {
       rc = cli_fail("lcd", 1, "round %d: %s", r, cv_status_str(st));
@@ -624,72 +661,102 @@ int cmd_lcd(int argc, char **argv) {
     }
   }
   double render_s = cv_now_seconds() - t0;
-  acc = prog.acc;
-  cv_lcd_error e;
-  cv_lcd_accum_error(acc, &e);
-  cv_lcd_figure lv;
-  double sun_deg;
-  if (panel_veil(g, light, par.eye, &vp, &lv, &sun_deg) ||
-      cv_lcd_readability_compute(acc, &rp, &lv, &rd, &err)) {
-    rc = cli_fail("lcd", 1, "readability: %s", err.msg[0] ? err.msg : "the eye is at the panel centre");
-    goto done;
+  {
+    const int64_t *d = prog.acc->data;
+    int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
+    printf("lcd: %d round(s) x %d samples per texel in %.2f s (setup %.2f s) on %d threads: %.2f M "
+           "rays/s; eye %.4f %.4f %.4f\n",
+           lc.rounds, par.spp, render_s, setup_s, omp_get_max_threads(),
+           render_s > 0 ? rays / render_s / 1e6 : 0.0, par.eye[0], par.eye[1], par.eye[2]);
   }
-  if (cv_lcd_accum_to_image(acc, content, &img) || cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
-    goto done;
+  /* Every panel's figures and files; the files are written only once all
+   * panels' figures are computed. */
+  cv_lcd_accum *crop[CV_LCD_MAX_PANELS] = {NULL};
+  cv_lcd_readability rd[CV_LCD_MAX_PANELS];
+  int ok = 1;
+  memset(rd, 0, sizeof rd);
+  for (int i = 0; i < L.n && ok; i++) {
+    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
+    if (panel_figures(ps, prog.acc, i, &q, &crop[i], &rd[i], &err))
+      ok = 0, rc = cli_fail("lcd", 1, "readability of %s: %s", lc.panels[i].name, err.msg);
   }
-  const int64_t *d = acc->data;
-  int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
-  printf("lcd: %d round(s) x %d samples per texel in %.2f s (setup %.2f s) on %d threads: %.2f M "
-         "rays/s; eye %.4f %.4f %.4f\n",
-         lc.rounds, par.spp, render_s, setup_s, omp_get_max_threads(),
-         render_s > 0 ? rays / render_s / 1e6 : 0.0, par.eye[0], par.eye[1], par.eye[2]);
-  printf("lcd: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
-         "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
-         "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
-         (long long)d[CV_LCD_ACC_SPP], 100 * e.rel_rms, rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0,
-         rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0,
-         (long long)d[CV_LCD_ACC_SUNLIT], (long long)d[CV_LCD_ACC_SHADOW],
-         (long long)d[CV_LCD_ACC_CLAMPED], (long long)d[CV_LCD_ACC_NONFINITE],
-         (long long)d[CV_LCD_ACC_BEHIND]);
-  char sun_txt[64];
-  if (sun_deg < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
-  else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg);
-  printf("lcd: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil L_v "
-         "%.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
-         rp.white, rp.black, rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, vp.age, vp.pigment,
-         sun_txt);
-  printf("lcd: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets it "
-         "(worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
-         rd.cr_mean.value, rd.cr_mean.se, rp.cr_min, 100 * rd.frac_ok.value, 100 * rd.frac_ok.se,
-         rd.cr_worst, rd.vl.value, rd.vl.se, rd.L_a.value, rd.dL_threshold);
-  char side[CV_PATH_MAX + 8];
-  snprintf(side, sizeof side, "%s.json", out);
-  if (write_sidecar(side, acc, &e, &key, render_s, brdf->source, &rd, &rp, &vp, &err) ||
-      write_heatmap(heatp, &rd, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
-    goto done;
+  for (int i = 0; i < L.n && ok; i++) {
+    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
+    const cv_lcd_accum *acc = crop[i];
+    const int64_t *d = acc->data;
+    int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
+    cv_lcd_error e;
+    cv_lcd_accum_error(acc, &e);
+    const char *nm = lc.panels[i].name;
+    printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
+           "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
+           "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
+           nm, (long long)d[CV_LCD_ACC_SPP], 100 * e.rel_rms,
+           rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0,
+           rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0, (long long)d[CV_LCD_ACC_SUNLIT],
+           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_CLAMPED],
+           (long long)d[CV_LCD_ACC_NONFINITE], (long long)d[CV_LCD_ACC_BEHIND]);
+    char sun_txt[64];
+    if (sun_deg[i] < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
+    else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg[i]);
+    printf("lcd %s: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil "
+           "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
+           nm, q.white, q.black, rd[i].L_r.value, rd[i].L_r.se, rd[i].L_v.value, rd[i].L_v.se,
+           vp.age, vp.pigment, sun_txt);
+    printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
+           "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+           nm, rd[i].cr_mean.value, rd[i].cr_mean.se, q.cr_min, 100 * rd[i].frac_ok.value,
+           100 * rd[i].frac_ok.se, rd[i].cr_worst, rd[i].vl.value, rd[i].vl.se, rd[i].L_a.value,
+           rd[i].dL_threshold);
   }
-  if (png) {
-    char pngp[CV_PATH_MAX];
-    snprintf(pngp, sizeof pngp, "%.*s.png", (int)(strlen(out) - 4), out);
-    cv_preview_stats ps;
-    if (cv_preview_write_png(pngp, img, 0, &ps, &err)) {
-      rc = cli_fail("lcd", 1, "%s", err.msg);
-      goto done;
+  /* files: one panel: -o, -o.json, --heatmap (or <stem>.cr.png); several:
+   * <stem>.<name>.exr, .exr.json, .cr.png (--heatmap FILE: <FILE stem>.<name>.png) */
+  for (int i = 0; i < L.n && ok; i++) {
+    const char *nm = lc.panels[i].name;
+    const int stem = (int)strlen(out) - 4;
+    char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
+    if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, out, nm);
+    else snprintf(exrp, sizeof exrp, "%s", out);
+    snprintf(side, sizeof side, "%s.json", exrp);
+    if (heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(heat_s) - 4, heat_s, nm);
+    else if (heat_s) snprintf(heatp, sizeof heatp, "%s", heat_s);
+    else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
+    cv_image *pc = NULL, *img = NULL;
+    cv_lcd_error e;
+    cv_lcd_accum_error(crop[i], &e);
+    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
+    int st = cv_image_create(L.w[i], L.h[i], 3, &pc);
+    if (st) {
+      ok = 0, rc = cli_fail("lcd", 1, "out of memory");
+      break;
     }
-    printf("wrote %s (exposure %.4g)\n", pngp, ps.exposure);
+    for (int y = 0; y < L.h[i]; y++)
+      memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L.y0[i] + y), 3 * (size_t)L.w[i] * sizeof(float));
+    if (cv_lcd_accum_to_image(crop[i], pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
+        write_sidecar(side, crop[i], &e, &key, render_s, ps->brdf[i]->source, &rd[i], &q, &vp, &err) ||
+        write_heatmap(heatp, &rd[i], &err)) {
+      ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
+    } else if (png) {
+      char pngp[CV_PATH_MAX + 40];
+      snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
+      cv_preview_stats pst;
+      if (cv_preview_write_png(pngp, img, 0, &pst, &err)) ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg);
+      else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
+    }
+    if (ok) printf("wrote %s, %s and %s\n", exrp, side, heatp);
+    cv_image_destroy(img);
+    cv_image_destroy(pc);
   }
-  printf("wrote %s, %s and %s\n", out, side, heatp);
-  rc = 0;
+  for (int i = 0; i < L.n; i++) {
+    cv_lcd_readability_free(&rd[i]);
+    cv_lcd_accum_destroy(crop[i]);
+  }
+  if (ok) rc = 0;
 done:
-  cv_lcd_readability_free(&rd);
-  cv_image_destroy(img);
   cv_image_destroy(content);
   cv_lcd_progress_free(&prog);
   cv_lcd_accum_destroy(round_buf);
-  cv_lcd_gather_destroy(g);
-  cv_brdf_destroy(brdf);
+  cv_lcd_panels_destroy(ps);
   cv_lcd_light_destroy(light);
   cv_scene_light_destroy(sl);
   cv_tracer_destroy(tr);

@@ -78,6 +78,25 @@ int cv_lcd_accum_to_image(const cv_lcd_accum *a, const cv_image *emitted, cv_ima
   return CV_OK;
 }
 
+int cv_lcd_accum_set_veil(cv_lcd_accum *a, int slot, double value, double se) {
+  if (!a || slot < 0 || slot >= CV_LCD_ACC_VEIL_SLOTS || a->data[CV_LCD_ACC_ROUNDS] != 1 ||
+      !(value >= 0) || !(se >= 0) || !(value < 0x1p38) || !(se < 0x1p38))
+    return CV_ERR_INVALID;
+  a->data[CV_LCD_ACC_VEIL + 2 * slot] = (int64_t)llround(value / CV_LCD_VEIL_UNIT);
+  a->data[CV_LCD_ACC_VEIL + 2 * slot + 1] = (int64_t)llround(se / CV_LCD_VEIL_UNIT);
+  a->data[CV_LCD_ACC_VEILS] = 1;
+  return CV_OK;
+}
+
+int cv_lcd_accum_veil(const cv_lcd_accum *a, int slot, double *value, double *se) {
+  const int64_t n = a->data[CV_LCD_ACC_VEILS];
+  *value = *se = 0;
+  if (n <= 0 || slot < 0 || slot >= CV_LCD_ACC_VEIL_SLOTS) return 0;
+  *value = (double)a->data[CV_LCD_ACC_VEIL + 2 * slot] * CV_LCD_VEIL_UNIT / (double)n;
+  *se = (double)a->data[CV_LCD_ACC_VEIL + 2 * slot + 1] * CV_LCD_VEIL_UNIT / (double)n;
+  return 1;
+}
+
 int cv_lcd_accum_error(const cv_lcd_accum *a, cv_lcd_error *e) {
   memset(e, 0, sizeof *e);
   int64_t n = a->data[CV_LCD_ACC_SPP];
@@ -119,7 +138,7 @@ int cv_lcd_accum_write(const char *path, const cv_lcd_accum *a, cv_err *err) {
   if (st) return st;
   unsigned char hdr[40], buf[8 * 512];
   memcpy(hdr, ACC_MAGIC, 8);
-  put_u64(hdr + 8, 1);
+  put_u64(hdr + 8, 2); /* version 2: 32 header words (veil slots) */
   put_u64(hdr + 16, (uint64_t)a->w);
   put_u64(hdr + 24, (uint64_t)a->h);
   uint64_t cb;
@@ -144,9 +163,9 @@ int cv_lcd_accum_read(const char *path, cv_lcd_accum **out, cv_err *err) {
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open (%s)", path, strerror(errno));
   unsigned char hdr[40];
   if (fread(hdr, 1, sizeof hdr, f) != sizeof hdr || memcmp(hdr, ACC_MAGIC, 8) ||
-      get_u64(hdr + 8) != 1) {
+      get_u64(hdr + 8) != 2) {
     fclose(f);
-    return cv_err_set(err, CV_ERR_FORMAT, "%s: not an LCD accumulation file (magic %s, version 1)",
+    return cv_err_set(err, CV_ERR_FORMAT, "%s: not an LCD accumulation file (magic %s, version 2)",
                       path, ACC_MAGIC);
   }
   uint64_t w = get_u64(hdr + 16), h = get_u64(hdr + 24), cb = get_u64(hdr + 32);

@@ -40,8 +40,21 @@ enum {
   CV_LCD_ACC_SHADOW,       /* sun shadow rays traced */
   CV_LCD_ACC_SUNLIT,       /* of those, unblocked */
   CV_LCD_ACC_BEHIND,       /* texel samples whose eye is behind the panel (black) */
-  CV_LCD_ACC_HEADER = 16
+  CV_LCD_ACC_VEILS,        /* rounds that carry veils (cv_lcd_accum_set_veil) */
+  CV_LCD_ACC_VEIL,         /* veil slot k: L_v at word VEIL + 2k, its standard error at
+                              VEIL + 2k + 1, in CV_LCD_VEIL_UNIT (one slot per panel) */
+  CV_LCD_ACC_HEADER = 32
 };
+#define CV_LCD_ACC_VEIL_SLOTS 8
+_Static_assert(CV_LCD_ACC_VEIL + 2 * CV_LCD_ACC_VEIL_SLOTS <= CV_LCD_ACC_HEADER,
+               "the veil slots fit the header");
+
+/* The veil words: every round of one key carries the same veil (a pure
+ * function of the key's eye and lighting), so their sum over rounds divided
+ * by the rounds that carry one is that veil again, bit for bit, whoever
+ * rendered the rounds.  Fixed point, independent of the clamp: 2^-24 cd/m^2
+ * (6e-8), up to 2^38 cd/m^2 per round. */
+#define CV_LCD_VEIL_UNIT (1.0 / 16777216.0)
 
 #define CV_LCD_MAX_SPP (1 << 22) /* samples per texel a buffer may hold */
 #define CV_LCD_M2_SHIFT 40       /* split of the squared luminance */
@@ -104,7 +117,16 @@ typedef struct cv_lcd_error {
 } cv_lcd_error;
 int cv_lcd_accum_error(const cv_lcd_accum *a, cv_lcd_error *e);
 
-/* Binary save/restore of a buffer (magic "CVLCDACC", version 1; sizes,
+/* Stores the veil of `slot` (value, se in cd/m^2, finite, >= 0, below 2^38)
+ * in a buffer holding ONE round: the slot is overwritten, VEILS set to 1.
+ * Errors: CV_ERR_INVALID (a bad value or slot, or the buffer holds other
+ * than one round). */
+int cv_lcd_accum_set_veil(cv_lcd_accum *a, int slot, double value, double se);
+/* The veil of `slot` in a sum of rounds (their mean): returns 1, or 0 (and
+ * 0, 0) when no round carried veils. */
+int cv_lcd_accum_veil(const cv_lcd_accum *a, int slot, double *value, double *se);
+
+/* Binary save/restore of a buffer (magic "CVLCDACC", version 2; sizes,
  * clamp, then the int64 array, little-endian), for resuming progressive
  * rendering.  err names the path. */
 int cv_lcd_accum_write(const char *path, const cv_lcd_accum *a, cv_err *err);

@@ -11,7 +11,18 @@
  *              "content_luminance": 500, "black_luminance": 1,
  *              "eye_tolerance": 0.005, "brdf_fraction": 0.9, "seed": 1,
  *              "env_width": 1024, "sun_samples": 16, "clamp": 0,
- *              "cr_min": 3, "age": 40, "pigment": 0.5 } } */
+ *              "cr_min": 3, "age": 40, "pigment": 0.5,
+ *              "panels": [ { "name": "centre" },
+ *                          { "name": "cluster", "corners": [[x,y,z], [x,y,z], [x,y,z]],
+ *                            "brdf": "...", "content": "nav.png", "resolution": [400, 240],
+ *                            "content_luminance": 400, "black_luminance": 0.5 } ] } }
+ *
+ * Panels: without "panels" the block describes one panel, "lcd", on the
+ * mesh's triangles tagged lcd.  A panel entry takes its rectangle from
+ * "corners" (lower-left, lower-right, upper-left as the driver sees it, car
+ * frame, metres; like a CAVE wall's pa, pb, pc) or, in at most one entry,
+ * from the mesh's lcd triangles; brdf, content, content_luminance,
+ * black_luminance and resolution it does not set are the block's. */
 #ifndef CV_LCD_LCD_CONFIG_H
 #define CV_LCD_LCD_CONFIG_H
 
@@ -24,6 +35,22 @@
  * is CV_LCD_BLACK_LEVEL of white unless configured. */
 #define CV_LCD_WHITE_DEFAULT 500.0
 #define CV_LCD_BLACK_LEVEL 0.002
+
+#define CV_LCD_MAX_PANELS 4
+#define CV_LCD_NAME_MAX 32
+
+/* One panel (after cv_lcd_config_panels: every field resolved). */
+typedef struct cv_lcd_panel_config {
+  char name[CV_LCD_NAME_MAX]; /* [A-Za-z0-9_-]+, unique in the block */
+  int has_corners;            /* 0: the mesh's triangles tagged lcd */
+  double corners[3][3];       /* lower-left, lower-right, upper-left (m, car frame) */
+  int width, height;          /* texels; 0: the block's (height 0: from the panel's aspect) */
+  char brdf[CV_PATH_MAX];     /* "": the block's */
+  char content[CV_PATH_MAX];  /* the block's unless content_set */
+  int content_set;
+  double content_luminance;   /* < 0: the block's */
+  double black_luminance;     /* < 0: the block's (-2: unset) */
+} cv_lcd_panel_config;
 
 typedef struct cv_lcd_config {
   int width, height;          /* panel texels (400 x 0: height from the panel's aspect) */
@@ -44,6 +71,9 @@ typedef struct cv_lcd_config {
   int sun_samples;            /* fan points per vertex for the sun's direct light in the
                                  PRT radiance (16) */
   double clamp;               /* per-sample radiance clamp; 0 = automatic (default) */
+  int n_panels;               /* 0: one panel "lcd" from the block's own fields */
+  cv_lcd_panel_config panels[CV_LCD_MAX_PANELS];
+  char source[CV_PATH_MAX];   /* the file the panels came from ("" = defaults), for errors */
 } cv_lcd_config;
 
 void cv_lcd_config_default(cv_lcd_config *c);
@@ -57,5 +87,11 @@ int cv_lcd_config_load(const char *path, cv_lcd_config *c, cv_err *err);
 int cv_lcd_config_load_scene(const char *path, cv_lcd_config *c, cv_err *err);
 /* The black luminance in effect (black_luminance, or the default level). */
 double cv_lcd_config_black(const cv_lcd_config *c);
+/* Resolves the panels after every override of the block's fields (command
+ * line options): with no "panels" one panel "lcd" from the block's
+ * fields; each panel's unset brdf, content, white, black and resolution
+ * become the block's.  Errors (CV_ERR_CONFIG, naming the file and
+ * lcd.panels[i].field): black above white. */
+int cv_lcd_config_panels(cv_lcd_config *c, cv_err *err);
 
 #endif

@@ -17,10 +17,12 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
   double y[3] = {s[1] * x[2] - s[2] * x[1], s[2] * x[0] - s[0] * x[2], s[0] * x[1] - s[1] * x[0]};
   /* Axes: x, y across the beam; depth = distance along -s (away from the sun). */
   double axis[3][3] = {{x[0], x[1], x[2]}, {y[0], y[1], y[2]}, {-s[0], -s[1], -s[2]}};
+  /* Fitted to the vertices of the opaque triangles, not to the corners of
+   * their box: a box seen obliquely covers up to twice the area, so the
+   * same texels then sample the cabin more finely (about 1 ms of CPU). */
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int c = 0; c < 8; c++) {
-    double p[3] = {c & 1 ? r->hi[0] : r->lo[0], c & 2 ? r->hi[1] : r->lo[1],
-                   c & 4 ? r->hi[2] : r->lo[2]};
+  for (size_t v = 0; v < r->nv_used; v++) {
+    const float *p = r->pos_cpu + 3 * v;
     for (int a = 0; a < 3; a++) {
       double d = axis[a][0] * p[0] + axis[a][1] * p[1] + axis[a][2] * p[2];
       if (d < lo[a]) lo[a] = d;
@@ -61,6 +63,11 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
   *texel = (float)(ext / r->o.shadow_res);
 }
 
+/* Whether the shadow map is culled (opts.shadow_cull; -1: the mesh is closed). */
+int cvr_shadow_culled(const cv_renderer *r) {
+  return r->o.shadow_cull < 0 ? r->closed : r->o.shadow_cull != 0;
+}
+
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   const int n = r->o.shadow_res;
   if (!r->fbo_shadow || r->shadow_res != n) {
@@ -98,44 +105,94 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   cvr_set_cull(r, 0);
   glUseProgram(r->prog_depth);
   cvr_uni_mat(r->prog_depth, "u_mvp", clip);
-  cvr_draw_mesh(r, NULL, DRAW_ALL);
+  cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
+  for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
+  r->shadow_texel = texel;
+  r->shadow_valid = 1;
   return cvr_gl_check("shadow map", err);
 }
 
+/* Half the diagonal of the scene's box: how far a point can be from its
+ * centre, so a sun turned by |s - s0| (radians, small) moves a point's
+ * shadow-map position by at most this times |s - s0|. */
+static double scene_radius(const cv_renderer *r) {
+  double d = 0;
+  for (int j = 0; j < 3; j++) d += (r->hi[j] - r->lo[j]) * (r->hi[j] - r->lo[j]);
+  return 0.5 * sqrt(d);
+}
+
+static double dist3(const double a[3], const double b[3]) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* 1 when the current shadow map may stand for the sun s (opts.shadow_reuse):
+ * made for a sun that differs from s by less than shadow_reuse texels at the
+ * scene's radius.  Its matrices are kept with it, so the image is that of
+ * the old sun's shadow, within that many texels of the new one. */
+static int shadow_reusable(const cv_renderer *r, const double s[3]) {
+  if (!r->shadow_valid || r->shadow_res != r->o.shadow_res || !(r->shadow_texel > 0)) return 0;
+  const double moved = dist3(s, r->shadow_s) * scene_radius(r) / r->shadow_texel;
+  return moved < r->o.shadow_reuse || dist3(s, r->shadow_s) == 0;
+}
+
+/* Unit winding normals of the uploaded triangles (those of cv_sun_direct
+ * and prt.frag's n_t), built on the first split: 12 bytes a triangle. */
+static int tri_normals(cv_renderer *r) {
+  if (r->tri_n) return CV_OK;
+  r->tri_n = malloc(3 * r->nt * sizeof *r->tri_n + 4);
+  if (!r->tri_n) return CV_ERR_NOMEM;
+  for (size_t t = 0; t < r->nt; t++) {
+    const uint32_t *v = r->idx_cpu + 3 * t;
+    const float *a = r->pos_cpu + 3 * v[0], *b = r->pos_cpu + 3 * v[1], *d = r->pos_cpu + 3 * v[2];
+    double e1[3], e2[3];
+    for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                   e1[0] * e2[1] - e1[1] * e2[0]};
+    const double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int j = 0; j < 3; j++) r->tri_n[3 * t + j] = l > 0 ? (float)(n[j] / l) : 0.0f;
+  }
+  return CV_OK;
+}
+
 /* The sun split (see the struct): reorders each chunk of buf_idx into
- * buf_idx_sun, the triangles whose winding normal (that of cv_sun_direct
- * and prt.frag's n_t) has n . s > 0 first.  The others get no direct sun,
- * so the shading pass draws them with the variant without it: on llvmpipe,
+ * buf_idx_sun in three parts by c = n_t . s, m = opts.split_margin:
+ * c > m, then |c| <= m, then c < -m.  The first two (chunk_nf) are drawn
+ * with the sun's per-pixel code, the last alone without it: on llvmpipe,
  * which pays for every instruction of a shader on every pixel, the sun's
  * normal, shadow-map fetches and filter are about half the shading pass.
- * Same triangles, vertex order and positions: same depths (depth EQUAL). */
+ * The culled shadow map (opts.shadow_cull) draws the last two.  While the
+ * sun stays within m of s (|s' - s| <= m) every triangle with n_t . s' > 0
+ * is in the first two parts and every one with n_t . s' <= 0 in the last
+ * two, so the split is reused exactly.  Same triangles, vertex order and
+ * positions: same depths (depth EQUAL). */
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
+  const double m = r->o.split_margin > 0 ? r->o.split_margin : 0.0;
+  if (r->split_valid && dist3(s, r->split_s) <= m) return CV_OK;
   uint32_t *out = malloc(3 * r->nt * sizeof *out + 4);
-  unsigned char *facing = malloc(CHUNK);
-  if (!out || !facing) {
-    free(out), free(facing);
+  unsigned char *part = malloc(CHUNK);
+  if (!out || !part || tri_normals(r)) {
+    free(out), free(part);
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
   }
+  const float sf[3] = {(float)s[0], (float)s[1], (float)s[2]};
   for (size_t c = 0; c < r->nchunks; c++) {
     const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
-    size_t nf = 0;
+    size_t k[3] = {0, 0, 0};
     for (size_t t = first; t < end; t++) {
-      const uint32_t *v = r->idx_cpu + 3 * t;
-      const float *a = r->pos_cpu + 3 * v[0], *b = r->pos_cpu + 3 * v[1], *d = r->pos_cpu + 3 * v[2];
-      double e1[3], e2[3];
-      for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
-      const double ns = (e1[1] * e2[2] - e1[2] * e2[1]) * s[0] +
-                        (e1[2] * e2[0] - e1[0] * e2[2]) * s[1] +
-                        (e1[0] * e2[1] - e1[1] * e2[0]) * s[2];
-      facing[t - first] = ns > 0;
-      nf += ns > 0;
+      const float *n = r->tri_n + 3 * t;
+      const double ns = (double)(n[0] * sf[0] + n[1] * sf[1] + n[2] * sf[2]);
+      const int q = ns > m ? 0 : (ns >= -m && (m > 0 || ns >= 0) ? 1 : 2);
+      part[t - first] = (unsigned char)q;
+      k[q]++;
     }
-    size_t kf = first, ko = first + nf;
+    size_t at[3] = {first, first + k[0], first + k[0] + k[1]};
     for (size_t t = first; t < end; t++)
-      memcpy(out + 3 * (facing[t - first] ? kf++ : ko++), r->idx_cpu + 3 * t, 3 * sizeof *out);
-    r->chunk_nf[c] = (uint32_t)nf;
+      memcpy(out + 3 * at[part[t - first]]++, r->idx_cpu + 3 * t, 3 * sizeof *out);
+    r->chunk_na[c] = (uint32_t)k[0];
+    r->chunk_nf[c] = (uint32_t)(k[0] + k[1]);
   }
-  free(facing);
+  free(part);
   glBindVertexArray(0);
   if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
@@ -143,7 +200,8 @@ int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
                GL_STATIC_DRAW);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
   free(out);
-  r->sun_split = 1;
+  for (int j = 0; j < 3; j++) r->split_s[j] = s[j];
+  r->split_valid = 1;
   return cvr_gl_check("sun split", err);
 }
 
@@ -198,35 +256,46 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
   glDisable(GL_RASTERIZER_DISCARD);
   glBindVertexArray(0);
-  /* Clamp count: sum of the captured w (exact in double). */
+  /* Clamp count: sum of the captured w (exact in double), only when asked
+   * for (mapping the buffer waits for the relight and reads 16 bytes a
+   * vertex back). */
   uint64_t clamped = 0;
-  glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
-  const float *m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)),
-                                    GL_MAP_READ_BIT);
-  if (m) {
-    for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
-    glUnmapBuffer(GL_ARRAY_BUFFER);
+  const float *m = NULL;
+  if (stats) {
+    glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
+    m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), GL_MAP_READ_BIT);
+    if (m) {
+      for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
+      glUnmapBuffer(GL_ARRAY_BUFFER);
+    }
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
   }
-  glBindBuffer(GL_ARRAY_BUFFER, 0);
   int st = cvr_gl_check("relighting", err);
   if (st) return st;
-  if (!m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
-  double t1 = cvr_tick(r);
+  if (stats && !m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
+  double t1 = cvr_tick(r), t2 = t1, t3 = t1;
+  int reused = 0;
   r->has_sun = sun;
   if (sun) {
     for (int c = 0; c < 3; c++) {
       r->sun_e[c] = (float)(l->sun_E[c] / M_PI);
     }
-    if ((st = cvr_render_shadow(r, sd, err))) return st;
+    /* the split first: the culled shadow map draws a part of it */
     r->sun_split = 0;
-    if (r->o.sun_split && (st = cvr_sun_split(r, sd, err))) return st;
+    if ((r->o.sun_split || cvr_shadow_culled(r)) && (st = cvr_sun_split(r, sd, err))) return st;
+    r->sun_split = r->o.sun_split;
+    t2 = cvr_tick(r);
+    reused = shadow_reusable(r, sd);
+    if (!reused && (st = cvr_render_shadow(r, sd, err))) return st;
+    t3 = cvr_tick(r);
   }
-  double t2 = cvr_tick(r);
   r->lit = 1;
   if (stats) stats->clamped = clamped;
   if (t) {
     t->relight_ms = t1 - t0;
-    t->shadow_ms = t2 - t1;
+    t->split_ms = t2 - t1;
+    t->shadow_ms = t3 - t2;
+    t->shadow_reused = reused;
   }
   return CV_OK;
 }

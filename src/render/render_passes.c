@@ -120,10 +120,11 @@ int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img) {
 
 /* ---------------------------------------------------------------- passes */
 
-/* Face culling of the view passes (opts.cull_back); the shadow map draws
- * both sides. */
+/* Face culling of the view passes (opts.cull_back; -1: on a closed mesh);
+ * the shadow map draws both sides (or, culled, the part facing away from
+ * the sun). */
 void cvr_set_cull(const cv_renderer *r, int on) {
-  if (on && r->o.cull_back) {
+  if (on && (r->o.cull_back < 0 ? r->closed : r->o.cull_back)) {
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
   } else {
@@ -281,7 +282,8 @@ int cvr_box_outside(const float mvp[16], const float *lo, const float *hi) {
  * (all of them when mvp is NULL or culling is off): part DRAW_ALL as runs
  * of consecutive chunks of buf_idx; DRAW_SUNLIT / DRAW_UNSUNLIT the
  * sun-facing / other triangles of those chunks from buf_idx_sun (the sun
- * split), in one glMultiDrawElements.  Every pass of a view submits the same
+ * split; DRAW_SHADOW those facing away or near grazing: the culled shadow
+ * map), in one glMultiDrawElements.  Every pass of a view submits the same
  * triangles, which the depth-EQUAL pass relies on.  Returns the triangles
  * submitted. */
 size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
@@ -295,6 +297,9 @@ size_t cvr_draw_mesh(cv_renderer *r, const float *mvp, int part) {
     } else if (part == DRAW_UNSUNLIT) {
       first += r->chunk_nf[c];
       n -= r->chunk_nf[c];
+    } else if (part == DRAW_SHADOW) {
+      first += r->chunk_na[c];
+      n -= r->chunk_na[c];
     }
     if (!n) continue;
     if (nrun && r->run[2 * (nrun - 1)] + r->run[2 * (nrun - 1) + 1] == first) {

@@ -23,9 +23,13 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->cull_frustum = 1;
   o->sun_split = 1;
   o->gpu = CV_GPU_AUTO;
+  o->shadow_cull = -1;
+  o->shadow_reuse = 0.5;
+  o->split_margin = 0.05;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
+int cv_renderer_mesh_closed(const cv_renderer *r) { return r->closed; }
 int cv_renderer_is_software(const cv_renderer *r) { return r->egl.software; }
 int cv_renderer_hw_devices(const cv_renderer *r) { return r->egl.hw_devices; }
 const char *cv_renderer_platform(const cv_renderer *r) { return r->egl.platform; }
@@ -292,7 +296,79 @@ int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err
   return cvr_gl_check("background upload", err);
 }
 
+/* Directed edge (a, b) as one key; 0 is free (a == b never stored). */
+static uint64_t edge_key(uint32_t a, uint32_t b) { return (uint64_t)a << 32 | b; }
+
+static uint64_t edge_hash(uint64_t k) {
+  k ^= k >> 33;
+  k *= 0xff51afd7ed558ccdull;
+  k ^= k >> 33;
+  return k;
+}
+
+/* Per vertex the first vertex at exactly the same position (vertices split
+ * at material boundaries are one point of the surface); NULL when out of
+ * memory. */
+static uint32_t *weld_positions(const cv_prt *p) {
+  size_t cap = 1;
+  while (cap < 2 * p->nv + 2) cap <<= 1;
+  uint32_t *slot = malloc(cap * sizeof *slot), *id = malloc(p->nv * sizeof *id + 4);
+  if (!slot || !id) {
+    free(slot), free(id);
+    return NULL;
+  }
+  memset(slot, 0xff, cap * sizeof *slot);
+  for (size_t v = 0; v < p->nv; v++) {
+    uint32_t b[3];
+    memcpy(b, p->pos + 3 * v, sizeof b);
+    size_t h = edge_hash(edge_hash((uint64_t)b[0] << 32 | b[1]) ^ b[2]) & (cap - 1);
+    while (slot[h] != UINT32_MAX && memcmp(p->pos + 3 * (size_t)slot[h], p->pos + 3 * v, sizeof b))
+      h = (h + 1) & (cap - 1);
+    if (slot[h] == UINT32_MAX) slot[h] = (uint32_t)v;
+    id[v] = slot[h];
+  }
+  free(slot);
+  return id;
+}
+
+/* 1 when every directed edge of p's non-degenerate triangles, vertices
+ * welded by position, occurs once and its reverse once (closed, consistently
+ * wound), by an open-addressing set of the edges; 0 otherwise or out of
+ * memory. */
+static int mesh_closed(const cv_prt *p) {
+  size_t cap = 1;
+  while (cap < 6 * p->nt + 2) cap <<= 1;
+  uint64_t *set = calloc(cap, sizeof *set);
+  uint32_t *id = weld_positions(p);
+  if (!set || !id) {
+    free(set), free(id);
+    return 0;
+  }
+  int closed = 1;
+  for (size_t t = 0; t < p->nt && closed; t++) {
+    const uint32_t v[3] = {id[p->tri[3 * t]], id[p->tri[3 * t + 1]], id[p->tri[3 * t + 2]]};
+    if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0]) continue;
+    for (int e = 0; e < 3 && closed; e++) {
+      const uint64_t k = edge_key(v[e], v[(e + 1) % 3]);
+      size_t h = edge_hash(k) & (cap - 1);
+      while (set[h] && set[h] != k) h = (h + 1) & (cap - 1);
+      if (set[h] == k) closed = 0; /* the same directed edge twice */
+      set[h] = k;
+    }
+  }
+  for (size_t h = 0; h < cap && closed; h++) {
+    if (!set[h]) continue;
+    const uint64_t r = edge_key((uint32_t)set[h], (uint32_t)(set[h] >> 32));
+    size_t g = edge_hash(r) & (cap - 1);
+    while (set[g] && set[g] != r) g = (g + 1) & (cap - 1);
+    if (set[g] != r) closed = 0; /* a border edge, or neighbours wound apart */
+  }
+  free(set), free(id);
+  return closed;
+}
+
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
+  r->closed = mesh_closed(p);
   const int nc = r->nc;
   GLint max_tbo = 0;
   glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_tbo);
@@ -376,6 +452,7 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     }
     idx[i] = new_of[idx[i]];
   }
+  r->nv_used = next;
   for (size_t v = 0; v < p->nv; v++)
     if (new_of[v] == UINT32_MAX) {
       old_of[next] = (uint32_t)v;
@@ -451,9 +528,10 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   free(tf), free(th), free(old_of), free(new_of), free(alb);
   r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
   r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
+  r->chunk_na = malloc(r->nchunks * sizeof *r->chunk_na + 4);
   r->md_count = malloc(r->nchunks * sizeof *r->md_count + 4);
   r->md_off = malloc(r->nchunks * sizeof *r->md_off + 8);
-  if (!r->chunk_nf || !r->md_count || !r->md_off)
+  if (!r->chunk_nf || !r->chunk_na || !r->md_count || !r->md_off)
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
   return cvr_gl_check("scene upload", err);
 }
@@ -553,6 +631,8 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->idx_cpu);
   free(r->pos_cpu);
   free(r->chunk_nf);
+  free(r->chunk_na);
+  free(r->tri_n);
   free(r->md_count);
   free(r->md_off);
   free(r->run);

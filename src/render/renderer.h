@@ -70,9 +70,12 @@ typedef struct cv_render_opts {
                         display gets, quantised to k/255 (default) */
   int cull_frustum;  /* 1: skip chunks of 1024 triangles outside the view (default 1) */
   int cull_back;     /* 1: cull back faces (only for closed, consistently wound meshes
-                        such as the cabin; the CPU reference sees both sides) (default 0) */
+                        such as the cabin; the CPU reference sees both sides) (default 0);
+                        -1: when cv_renderer_mesh_closed (what `cave run` asks for) */
   int debug_clear;   /* 1: clear colour targets to -1 before shading (tests find holes) */
-  int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests) */
+  int depth_less;    /* 1: no z pre-pass, shade with GL_LESS (reference for tests; also the
+                        cheaper frame for small views on llvmpipe, where the pre-pass costs a
+                        whole geometry pass: `cave run` uses it up to 720^2 pixels) */
   int sun_split;     /* 1: with a sun, draw the triangles facing away from it (n_t . s <= 0:
                         no direct sun) with the shader without the sun's per-pixel code
                         (default 1; the image is the same) */
@@ -84,6 +87,22 @@ typedef struct cv_render_opts {
                         (log, log, pow + 3 pow per pixel) instead of a table for Drago and a
                         polynomial for the transfer (default 0; the table falls back to it
                         by itself when it misses its tolerance) */
+  int shadow_cull;   /* 1: the sun's shadow map holds only the triangles facing away from the
+                        sun (n_t . s <= 0, plus those within split_margin of grazing): half the
+                        triangles, and no receiver in the map (no acne).  Exact when every
+                        surface seen from the air is seen from its front (closed, consistently
+                        wound meshes with normals towards the air, as cull_back asks): the
+                        first opaque hit from a visible point towards the sun then faces away
+                        from it.  0: every triangle; -1 (default): 1 when the mesh (opaque and
+                        window triangles) is closed and consistently wound, i.e. every
+                        directed edge appears once and its reverse once
+                        (cv_renderer_mesh_closed) */
+  double shadow_reuse; /* texels: a lighting change whose sun moved less than this (at the
+                        map's extent) keeps the shadow map and its matrices (default 0.5;
+                        0: redraw on every change with a sun) */
+  double split_margin; /* |s - s0| up to which the sun split of direction s0 is reused: the
+                        triangles within this of grazing are drawn with the sun's code and
+                        into a culled shadow map, so reuse stays exact (default 0.05) */
 } cv_render_opts;
 
 /* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
@@ -103,7 +122,7 @@ typedef struct cv_render_view {
  * Each call sets the fields of the passes it ran and leaves the others. */
 typedef struct cv_frame_timing {
   double relight_ms;    /* set_lighting: transform-feedback relight (+ clamp count) */
-  double shadow_ms;     /* set_lighting: sun shadow map */
+  double shadow_ms;     /* set_lighting: sun shadow map (0 when reused) */
   double lum_ms;        /* luminance pass, draw only */
   double lum_read_ms;   /* luminance read-back */
   double depth_ms;      /* depth-only pass (incl. depth clear) */
@@ -112,6 +131,8 @@ typedef struct cv_frame_timing {
   double resolve_ms;    /* supersampling 2x2 box filter */
   double read_ms;       /* read-back of the shaded image(s) */
   double unlit_ms;      /* unlit reference pass (cv_renderer_unlit) */
+  double split_ms;      /* set_lighting: the sun split (CPU partition + upload; 0 when reused) */
+  int shadow_reused;    /* set_lighting: 1 when the shadow map was kept (opts.shadow_reuse) */
 } cv_frame_timing;
 
 /* Albedo textures of a textured PRT (CV_PRT_TEXTURED; render_texture.c):
@@ -175,13 +196,18 @@ int cv_renderer_window_poll(cv_renderer *r);
 /* The window's size (0 x 0 without one). */
 void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
 
+/* 1 when the scene's triangles (opaque and windows, degenerate ones left
+ * out) are closed and consistently wound: each directed edge once, its
+ * reverse once (checked at create; opts.shadow_cull -1 follows it). */
+int cv_renderer_mesh_closed(const cv_renderer *r);
+
 /* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
 const char *cv_renderer_gl_name(const cv_renderer *r);
 
 /* Sets the lighting: relights every vertex on the GPU (as cv_prt_relight
  * without its ray-traced sun) and, with a sun, renders its shadow map.
- * l->bands must be >= the PRT's bands.  stats (may be NULL) gets the clamp
- * count; t (may be NULL) relight_ms and shadow_ms.
+ * l->bands must be >= the PRT's bands.  stats (may be NULL: then the
+ * relit buffer is not read back) gets the clamp count; t (may be NULL) relight_ms, split_ms, shadow_ms and shadow_reused.
  * Errors: CV_ERR_RANGE (bands), CV_ERR_NONFINITE (lighting), CV_ERR_BACKEND. */
 int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
                              cv_frame_timing *t, cv_err *err);

@@ -111,6 +111,19 @@ struct cv_renderer {
   int sun_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
+  /* Lighting changes (opts.shadow_cull, shadow_reuse, split_margin): the
+   * split is three parts per chunk, n_t . s > m (chunk_na of them), then
+   * |n_t . s| <= m, then n_t . s < -m (chunk_nf = the first two; the culled
+   * shadow map draws the last two), m = split_margin, for the direction
+   * split_s; tri_n the triangles' unit winding normals (built on first use);
+   * shadow_s the sun of the current shadow map, shadow_texel its texel (m);
+   * nv_used the vertices of opaque triangles (numbered first). */
+  uint32_t *chunk_na;
+  float *tri_n;
+  double split_s[3], shadow_s[3], shadow_texel, shadow_ext;
+  int split_valid, shadow_valid;
+  size_t nv_used;
+  int closed;         /* cv_renderer_mesh_closed */
   /* albedo textures (render_texture.c): the array (0 = none), its layers and
    * size, textures that could not be read (+ the first message), vertices
    * added by the split, and (u, v, layer) per vertex until the upload */
@@ -121,7 +134,7 @@ struct cv_renderer {
   float *tex_uvl;
 };
 
-enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2 }; /* draw_mesh parts */
+enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
 
 #define CHUNK 1024
 
@@ -146,6 +159,7 @@ int cvr_cmp_u64(const void *a, const void *b);
 int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err *err);
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
 void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
+int cvr_shadow_culled(const cv_renderer *r);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);

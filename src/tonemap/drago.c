@@ -61,6 +61,8 @@ uint8_t cv_rec709_code_exact(float e) {
   return (uint8_t)lrintf(t * 255.0f);
 }
 
+static uint8_t rec709_bisect(const cv_rec709_lut *t, float e);
+
 void cv_rec709_lut_init(cv_rec709_lut *t) {
   for (int k = 0; k < 255; k++) {
     /* smallest float e in (0, 1] with code > k: bisect on the float bits
@@ -75,17 +77,33 @@ void cv_rec709_lut_init(cv_rec709_lut *t) {
     }
     memcpy(&t->step[k], &hi, sizeof hi);
   }
+  for (uint32_t b = 0; b < CV_REC709_BUCKETS; b++) {
+    const uint32_t bits = b << 18;
+    float e;
+    memcpy(&e, &bits, sizeof e);
+    t->first[b] = rec709_bisect(t, e);
+  }
 }
 
-uint8_t cv_rec709_code(const cv_rec709_lut *t, float e) {
-  if (!(e > 0)) return 0; /* NaN, 0, negative */
-  int lo = 0, hi = 255; /* code = number of steps <= e */
+/* The number of steps <= e (the code of e > 0) by bisection. */
+static uint8_t rec709_bisect(const cv_rec709_lut *t, float e) {
+  int lo = 0, hi = 255;
   while (lo < hi) {
     int mid = (lo + hi) / 2;
     if (t->step[mid] <= e) lo = mid + 1;
     else hi = mid;
   }
   return (uint8_t)lo;
+}
+
+uint8_t cv_rec709_code(const cv_rec709_lut *t, float e) {
+  if (!(e > 0)) return 0; /* NaN, 0, negative */
+  if (e >= 1.0f) return 255;
+  uint32_t bits;
+  memcpy(&bits, &e, sizeof bits);
+  unsigned k = t->first[bits >> 18]; /* steps <= the bucket's lower end */
+  while (k < 255 && t->step[k] <= e) k++;
+  return (uint8_t)k;
 }
 
 void cv_rec709_codes(const cv_rec709_lut *t, const float *e, size_t n, uint8_t *out) {

@@ -17,12 +17,16 @@
  * Medians over the frames; every pass is bracketed by glFinish.
  *
  * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
- *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440] [--cpu]
- *   [--tone-exact] [--no-sun-split]
+ *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440|N] [--cpu]
+ *   [--tone-exact] [--no-sun-split] [--no-transfer] [--depth-less]
  * --cpu: every pass timed in CPU ms of the whole process (all llvmpipe
  * threads: the work done, steady on a machine others load) instead of wall
  * ms; --tone-exact / --no-sun-split: the renderer options of those names
- * (opts.tone_exact = 1, opts.sun_split = 0), for before/after tables.
+ * (opts.tone_exact = 1, opts.sun_split = 0), for before/after tables;
+ * --no-transfer: display-linear output without the Rec.709 curve in the
+ * shader, as `cave run` renders (its 8-bit codes come from a CPU table);
+ * --depth-less: no z pre-pass, one shading pass with depth LESS
+ * (opts.depth_less; "depth" is then only the clear).
  * Back faces are culled by default (the cabin is closed and consistently
  * wound; tests/render checks the image does not change). */
 #include <math.h>
@@ -84,6 +88,7 @@ static cv_prt *load_or_bake(void) {
 
 int main(int argc, char **argv) {
   int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
+  int transfer = 1, depth_less = 0;
 #ifdef CV_SOURCE_DIR
   const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
 #else
@@ -97,6 +102,8 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--cpu")) cpu = 1;
     else if (!strcmp(argv[i], "--tone-exact")) exact = 1;
     else if (!strcmp(argv[i], "--no-sun-split")) split = 0;
+    else if (!strcmp(argv[i], "--no-transfer")) transfer = 0;
+    else if (!strcmp(argv[i], "--depth-less")) depth_less = 1;
     else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--cave") && i + 1 < argc) cave_path = argv[++i];
     else frames = atoi(argv[i]);
@@ -119,6 +126,8 @@ int main(int argc, char **argv) {
   ro.timing = cpu ? 2 : 1;
   ro.tone_exact = exact;
   ro.sun_split = split;
+  ro.shadow_reuse = 0; /* the same sun every change: time the map, do not keep it */
+  ro.depth_less = depth_less;
   cv_renderer *r;
   if (cv_renderer_create(prt, &ro, &r, &err)) {
     fprintf(stderr, "%s\n", err.msg);
@@ -137,9 +146,9 @@ int main(int argc, char **argv) {
   }
   cv_lighting l = cv_scene_light_sh(sl);
   const char *lp = getenv("LP_NUM_THREADS");
-  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s; sun split %s\n",
+  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s%s; sun split %s\n",
          cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)", cpu ? "CPU (all threads)" : "wall",
-         exact ? "log/pow" : "table + polynomial", split ? "on" : "off");
+         exact ? "log/pow" : "table + polynomial", transfer ? "" : " (no transfer)", split ? "on" : "off");
   printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
          "back faces %s, frustum culling %s, display target %s\n",
          prt->nt, prt->nv, prt->bands, half ? "half" : "float",
@@ -153,10 +162,10 @@ int main(int argc, char **argv) {
       fprintf(stderr, "%s\n", err.msg);
       return 1;
     }
-    relight[f] = t.relight_ms, shadow[f] = t.shadow_ms;
+    relight[f] = t.relight_ms, shadow[f] = t.split_ms + t.shadow_ms;
   }
   double m_relight = bench_median(relight, frames), m_shadow = bench_median(shadow, frames);
-  printf("per lighting change: relight (transform feedback + clamp count) %.1f ms, sun shadow map "
+  printf("per lighting change: relight (transform feedback) %.1f ms, sun split + shadow map "
          "2048^2 %.1f ms\n\n",
          m_relight, m_shadow);
 
@@ -166,7 +175,8 @@ int main(int argc, char **argv) {
   cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = 1000, .lwmax = 2e4};
   cv_drago_consts dc;
   cv_drago_prepare(&d, &dc);
-  const int sizes[2] = {720, 1440};
+  int sizes[2] = {720, 1440};
+  if (only > 0 && only != 720 && only != 1440) sizes[0] = only; /* any other size alone */
   cv_image *lum[NV];
   for (int i = 0; i < nviews; i++) cv_image_create(cave.lum_res, cave.lum_res, 1, &lum[i]);
   double stats_ms[MAXF];
@@ -190,7 +200,7 @@ int main(int argc, char **argv) {
         v.w = v.h = S, v.supersample = 1;
         cv_frame_timing t = {0}, tu = {0};
         if (cv_renderer_luminance(r, &v, lum[i], &t, &err) ||
-            cv_renderer_shade(r, &v, &dc, 1, disp, NULL, &t, &err) ||
+            cv_renderer_shade(r, &v, &dc, transfer, disp, NULL, &t, &err) ||
             cv_renderer_unlit(r, &v, un, &tu, &err)) {
           fprintf(stderr, "%s\n", err.msg);
           return 1;

@@ -406,6 +406,34 @@ expect_error "lcd: scene negative age" "lcd.age" $CAVE lcd lcdage.json --prt a.p
 printf '{ "mesh": { "source": "cabin" }, "lcd": 3 }\n' >lcdnotobj.json
 expect_error "scene: lcd not an object" "lcd: expected an object" $CAVE bake lcdnotobj.json -o y.prt
 [ ! -e y.exr ] && [ ! -e y.prt ] && ok "lcd: no output left by config failures" || bad "lcd: a config failure left output"
+# several panels (lcd.panels): the mesh's panel (centre) and an instrument
+# cluster in front of the driver on the same dashboard face, by corners
+CL='"corners": [[-0.46, 0.6813, -0.9772], [-0.28, 0.6813, -0.9772], [-0.46, 0.7596, -0.9937]]'
+pan() { printf '{ "mesh": { "source": "cabin" }, "lcd": { "resolution": [40, 24], "spp": 4, "panels": [ { "name": "centre" }, %s ] } }\n' "$1" >"$2"; }
+pan "{ \"name\": \"cluster\", $CL, \"content_luminance\": 300 }" twop.json
+expect_ok "lcd two panels" $CAVE lcd twop.json --prt a.prt "${EYE[@]}" --sky 3,20,180 -o tp.exr
+grep -q "lcd centre: CR" out.txt && grep -q "lcd cluster: CR" out.txt && [ -s tp.centre.exr ] && [ -s tp.cluster.exr ] \
+  && [ -s tp.centre.cr.png ] && [ -s tp.cluster.cr.png ] && grep -q '"white_luminance": 300' tp.cluster.exr.json \
+  && ok "lcd: figures, EXR, sidecar and heat map per panel" || bad "lcd: per-panel outputs"
+# the first panel's figures are those of that panel alone (its own sequences)
+printf '{ "mesh": { "source": "cabin" }, "lcd": { "resolution": [40, 24], "spp": 4 } }\n' >onep.json
+expect_ok "lcd one panel" $CAVE lcd onep.json --prt a.prt "${EYE[@]}" --sky 3,20,180 -o op.exr
+a=$(lcd_cr op.exr.json); b=$(lcd_cr tp.centre.exr.json)
+[ -n "$a" ] && [ "$a" = "$b" ] && ok "lcd: panel centre alone and beside the cluster: CR $a = $b" || bad "lcd: CR $a alone vs $b with two panels"
+pan "{ \"name\": \"cluster\", \"corners\": [[-0.47, 0.57, -3.5], [-0.27, 0.57, -3.5], [-0.47, 0.69, -3.5]] }" out1.json
+expect_error "lcd: panel outside the scene" "lcd.panels\[1\].corners\[0\]: .*outside the scene" $CAVE lcd out1.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+pan "{ \"name\": \"cluster\", $CL, \"content\": \"nosuch.png\" }" out2.json
+expect_error "lcd: panel content missing" "lcd.panels\[1\].content: .*nosuch.png: cannot open" $CAVE lcd out2.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+pan "{ \"name\": \"cluster\", $CL, \"content_luminance\": 100, \"black_luminance\": 200 }" out3.json
+expect_error "lcd: panel white below black" "lcd.panels\[1\].black_luminance" $CAVE lcd out3.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+pan "{ \"name\": \"centre\", $CL }" out4.json
+expect_error "lcd: duplicate panel names" "lcd.panels\[1\].name: 'centre' is also" $CAVE lcd out4.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+pan "{ \"name\": \"cluster\" }" out5.json
+expect_error "lcd: two panels on the mesh" "lcd.panels\[1\].corners: required" $CAVE lcd out5.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+pan "{ \"name\": \"cluster\", \"corners\": [[0, 0.6, -0.9], [0.2, 0.6, -0.9], [0.2, 0.7, -0.9]] }" out6.json
+expect_error "lcd: corners not a rectangle" "lcd.panels\[1\].corners: not a rectangle" $CAVE lcd out6.json --prt a.prt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
+[ ! -e y.exr ] && [ ! -e y.centre.exr ] && [ ! -e y.cr.png ] && [ ! -e y.centre.cr.png ] \
+  && ok "lcd: no output left by panel failures" || bad "lcd: a panel failure left output"
 # a whole drive offline: the sun climbs ahead from 3 to 15 degrees (the roof hides it at 15)
 printf '{ "loop": false, "sky": true, "keyframes": [\n {"t": 0, "yaw": 0, "pitch": 0, "roll": 0, "turbidity": 3, "sun_elevation": 3, "sun_azimuth": 0},\n {"t": 4, "turbidity": 3, "sun_elevation": 15} ] }\n' >rise.json
 expect_ok "lcd drive" $CAVE lcd a.prt --drive rise.json --eye -0.37,1.02,0 --size 40x24 --spp 8 --dt 1 -o rise.csv
@@ -417,6 +445,9 @@ awk -F, 'NR > 1 && $6 >= 0 { if (g != "" && $6 <= g) bad = 1; g = $6 } NR > 1 &&
   END { exit bad }' rise.csv && ok "lcd drive: glare angle rising, CR falling while the sun climbs ahead" \
   || { bad "lcd drive: series not monotone"; cat rise.csv; }
 if command -v gnuplot >/dev/null; then [ -s rise.png ] && ok "lcd drive: plot" || bad "lcd drive: no plot"; fi
+expect_ok "lcd drive two panels" $CAVE lcd twop.json --prt a.prt --drive rise.json --eye -0.37,1.02,0 --dt 2 -o tpd.csv
+head -1 tpd.csv | grep -q "centre.CR,centre.CR_se" && head -1 tpd.csv | grep -q "cluster.L_v" \
+  && ok "lcd drive: per-panel columns" || bad "lcd drive: per-panel columns: $(head -1 tpd.csv)"
 expect_error "lcd: --head-path without --drive" "needs --drive" $CAVE lcd a.prt --head-path x.txt "${EYE[@]}" --env-constant 1,1,1 -o y.exr
 expect_error "lcd: missing drive" "--drive: .*nosuch.json" $CAVE lcd a.prt --drive nosuch.json "${EYE[@]}" -o y.csv
 expect_error "lcd: missing head path" "--head-path: .*nosuch.txt" $CAVE lcd a.prt --drive rise.json --head-path nosuch.txt -o y.csv

@@ -67,6 +67,9 @@ SAMPLES = {
             {"lighting": {"env": "forest.exr", "illuminance": "auto"}, "prt": {"bands": "auto"}},
             {"mesh": {"source": "cabin", "tess": 1}, "lighting": {"sky": {"turbidity": 4}},
              "lcd": {"resolution": [200, 150], "cr_min": 3, "age": 60}},
+            {"mesh": {"source": "cabin", "tess": 1},
+             "lcd": {"panels": [{"name": "centre"}, {"name": "cluster", "content_luminance": 300,
+                                 "corners": [[-0.46, 0.6813, -0.9772], [-0.28, 0.6813, -0.9772], [-0.46, 0.7596, -0.9937]]}]}},
         ],
         "invalid": [
             {"mesh": {"source": "cabin", "units": "cm"}},
@@ -86,6 +89,11 @@ SAMPLES = {
             {"colour": 1},
             {"lcd": {"resolution": [400, 0]}},
             {"lcd": {"cr_min": 0.5}},
+            {"lcd": {"panels": []}},
+            {"lcd": {"panels": [{"corners": [[0, 0.6, -0.95], [0.2, 0.6, -0.95], [0, 0.7, -0.97]]}]}},
+            {"lcd": {"panels": [{"name": "a b"}]}},
+            {"lcd": {"panels": [{"name": "a", "corners": [[0, 0.6, -0.95], [0.2, 0.6, -0.95]]}]}},
+            {"lcd": {"panels": [{"name": "a", "glare": 1}]}},
         ],
     },
     "tracker": {

@@ -395,6 +395,137 @@ static void test_gl_sun(void **state) {
   cv_scene_light_destroy(sl);
 }
 
+/* Lighting changes.  (a) The culled shadow map (opts.shadow_cull: only the
+ * triangles facing away from the sun) shades like the full one on the
+ * closed cabin: at most 0.5% of the pixels differ beyond 1e-3, both poses
+ * (sub-texel differences at shadow edges; tests/bench/bench_shadow measures
+ * both against Embree).  (b) A sun moved by far less than a texel keeps the
+ * map (opts.shadow_reuse) and the image; one moved by 3 degrees redraws it;
+ * the same sun is reused even with shadow_reuse 0. */
+static void test_gl_sun_cull_reuse(void **state) {
+  (void)state;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  cv_err err;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_lighting l = cv_scene_light_sh(sl);
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1;
+  o.shadow_cull = 1;
+  cv_renderer *rc, *full;
+  OK(cv_renderer_create(F.prt, &o, &rc, &err));
+  o.shadow_cull = 0;
+  OK(cv_renderer_create(F.prt, &o, &full, &err));
+  printf("cabin closed and consistently wound: %d\n", cv_renderer_mesh_closed(rc));
+  assert_int_equal(cv_renderer_mesh_closed(rc), 1); /* so the default (-1) culls */
+  cv_frame_timing t = {0};
+  OK(cv_renderer_set_lighting(rc, &l, NULL, &t, &err));
+  assert_int_equal(t.shadow_reused, 0);
+  OK(cv_renderer_set_lighting(full, &l, NULL, NULL, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(rc, bg, &err));
+  OK(cv_renderer_set_background(full, bg, &err));
+  cv_image *a[2], *b[2];
+  for (int k = 0; k < 2; k++) {
+    pose pk = make_pose(k);
+    cv_render_view vk = make_view(&pk, 1);
+    assert_int_equal(cv_image_create(pk.w, pk.h, 3, &a[k]), CV_OK);
+    assert_int_equal(cv_image_create(pk.w, pk.h, 3, &b[k]), CV_OK);
+    OK(cv_renderer_shade(rc, &vk, NULL, 0, NULL, a[k], NULL, &err));
+    OK(cv_renderer_shade(full, &vk, NULL, 0, NULL, b[k], NULL, &err));
+    size_t differ = 0, np = (size_t)pk.w * pk.h;
+    for (size_t i = 0; i < np; i++) {
+      double d = 0;
+      for (int c = 0; c < 3; c++)
+        d = fmax(d, fabs(a[k]->px[3 * i + c] - b[k]->px[3 * i + c]) / (fabs(b[k]->px[3 * i + c]) + 1e-3));
+      differ += d > 1e-3;
+    }
+    printf("culled shadow map, pose %d: %zu of %zu pixels differ beyond 1e-3 from the full map\n", k,
+           differ, np);
+    assert_true(differ <= np / 200);
+  }
+  /* (b) turn the sun by 1e-6 rad about the vertical: kept, same image */
+  cv_lighting l2 = l;
+  const double ang[2] = {1e-6, 0.05};
+  for (int step = 0; step < 2; step++) {
+    const double c = cos(ang[step]), s = sin(ang[step]);
+    l2.sun_dir[0] = c * l.sun_dir[0] + s * l.sun_dir[2];
+    l2.sun_dir[2] = -s * l.sun_dir[0] + c * l.sun_dir[2];
+    OK(cv_renderer_set_lighting(rc, &l2, NULL, &t, &err));
+    printf("sun turned by %g rad: shadow map %s\n", ang[step], t.shadow_reused ? "kept" : "redrawn");
+    assert_int_equal(t.shadow_reused, step == 0);
+    if (step == 0) {
+      pose p0 = make_pose(0);
+      cv_render_view v0 = make_view(&p0, 1);
+      cv_image *c0;
+      assert_int_equal(cv_image_create(p0.w, p0.h, 3, &c0), CV_OK);
+      OK(cv_renderer_shade(rc, &v0, NULL, 0, NULL, c0, NULL, &err));
+      double worst = 0;
+      for (size_t i = 0; i < 3 * (size_t)p0.w * p0.h; i++)
+        worst = fmax(worst, fabs(c0->px[i] - a[0]->px[i]) / (fabs(a[0]->px[i]) + 1e-3));
+      printf("kept map: max relative difference %.2e\n", worst);
+      assert_true(worst < 1e-4);
+      cv_image_destroy(c0);
+    }
+  }
+  cv_renderer_destroy(rc);
+  cv_renderer_destroy(full);
+  o.shadow_cull = 1;
+  o.shadow_reuse = 0;
+  OK(cv_renderer_create(F.prt, &o, &rc, &err));
+  OK(cv_renderer_set_lighting(rc, &l, NULL, &t, &err));
+  OK(cv_renderer_set_lighting(rc, &l, NULL, &t, &err));
+  assert_int_equal(t.shadow_reused, 1);
+  cv_renderer_destroy(rc);
+  for (int k = 0; k < 2; k++) cv_image_destroy(a[k]), cv_image_destroy(b[k]);
+  cv_image_destroy(bg);
+  cv_scene_light_destroy(sl);
+}
+
+/* cv_renderer_mesh_closed: a unit box wound outwards is closed; without one
+ * face, or with one face wound the other way, it is not. */
+static void test_mesh_closed(void **state) {
+  (void)state;
+  static const float P[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  static const uint32_t Q[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                   {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  for (int k = 0; k < 3; k++) { /* 0: closed, 1: a face missing, 2: a face flipped */
+    cv_mesh *m;
+    cv_err err;
+    uint32_t mat;
+    assert_int_equal(cv_mesh_create(&m), CV_OK);
+    assert_int_equal(cv_mesh_add_material(m, "grey", (const float[3]){0.5f, 0.5f, 0.5f}, 0, &mat), CV_OK);
+    for (int i = 0; i < 8; i++) assert_int_equal(cv_mesh_add_vertex(m, P[i][0], P[i][1], P[i][2], NULL), CV_OK);
+    for (int f = 0; f < 6; f++) {
+      if (k == 1 && f == 5) continue;
+      const uint32_t *q = Q[f];
+      if (k == 2 && f == 5) {
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[2], q[1], mat), CV_OK);
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[3], q[2], mat), CV_OK);
+      } else {
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[1], q[2], mat), CV_OK);
+        assert_int_equal(cv_mesh_add_tri(m, q[0], q[2], q[3], mat), CV_OK);
+      }
+    }
+    cv_bake_params bp = {.bands = 2, .rays = 4, .bounces = 0, .seed = 1,
+                         .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+    cv_prt *p;
+    OK(cv_prt_bake(m, &bp, &p, NULL, &err));
+    cv_renderer *r;
+    OK(cv_renderer_create(p, NULL, &r, &err));
+    printf("box %d: closed %d\n", k, cv_renderer_mesh_closed(r));
+    assert_int_equal(cv_renderer_mesh_closed(r), k == 0);
+    cv_renderer_destroy(r);
+    cv_prt_destroy(p);
+    cv_mesh_destroy(m);
+  }
+}
+
 /* Depth EQUAL after the z pre-pass leaves no hole: with the targets cleared
  * to -1 first, no pixel keeps -1, and the image equals a single-pass
  * depth-LESS render except where coplanar triangles tie (<= 0.1%). */
@@ -819,7 +950,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),

@@ -1,0 +1,392 @@
+/* Benchmark of a lighting change of the wall-eye renderer (src/render) on
+ * the 571K-triangle cabin (tess 8, the cache of bench_render), and of the
+ * sun's shadow error against Embree-traced visibility at the same pixels.
+ *
+ * Variants of the sun's shadow map (renderer options), each its own
+ * renderer, timed alternately in the same run (lighting changes cycling
+ * over the suns, so no map is reused unless the variant says so):
+ * relight, sun split and shadow map per lighting change, in CPU ms of the
+ * whole process (every llvmpipe thread) and in wall ms.
+ *
+ * Shadow error: the 10 wall-eyes of configs/caves/cave5.json (default
+ * head) at SIZE^2 (default 360), HDR output.  Per pixel the CPU traces the
+ * eye's ray through the pixel centre (Embree, as tests/render), takes the
+ * hit triangle's winding normal n_t and interpolated albedo, and the
+ * reference visibility V_ref = cv_rt_reaches_env from the hit towards the
+ * sun (what the CPU renderer's cv_sun_direct uses).  The GPU's sun term is
+ * its HDR pixel minus the CPU's vertex radiance without the direct sun
+ * (cv_prt_relight) interpolated at the hit; V_gpu = that / (E/pi albedo
+ * n_t . s) in luminance.  Pixels counted: n_t . s > 0.05 and the full sun
+ * term above 25% of the pixel (where the sun's shadow is what one sees);
+ * pixels where V_gpu is outside [-0.25, 1.25] are silhouettes where the two
+ * rasterisers picked different surfaces and are left out (counted).  A
+ * pixel differs when (V_gpu > 0.5) != V_ref; "where": the distance in
+ * pixels to the nearest counted pixel of the other reference state (an
+ * edge of the reference shadow): <= 1, <= 3, farther.
+ *
+ * usage (from the repository root): bench_shadow [--reps N (5)] [--size S (360)]
+ *   [--suns K (4)] [--no-error] [--no-time] */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "bench_util.h"
+#include "mesh/cabin.h"
+#include "prt/bake.h"
+#include "prt/relight.h"
+#include "prt/scene_light.h"
+#include "render/renderer.h"
+#include "rt/rt.h"
+#include "view/cave.h"
+#include "view/offaxis.h"
+
+#define MAXR 32
+#define MAXSUN 8
+
+static double now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+/* The bench_render cache ($TMPDIR/cave_bench_render_t8.prt), baked here
+ * the same way when missing. */
+static cv_prt *load_or_bake(void) {
+  const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
+  char path[1024];
+  snprintf(path, sizeof path, "%s/cave_bench_render_t8.prt", tmp);
+  cv_prt *p = NULL;
+  cv_err err;
+  if (cv_prt_read(path, &p, NULL) == CV_OK && p->nt > 500000) return p;
+  cv_prt_destroy(p);
+  p = NULL;
+  cv_cabin_params cp;
+  cv_cabin_default_params(&cp);
+  cp.tess = 8;
+  cv_mesh *m;
+  if (cv_cabin_generate(&cp, &m, &err)) {
+    fprintf(stderr, "cabin: %s\n", err.msg);
+    return NULL;
+  }
+  cv_bake_params bp = {.bands = 5, .rays = 2, .bounces = 1, .seed = 1,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  if (cv_prt_bake(m, &bp, &p, NULL, &err)) {
+    fprintf(stderr, "bake: %s\n", err.msg);
+    cv_mesh_destroy(m);
+    return NULL;
+  }
+  cv_mesh_destroy(m);
+  cv_prt_write(path, p, NULL);
+  return p;
+}
+
+/* stats: the clamp count is read back (as before: always); same_sun: every
+ * change repeats the previous sun (the map and split are kept) */
+typedef struct variant {
+  const char *name;
+  int res, cull, stats, same_sun;
+} variant;
+
+static const variant VARIANTS[] = {
+    {"2048^2, all triangles, clamp count read back (before)", 2048, 0, 1, 0},
+    {"2048^2, facing away only (default on a closed mesh)", 2048, 1, 0, 0},
+    {"1024^2, all triangles", 1024, 0, 0, 0},
+    {"1024^2, facing away only", 1024, 1, 0, 0},
+    {"512^2, facing away only", 512, 1, 0, 0},
+    {"2048^2, facing away only, sun unchanged (map kept)", 2048, 1, 0, 1},
+};
+#define NVAR (int)(sizeof VARIANTS / sizeof VARIANTS[0])
+
+/* The CPU reference of one view: per pixel the hit (tri < 0: none), the
+ * full sun term's luminance, the pixel's luminance without the direct sun,
+ * the reference visibility. */
+typedef struct ref_view {
+  int *tri;
+  float *sun_y, *base_y;
+  unsigned char *vis, *counted;
+} ref_view;
+
+static double lum3(const float *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+static void trace_view(const cv_prt *prt, const cv_rt *rt, const float *rad0, const float *alb,
+                       const cv_wall *w, const double eye[3], const double off[3], int S,
+                       const double s[3], const double E[3], ref_view *rv) {
+  const float sf[3] = {(float)s[0], (float)s[1], (float)s[2]};
+#pragma omp parallel for schedule(dynamic, 4)
+  for (int y = 0; y < S; y++) {
+    cv_rt_thread_init();
+    for (int x = 0; x < S; x++) {
+      const size_t i = (size_t)y * S + x;
+      rv->tri[i] = -1, rv->counted[i] = 0, rv->vis[i] = 0;
+      double fx = (x + 0.5) / S, fy = 1 - (y + 0.5) / S, dl = 0;
+      float o[3], d[3];
+      for (int j = 0; j < 3; j++) {
+        double q = w->pa[j] + fx * (w->pb[j] - w->pa[j]) + fy * (w->pc[j] - w->pa[j]);
+        d[j] = (float)(q - eye[j]);
+        dl += (double)d[j] * d[j];
+        o[j] = (float)(eye[j] + off[j]);
+      }
+      for (int j = 0; j < 3; j++) d[j] = (float)(d[j] / sqrt(dl));
+      cv_hit h;
+      if (!cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) continue;
+      const uint32_t *t = prt->tri + 3 * h.tri;
+      const float *a = prt->pos + 3 * t[0], *b = prt->pos + 3 * t[1], *c = prt->pos + 3 * t[2];
+      double e1[3], e2[3];
+      for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)c[j] - a[j];
+      double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                     e1[0] * e2[1] - e1[1] * e2[0]};
+      const double nl = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      if (!(nl > 0)) continue;
+      const double cs = (n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) / nl;
+      const float w0 = 1 - h.u - h.v;
+      float base[3], sun[3];
+      for (int k = 0; k < 3; k++) {
+        base[k] = w0 * rad0[3 * t[0] + k] + h.u * rad0[3 * t[1] + k] + h.v * rad0[3 * t[2] + k];
+        const float al = w0 * alb[3 * t[0] + k] + h.u * alb[3 * t[1] + k] + h.v * alb[3 * t[2] + k];
+        sun[k] = (float)(E[k] / M_PI * al * (cs > 0 ? cs : 0));
+      }
+      rv->tri[i] = (int)h.tri;
+      rv->sun_y[i] = (float)lum3(sun);
+      rv->base_y[i] = (float)lum3(base);
+      if (cs > 0.05 && rv->sun_y[i] > 0.25 * (rv->sun_y[i] + rv->base_y[i])) rv->counted[i] = 1;
+      if (cs > 0) {
+        float p[3], org[3], ng[3] = {(float)(n[0] / nl), (float)(n[1] / nl), (float)(n[2] / nl)};
+        for (int j = 0; j < 3; j++) p[j] = o[j] + h.t * d[j];
+        cv_rt_offset_origin(p, ng, org);
+        rv->vis[i] = (unsigned char)cv_rt_reaches_env(rt, org, sf, 0.0f);
+      }
+    }
+  }
+}
+
+typedef struct err_acc {
+  long counted, silhouette, differ, leak, dark, near1, near3, far;
+} err_acc;
+
+/* Distance (Chebyshev, pixels, up to 8) from pixel i to the nearest counted
+ * pixel whose reference state is not `state`; 99 when none within 8. */
+static int edge_dist(const ref_view *rv, int S, int x, int y, int state) {
+  for (int r = 1; r <= 8; r++)
+    for (int dy = -r; dy <= r; dy++)
+      for (int dx = -r; dx <= r; dx++) {
+        if (abs(dx) != r && abs(dy) != r) continue;
+        const int xx = x + dx, yy = y + dy;
+        if (xx < 0 || yy < 0 || xx >= S || yy >= S) continue;
+        const size_t j = (size_t)yy * S + xx;
+        if (rv->tri[j] >= 0 && rv->vis[j] != state) return r;
+      }
+  return 99;
+}
+
+static void compare_view(const ref_view *rv, const cv_image *hdr, int S, err_acc *e) {
+  for (int y = 0; y < S; y++)
+    for (int x = 0; x < S; x++) {
+      const size_t i = (size_t)y * S + x;
+      if (!rv->counted[i]) continue;
+      const double g = lum3(hdr->px + 3 * i) - rv->base_y[i];
+      const double v = g / rv->sun_y[i];
+      if (!(v >= -0.25 && v <= 1.25)) {
+        e->silhouette++;
+        continue;
+      }
+      e->counted++;
+      const int lit = v > 0.5;
+      if (lit == rv->vis[i]) continue;
+      e->differ++;
+      if (lit) e->leak++;
+      else e->dark++;
+      const int dd = edge_dist(rv, S, x, y, rv->vis[i]);
+      if (dd <= 1) e->near1++;
+      else if (dd <= 3) e->near3++;
+      else e->far++;
+    }
+}
+
+int main(int argc, char **argv) {
+  int reps = 5, S = 360, nsun = 4, do_err = 1, do_time = 1;
+  const char *cave_path = "configs/caves/cave5.json";
+  for (int i = 1; i < argc; i++) {
+    if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--size") && i + 1 < argc) S = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--suns") && i + 1 < argc) nsun = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--no-error")) do_err = 0;
+    else if (!strcmp(argv[i], "--no-time")) do_time = 0;
+    else if (!strcmp(argv[i], "--help")) {
+      printf("usage: bench_shadow [--reps N] [--size S] [--suns K] [--no-error] [--no-time]\n");
+      return 0;
+    } else {
+      fprintf(stderr, "bench_shadow: unknown option '%s' (see --help)\n", argv[i]);
+      return 2;
+    }
+  }
+  if (reps < 1 || reps > MAXR || S < 16 || S > 4096 || nsun < 1 || nsun > MAXSUN) {
+    fprintf(stderr, "bench_shadow: --reps 1..%d, --size 16..4096, --suns 1..%d\n", MAXR, MAXSUN);
+    return 2;
+  }
+  cv_err err;
+  cv_cave cave;
+  if (cv_cave_load(cave_path, &cave, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  cv_prt *prt = load_or_bake();
+  if (!prt) return 1;
+  /* suns: elevation / azimuth (degrees) of a Preetham sky, turbidity 3 */
+  const double sun_ea[MAXSUN][2] = {{35, 30}, {20, 100}, {55, 200}, {12, 290},
+                                    {45, 150}, {25, 340}, {65, 60}, {8, 180}};
+  cv_lighting L[MAXSUN];
+  for (int k = 0; k < nsun; k++) {
+    cv_light_spec spec;
+    cv_light_spec_default(&spec);
+    spec.kind = CV_LIGHT_SKY;
+    spec.turbidity = 3, spec.sun_elevation_deg = sun_ea[k][0], spec.sun_azimuth_deg = sun_ea[k][1];
+    cv_scene_light *sl;
+    if (cv_scene_light_build(&spec, (int)prt->bands, &sl, &err)) {
+      fprintf(stderr, "lighting: %s\n", err.msg);
+      return 1;
+    }
+    L[k] = cv_scene_light_sh(sl);
+    cv_scene_light_destroy(sl);
+    if (!L[k].has_sun) {
+      fprintf(stderr, "sun %d: the sky has no sun\n", k);
+      return 1;
+    }
+  }
+  cv_renderer *R[NVAR];
+  for (int v = 0; v < NVAR; v++) {
+    cv_render_opts ro;
+    cv_render_default_opts(&ro);
+    ro.cull_back = 1;
+    ro.timing = 2; /* CPU ms; wall ms measured around the call */
+    ro.shadow_res = VARIANTS[v].res;
+    ro.shadow_cull = VARIANTS[v].cull;
+    ro.shadow_reuse = VARIANTS[v].same_sun ? 0.5 : 0;
+    if (cv_renderer_create(prt, &ro, &R[v], &err)) {
+      fprintf(stderr, "%s\n", err.msg);
+      return 1;
+    }
+  }
+  const char *lp = getenv("LP_NUM_THREADS");
+  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[0]), lp ? lp : "(unset: all cores)");
+  printf("scene: %zu triangles, %zu vertices, %u bands, closed and consistently wound: %s; %d suns "
+         "of a Preetham sky\n\n", prt->nt, prt->nv, prt->bands,
+         cv_renderer_mesh_closed(R[0]) ? "yes" : "no", nsun);
+  if (do_time) {
+    static double T[NVAR][4][MAXR * MAXSUN];
+    int n = 0;
+    for (int rep = 0; rep < reps; rep++)
+      for (int k = 0; k < nsun; k++, n++)
+        for (int v = 0; v < NVAR; v++) {
+          cv_frame_timing t = {0};
+          cv_render_light_stats ls;
+          const cv_lighting *lk = &L[(k + rep) % nsun];
+          if (VARIANTS[v].same_sun && cv_renderer_set_lighting(R[v], lk, NULL, NULL, &err)) {
+            fprintf(stderr, "%s\n", err.msg);
+            return 1;
+          }
+          double w0 = now_ms();
+          if (cv_renderer_set_lighting(R[v], lk, VARIANTS[v].stats ? &ls : NULL, &t, &err)) {
+            fprintf(stderr, "%s\n", err.msg);
+            return 1;
+          }
+          T[v][0][n] = t.relight_ms, T[v][1][n] = t.split_ms, T[v][2][n] = t.shadow_ms;
+          T[v][3][n] = now_ms() - w0;
+        }
+    printf("Per lighting change (%d changes per variant, alternated; medians, [min, max]):\n\n", n);
+    printf("| shadow map | relight CPU ms | split CPU ms | shadow map CPU ms | lighting change CPU ms | wall ms |\n");
+    printf("|---|---|---|---|---|---|\n");
+    for (int v = 0; v < NVAR; v++) {
+      double tot[MAXR * MAXSUN], lo = INFINITY, hi = 0;
+      for (int i = 0; i < n; i++) {
+        tot[i] = T[v][0][i] + T[v][1][i] + T[v][2][i];
+        lo = fmin(lo, tot[i]), hi = fmax(hi, tot[i]);
+      }
+      double m[4];
+      for (int k = 0; k < 4; k++) m[k] = bench_median(T[v][k], n);
+      printf("| %s | %.1f | %.1f | %.1f | %.1f [%.1f, %.1f] | %.1f |\n", VARIANTS[v].name, m[0], m[1],
+             m[2], bench_median(tot, n), lo, hi, m[3]);
+    }
+    printf("\n");
+  }
+  if (!do_err) return 0;
+
+  cv_mesh *pm;
+  cv_tracer *tr;
+  if (cv_prt_to_mesh(prt, &pm) || cv_tracer_create(pm, &tr, &err)) {
+    fprintf(stderr, "tracer: %s\n", err.msg);
+    return 1;
+  }
+  cv_mesh_destroy(pm);
+  const cv_rt *rt = cv_tracer_rt(tr);
+  float *rad0 = malloc(3 * prt->nv * sizeof *rad0), *alb = malloc(3 * prt->nv * sizeof *alb);
+  if (!rad0 || !alb || cv_prt_untextured_scale(prt, alb)) return 1;
+  for (size_t i = 0; i < 3 * prt->nv; i++) alb[i] *= prt->albedo[i];
+  double eyes[2][3];
+  cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
+  const int nviews = 2 * cave.n_walls;
+  ref_view rv;
+  const size_t np = (size_t)S * S;
+  rv.tri = malloc(np * sizeof *rv.tri);
+  rv.sun_y = malloc(np * sizeof *rv.sun_y);
+  rv.base_y = malloc(np * sizeof *rv.base_y);
+  rv.vis = malloc(np), rv.counted = malloc(np);
+  cv_image *hdr;
+  if (!rv.tri || !rv.sun_y || !rv.base_y || !rv.vis || !rv.counted || cv_image_create(S, S, 3, &hdr))
+    return 1;
+  err_acc acc[NVAR][MAXSUN];
+  memset(acc, 0, sizeof acc);
+  for (int k = 0; k < nsun; k++) {
+    if (cv_prt_relight(prt, &L[k], NULL, 0, rad0, NULL)) return 1;
+    for (int v = 0; v < NVAR; v++)
+      if (cv_renderer_set_lighting(R[v], &L[k], NULL, NULL, &err)) {
+        fprintf(stderr, "%s\n", err.msg);
+        return 1;
+      }
+    for (int i = 0; i < nviews; i++) {
+      const cv_wall *w = &cave.walls[i / 2];
+      trace_view(prt, rt, rad0, alb, w, eyes[i % 2], cave.scene_offset, S, L[k].sun_dir, L[k].sun_E, &rv);
+      cv_render_view view;
+      memset(&view, 0, sizeof view);
+      cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &view.proj);
+      memcpy(view.scene_offset, cave.scene_offset, sizeof view.scene_offset);
+      view.w = view.h = S, view.supersample = 1;
+      for (int v = 0; v < NVAR; v++) {
+        if (VARIANTS[v].same_sun) continue; /* the map of its row above */
+        if (cv_renderer_shade(R[v], &view, NULL, 0, NULL, hdr, NULL, &err)) {
+          fprintf(stderr, "%s\n", err.msg);
+          return 1;
+        }
+        compare_view(&rv, hdr, S, &acc[v][k]);
+      }
+    }
+  }
+  printf("Shadow error against Embree sun visibility, %d wall-eyes at %d^2, %d suns (pixels where "
+         "the sun is over 25%% of the pixel and n.s > 0.05):\n\n", nviews, S, nsun);
+  printf("| shadow map | pixels counted | silhouette (left out) | differ | of which too lit / too dark | "
+         "within 1 px of a shadow edge | 2-3 px | farther | worst sun |\n");
+  printf("|---|---|---|---|---|---|---|---|---|\n");
+  for (int v = 0; v < NVAR; v++) {
+    if (VARIANTS[v].same_sun) continue;
+    err_acc t = {0};
+    double worst = 0;
+    for (int k = 0; k < nsun; k++) {
+      const err_acc *a = &acc[v][k];
+      t.counted += a->counted, t.silhouette += a->silhouette, t.differ += a->differ;
+      t.leak += a->leak, t.dark += a->dark, t.near1 += a->near1, t.near3 += a->near3, t.far += a->far;
+      if (a->counted) worst = fmax(worst, (double)a->differ / a->counted);
+    }
+    const double c = t.counted ? (double)t.counted : 1;
+    printf("| %s | %ld | %ld | %.3f%% | %.3f%% / %.3f%% | %.3f%% | %.3f%% | %.3f%% | %.3f%% |\n",
+           VARIANTS[v].name, t.counted, t.silhouette, 100 * t.differ / c, 100 * t.leak / c,
+           100 * t.dark / c, 100 * t.near1 / c, 100 * t.near3 / c, 100 * t.far / c, 100 * worst);
+  }
+  free(rv.tri), free(rv.sun_y), free(rv.base_y), free(rv.vis), free(rv.counted);
+  free(rad0), free(alb);
+  cv_image_destroy(hdr);
+  cv_tracer_destroy(tr);
+  for (int v = 0; v < NVAR; v++) cv_renderer_destroy(R[v]);
+  cv_prt_destroy(prt);
+  return 0;
+}
