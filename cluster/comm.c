@@ -394,15 +394,27 @@ int cv_comm_render_barrier_test(void) {
   return done;
 }
 
+/* The master is the LAST rank of the LCD communicator: in-place
+ * MPI_Iallreduce is Open MPI libnbc's binomial tree (reduce to rank 0, then
+ * broadcast), where rank 0 adds ceil(log2 p) whole buffers and the last rank
+ * none (its partners would be beyond p): there the master only sends its
+ * buffer and receives the sum, whatever the number of gather ranks.  Callers
+ * see the master as member 0 (*rank = (comm rank + 1) mod size). */
 int cv_comm_lcd_group(int member, int *size, int *rank) {
   *size = 0;
   *rank = -1;
+  int world = 0, wsize = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &world);
+  MPI_Comm_size(MPI_COMM_WORLD, &wsize);
   MPI_Comm c;
-  if (MPI_Comm_split(MPI_COMM_WORLD, member ? 1 : MPI_UNDEFINED, 0, &c) != MPI_SUCCESS) return -1;
+  if (MPI_Comm_split(MPI_COMM_WORLD, member ? 1 : MPI_UNDEFINED, world == 0 ? wsize : world, &c) != MPI_SUCCESS)
+    return -1;
   g_lcd = c;
   if (c != MPI_COMM_NULL) {
+    int r = 0;
     MPI_Comm_size(c, size);
-    MPI_Comm_rank(c, rank);
+    MPI_Comm_rank(c, &r);
+    *rank = (r + 1) % *size;
   }
   return 0;
 }

@@ -91,7 +91,8 @@ int cv_comm_render_barrier_test(void);
 /* The LCD reduction's communicator (the master and the gather-only ranks,
  * cluster/lcdreduce.c): every rank calls it once after init, collectively,
  * with member = 1 on those ranks.  *size / *rank: this rank's place in it
- * (0 / -1 when not a member; the master is rank 0). */
+ * (0 / -1 when not a member; the master is member 0, placed last in the
+ * communicator, a leaf of the sum's tree: comm.c). */
 int cv_comm_lcd_group(int member, int *size, int *rank);
 /* Starts an in-place non-blocking sum of n int64 words over that
  * communicator (MPI_Iallreduce, MPI_SUM); buf must stay untouched until

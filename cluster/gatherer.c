@@ -44,6 +44,13 @@ static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_lcd_worker *w, 
   *red = NULL;
 }
 
+/* This (the MPI) thread's CPU time, ms. */
+static double thread_cpu_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
 /* Reports set-up success ('O') or failure ('F' + message) to the master. */
 void cv_service_ready(int ok, const char *msg) {
   char buf[512];
@@ -80,6 +87,7 @@ int cv_gather_run(cv_service *s) {
   cv_mailbox *mb = cv_mailbox_open(0, CV_TAG_STATE, CV_FRAME_STATE_BYTES);
   cv_mailbox *alive_mb = cv_mailbox_open(0, CV_TAG_ALIVE, 16);
   double stop_since = 0, quit_since = 0, first_state = 0, beat_t = 0;
+  const double comm_cpu0 = thread_cpu_ms();
   uint32_t beats = 0;
   int rc = st ? 1 : 0;
   for (;;) {
@@ -116,12 +124,19 @@ int cv_gather_run(cv_service *s) {
     }
     if (cv_comm_declared_dead()) break;
     if (!quit_since) maybe_abandon(s, &red, w, first_state, told);
-    if (w && red) cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+    if (w && red) {
+      cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
+      uint64_t rounds;
+      double ms, cpu_ms;
+      cv_lcd_worker_totals(w, &rounds, &ms, &cpu_ms);
+      cv_lcd_reduce_set_work(red, rounds, ms, cpu_ms, thread_cpu_ms() - comm_cpu0);
+    }
     else if (w && s->lcd_me > 0) cv_lcd_worker_send_ready(w, send_round, NULL, NULL, NULL);
     /* After the quit, the epochs go on until the master's last one (it
-     * brings the last pooled rounds), but not for ever. */
+     * brings the last pooled rounds), but not for ever: longer than the
+     * master waits for it (10 s, lcd_reduce_finish), so it gives up first. */
     const int red_done = red ? cv_lcd_reduce_poll(red, cv_service_now(), 0, NULL, NULL) : 1;
-    if (quit_since && (red_done || cv_service_now() - quit_since > 5)) break;
+    if (quit_since && (red_done || cv_service_now() - quit_since > 15)) break;
     cv_comm_progress();
     if (*s->stop) { /* wait for the master's quit, but not for ever */
       if (stop_since == 0) stop_since = cv_service_now();
@@ -129,6 +144,10 @@ int cv_gather_run(cv_service *s) {
     }
     struct timespec ts = {0, 1000000};
     nanosleep(&ts, NULL);
+  }
+  if (red && cv_lcd_reduce_in_flight(red)) { /* its buffers stay MPI's; no MPI_Finalize */
+    fprintf(stderr, "cave run: rank %d: LCD sum still in flight at the end: given up\n", s->rank);
+    cv_lcd_reduce_abandon(red);
   }
   cv_lcd_worker_destroy(w);
   cv_lcd_reduce_destroy(red);

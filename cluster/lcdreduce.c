@@ -11,7 +11,9 @@
  *           offer from the header (the master's current key first, else the
  *           newest snapshot), and MPI_Iallreduce (sum) adds the fixed-point
  *           LCD buffers of the offers of that key (cv_lcd_accum words; zeros
- *           from the others, whose offers go back to their pools).
+ *           from the others, whose offers go back to their pools).  The
+ *           master is a leaf of the sum's tree (cv_comm_lcd_group): the
+ *           gather ranks do the adding.
  *
  * So every sum is of one key.  The master tests the request once per poll
  * (each frame and in its waiting loops) and starts the next epoch at most
@@ -23,15 +25,20 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "comm.h"
 #include "service_internal.h"
 
 enum { PH_IDLE, PH_HEADER, PH_DATA, PH_DONE };
 /* header: master's key, quit flag, then one slot per member: offered (1),
- * LCD key (4 words), clamp (bits), frame of the key, first round, rounds */
-enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 10 };
-enum { S_OFFER = 0, S_KEY = 1, S_CLAMP = 5, S_FRAME = 6, S_FIRST = 7, S_N = 8 };
+ * LCD key (4 words), clamp (bits), frame of the key, first round, rounds;
+ * and, offer or not, the member's totals (cv_lcd_reduce_set_work): rounds
+ * rendered, their wall and CPU time, its MPI thread's CPU time (us) */
+enum { H_KEY = 0, H_QUIT = 1, H_SLOTS = 2, SLOT_WORDS = 13 };
+enum { S_OFFER = 0, S_KEY = 1, S_CLAMP = 5, S_FRAME = 6, S_FIRST = 7, S_N = 8, S_WROUNDS = 9,
+       S_WUS = 10, S_WCPU_US = 11, S_WCOMM_US = 12 };
+enum { WORK = 4 }; /* the words from S_WROUNDS */
 _Static_assert(sizeof(cv_lcd_key) == 4 * sizeof(int64_t), "an LCD key is 4 words");
 
 /* Rounds of one key from one worker: first, first + stride, ... (n). */
@@ -46,6 +53,7 @@ struct cv_lcd_reduce {
   size_t words, hdr_n;
   int64_t *hdr, *data;
   int phase;
+  int leak; /* abandoned with a sum in flight: MPI may still write hdr, data */
   double t_start;
   int quit_epoch;
   /* master */
@@ -60,9 +68,15 @@ struct cv_lcd_reduce {
     cv_lcd_key key;
     uint32_t first, n;
   } carried[2];
+  /* contributor: its work so far (sent in its header slot) */
+  int64_t work[WORK];
+  /* master: each member's work from the last header */
+  int64_t *member_work; /* WORK per member */
   /* totals */
   uint64_t epochs, data_epochs, nrounds;
   double ms_sum;
+  uint64_t polls;
+  double poll_ms, poll_cpu_ms, poll_ms_max, poll_cpu_ms_max;
 };
 
 int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int me,
@@ -83,7 +97,8 @@ int cv_lcd_reduce_create(int w, int h, int budget, int stride, int members, int 
   r->hdr = calloc(r->hdr_n, sizeof *r->hdr);
   r->data = calloc(r->words, sizeof *r->data);
   r->rounds = calloc((size_t)budget, sizeof *r->rounds);
-  if (!r->hdr || !r->data || !r->rounds) {
+  r->member_work = calloc(WORK * (size_t)members, sizeof *r->member_work);
+  if (!r->hdr || !r->data || !r->rounds || !r->member_work) {
     cv_lcd_reduce_destroy(r);
     return CV_ERR_NOMEM;
   }
@@ -101,9 +116,12 @@ void cv_lcd_reduce_destroy(cv_lcd_reduce *r) {
   if (!r) return;
   pool_clear(&r->pool);
   pool_clear(&r->offer);
-  free(r->hdr);
-  free(r->data);
+  if (!r->leak) { /* else left to MPI: the sum in flight may still write them */
+    free(r->hdr);
+    free(r->data);
+  }
   free(r->rounds);
+  free(r->member_work);
   free(r);
 }
 
@@ -147,7 +165,10 @@ static void start_header(cv_lcd_reduce *r, double now) {
   if (r->me == 0) {
     memcpy(&r->hdr[H_KEY], &r->announce, sizeof r->announce);
     r->hdr[H_QUIT] = r->announce_quit;
-  } else if (r->pool.acc && r->pool.n > 0) { /* offer the pool, frozen */
+  } else {
+    memcpy(slot(r, r->me) + S_WROUNDS, r->work, sizeof r->work);
+  }
+  if (r->me > 0 && r->pool.acc && r->pool.n > 0) { /* offer the pool, frozen */
     r->offer = r->pool;
     memset(&r->pool, 0, sizeof r->pool);
     int64_t *s = slot(r, r->me);
@@ -220,6 +241,12 @@ static void offer_back(cv_lcd_reduce *r) {
 
 static void header_done(cv_lcd_reduce *r, double now) {
   r->quit_epoch = r->hdr[H_QUIT] != 0;
+  if (r->me == 0)
+    for (int m = 1; m < r->members; m++) {
+      const int64_t *s = slot(r, m);
+      if (s[S_WROUNDS] >= r->member_work[WORK * m]) /* totals only grow */
+        memcpy(r->member_work + WORK * (size_t)m, s + S_WROUNDS, WORK * sizeof(int64_t));
+    }
   const int best = chosen(r);
   if (r->me > 0 && r->offer.acc && (best < 0 || !matches(r, r->me, best))) offer_back(r);
   if (best < 0) {
@@ -271,8 +298,8 @@ static void data_done(cv_lcd_reduce *r, double now, cv_lcd_reduce_fn fn, void *u
   finish_epoch(r, now);
 }
 
-int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
-                       void *user) {
+static int poll_step(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
+                     void *user) {
   for (;;) {
     switch (r->phase) {
     case PH_DONE:
@@ -293,12 +320,45 @@ int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_r
   }
 }
 
+static double clock_ms(clockid_t id) {
+  struct timespec ts;
+  clock_gettime(id, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+/* poll_step, timed: wall and this thread's CPU time per call (the MPI_Test
+ * that may run Open MPI's part of the sum, and fn). */
+int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
+                       void *user) {
+  const double w0 = clock_ms(CLOCK_MONOTONIC), c0 = clock_ms(CLOCK_THREAD_CPUTIME_ID);
+  const int done = poll_step(r, now, min_period, fn, user);
+  const double dw = clock_ms(CLOCK_MONOTONIC) - w0, dc = clock_ms(CLOCK_THREAD_CPUTIME_ID) - c0;
+  r->polls++;
+  r->poll_ms += dw;
+  r->poll_cpu_ms += dc;
+  if (dw > r->poll_ms_max) r->poll_ms_max = dw;
+  if (dc > r->poll_cpu_ms_max) r->poll_cpu_ms_max = dc;
+  return done;
+}
+
+void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double cpu_ms, double comm_cpu_ms) {
+  r->work[0] = (int64_t)rounds;
+  r->work[1] = (int64_t)(ms * 1e3);
+  r->work[2] = (int64_t)(cpu_ms * 1e3);
+  r->work[3] = (int64_t)(comm_cpu_ms * 1e3);
+}
+
+int cv_lcd_reduce_in_flight(const cv_lcd_reduce *r) {
+  return r->phase == PH_HEADER || r->phase == PH_DATA;
+}
+
 double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since) {
   if (r->phase != PH_HEADER && r->phase != PH_DATA) return 0;
   return now - (r->t_start > since ? r->t_start : since);
 }
 
 void cv_lcd_reduce_abandon(cv_lcd_reduce *r) {
+  if (r->phase == PH_HEADER || r->phase == PH_DATA) r->leak = 1;
   cv_comm_lcd_abandon();
   pool_clear(&r->offer);
   r->phase = PH_DONE;
@@ -326,4 +386,19 @@ void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {
   st->data_epochs = r->data_epochs;
   st->rounds = r->nrounds;
   st->mean_ms = r->epochs ? r->ms_sum / (double)r->epochs : 0;
+  st->polls = r->polls;
+  st->poll_ms = r->poll_ms;
+  st->poll_cpu_ms = r->poll_cpu_ms;
+  st->poll_ms_max = r->poll_ms_max;
+  st->poll_cpu_ms_max = r->poll_cpu_ms_max;
+  st->gather_rounds = 0;
+  st->gather_ms = st->gather_cpu_ms = st->gather_comm_cpu_ms = st->gather_comm_cpu_ms_max = 0;
+  for (int m = 1; r->me == 0 && m < r->members; m++) {
+    const int64_t *w = r->member_work + WORK * (size_t)m;
+    st->gather_rounds += (uint64_t)w[0];
+    st->gather_ms += (double)w[1] * 1e-3;
+    st->gather_cpu_ms += (double)w[2] * 1e-3;
+    st->gather_comm_cpu_ms += (double)w[3] * 1e-3;
+    if ((double)w[3] * 1e-3 > st->gather_comm_cpu_ms_max) st->gather_comm_cpu_ms_max = (double)w[3] * 1e-3;
+  }
 }

@@ -48,12 +48,20 @@ void cv_lcd_reduce_announce(cv_lcd_reduce *r, uint64_t key, int quit);
 int cv_lcd_reduce_poll(cv_lcd_reduce *r, double now, double min_period, cv_lcd_reduce_fn fn,
                        void *user);
 
+/* Contributor: its totals so far (rounds rendered, their wall and CPU ms,
+ * and the CPU ms of its MPI thread: pooling, the sum's share, polling),
+ * sent in its header slot with every epoch (the master's per-rank figures). */
+void cv_lcd_reduce_set_work(cv_lcd_reduce *r, uint64_t rounds, double ms, double cpu_ms, double comm_cpu_ms);
+
 /* Seconds the epoch in flight has waited since max(its start, since); 0
  * when none is in flight. */
 double cv_lcd_reduce_waiting(const cv_lcd_reduce *r, double now, double since);
+/* 1 while a sum is in flight (its buffers belong to MPI). */
+int cv_lcd_reduce_in_flight(const cv_lcd_reduce *r);
 /* Gives the sum up for good (a member died, cv_comm_lcd_abandon): the
  * epoch in flight and the rounds it offered are dropped, poll returns 1
- * from now on; the totals stay. */
+ * from now on; the totals stay.  With a sum in flight its buffers are never
+ * freed (MPI may still write them). */
 void cv_lcd_reduce_abandon(cv_lcd_reduce *r);
 
 /* Contributor: the rounds no sum has carried yet, offered in the epoch in
@@ -66,10 +74,18 @@ int cv_lcd_reduce_unsent(const cv_lcd_reduce *r, int which, cv_lcd_key *key, uin
                          uint32_t *n);
 
 /* Totals: epochs finished, those that carried rounds, and the mean time
- * from an epoch's start to its sum on this rank (ms). */
+ * from an epoch's start to its sum on this rank (ms); calls of
+ * cv_lcd_reduce_poll, their wall and thread-CPU time (total and largest
+ * call, ms); on the master, the gather ranks' totals from the last header:
+ * rounds rendered, their wall and CPU ms, their MPI threads' CPU ms (summed
+ * over the ranks, and the largest). */
 typedef struct cv_lcd_reduce_stats {
   uint64_t epochs, data_epochs, rounds;
   double mean_ms;
+  uint64_t polls;
+  double poll_ms, poll_cpu_ms, poll_ms_max, poll_cpu_ms_max;
+  uint64_t gather_rounds;
+  double gather_ms, gather_cpu_ms, gather_comm_cpu_ms, gather_comm_cpu_ms_max;
 } cv_lcd_reduce_stats;
 void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st);
 

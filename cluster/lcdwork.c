@@ -51,7 +51,7 @@ struct cv_lcd_worker {
   msg_node *head, *tail;
   size_t queued;
   uint64_t rounds_done;
-  double ms_total;
+  double ms_total, cpu_ms_total; /* rounds' wall and thread CPU time */
   /* the rounds of the current key (shared with cv_lcd_worker_redo): those
    * taken (rendered or being rendered), the lowest that may still be this
    * contributor's and not taken, the dead gather ranks of the ownership */
@@ -115,8 +115,9 @@ static void worker_error(cv_lcd_worker *w, const char *what, const char *msg) {
 /* Renders one round into a message and queues it for the owner. */
 static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_key *key,
                          double clamp, uint32_t round, uint32_t frame) {
-  struct timespec t0, t1;
+  struct timespec t0, t1, c0, c1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
   cv_lcd_accum *acc = NULL;
   int st = cv_lcd_accum_create(w->s->lcd_layout.W, w->s->lcd_layout.H, clamp, &acc);
   if (st == CV_OK) st = cv_lcd_panels_round(w->ps, ll, &w->p, round, acc);
@@ -130,6 +131,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     return;
   }
   clock_gettime(CLOCK_MONOTONIC, &t1);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
   cv_lcd_msg h;
   memset(&h, 0, sizeof h);
   h.key = *key;
@@ -155,6 +157,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
     w->queued++;
     w->rounds_done++;
     w->ms_total += (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6;
+    w->cpu_ms_total += (double)(c1.tv_sec - c0.tv_sec) * 1e3 + (double)(c1.tv_nsec - c0.tv_nsec) * 1e-6;
     pthread_mutex_unlock(&w->mu);
   } else {
     free(node);
@@ -346,6 +349,14 @@ void cv_lcd_worker_redo(cv_lcd_worker *w, const cv_lcd_key *key, uint32_t first,
     if (first < w->cursor) w->cursor = first;
     pthread_cond_signal(&w->cv);
   }
+  pthread_mutex_unlock(&w->mu);
+}
+
+void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total) {
+  pthread_mutex_lock(&w->mu);
+  *rounds_done = w->rounds_done;
+  *ms_total = w->ms_total;
+  *cpu_ms_total = w->cpu_ms_total;
   pthread_mutex_unlock(&w->mu);
 }
 

@@ -28,6 +28,9 @@ int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size
  * way to the master (an abandoned LCD allreduce): rendered again when key
  * is still the worker's current key, else nothing. */
 void cv_lcd_worker_redo(cv_lcd_worker *w, const cv_lcd_key *key, uint32_t first, uint32_t n);
+/* Totals so far: rounds finished, their wall time and the worker thread's
+ * CPU time in them (CLOCK_THREAD_CPUTIME_ID), ms. */
+void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total);
 /* Last error of the thread, or NULL. */
 const char *cv_lcd_worker_error(cv_lcd_worker *w);
 /* Stops the thread (after its current round) and frees everything. */

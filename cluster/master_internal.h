@@ -178,6 +178,8 @@ typedef struct master {
   FILE *mf;
   cv_metrics_line *ml;
   double *frame_ms, *overhead_ms;
+  double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
+  double run_cpu0_ms;      /* its CPU time when the frames started */
   double *frame_t;        /* cap: service time each frame started */
   size_t cap;             /* entries of the per-frame histories */
   size_t nframes_done;

@@ -128,6 +128,11 @@ void lcd_reduce_finish(master *m) {
     struct timespec ts = {0, 1000000};
     nanosleep(&ts, NULL);
   }
+  if (cv_lcd_reduce_in_flight(m->lcd_red)) { /* its buffers stay MPI's; no MPI_Finalize */
+    fprintf(stderr, "cave run: master: the last LCD sum did not finish in 10 s: given up\n");
+    cv_lcd_reduce_abandon(m->lcd_red);
+    m->lcd_red_abandoned = 1;
+  }
 }
 
 void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
@@ -140,6 +145,18 @@ void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_uint(ml, "data_epochs", st.data_epochs);
   cv_metrics_uint(ml, "rounds", st.rounds);
   cv_metrics_double(ml, "epoch_ms_mean", st.mean_ms);
+  /* the master's polls of the sum (docs/metrics.md), and the gather ranks' rounds */
+  cv_metrics_uint(ml, "polls", st.polls);
+  cv_metrics_double(ml, "poll_ms", st.poll_ms);
+  cv_metrics_double(ml, "poll_cpu_ms", st.poll_cpu_ms);
+  cv_metrics_double(ml, "poll_ms_max", st.poll_ms_max);
+  cv_metrics_double(ml, "poll_cpu_ms_max", st.poll_cpu_ms_max);
+  cv_metrics_uint(ml, "gather_rounds", st.gather_rounds);
+  cv_metrics_double(ml, "gather_round_ms", st.gather_rounds ? st.gather_ms / (double)st.gather_rounds : 0);
+  cv_metrics_double(ml, "gather_round_cpu_ms", st.gather_rounds ? st.gather_cpu_ms / (double)st.gather_rounds : 0);
+  cv_metrics_double(ml, "gather_cpu_ms", st.gather_cpu_ms);
+  cv_metrics_double(ml, "gather_comm_cpu_ms", st.gather_comm_cpu_ms);
+  cv_metrics_double(ml, "gather_comm_cpu_ms_max", st.gather_comm_cpu_ms_max);
   cv_metrics_bool(ml, "abandoned", m->lcd_red_abandoned); /* a member died: rounds point-to-point */
   cv_metrics_uint(ml, "p2p_rounds", m->lcd_gather_p2p);   /* gather ranks' rounds taken point-to-point */
   cv_metrics_uint(ml, "shared_rounds", m->lcd_shared);   /* dead gather ranks' rounds from others */

@@ -7,6 +7,7 @@
 #include <omp.h>
 
 #include "cli/cli.h"
+#include "prt/auto_view.h"
 #include "prt/auto.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
@@ -15,7 +16,7 @@ static void help(FILE *f) {
   fprintf(f,
           "usage: cave bake <scene.json | mesh.obj|.ply|.gltf|.glb | default> -o scene.prt\n"
           "                 [--bands N|auto] [--rays N|auto] [--bounces N] [--seed S]\n"
-          "                 [--budget E] [--spread F] [--cosine-only] [--tess N]\n"
+          "                 [--budget E] [--spread F] [--cosine-only] [--tail on|off] [--tess N]\n"
           "                 [--threads N] [--force] [--quiet]\n"
           "                 [--units U] [--up y|z] [--model-scale S] [--rotate X,Y,Z]\n"
           "                 [--translate X,Y,Z]\n\n"
@@ -24,12 +25,21 @@ static void help(FILE *f) {
           "triangles; only rays that leave through a window see the sky (directions drawn\n"
           "by MIS of the cosine lobe and the window openings); N bounces.\n"
           "'default' bakes the built-in cabin.  Options override the scene config.\n\n"
-          "  --bands N|auto  SH bands 2..8 (N*N coefficients; config default 5)\n"
+          "  --bands N|auto  SH bands 2..8 (N*N coefficients; config default 8)\n"
           "  --rays N|auto   rays per vertex per pass (default 1024)\n"
           "  --bounces N     interreflection bounces 0..16 (default 2)\n"
           "  --budget E      relative error budget for auto (default 0.05)\n"
           "  --seed S        sampling seed (same seed, same bytes)\n"
           "  --cosine-only   direct pass without window importance sampling\n"
+          "  --view-budget E pick the SH bands (and a --split K for shade/render) whose\n"
+          "                  median per-pixel error of the direct light in the driver's\n"
+          "                  view is <= E (p90 <= 3E) at the lowest cost, estimated before\n"
+          "                  the bake against its all-frequency value (needs LIGHT; prints\n"
+          "                  every candidate; docs/reference.md)\n"
+          "  LIGHT           --env FILE[,FILE...] | --env-constant R,G,B | --sky T,ELEV,AZIM\n"
+          "                  (as cave shade): overrides the config's lighting\n"
+          "  --tail on|off   add the bounces after the last as a geometric series (the\n"
+          "                  last bounce x r/(1-r), r = ratio of the last two; default on)\n"
           "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
           "                  cover (1 = the paper's whole fan; default 0.5)\n"
           "  --tess N        built-in cabin subdivision (1..64; scene default 2, ~38K triangles)\n"
@@ -53,7 +63,11 @@ int cmd_bake(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   const char *bands_s = NULL, *rays_s = NULL, *bounces_s = NULL, *seed_s = NULL,
              *budget_s = NULL, *tess_s = NULL;
-  int force = 0, quiet = 0, threads = 0, cosine_only = -1;
+  int force = 0, quiet = 0, threads = 0, cosine_only = -1, tail = -1;
+  double view_budget = 0;
+  cv_light_spec lspec;
+  cv_light_spec_default(&lspec);
+  const char *weights = NULL;
   double spread = -1;
   cli_place_opts place = {.given = 0};
   cv_placement_default(&place.p);
@@ -77,6 +91,16 @@ int cmd_bake(int argc, char **argv) {
       bands_s = argv[++i];
     } else if (!strcmp(a, "--rays") && v) {
       rays_s = argv[++i];
+    } else if ((pr = cli_parse_light("bake", argc, argv, &i, &lspec, &weights)) != 0) {
+      if (pr < 0) return -pr;
+    } else if (!strcmp(a, "--view-budget") && v) {
+      if (cli_parse_double(argv[++i], &view_budget) || !(view_budget > 0) || view_budget > 1)
+        return cli_fail("bake", 2, "--view-budget: expected a relative error in (0, 1], got '%s'", v);
+    } else if (!strcmp(a, "--tail") && v) {
+      if (!strcmp(v, "on")) tail = 1;
+      else if (!strcmp(v, "off")) tail = 0;
+      else return cli_fail("bake", 2, "--tail: expected on or off, got '%s'", v);
+      i++;
     } else if (!strcmp(a, "--bounces") && v) {
       bounces_s = argv[++i];
     } else if (!strcmp(a, "--spread") && v) {
@@ -164,17 +188,28 @@ int cmd_bake(int argc, char **argv) {
   if (threads > 0) omp_set_num_threads(threads);
   if (spread >= 0) cfg.spread = spread;
   if (cosine_only >= 0) cfg.window_sampling = !cosine_only;
+  if (tail >= 0) cfg.tail = tail;
 
+  if (lspec.kind != CV_LIGHT_NONE) {
+    if ((rc = cli_apply_weights("bake", &lspec, weights)) != 0) goto done;
+    rc = 1;
+    cfg.light = lspec;
+  }
+  if (view_budget > 0 && cfg.light.kind == CV_LIGHT_NONE) {
+    rc = cli_fail("bake", 2, "--view-budget: needs the lighting (--env, --env-constant or --sky, "
+                  "or the config's lighting)");
+    goto done;
+  }
   if (cli_load_scene_mesh(&cfg, stdout, &m, &err)) {
     rc = cli_fail("bake", 1, "%s", err.msg);
     goto done;
   }
   cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
                        .seed = cfg.seed, .spread = (float)cfg.spread,
-                       .cosine_only = !cfg.window_sampling, .quiet = quiet};
+                       .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = quiet};
   float est_error = -1.0f;
   if (cfg.light.kind != CV_LIGHT_NONE) {
-    /* The scene's lighting: reported here (sun found or not, its energy) and
+    /* The scene's lighting (8 bands: the auto modes need them): reported here (sun found or not, its energy) and
      * used by auto to judge SH truncation. */
     if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
       rc = cli_fail("bake", 1, "%s", err.msg);
@@ -182,7 +217,38 @@ int cmd_bake(int argc, char **argv) {
     }
     cv_scene_light_print(stdout, sl);
   }
-  if (cfg.bands == 0 || cfg.rays == 0) {
+  if (view_budget > 0) {
+    /* Image-space pick in the driver's view (prt/auto_view.h). */
+    if (cv_tracer_create(m, &tr, &err)) {
+      rc = cli_fail("bake", 1, "%s", err.msg);
+      goto done;
+    }
+    cv_tracer_set_spread(tr, bp.spread);
+    cv_tracer_set_window_sampling(tr, !bp.cosine_only);
+    cv_view_cam cam;
+    cv_view_cam_driver(&cam);
+    cv_view_auto va;
+    if (cv_auto_view_select(tr, sl, &cam, view_budget, 1024, cfg.seed, bands_s ? cfg.bands : 0, -1,
+                            &va, &err)) {
+      rc = cli_fail("bake", 1, "%s", err.msg);
+      goto done;
+    }
+    printf("view auto: driver's view %dx%d (%d pixels on geometry, %d pilot vertices), %.2f s; "
+           "per-pixel error of the direct light against its all-frequency estimate:\n",
+           cam.w, cam.h, va.pixels, va.pilot_vertices, va.seconds);
+    for (int k = 0; k < va.n_cand; k++)
+      printf("  %d bands, split %2d: median %.1f%%, p90 %.1f%%, mean ratio %.3f\n", va.cand[k].bands,
+             va.cand[k].split, 100 * va.cand[k].median, 100 * va.cand[k].p90, va.cand[k].mean_ratio);
+    printf("view auto: picked %d bands with --split %d: median %.1f%%, p90 %.1f%%, mean ratio %.3f "
+           "(budget: median %.1f%%, p90 %.1f%%)%s\n", va.bands, va.split, 100 * va.median,
+           100 * va.p90, va.mean_ratio, 100 * view_budget, 300 * view_budget,
+           va.met_budget ? "" : " -- budget NOT met, the lowest median used");
+    if (va.split > 0)
+      printf("view auto: relight with `cave shade --split %d` / `cave render --split %d` for this "
+             "error\n", va.split, va.split);
+    bp.bands = va.bands;
+    if (cfg.rays == 0) bp.rays = 1024;
+  } else if (cfg.bands == 0 || cfg.rays == 0) {
     /* The auto pick depends only on the mesh, the lighting and the budget;
      * the tracer is needed for it anyway, so build it first. */
     if (cv_tracer_create(m, &tr, &err)) {
@@ -223,8 +289,9 @@ int cmd_bake(int argc, char **argv) {
   }
   cv_tracer_set_spread(tr, bp.spread);
   cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-  printf("bake: %zu vertices, %d bands, %d rays, %d bounces, spread %g, seed %u, %s, %d threads\n",
-         m->nv, bp.bands, bp.rays, bp.bounces, (double)bp.spread, bp.seed,
+  printf("bake: %zu vertices, %d bands, %d rays, %d bounces%s, spread %g, seed %u, %s, %d threads\n",
+         m->nv, bp.bands, bp.rays, bp.bounces, bp.tail && bp.bounces ? " + tail" : "",
+         (double)bp.spread, bp.seed,
          cv_tracer_window_sampling(tr) ? "window importance sampling" : "cosine sampling",
          omp_get_max_threads());
   fflush(stdout);
@@ -237,6 +304,10 @@ int cmd_bake(int argc, char **argv) {
   for (int b = 0; b <= bp.bounces; b++)
     printf("  pass %d (%s): %.2f s, %.2f Mrays/s\n", b, b ? "bounce" : "direct", bs.seconds[b],
            bs.seconds[b] > 0 ? bs.rays[b] / bs.seconds[b] / 1e6 : 0.0);
+  if (bp.tail && bp.bounces > 0)
+    printf("  tail: bounce ratio %.4f %.4f %.4f (RGB), last bounce x r/(1-r) added%s\n",
+           bs.tail_ratio[0], bs.tail_ratio[1], bs.tail_ratio[2],
+           bs.tail_clamped ? " (a ratio was clamped to 0..0.9)" : "");
   printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices only on window openings (no transfer)\n",
          bs.total_seconds, (unsigned long long)bs.total_rays,
          bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,

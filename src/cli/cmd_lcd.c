@@ -560,7 +560,7 @@ int cmd_lcd(int argc, char **argv) {
       }
       cv_bake_params bp = {.bands = cfg.bands ? cfg.bands : 5, .rays = cfg.rays ? cfg.rays : 1024,
                            .bounces = cfg.bounces, .seed = cfg.seed, .spread = (float)cfg.spread,
-                           .cosine_only = !cfg.window_sampling, .quiet = 1};
+                           .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = 1};
       printf("bake: %d bands, %d rays, %d bounces (use --prt FILE from `cave bake` to skip this)\n",
              bp.bands, bp.rays, bp.bounces);
       fflush(stdout);

@@ -43,7 +43,7 @@ static void help(FILE *f) {
           "usage: cave render <cave.json> --scene scene.prt LIGHT [--head x,y,z --gaze x,y,z]\n"
           "                   [--frames N] [--dt S] [--size N] [--supersample 1|2]\n"
           "                   [--lum-res N] [--bg-res N] [--half] [--cull-back] [--all-frames]\n"
-          "                   [--gpu auto|software|N] -o DIR\n\n"
+          "                   [--gpu auto|software|N] [--split K [--split-grid W]] -o DIR\n\n"
           "Renders every wall and eye of the CAVE configuration with the EGL/OpenGL PRT\n"
           "renderer: per frame the luminance passes of all wall-eyes, the foveal adaptation\n"
           "statistics, one Pattanaik adaptation step of --dt seconds, then the shading\n"
@@ -57,6 +57,10 @@ static void help(FILE *f) {
           "  [--yaw DEG] [--pitch DEG] [--roll DEG]   car orientation\n\n"
           "  --head x,y,z     tracked head position, CAVE coordinates (default: the config's)\n"
           "  --gaze x,y,z     gaze direction (default: the config's)\n"
+          "  --split K        cut the K brightest window-visible cells of a W x W/2 grid\n"
+          "                   (--split-grid, default 64) out of the map as directional lights\n"
+          "                   with ray-traced visibility, as `cave shade --split` (their direct\n"
+          "                   light per vertex on the CPU, 16 fan points; docs/reference.md)\n"
           "  --frames N       frames to simulate (default 1)\n"
           "  --dt S           seconds per frame for the adaptation, 0.0333 or 1/30 (default 0.1)\n"
           "  --size N         render every wall at N pixels on its longer side (default: the\n"
@@ -112,6 +116,47 @@ static int write_png(const char *path, const cv_image *img, cv_err *err) {
   return st;
 }
 
+/* --split: the window light split out of the map (cv_scene_light_split, on
+ * a tracer of the PRT's mesh) and handed to the renderer with its direct
+ * light per vertex (16 fan points, as `cave shade`).  Returns 0 or the exit
+ * status after printing the error. */
+static int render_split(const cv_prt *prt, cv_scene_light *sl, cv_renderer *r, int k, int grid) {
+  cv_err err;
+  cv_err_clear(&err);
+  cv_mesh *m = NULL;
+  cv_tracer *tr = NULL;
+  float *direct = NULL;
+  int rc = 1;
+  const cv_dir_light *ex;
+  if (cv_prt_to_mesh(prt, &m) || cv_tracer_create(m, &tr, &err)) {
+    rc = cli_fail("render", 1, "--split: %s", err.msg[0] ? err.msg : "out of memory");
+    goto out;
+  }
+  double t0 = now_ms();
+  if (cv_scene_light_split(sl, tr, k, grid, &err)) {
+    rc = cli_fail("render", 1, "--split: %s", err.msg);
+    goto out;
+  }
+  const int n = cv_scene_light_extra(sl, &ex);
+  if (!(direct = calloc(3 * prt->nv + 1, sizeof *direct)) ||
+      cv_split_direct(prt, tr, ex, n, 16, direct)) {
+    rc = cli_fail("render", 1, "--split: out of memory for the split lights' direct light");
+    goto out;
+  }
+  if (cv_renderer_set_split(r, ex, n, direct, &err)) {
+    rc = cli_fail("render", 1, "--split: %s", err.msg);
+    goto out;
+  }
+  printf("split: %d window lights of a %d x %d grid, direct light traced per vertex in %.1f s\n",
+         n, grid, grid / 2, (now_ms() - t0) / 1000.0);
+  rc = 0;
+out:
+  free(direct);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+  return rc;
+}
+
 #define MAX_VIEWS (2 * CV_CAVE_MAX_WALLS)
 
 int cmd_render(int argc, char **argv) {
@@ -120,7 +165,7 @@ int cmd_render(int argc, char **argv) {
   cv_light_spec_default(&spec);
   double head[3], gaze[3], dt = 0.1;
   int have_head = 0, have_gaze = 0, frames = 1, size = 0, ss = 0, lum_res = 0, bg_res = 1024;
-  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO;
+  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO, split = 0, split_grid = 64;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -176,6 +221,12 @@ int cmd_render(int argc, char **argv) {
     } else if (!strcmp(a, "--lum-res")) {
       if (cli_parse_int(argv[++i], 1, 4096, &lum_res))
         return cli_fail("render", 2, "--lum-res: expected 1..4096, got '%s'", val);
+    } else if (!strcmp(a, "--split")) {
+      if (cli_parse_int(argv[++i], 0, 4096, &split))
+        return cli_fail("render", 2, "--split: expected 0..4096 lights, got '%s'", val);
+    } else if (!strcmp(a, "--split-grid")) {
+      if (cli_parse_int(argv[++i], 4, 1024, &split_grid) || split_grid % 2)
+        return cli_fail("render", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
     } else if (!strcmp(a, "--bg-res")) {
       if (cli_parse_int(argv[++i], 2, 16384, &bg_res))
         return cli_fail("render", 2, "--bg-res: expected 2..16384, got '%s'", val);
@@ -246,6 +297,8 @@ int cmd_render(int argc, char **argv) {
   if (ti.unread)
     printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
            ti.unread, ti.first_error);
+  if (split && (rc = render_split(prt, sl, r, split, split_grid)) != 0) goto done;
+  rc = 1;
   cv_lighting light = cv_scene_light_sh(sl);
   cv_render_light_stats ls;
   cv_frame_timing lt = {0};

@@ -29,12 +29,13 @@ void cv_scene_config_default(cv_scene_config *c) {
   c->cabin_tess = CV_SCENE_DEFAULT_TESS;
   c->clean_enabled = 1;
   c->weld_tolerance = c->crease_angle_deg = c->crack_width = c->sliver_aspect = -1;
-  c->bands = 5;
+  c->bands = 8; /* with prt.tail and --split 64: the issue 13 targets (docs/reference.md) */
   c->rays = 1024;
   c->bounces = 2;
   c->seed = 1;
   c->spread = 0.5;
   c->window_sampling = 1;
+  c->tail = 1;
   c->error_budget = 0.05;
   cv_placement_default(&c->place);
   cv_light_spec_default(&c->light);
@@ -272,7 +273,7 @@ static int parse_materials(ctx *x, const cJSON *a, cv_scene_config *c) {
 
 static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   static const char *const keys[] = {"bands", "rays", "bounces", "seed", "spread", "window_sampling",
-                                     "error_budget", NULL};
+                                     "error_budget", "tail", NULL};
   int st = only_keys(x, o, "prt", keys);
   if (st) return st;
   const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "bands");
@@ -298,6 +299,11 @@ static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   if (ws) {
     if (!cJSON_IsBool(ws)) return fail(x, "prt.window_sampling", "expected true or false%s", "");
     c->window_sampling = cJSON_IsTrue(ws);
+  }
+  const cJSON *tl = cJSON_GetObjectItemCaseSensitive(o, "tail");
+  if (tl) {
+    if (!cJSON_IsBool(tl)) return fail(x, "prt.tail", "expected true or false%s", "");
+    c->tail = cJSON_IsTrue(tl);
   }
   return get_num(x, o, "error_budget", "prt", 1e-4, 1.0, &c->error_budget);
 }

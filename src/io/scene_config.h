@@ -64,6 +64,7 @@ typedef struct cv_scene_config {
   uint32_t seed;
   double spread;            /* 0..1, fraction of each vertex's fan sampled */
   int window_sampling;      /* 1: MIS towards the windows in the direct pass */
+  int tail;                 /* 1: geometric tail of the missing bounces (bake.h) */
   double error_budget;      /* relative, for auto */
   cv_light_spec light;      /* kind NONE when the config names no lighting */
 } cv_scene_config;
@@ -72,8 +73,8 @@ typedef struct cv_scene_config {
  * config without mesh.tess, configs/scenes/default.json): ~38K triangles. */
 #define CV_SCENE_DEFAULT_TESS 2
 
-/* Defaults: built-in cabin at tess CV_SCENE_DEFAULT_TESS, cleaning on, 5 bands, 1024 rays,
- * 2 bounces, seed 1, budget 0.05, no lighting. */
+/* Defaults: built-in cabin at tess CV_SCENE_DEFAULT_TESS, cleaning on, 8 bands, 1024 rays,
+ * 2 bounces + tail, seed 1, budget 0.05, no lighting. */
 void cv_scene_config_default(cv_scene_config *c);
 /* Light defaults (no kind, scale 1, sun extraction on, sky T=3 ...). */
 void cv_light_spec_default(cv_light_spec *l);

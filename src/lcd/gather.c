@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <omp.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,6 +27,18 @@ struct cv_lcd_gather {
   int nopen;
   float **open_pos;
   int *open_nv;
+  /* interior light sampling: vertex positions (3 nv) and per triangle the
+   * unit normal and area (4 nt) */
+  float *pos;
+  float *tnA;
+  float *envvis; /* ENV_RX x ENV_RY regions of VIS_H x VIS_W lat-long cells: the fraction of
+                    probe rays from the region that reach the environment (NULL: no windows) */
+  /* the two tables above and below: computed on the first round that
+   * needs them (geometry only: the same whoever computes them) */
+  atomic_int envvis_ready, tgeo_ready;
+  float *tgeo;  /* per triangle: unoccluded share of its light the panel receives, up to a
+                   constant: cos at the triangle x cos at the panel / r^2 from the panel
+                   centre, times the fraction of 5 panel points that see its centroid */
 };
 
 static inline float dot3(const float a[3], const float b[3]) {
@@ -310,6 +323,201 @@ static int collect_openings(cv_lcd_gather *g, const cv_mesh *m) {
   return CV_OK;
 }
 
+/* Regions of the panel for the environment strategy: ENV_RX x ENV_RY equal
+ * parts of the panel rectangle (a block belongs to the one that holds its
+ * centre); VIS_W x VIS_H lat-long cells (layout of light/env_sample.h). */
+#define ENV_RX 4
+#define ENV_RY 3
+#define VIS_W 128
+#define VIS_H 64
+
+/* Panel point at fractions (fx from the left, fy from the top), offset. */
+static void panel_point(const cv_lcd_panel *pn, float fx, float fy, float o[3]) {
+  float c[3];
+  for (int k = 0; k < 3; k++)
+    c[k] = pn->center[k] + pn->u[k] * (fx - 0.5f) * pn->size[0] + pn->v[k] * (0.5f - fy) * pn->size[1];
+  cv_rt_offset_origin(c, pn->normal, o);
+}
+
+/* envvis: from 4 points of each region (its quarters' centres), one ray
+ * each into the 4 quarters of each cell in front of the panel (one per
+ * point): the share that reaches the environment through a window. */
+static int env_visibility(cv_lcd_gather *g) {
+  const cv_lcd_panel *pn = &g->panel;
+  g->envvis = calloc((size_t)ENV_RX * ENV_RY * VIS_W * VIS_H, sizeof(float));
+  if (!g->envvis) return CV_ERR_NOMEM;
+  const int ncell = ENV_RX * ENV_RY * VIS_H;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 4)
+    for (int i = 0; i < ncell; i++) {
+      const int r = i / VIS_H, Y = i % VIS_H, rx = r % ENV_RX, ry = r / ENV_RX;
+      float o[4][3];
+      for (int k = 0; k < 4; k++)
+        panel_point(pn, ((float)rx + 0.25f + 0.5f * (float)(k & 1)) / ENV_RX,
+                    ((float)ry + 0.25f + 0.5f * (float)(k >> 1)) / ENV_RY, o[k]);
+      float *row = g->envvis + ((size_t)r * VIS_H + (size_t)Y) * VIS_W;
+      for (int X = 0; X < VIS_W; X++) {
+        int seen = 0;
+        for (int k = 0; k < 4; k++) {
+          const double u = (X + 0.25 + 0.5 * (k & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (k >> 1)) / VIS_H;
+          const double ph = 2 * M_PI * (u - 0.5);
+          const float d[3] = {(float)(sin(th) * sin(ph)), (float)cos(th), (float)(-sin(th) * cos(ph))};
+          if (dot3(d, pn->normal) > 0 && cv_rt_reaches_env(g->rt, o[k], d, 0.0f)) seen++;
+        }
+        row[X] = (float)seen / 4;
+      }
+    }
+  }
+  return CV_OK;
+}
+
+/* One environment table per region: src (restricted to the panel's front)
+ * with each cell's probability times (the region's visibility of it +
+ * ENV_VIS_FLOOR) x the luminance of f cos for the view from the region's
+ * centre (cell centre direction): the strategy then draws about
+ * L f cos V, the whole integrand but for the texel's own view and
+ * visibility.  Any weights keep the estimate unbiased (BRDF and cosine
+ * sampling cover every direction; the density is the table's own). */
+#define ENV_VIS_FLOOR 0.02f
+static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const float eye[3],
+                       cv_env_sampler **out) {
+  const cv_lcd_panel *pn = &g->panel;
+  const cv_brdf_sampler *smp = g->smp;
+  const int w = src->w, h = src->h;
+  float *cw = malloc((size_t)w * (size_t)h * sizeof(float));
+  float *dir = malloc(3 * (size_t)w * (size_t)h * sizeof(float));
+  if (!cw || !dir) {
+    free(cw);
+    free(dir);
+    return CV_ERR_NOMEM;
+  }
+  for (int y = 0; y < h; y++) {
+    const double ct = 0.5 * ((double)src->cos_edge[y] + src->cos_edge[y + 1]), st = sqrt(fmax(0.0, 1 - ct * ct));
+    for (int x = 0; x < w; x++) {
+      const double ph = 2 * M_PI * ((x + 0.5) / w - 0.5);
+      float *d = dir + 3 * ((size_t)y * (size_t)w + (size_t)x);
+      d[0] = (float)(st * sin(ph)), d[1] = (float)ct, d[2] = (float)(-st * cos(ph));
+    }
+  }
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) {
+    const float *vis = g->envvis + (size_t)r * VIS_H * VIS_W;
+    /* the view from the region's centre */
+    float c[3], wo[3], tn[3], bn[3];
+    const float fx = ((float)(r % ENV_RX) + 0.5f) / ENV_RX, fy = ((float)(r / ENV_RX) + 0.5f) / ENV_RY;
+    for (int k = 0; k < 3; k++) {
+      c[k] = pn->center[k] + pn->u[k] * (fx - 0.5f) * pn->size[0] + pn->v[k] * (0.5f - fy) * pn->size[1];
+      wo[k] = eye[k] - c[k];
+    }
+    normalize3(wo);
+    const float co = dot3(wo, pn->normal);
+    int kb = 0;
+    float tb = 0;
+    for (int k = 0; k < 3; k++) tn[k] = wo[k] - co * pn->normal[k];
+    if (!normalize3(tn)) memcpy(tn, pn->u, sizeof tn);
+    cross3(pn->normal, tn, bn);
+    cv_brdf_view_bins(smp, acosf(co > 1 ? 1 : (co < 0 ? 0 : co)), &kb, &tb);
+    for (int y = 0; y < h; y++) {
+      const int Y = (int)(((double)y + 0.5) * VIS_H / h);
+      for (int x = 0; x < w; x++) {
+        const size_t i = (size_t)y * (size_t)w + (size_t)x;
+        const float *d = dir + 3 * i;
+        const float z = dot3(d, pn->normal);
+        float fc = 0;
+        if (z > 0) {
+          float f[3];
+          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(atan2f(dot3(d, bn), dot3(d, tn)));
+          cv_brdf_eval_bins(smp, kb, tb, th, ph, f);
+          fc = (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) * z;
+        }
+        const int X = (int)(((double)x + 0.5) * VIS_W / w);
+        /* cells behind the plane by their centre keep src's front probes */
+        cw[i] = (vis[(size_t)Y * VIS_W + (size_t)X] + ENV_VIS_FLOOR) * (fc > 0 ? fc : 1e-6f);
+      }
+    }
+    if (cv_env_sampler_reweight(src, cw, &out[r])) {
+      free(cw);
+      free(dir);
+      return CV_ERR_NOMEM;
+    }
+  }
+  free(cw);
+  free(dir);
+  return CV_OK;
+}
+
+/* tgeo: how much of each triangle's exit radiance the panel can receive
+ * (the interior strategy's weights, gather.h), from the panel centre and 4
+ * points halfway to its corners; one shadow ray each (nt x 5 rays). */
+static int panel_view_factors(cv_lcd_gather *g) {
+  const cv_lcd_panel *pn = &g->panel;
+  if (!(g->tgeo = malloc(g->nt * sizeof(float) + 1))) return CV_ERR_NOMEM;
+  float pts[5][3];
+  const float a[5] = {0, -0.25f, 0.25f, -0.25f, 0.25f}, b[5] = {0, -0.25f, -0.25f, 0.25f, 0.25f};
+  for (int i = 0; i < 5; i++) {
+    float c[3];
+    for (int k = 0; k < 3; k++)
+      c[k] = pn->center[k] + pn->u[k] * a[i] * pn->size[0] + pn->v[k] * b[i] * pn->size[1];
+    cv_rt_offset_origin(c, pn->normal, pts[i]);
+  }
+  const long nt = (long)g->nt;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 256)
+  for (long t = 0; t < nt; t++) {
+    const uint32_t *v = g->tri + 3 * (size_t)t;
+    float x[3];
+    for (int k = 0; k < 3; k++)
+      x[k] = (g->pos[3 * (size_t)v[0] + k] + g->pos[3 * (size_t)v[1] + k] + g->pos[3 * (size_t)v[2] + k]) / 3;
+    float d[3] = {x[0] - pts[0][0], x[1] - pts[0][1], x[2] - pts[0][2]};
+    const float r2 = dot3(d, d), r = sqrtf(r2);
+    g->tgeo[t] = 0;
+    if (!(r > 1e-4f)) continue;
+    for (int k = 0; k < 3; k++) d[k] /= r;
+    const float co = dot3(d, pn->normal), ct = -dot3(d, g->tnA + 4 * (size_t)t);
+    if (!(co > 0) || !(ct > 0)) continue; /* behind the panel, or facing away */
+    int seen = 0;
+    for (int i = 0; i < 5; i++) {
+      float e[3] = {x[0] - pts[i][0], x[1] - pts[i][1], x[2] - pts[i][2]};
+      const float l = sqrtf(dot3(e, e));
+      if (!(l > 1e-4f)) continue;
+      for (int k = 0; k < 3; k++) e[k] /= l;
+      seen += !cv_rt_occluded(g->rt, pts[i], e, 0.0f, l * 0.999f);
+    }
+    g->tgeo[t] = co * ct / r2 * (float)seen / 5;
+  }
+  }
+  return CV_OK;
+}
+
+/* The lazily computed tables a round needs (want_vis: envvis, want_tgeo:
+ * tgeo), computed once under a lock by the first call that needs them. */
+static int gather_lazy(const cv_lcd_gather *cg, int want_vis, int want_tgeo) {
+  cv_lcd_gather *g = (cv_lcd_gather *)cg; /* the cache is not part of the value */
+  int st = CV_OK;
+  if ((want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) ||
+      (want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire))) {
+#pragma omp critical(cv_lcd_gather_lazy)
+    {
+      if (want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) {
+        free(g->envvis);
+        g->envvis = NULL;
+        st = env_visibility(g);
+        if (st == CV_OK) atomic_store_explicit(&g->envvis_ready, 1, memory_order_release);
+      }
+      if (st == CV_OK && want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire)) {
+        free(g->tgeo);
+        g->tgeo = NULL;
+        st = panel_view_factors(g);
+        if (st == CV_OK) atomic_store_explicit(&g->tgeo_ready, 1, memory_order_release);
+      }
+    }
+  }
+  return st;
+}
+
 int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
                          const cv_brdf *brdf, cv_lcd_gather **out, cv_err *err) {
   *out = NULL;
@@ -328,6 +536,22 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
   }
   memcpy(g->tri, m->tri, 3 * m->nt * sizeof(uint32_t));
+  g->pos = malloc(3 * m->nv * sizeof(float) + 1);
+  g->tnA = malloc(4 * m->nt * sizeof(float) + 1);
+  if (!g->pos || !g->tnA) {
+    cv_lcd_gather_destroy(g);
+    return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
+  }
+  memcpy(g->pos, m->pos, 3 * m->nv * sizeof(float));
+  for (size_t t = 0; t < m->nt; t++) {
+    float n[3];
+    cv_mesh_tri_normal(m, t, n); /* length: twice the area */
+    const float l = sqrtf(dot3(n, n));
+    for (int k = 0; k < 3; k++) g->tnA[4 * t + k] = l > 0 ? n[k] / l : 0.0f;
+    g->tnA[4 * t + 3] = 0.5f * l;
+  }
+  atomic_init(&g->envvis_ready, 0);
+  atomic_init(&g->tgeo_ready, 0);
   if (g->has_windows && collect_openings(g, m)) {
     cv_lcd_gather_destroy(g);
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
@@ -343,6 +567,10 @@ void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   free(g->open_pos);
   free(g->open_nv);
   free(g->tri);
+  free(g->pos);
+  free(g->tnA);
+  free(g->tgeo);
+  free(g->envvis);
   cv_brdf_sampler_destroy(g->smp);
   free(g);
 }
@@ -358,6 +586,7 @@ void cv_lcd_params_default(cv_lcd_params *p) {
   p->brdf_fraction = 0.9;
   p->window_fraction = CV_LCD_WINDOW_FRACTION;
   p->env_fraction = CV_LCD_ENV_FRACTION;
+  p->interior_fraction = CV_LCD_INTERIOR_FRACTION;
   p->seed = 1;
   p->sun = 1;
 }
@@ -386,6 +615,7 @@ uint64_t cv_lcd_setup_hash(const cv_lcd_gather *g, const cv_lcd_params *p, doubl
   h = cv_hash64_double(h, p->brdf_fraction);
   h = cv_hash64_double(h, p->window_fraction);
   if (p->env_fraction != 0) h = cv_hash64_double(h, p->env_fraction); /* keys without it unchanged */
+  if (p->interior_fraction != 0) h = cv_hash64_double(cv_hash64_u64(h, 0x1A7u), p->interior_fraction);
   h = cv_hash64_u64(h, p->seed);
   h = cv_hash64_u64(h, (uint64_t)p->sun);
   h = cv_hash64_double(h, clamp);
@@ -430,7 +660,7 @@ static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t
 }
 
 /* Strategies (gather.h). */
-enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, NSTRAT };
+enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, STRAT_INT, NSTRAT };
 
 /* Per-texel state of a block. */
 typedef struct texel_state {
@@ -469,13 +699,17 @@ typedef struct block_buf {
   /* the rays permuted into direction order (traced and shaded in order) */
   float *sorg, *sdir, *sfc;
   uint32_t *stex;
+  uint32_t *want, *swant;/* interior-strategy rays: the triangle aimed at (the sample counts
+                            only if it is the first hit); other rays: NO_TRI */
   uint32_t *htri;        /* hit triangle (kind 1) */
   float *huv;            /* its barycentrics u, v */
+  float *ht;             /* its distance */
   uint8_t *kind;
   texel_state *ts;       /* BLOCK * BLOCK */
 } block_buf;
 
 #define TEX_WIN 0x80000000u
+#define NO_TRI 0xFFFFFFFFu
 
 static void block_buf_free(block_buf *b) {
   free(b->org);
@@ -491,6 +725,9 @@ static void block_buf_free(block_buf *b) {
   free(b->stex);
   free(b->htri);
   free(b->huv);
+  free(b->ht);
+  free(b->want);
+  free(b->swant);
   free(b->kind);
   free(b->ts);
   memset(b, 0, sizeof *b);
@@ -512,10 +749,14 @@ static int block_buf_alloc(block_buf *b, size_t cap) {
   b->stex = malloc(cap * sizeof(uint32_t));
   b->htri = malloc(cap * sizeof(uint32_t));
   b->huv = malloc(2 * cap * sizeof(float));
+  b->ht = malloc(cap * sizeof(float));
+  b->want = malloc(cap * sizeof(uint32_t));
+  b->swant = malloc(cap * sizeof(uint32_t));
   b->kind = malloc(cap);
   b->ts = malloc(BLOCK * BLOCK * sizeof(texel_state));
   if (!b->org || !b->dir || !b->fc || !b->tex || !b->key || !b->ord || !b->tmp || !b->sorg ||
-      !b->sdir || !b->sfc || !b->stex || !b->htri || !b->huv || !b->kind || !b->ts) {
+      !b->sdir || !b->sfc || !b->stex || !b->htri || !b->huv || !b->kind || !b->ts || !b->ht ||
+      !b->want || !b->swant) {
     block_buf_free(b);
     return CV_ERR_NOMEM;
   }
@@ -645,13 +886,12 @@ static void sort_by_key(const uint16_t *key, size_t n, uint32_t *ord, uint32_t *
  * sorted arrays): kind 2 (environment) or 3 (lost). */
 static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, int ne) {
   float po[3 * CV_RT_PACKET_MAX] = {0}, pd[3 * CV_RT_PACKET_MAX] = {0};
-  cv_hit ph[CV_RT_PACKET_MAX];
   uint8_t pf[CV_RT_PACKET_MAX];
   for (int l = 0; l < ne; l++) {
     memcpy(po + 3 * l, b->sorg + 3 * (size_t)esc[l], 3 * sizeof(float));
     memcpy(pd + 3 * l, b->sdir + 3 * (size_t)esc[l], 3 * sizeof(float));
   }
-  cv_rt_window_hit_packet(rt, ne, po, pd, NULL, 0.0f, 1, ph, pf);
+  cv_rt_window_any_packet(rt, ne, po, pd, 0.0f, 1, pf); /* crossing or not: no hit record */
   for (int l = 0; l < ne; l++) b->kind[esc[l]] = pf[l] ? 2 : 3;
 }
 
@@ -673,6 +913,7 @@ static void trace_sorted(const cv_rt *rt, int has_windows, block_buf *b, size_t 
         b->htri[r] = ph[l].tri;
         b->huv[2 * r] = ph[l].u;
         b->huv[2 * r + 1] = ph[l].v;
+        b->ht[r] = ph[l].t;
         b->kind[r] = 1;
         continue;
       }
@@ -734,13 +975,171 @@ static inline void env_fetch(const cv_image *img, uint32_t t, float tx, float ty
   }
 }
 
+/* Interior light sampling: triangles drawn by area x mean luminance of the
+ * PRT exit radiance at their vertices x tgeo (what the panel receives of
+ * them: view factor to the panel centre and visibility, computed once per
+ * gather) (Walker's alias table, Vose's construction), a point uniform on
+ * the triangle; only triangles with a vertex in front of the panel's plane
+ * take part.  The density of a point
+ * (area measure) is pa[t] = luminance(t) / total; a direction d that first
+ * hits triangle t at distance r has the density pa[t] r^2 / |d . n_t|. */
+typedef struct int_table {
+  size_t n;
+  float *prob;   /* alias acceptance */
+  uint32_t *alias;
+  float *pa;     /* area density of each triangle's points (0: never drawn) */
+  double total;
+} int_table;
+
+static void int_table_free(int_table *it) {
+  free(it->prob);
+  free(it->alias);
+  free(it->pa);
+  memset(it, 0, sizeof *it);
+}
+
+static int int_table_build(const cv_lcd_gather *g, const cv_lcd_light *l, int_table *it) {
+  const size_t n = g->nt;
+  memset(it, 0, sizeof *it);
+  it->n = n;
+  it->prob = malloc(n * sizeof(float) + 1);
+  it->alias = malloc(n * sizeof(uint32_t) + 1);
+  it->pa = malloc(n * sizeof(float) + 1);
+  double *w = malloc(n * sizeof(double) + 1);
+  uint32_t *small = malloc(n * sizeof(uint32_t) + 1), *large = malloc(n * sizeof(uint32_t) + 1);
+  if (!it->prob || !it->alias || !it->pa || !w || !small || !large) {
+    free(w), free(small), free(large);
+    int_table_free(it);
+    return CV_ERR_NOMEM;
+  }
+  const cv_lcd_panel *pn = &g->panel;
+  double total = 0;
+  for (size_t t = 0; t < n; t++) {
+    const uint32_t *v = g->tri + 3 * t;
+    int front = 0;
+    double y = 0;
+    for (int j = 0; j < 3; j++) {
+      const float *q = g->pos + 3 * (size_t)v[j], *r = l->vrad + 3 * (size_t)v[j];
+      const float d[3] = {q[0] - pn->center[0], q[1] - pn->center[1], q[2] - pn->center[2]};
+      front |= dot3(d, pn->normal) > 1e-4f;
+      y += (0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2]) / 3;
+    }
+    /* luminance x what the panel receives of it (view factor, visibility) */
+    const double e = front && y > 0 ? y * (double)g->tgeo[t] : 0.0;
+    w[t] = e * g->tnA[4 * t + 3];
+    it->pa[t] = (float)e;
+    total += w[t];
+  }
+  it->total = total;
+  if (!(total > 0)) {
+    free(w), free(small), free(large);
+    return CV_OK;
+  }
+  for (size_t t = 0; t < n; t++) it->pa[t] = (float)(it->pa[t] / total);
+  /* Vose: scaled weights, small and large worklists */
+  size_t ns = 0, nl = 0;
+  for (size_t t = 0; t < n; t++) {
+    w[t] = w[t] * (double)n / total;
+    if (w[t] < 1) small[ns++] = (uint32_t)t;
+    else large[nl++] = (uint32_t)t;
+  }
+  while (ns && nl) {
+    const uint32_t a = small[--ns], b = large[nl - 1];
+    it->prob[a] = (float)w[a];
+    it->alias[a] = b;
+    w[b] -= 1 - w[a];
+    if (w[b] < 1) {
+      nl--;
+      small[ns++] = b;
+    }
+  }
+  while (nl) it->prob[large[--nl]] = 1.0f, it->alias[large[nl]] = large[nl];
+  while (ns) it->prob[small[--ns]] = 1.0f, it->alias[small[ns]] = small[ns];
+  free(w), free(small), free(large);
+  return CV_OK;
+}
+
+/* An interior-strategy direction from o: u[0] picks the triangle (alias
+ * table; its remainder and u[1] the point), h a third uniform coordinate.
+ * Returns the triangle, or NO_TRI when the point is degenerate; *pd = the
+ * direction's density pa r^2 / |d . n| (1/sr). */
+static inline uint32_t interior_sample(const cv_lcd_gather *g, const int_table *it, const float o[3],
+                                       const float u[2], uint32_t h, float d[3], float *pd) {
+  const float x = u[0] * (float)it->n;
+  size_t i = (size_t)x;
+  if (i >= it->n) i = it->n - 1;
+  float fr = x - (float)i;
+  uint32_t t = (uint32_t)i;
+  if (fr >= it->prob[i]) t = it->alias[i];
+  const float s = sqrtf(u[1]), b1 = (float)(h >> 8) * 0x1p-24f;
+  const float w1 = (1 - b1) * s, w2 = b1 * s, w0 = 1 - s;
+  const uint32_t *v = g->tri + 3 * (size_t)t;
+  const float *p0 = g->pos + 3 * (size_t)v[0], *p1 = g->pos + 3 * (size_t)v[1], *p2 = g->pos + 3 * (size_t)v[2];
+  float r2 = 0;
+  for (int k = 0; k < 3; k++) {
+    d[k] = w0 * p0[k] + w1 * p1[k] + w2 * p2[k] - o[k];
+    r2 += d[k] * d[k];
+  }
+  if (!(r2 > 0)) return NO_TRI;
+  const float r = sqrtf(r2);
+  for (int k = 0; k < 3; k++) d[k] /= r;
+  const float c = fabsf(dot3(d, g->tnA + 4 * (size_t)t));
+  if (!(c > 1e-6f) || !(it->pa[t] > 0)) return NO_TRI;
+  *pd = it->pa[t] * r2 / c;
+  return t;
+}
+
+/* The density of the interior strategy for a ray that first hits triangle
+ * t at distance r along d. */
+static inline float interior_pdf(const cv_lcd_gather *g, const int_table *it, uint32_t t, float r,
+                                 const float d[3]) {
+  const float c = fabsf(dot3(d, g->tnA + 4 * (size_t)t));
+  return c > 1e-6f ? it->pa[t] * r * r / c : 0.0f;
+}
+
+/* The sun as a uniform disc of angular radius CV_LCD_SUN_HALF_ANGLE_DEG
+ * around sun_dir (its irradiance at normal incidence E = L pi sin^2(alpha)
+ * is the light's sun_E): radiance L, a frame around its centre, and the
+ * one-direction estimate's factor L Omega = E 2 / (1 + cos alpha) (a
+ * direction drawn uniformly in the cone has the density 1 / Omega). */
+typedef struct sun_disc {
+  float dir[3], t[3], b[3];
+  float cos_a;      /* cos(alpha) */
+  float L[3];       /* disc radiance */
+  float E_omega[3]; /* L Omega */
+} sun_disc;
+
+static void sun_disc_init(const cv_lcd_light *l, sun_disc *sf) {
+  const double a = CV_LCD_SUN_HALF_ANGLE_DEG * M_PI / 180, s = sin(a);
+  memcpy(sf->dir, l->sun_dir, sizeof sf->dir);
+  sf->cos_a = (float)cos(a);
+  for (int c = 0; c < 3; c++) {
+    sf->L[c] = (float)(l->sun_E[c] / (M_PI * s * s));
+    sf->E_omega[c] = (float)(l->sun_E[c] * 2 / (1 + cos(a)));
+  }
+  const float up[3] = {fabsf(sf->dir[1]) < 0.9f ? 0.0f : 1.0f, fabsf(sf->dir[1]) < 0.9f ? 1.0f : 0.0f, 0};
+  cross3(up, sf->dir, sf->t);
+  normalize3(sf->t);
+  cross3(sf->dir, sf->t, sf->b);
+}
+
+/* A direction uniform in the disc's cone from two hashed integers. */
+static inline void sun_disc_dir(const sun_disc *sf, uint32_t h0, uint32_t h1, float d[3]) {
+  const float u0 = (float)(h0 >> 8) * 0x1p-24f, u1 = (float)(h1 >> 8) * 0x1p-24f;
+  const float ct = 1 - u0 * (1 - sf->cos_a), st = sqrtf(fmaxf(0.0f, 1 - ct * ct));
+  const float ph = 6.28318530717958647692f * u1, a = st * cosf(ph), b = st * sinf(ph);
+  for (int k = 0; k < 3; k++) d[k] = ct * sf->dir[k] + a * sf->t[k] + b * sf->b[k];
+}
+
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                         uint32_t round, cv_lcd_accum *acc) {
   if (!g || !l || !p || !acc || p->w < 1 || p->h < 1 || p->x0 < 0 || p->y0 < 0 ||
       p->x0 + acc->w > p->w || p->y0 + acc->h > p->h || p->spp < 1 ||
       l->nv != g->nv || !(p->brdf_fraction >= 0 && p->brdf_fraction <= 1) ||
       !(p->window_fraction >= 0 && p->window_fraction < 1) ||
-      !(p->env_fraction >= 0 && p->env_fraction < 1) || !(p->window_fraction + p->env_fraction < 1) ||
+      !(p->env_fraction >= 0 && p->env_fraction < 1) ||
+      !(p->interior_fraction >= 0 && p->interior_fraction < 1) ||
+      !(p->window_fraction + p->env_fraction + p->interior_fraction < 1) ||
       !isfinite(p->eye[0]) || !isfinite(p->eye[1]) || !isfinite(p->eye[2]))
     return CV_ERR_INVALID;
   if (acc->data[CV_LCD_ACC_SPP] + p->spp > CV_LCD_MAX_SPP) return CV_ERR_RANGE;
@@ -761,15 +1160,44 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     return CV_ERR_NOMEM;
   nstr[STRAT_ENV] = esr && esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
   if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
-  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * (spp - nstr[STRAT_WIN] - nstr[STRAT_ENV]));
-  nstr[STRAT_COS] = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_BRDF];
+  /* interior light tables from this light's vertex radiance */
+  int_table itab;
+  memset(&itab, 0, sizeof itab);
+  if (gather_lazy(g, p->env_fraction > 0 && esr && g->has_windows, p->interior_fraction > 0) ||
+      (p->interior_fraction > 0 && int_table_build(g, l, &itab))) {
+    cv_env_sampler_destroy(esr);
+    return CV_ERR_NOMEM;
+  }
+  nstr[STRAT_INT] = itab.total > 0 ? (int)lround(p->interior_fraction * spp) : 0;
+  if (nstr[STRAT_INT] > spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV])
+    nstr[STRAT_INT] = spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV];
+  const int nbc = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_INT];
+  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * nbc);
+  nstr[STRAT_COS] = nbc - nstr[STRAT_BRDF];
   const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS],
-                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN]};
+                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN],
+                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN] + nstr[STRAT_ENV]};
   const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
-              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp;
-  const cv_env_sampler *esm = esr;
+              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp,
+              ci = (float)nstr[STRAT_INT] / (float)spp;
+  const int_table *itp = &itab;
+  /* the environment tables cut further, per region of the panel, to the
+   * cells that the region's window rectangles hold */
+  cv_env_sampler *ereg[ENV_RX * ENV_RY];
+  memset(ereg, 0, sizeof ereg);
+  if (nstr[STRAT_ENV] > 0 && g->envvis && env_regions(g, esr, p->eye, ereg)) {
+    for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
+    cv_env_sampler_destroy(esr);
+    int_table_free(&itab);
+    return CV_ERR_NOMEM;
+  }
   const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
   const int sun = p->sun && l->has_sun;
+  /* without next-event estimation the rays that leave find the sun's disc */
+  const int sun_in_env = !p->sun && l->has_sun;
+  sun_disc sf;
+  memset(&sf, 0, sizeof sf);
+  if (l->has_sun) sun_disc_init(l, &sf);
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
   const int chunk = spp < CHUNK_SPP ? spp : CHUNK_SPP;
   /* blocks that hold a texel of the tile */
@@ -796,6 +1224,9 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       const int tx0 = (bx0 + bi % nbx) * BLOCK, ty0 = (by0 + bi / nbx) * BLOCK;
       const int bw = w - tx0 < BLOCK ? w - tx0 : BLOCK, bh = h - ty0 < BLOCK ? h - ty0 : BLOCK;
       const int nbt = bw * bh;
+      /* the region that holds the block's centre */
+      const int erx = (int)((2 * tx0 + bw) * ENV_RX / (2 * w)), ery = (int)((2 * ty0 + bh) * ENV_RY / (2 * h));
+      const cv_env_sampler *esm = ereg[0] ? ereg[ery * ENV_RX + erx] : esr;
       win_rects wr;
       wr.n = 0;
       wr.total = 0;
@@ -856,7 +1287,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           float uu[CHUNK_SPP][4];
           uint8_t sj[CHUNK_SPP];
           for (int j = j0; j < j0 + nj; j++) {
-            const int st = j >= first[STRAT_ENV] ? STRAT_ENV
+            const int st = j >= first[STRAT_INT] ? STRAT_INT
+                           : j >= first[STRAT_ENV] ? STRAT_ENV
                            : j >= first[STRAT_WIN] ? STRAT_WIN
                            : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
             sj[j - j0] = (uint8_t)st;
@@ -872,22 +1304,46 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             for (int k = 0; k < 3; k++)
               o[k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + T->off[k];
             if (j == 0 && sun && T->in_tile) {
-              /* next-event estimate of the sun from sample 0's position, for the round */
-              const float cs = dot3(l->sun_dir, pn->normal);
+              /* next-event estimate of the sun from sample 0's position, for
+               * the round: one direction drawn uniformly in the solar disc */
+              float sd[3];
+              const uint32_t hs = cv_hash_combine(T->seed[STRAT_BRDF] ^ 0x5017u, round);
+              sun_disc_dir(&sf, hs, cv_hash_combine(hs, 0x9e3779b9u), sd);
+              const float cs = dot3(sd, pn->normal);
               if (cs > 0) {
                 cnt[CV_LCD_ACC_SHADOW]++;
-                if (cv_rt_reaches_env(g->rt, o, l->sun_dir, 0)) {
+                if (cv_rt_reaches_env(g->rt, o, sd, 0)) {
                   cnt[CV_LCD_ACC_SUNLIT]++;
                   const float th = acosf(cs > 1 ? 1 : cs);
-                  const float ph = fabsf(atan2f(dot3(l->sun_dir, T->bn), dot3(l->sun_dir, T->tn)));
+                  const float ph = fabsf(atan2f(dot3(sd, T->bn), dot3(sd, T->tn)));
                   cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, T->nee);
-                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * l->sun_E[c];
+                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * sf.E_omega[c];
                 }
               }
             }
             float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, pe = 0, f[3] = {0, 0, 0};
+            float pint = 0;
+            uint32_t want = NO_TRI;
             int live = 0;
-            if (st == STRAT_BRDF) {
+            if (st == STRAT_INT) {
+              /* a point on a bright interior triangle; counts only if it is
+               * the ray's first hit */
+              const uint32_t hh = cv_hash_combine(T->seed[STRAT_INT], round * (uint32_t)spp + (uint32_t)j);
+              want = interior_sample(g, itp, o, u, hh, rd, &pint);
+              if (want != NO_TRI) {
+                wl[0] = dot3(rd, T->tn);
+                wl[1] = dot3(rd, T->bn);
+                wl[2] = dot3(rd, pn->normal);
+                live = wl[2] > 0;
+              }
+              if (live) {
+                th = acosf(wl[2] > 1 ? 1 : wl[2]);
+                ph = fabsf(atan2f(wl[1], wl[0]));
+                if (cb > 0)
+                  pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
+                cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
+              }
+            } else if (st == STRAT_BRDF) {
               live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
               if (live)
                 for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
@@ -913,8 +1369,10 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
                 cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
               }
             }
-            const int defer = st >= STRAT_WIN;
-            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI;
+            const int defer = st == STRAT_WIN || st == STRAT_ENV;
+            /* the interior MIS denominator; an interior-strategy ray's own
+             * density is known now, the others' p_int when they hit */
+            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI + ci * pint;
             if (!(live && wl[2] > 0 && (dint > 0 || defer))) {
               /* no ray: the sample is the sun term alone */
               if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, clamp, inv_unit, T->s, T->s2, cnt);
@@ -928,6 +1386,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
             }
             rf[3] = dint;
             bb.tex[n] = (uint32_t)i | (defer ? TEX_WIN : 0u);
+            bb.want[n] = want;
             bb.key[n] = dir_key(rd);
             if (p->ray_log && round == 0 && T->in_tile) {
               float *rl = p->ray_log + 6 * (T->aix * (size_t)spp + (size_t)j);
@@ -946,6 +1405,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           memcpy(bb.sdir + 3 * q, bb.dir + 3 * (size_t)r, 3 * sizeof(float));
           memcpy(bb.sfc + 4 * q, bb.fc + 4 * (size_t)r, 4 * sizeof(float));
           bb.stex[q] = bb.tex[r];
+          bb.swant[q] = bb.want[r];
         }
         trace_sorted(g->rt, g->has_windows, &bb, n);
         /* environment texels of the rays that left: computed and prefetched
@@ -976,18 +1436,29 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
           float v[3] = {T->nee[0], T->nee[1], T->nee[2]};
           if (bb.kind[q] == 1) {
             cnt[CV_LCD_ACC_HITS]++;
-            if (!win) { /* interior: MIS over BRDF and cosine sampling only */
-              const uint32_t *t = g->tri + 3 * (size_t)bb.htri[q];
+            /* interior: MIS over BRDF, cosine and interior sampling; an
+             * interior-strategy ray counts only on the triangle it aimed at */
+            const uint32_t ht = bb.htri[q], aim = bb.swant[q];
+            if (!win && (aim == NO_TRI || aim == ht)) {
+              const uint32_t *t = g->tri + 3 * (size_t)ht;
               const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
                           *r2 = l->vrad + 3 * (size_t)t[2];
               const float hu = bb.huv[2 * q], hv = bb.huv[2 * q + 1];
-              const float w0 = 1 - hu - hv, inv = 1 / rf[3];
+              float den = rf[3];
+              if (aim == NO_TRI && ci > 0) den += ci * interior_pdf(g, itp, ht, bb.ht[q], bb.sdir + 3 * q);
+              const float w0 = 1 - hu - hv, inv = 1 / den;
               for (int c = 0; c < 3; c++) v[c] += rf[c] * inv * (w0 * r0[c] + hu * r1[c] + hv * r2[c]);
             }
           } else if (bb.kind[q] == 2) {
             float L[3], fc[3], dint = rf[3];
-            env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
             cnt[CV_LCD_ACC_ENV]++;
+            if (bb.swant[q] != NO_TRI) { /* an interior-strategy ray: weight 0 outside */
+              add_sample(v, clamp, inv_unit, T->s, T->s2, cnt);
+              continue;
+            }
+            env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
+            if (sun_in_env && dot3(bb.sdir + 3 * q, sf.dir) >= sf.cos_a)
+              for (int c = 0; c < 3; c++) L[c] += sf.L[c];
             if (win) {
               /* the deferred f cos and interior denominator of a window or
                * environment sample */
@@ -1022,6 +1493,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     block_buf_free(&bb);
   }
   cv_env_sampler_destroy(esr);
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
+  int_table_free(&itab);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;

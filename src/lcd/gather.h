@@ -4,10 +4,15 @@
  * tabulated BRDF (brdf_sample.h) and traced ONE bounce: a ray leaving
  * through a window reads the environment (car frame), any other hit reads
  * the PRT exit radiance interpolated from the hit triangle's vertices.  The
- * sun is a directional light evaluated on the panel itself (next-event
- * estimation: one shadow ray per texel and round, from the round's first
- * sample position, its term added to every sample of the round), so it is
- * removed from the environment the rays read.  The PRT radiance read at
+ * sun is a uniform disc of the real solar angle (CV_LCD_SUN_HALF_ANGLE_DEG,
+ * irradiance sun_E at normal incidence) evaluated on the panel itself
+ * (next-event estimation: one shadow ray per texel and round towards a
+ * direction drawn uniformly in the disc, from the round's first sample
+ * position, its term added to every sample of the round), so it is removed
+ * from the environment the rays read.  With next-event estimation off
+ * (params.sun = 0, for comparisons) the rays that leave through a window
+ * inside the disc read its radiance instead: the plain estimators then find
+ * the sun only by chance (clamp: at least pi f_max L_sun to stay unbiased).  The PRT radiance read at
  * interior hits already holds the sun's direct light with ray-traced
  * visibility (cv_prt_relight with a tracer), computed once per lighting
  * state.
@@ -26,20 +31,34 @@
  *   e: the environment map by luminance (light sampling, light/env_sample.h:
  *      a marginal and conditional CDF over the car-frame table, uniform in
  *      each cell, restricted to the cells in front of the panel, rebuilt
- *      from the light's tables in each call that uses it, about 0.1 ms),
- *      n_e samples; p_e is exact for any direction, and a sample counts
+ *      from the light's tables in each call that uses it), n_e samples.
+ *      With windows, each of 4 x 3 regions of the panel has its own table:
+ *      every cell's probability times (the share of probe rays from the
+ *      region that reach the sky through a window in that cell + 0.02)
+ *      times the luminance of f cos for the view from the region's centre,
+ *      so that the strategy draws about the product L f cos V (12 tables
+ *      of 256 x 128 cells a round; the probe rays are traced once per
+ *      gather, by the first round that uses the strategy).  p_e is exact
+ *      for any direction (the block's region table), and a sample counts
  *      only when its ray leaves through a window.
- * with n_w = round(window_fraction spp), n_e = round(env_fraction spp)
- * (n_w + n_e <= spp - 1: n_e is cut first), n_b = round(brdf_fraction (spp
- * - n_w - n_e)), n_c = the rest, and c_s = n_s / spp.  The incident light is split
+ *   i: the interior by its exit radiance (interior_fraction): a triangle by
+ *      area x mean luminance of vrad x a view factor to the panel centre x
+ *      the share of 5 panel points that see its centroid (alias table per
+ *      call; the view factors once per gather, by the first round that
+ *      uses the strategy), a point uniform on it; the sample counts only
+ *      when that point is the ray's first hit; n_i samples; p_i of a ray
+ *      that first hits triangle t at distance r is p_area(t) r^2 / |cos_t|.
+ * with n_w = round(window_fraction spp), n_e = round(env_fraction spp),
+ * n_i = round(interior_fraction spp) (n_w + n_e + n_i <= spp - 1: n_i, then
+ * n_e are cut first), n_b = round(brdf_fraction (spp - n_w - n_e - n_i)),
+ * n_c = the rest, and c_s = n_s / spp.  The incident light is split
  * into what the interior returns and what the environment sends through a
  * window, and each part is its own MIS integral: the environment part over
- * four strategies, the interior part over b and c only (the window and
- * environment strategies' weights are 0 there, so their samples that hit
- * the interior add nothing and no other sample needs p_w or p_e):
- *   L = f cos L_int / (c_b p_b + c_c p_c)                        (interior hit)
+ * b, c, w, e, the interior part over b, c, i (each strategy's weight is 0
+ * in the other part, so its samples there add nothing):
+ *   L = f cos L_int / (c_b p_b + c_c p_c + c_i p_i)              (interior hit)
  *     = f cos L_env / (c_b p_b + c_c p_c + c_w p_w + c_e p_e)    (through a window)
- *     + f(s, w_o) cos(theta_s) E_sun V(s)                       (sun, every sample)
+ *     + f(s, w_o) cos(theta_s) L_sun Omega_sun V(s), s in the disc   (sun, every sample)
  * The sun is a delta light: only next-event estimation can reach it, so it
  * takes no MIS weight.
  * The window strategy puts samples where the sky is, which dominates the
@@ -158,8 +177,14 @@ typedef struct cv_lcd_params {
   double env_fraction;   /* share of the samples drawn from the environment map by luminance,
                             in [0, 1), window_fraction + env_fraction < 1 (default
                             CV_LCD_ENV_FRACTION; ignored for a black map) */
+  double interior_fraction; /* share of the samples drawn towards the interior by its
+                            exit radiance (points on triangles chosen by area x luminance of
+                            the PRT radiance), in [0, 1), with window_fraction and env_fraction
+                            below 1 (default CV_LCD_INTERIOR_FRACTION; ignored for a black
+                            interior) */
   uint32_t seed;         /* sequence seed (default 1) */
-  int sun;               /* 1: sun next-event estimation (default 1) */
+  int sun;               /* 1: sun next-event estimation (default 1); 0: the rays read the
+                            solar disc (no light sampling of the sun) */
   int threads;           /* OpenMP threads, 0 = OpenMP's default */
   /* Benchmark hook: when non-NULL, the gather ray of sample j of round 0's
    * buffer texel (x, y) is stored at ray_log[6*((y*acc->w + x)*spp + j)]
@@ -171,6 +196,11 @@ typedef struct cv_lcd_params {
 #define CV_LCD_WINDOW_FRACTION 0.5
 /* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_ENV_FRACTION 0.0
+/* Default interior_fraction (measured on the default cabin: docs/benchmarks.md). */
+#define CV_LCD_INTERIOR_FRACTION 0.0
+/* Angular radius of the solar disc (degrees; the sun's mean apparent
+ * diameter is 0.533 degrees). */
+#define CV_LCD_SUN_HALF_ANGLE_DEG 0.2666
 /* Openings (window materials) the window strategy aims at. */
 #define CV_LCD_MAX_OPENINGS 16
 

@@ -53,10 +53,16 @@ static int path_field(const char *file, const char *base, const cJSON *o, const 
   if (!cJSON_IsString(v))
     return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: expected a file name (string)", file, key);
   const char *s = v->valuestring;
-  if (!s[0] || s[0] == '/' || (allow_builtin && !strncmp(s, "builtin:", 8)))
-    snprintf(out, CV_PATH_MAX, "%s", s);
-  else
-    snprintf(out, CV_PATH_MAX, "%s/%s", base, s);
+  int absolute = !s[0] || s[0] == '/' || (allow_builtin && !strncmp(s, "builtin:", 8));
+  size_t nb = absolute ? 0 : strlen(base) + 1, ns = strlen(s);
+  if (nb + ns >= CV_PATH_MAX)
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: path longer than %d bytes", file, key,
+                      CV_PATH_MAX - 1);
+  if (nb) {
+    memcpy(out, base, nb - 1);
+    out[nb - 1] = '/';
+  }
+  memcpy(out + nb, s, ns + 1);
   return CV_OK;
 }
 

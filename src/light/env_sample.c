@@ -151,6 +151,38 @@ int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_
   return CV_OK;
 }
 
+int cv_env_sampler_reweight(const cv_env_sampler *src, const float *cell_w, cv_env_sampler **out) {
+  *out = NULL;
+  if (!src || !cell_w) return CV_ERR_INVALID;
+  const int w = src->w, h = src->h;
+  cv_env_sampler *s = sampler_alloc(w, h, src->f);
+  double *row = malloc((size_t)h * sizeof(double));
+  double *cum = malloc((size_t)(w + 1) * sizeof(double));
+  double *cw = malloc((size_t)w * (size_t)h * sizeof(double) + 1);
+  if (!s || !row || !cum || !cw) {
+    cv_env_sampler_destroy(s);
+    free(row);
+    free(cum);
+    free(cw);
+    return CV_ERR_NOMEM;
+  }
+  memcpy(s->cos_edge, src->cos_edge, (size_t)(h + 1) * sizeof(float));
+  memcpy(s->inv_sa, src->inv_sa, (size_t)h * sizeof(float));
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      const size_t i = (size_t)y * (size_t)w + (size_t)x;
+      const double k = cell_w[i];
+      cw[i] = k > 0 && isfinite(k) ? cv_env_sampler_cell_prob(src, x, y) * k : 0.0;
+    }
+  build_cdfs(s, cw, row, cum);
+  s->total *= src->total;
+  free(row);
+  free(cum);
+  free(cw);
+  *out = s;
+  return CV_OK;
+}
+
 double cv_env_sampler_cell_prob(const cv_env_sampler *s, int x, int y) {
   if (!(s->total > 0) || x < 0 || y < 0 || x >= s->w || y >= s->h) return 0;
   const float *c = s->cond + (size_t)y * (size_t)(s->w + 1);

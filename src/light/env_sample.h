@@ -54,6 +54,13 @@ void cv_env_sampler_destroy(cv_env_sampler *s);
  * Errors: CV_ERR_INVALID, CV_ERR_NOMEM. */
 int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_sampler **out);
 
+/* A copy of src whose cell probabilities are multiplied by cell_w[y w + x]
+ * (w x h weights, >= 0; NaN/Inf/negative count as 0) and renormalised; the
+ * density stays exact for what is drawn.  total = src's total x the
+ * weighted share (the weights scale it).  *out owned by the caller.
+ * Errors: CV_ERR_INVALID, CV_ERR_NOMEM. */
+int cv_env_sampler_reweight(const cv_env_sampler *src, const float *cell_w, cv_env_sampler **out);
+
 /* Probability of cell (x, y) (the difference of the stored CDFs). */
 double cv_env_sampler_cell_prob(const cv_env_sampler *s, int x, int y);
 

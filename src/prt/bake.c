@@ -5,6 +5,7 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 #include "core/hash.h"
 #include "core/progress.h"
@@ -170,7 +171,11 @@ float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on) { tr->window_mis = !!on; }
 int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr->nwin > 0; }
 
+const cv_mesh *cv_tracer_mesh(const cv_tracer *tr) { return tr->m; }
+
 size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
+
+uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i) { return (uint32_t)i; }
 
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
   return (int)(tr->fan_off[v + 1] - tr->fan_off[v]);
@@ -355,9 +360,14 @@ static const float *recv_albedo(const cv_mesh *m, uint32_t t) {
   return m->mat_tex && m->mat_tex[i][0] ? k_one : m->mats[i].albedo;
 }
 
-static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          double *acc, double alb[3], double albr[3]) {
+/* With rf non-NULL, rgb[3] also gets the same estimator of
+ * (1/pi) integral L(w) V cos dw for rf's radiance (same rays as acc). */
+static void vertex_direct_rf(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                             double *acc, double alb[3], double albr[3],
+                             const cv_radiance_fn *rf, double rgb[3]) {
   int nc = bands * bands;
+  float Lr[3];
+  if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
   float y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
   memset(acc, 0, (size_t)nc * sizeof(double));
   alb[0] = alb[1] = alb[2] = 0;
@@ -409,6 +419,10 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
       if (!cv_rt_reaches_env(tr->rt, org, dir, 0.0f)) continue;
       cv_sh_eval(bands, dir, y);
       for (int i = 0; i < nc; i++) acc[i] += y[i];
+      if (rf) {
+        rf->fn(rf->ctx, dir, Lr);
+        for (int c = 0; c < 3; c++) rgb[c] += Lr[c];
+      }
       continue;
     }
     if (u[6] < a) {
@@ -445,70 +459,248 @@ static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, 
     double w = (cos_o / M_PI) / (a * p_win + (1 - a) * p_cos);
     cv_sh_eval(bands, dir, y);
     for (int i = 0; i < nc; i++) acc[i] += w * y[i];
+    if (rf) {
+      rf->fn(rf->ctx, dir, Lr);
+      for (int c = 0; c < 3; c++) rgb[c] += w * Lr[c];
+    }
   }
   for (int i = 0; i < nc; i++) acc[i] /= rays;
+  if (rgb)
+    for (int c = 0; c < 3; c++) rgb[c] /= rays;
   for (int k = 0; k < 3; k++) {
     alb[k] /= rays;
     albr[k] /= rays;
   }
 }
 
-/* Prefetches the bytes [p, p + n) into the cache (hint only). */
+/* Prefetches the cache lines of the bytes [p, p + n), n > 0 (hint only). */
 static inline void prefetch_range(const void *p, size_t n) {
-  const char *c = p;
-  for (size_t k = 0; k < n; k += 64) __builtin_prefetch(c + k, 0, 1);
+  uintptr_t a = (uintptr_t)p & ~(uintptr_t)63, e = (uintptr_t)p + n;
+  for (; a < e; a += 64) __builtin_prefetch((const void *)a, 0, 1);
+}
+
+/* --- the previous bounce as the bounce pass reads it ------------------------
+ * Each hit interpolates three vertex records scattered over the whole mesh, so
+ * the pass is bound by the bytes it pulls from memory.  A record holds a float
+ * scale (the largest |value|) and the 3 * n * n values divided by it as IEEE
+ * half floats (11 significant bits: relative rounding <= 2^-12 of the record's
+ * largest value); records are STRIDE bytes apart, a multiple of 32 so that a
+ * 25-coefficient record (154 bytes) spans exactly 3 cache lines instead of the
+ * 5-6 of 75 floats, in memory aligned for (and advised to use) 2 MB pages. */
+struct cv_bounce_records {
+  size_t nv, rec, stride; /* vertices, values per record, bytes per record */
+  unsigned char *data;
+  size_t bytes;
+};
+
+#define HUGE_PAGE ((size_t)2 << 20)
+
+/* Half float (bits) of x, |x| <= 1 and finite; rounds to nearest even
+ * (after F. Giesen's float_to_half_fast3_rtne, public domain). */
+static uint16_t half_from_float(float x) {
+  uint32_t f, sign;
+  memcpy(&f, &x, 4);
+  sign = f & 0x80000000u;
+  f ^= sign;
+  uint16_t o;
+  if (f < (113u << 23)) { /* below the smallest normal half: denormal via the FPU */
+    float d, magic;
+    uint32_t mb = (126u - 15u + 23u + 1u) << 23; /* 0.5 in the half's denormal ulp */
+    memcpy(&magic, &mb, 4);
+    memcpy(&d, &f, 4);
+    d += magic;
+    memcpy(&f, &d, 4);
+    o = (uint16_t)(f - mb);
+  } else {
+    uint32_t mant_odd = (f >> 13) & 1u;
+    f += ((uint32_t)(15 - 127) << 23) + 0xfffu;
+    f += mant_odd;
+    o = (uint16_t)(f >> 13);
+  }
+  return (uint16_t)(o | (sign >> 16));
+}
+
+/* Float of half bits h (finite halves only): exponent rebias by one multiply,
+ * which also makes denormals exact; branch-free so loops of it vectorise. */
+static inline float half_to_float(uint16_t h) {
+  uint32_t bits = (uint32_t)(h & 0x7fffu) << 13, sign = (uint32_t)(h & 0x8000u) << 16;
+  float f;
+  memcpy(&f, &bits, 4);
+  f *= 0x1p112f;
+  memcpy(&bits, &f, 4);
+  bits |= sign;
+  memcpy(&f, &bits, 4);
+  return f;
+}
+
+int cv_bounce_records_create(int bands, size_t nv, cv_bounce_records **out) {
+  *out = NULL;
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS) return CV_ERR_RANGE;
+  cv_bounce_records *r = calloc(1, sizeof *r);
+  if (!r) return CV_ERR_NOMEM;
+  r->nv = nv;
+  r->rec = 3 * (size_t)bands * (size_t)bands;
+  r->stride = (sizeof(float) + 2 * r->rec + 31) & ~(size_t)31;
+  r->bytes = (nv * r->stride + HUGE_PAGE - 1) / HUGE_PAGE * HUGE_PAGE;
+  if (r->bytes == 0) r->bytes = HUGE_PAGE;
+  r->data = aligned_alloc(HUGE_PAGE, r->bytes);
+  if (!r->data) {
+    free(r);
+    return CV_ERR_NOMEM;
+  }
+#ifdef MADV_HUGEPAGE
+  madvise(r->data, r->bytes, MADV_HUGEPAGE); /* a hint: fewer TLB misses */
+#endif
+  memset(r->data, 0, r->bytes);
+  *out = r;
+  return CV_OK;
+}
+
+void cv_bounce_records_destroy(cv_bounce_records *r) {
+  if (!r) return;
+  free(r->data);
+  free(r);
+}
+
+void cv_bounce_records_set(cv_bounce_records *r, size_t v, const float *val) {
+  unsigned char *p = r->data + v * r->stride;
+  float scale = 0;
+  for (size_t i = 0; i < r->rec; i++) scale = fmaxf(scale, fabsf(val[i]));
+  uint16_t *h = (uint16_t *)(void *)(p + sizeof(float));
+  if (!(scale > 0) || !isfinite(scale)) scale = 0;
+  const float inv = scale > 0 ? 1.0f / scale : 0.0f;
+  for (size_t i = 0; i < r->rec; i++) {
+    float x = val[i] * inv;
+    h[i] = half_from_float(x > 1.0f ? 1.0f : (x < -1.0f ? -1.0f : x));
+  }
+  memcpy(p, &scale, sizeof scale);
+}
+
+void cv_bounce_records_get(const cv_bounce_records *r, size_t v, float *val) {
+  const unsigned char *p = r->data + v * r->stride;
+  float scale;
+  memcpy(&scale, p, sizeof scale);
+  const uint16_t *h = (const uint16_t *)(const void *)(p + sizeof(float));
+  for (size_t i = 0; i < r->rec; i++) val[i] = scale * half_to_float(h[i]);
+}
+
+/* Adds one hit to the bounce sums: tmp = the previous bounce interpolated at
+ * the hit, acc += albedo(from) * tmp (and accr with the receiver's albedo). */
+static inline void bounce_accumulate(const cv_tracer *tr, const cv_bounce_records *R, int nc,
+                                     const cv_hit *h, uint32_t from, double *acc, double *accr) {
+  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  const uint32_t *tv = tr->m->tri + 3 * h->tri;
+  const unsigned char *p0 = R->data + (size_t)tv[0] * R->stride,
+                      *p1 = R->data + (size_t)tv[1] * R->stride,
+                      *p2 = R->data + (size_t)tv[2] * R->stride;
+  float s0, s1, s2;
+  memcpy(&s0, p0, 4);
+  memcpy(&s1, p1, 4);
+  memcpy(&s2, p2, 4);
+  const float w0 = (1.0f - h->u - h->v) * s0, w1 = h->u * s1, w2 = h->v * s2;
+  const uint16_t *q0 = (const uint16_t *)(const void *)(p0 + 4),
+                 *q1 = (const uint16_t *)(const void *)(p1 + 4),
+                 *q2 = (const uint16_t *)(const void *)(p2 + 4);
+  const size_t rec = R->rec;
+#pragma omp simd
+  for (size_t i = 0; i < rec; i++)
+    tmp[i] = w0 * half_to_float(q0[i]) + w1 * half_to_float(q1[i]) + w2 * half_to_float(q2[i]);
+  const float *al = tr->m->mats[tr->m->tri_mat[from]].albedo;
+  for (int c = 0; c < 3; c++) {
+    const double a = al[c];
+    double *o = acc + c * nc;
+    const float *t = tmp + c * nc;
+#pragma omp simd
+    for (int i = 0; i < nc; i++) o[i] += a * t[i];
+  }
+  if (accr) {
+    const float *ar = recv_albedo(tr->m, from);
+    for (int c = 0; c < 3; c++) {
+      const double a = ar[c];
+      double *o = accr + c * nc;
+      const float *t = tmp + c * nc;
+#pragma omp simd
+      for (int i = 0; i < nc; i++) o[i] += a * t[i];
+    }
+  }
 }
 
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
- * Each hit reads three vertex records (3 * nc floats each) scattered over
- * the whole previous bounce, so rays are traced in batches and each hit's
- * records are prefetched while the rest of the batch is traced; the
- * accumulation keeps the ray order, so results are unchanged bit for bit. */
-#define BOUNCE_BATCH 8
+ * Rays are traced in batches of BOUNCE_BATCH consecutive samples as one Embree
+ * packet (rtcIntersect16): their origins share the vertex's fan, which makes
+ * them coherent enough that the packet beats 16 rtcIntersect1 calls
+ * (docs/benchmarks.md).  A batch is always samples j0..j0+15 of this vertex,
+ * so the result does not depend on threads.  Each hit reads three vertex
+ * records scattered over the whole previous bounce, so the work is
+ * software-pipelined: batch k is traced (its hit triangles' index entries
+ * prefetched), then the records of batch k's hits are prefetched, then batch
+ * k-1 (whose records were requested one batch earlier) is accumulated, in
+ * ray order. */
+#define BOUNCE_BATCH 16
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
-                          const float *prev, double *acc, double *accr) {
+                          const cv_bounce_records *R, double *acc, double *accr) {
   int nc = bands * bands;
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
   if (accr) memset(accr, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
-  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-  const size_t rec = 3 * (size_t)nc;
+  const size_t used = sizeof(float) + 2 * R->rec; /* bytes of a record that are read */
   vseq q;
   vseq_init(&q, seed, v);
-  for (int j0 = 0; j0 < rays; j0 += BOUNCE_BATCH) {
-    const int nb = rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH;
-    cv_hit hit[BOUNCE_BATCH];
-    uint32_t from[BOUNCE_BATCH];
-    int ok[BOUNCE_BATCH];
-    for (int b = 0; b < nb; b++) {
-      float org[3], dir[3];
-      from[b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org, dir);
-      ok[b] = cv_rt_intersect(tr->rt, org, dir, 0.0f, INFINITY, &hit[b]);
-      if (ok[b]) {
-        const uint32_t *tv = tr->m->tri + 3 * hit[b].tri;
-        for (int k = 0; k < 3; k++) prefetch_range(prev + (size_t)tv[k] * rec, rec * sizeof(float));
+  cv_hit hit[2][BOUNCE_BATCH];
+  uint32_t from[2][BOUNCE_BATCH];
+  int ok[2][BOUNCE_BATCH], nb_prev = 0;
+  for (int j0 = 0, cur = 0; j0 < rays + BOUNCE_BATCH; j0 += BOUNCE_BATCH, cur ^= 1) {
+    const int nb = j0 >= rays ? 0 : (rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH);
+    if (nb > 0) {
+      float org[3 * BOUNCE_BATCH], dir[3 * BOUNCE_BATCH];
+      uint8_t found[BOUNCE_BATCH];
+      for (int b = 0; b < nb; b++)
+        from[cur][b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org + 3 * b, dir + 3 * b);
+      cv_rt_intersect_packet(tr->rt, nb, org, dir, NULL, 0.0f, INFINITY, 0, hit[cur], found);
+      for (int b = 0; b < nb; b++) {
+        ok[cur][b] = found[b];
+        if (ok[cur][b]) __builtin_prefetch(tr->m->tri + 3 * hit[cur][b].tri, 0, 1);
       }
     }
     for (int b = 0; b < nb; b++) {
-      if (!ok[b]) continue;
-      const cv_hit *h = &hit[b];
-      const uint32_t *tv = tr->m->tri + 3 * h->tri;
-      float w0 = 1.0f - h->u - h->v;
-      const float *q0 = prev + (size_t)tv[0] * rec, *q1 = prev + (size_t)tv[1] * rec,
-                  *q2 = prev + (size_t)tv[2] * rec;
-      for (size_t i = 0; i < rec; i++) tmp[i] = w0 * q0[i] + h->u * q1[i] + h->v * q2[i];
-      const float *al = tr->m->mats[tr->m->tri_mat[from[b]]].albedo;
-      for (int c = 0; c < 3; c++)
-        for (int i = 0; i < nc; i++) acc[c * nc + i] += (double)al[c] * tmp[c * nc + i];
-      if (accr) {
-        const float *ar = recv_albedo(tr->m, from[b]);
-        for (int c = 0; c < 3; c++)
-          for (int i = 0; i < nc; i++) accr[c * nc + i] += (double)ar[c] * tmp[c * nc + i];
-      }
+      if (!ok[cur][b]) continue;
+      const uint32_t *tv = tr->m->tri + 3 * hit[cur][b].tri;
+      for (int k = 0; k < 3; k++) prefetch_range(R->data + (size_t)tv[k] * R->stride, used);
     }
+    const int o = cur ^ 1;
+    for (int b = 0; b < nb_prev; b++)
+      if (ok[o][b]) bounce_accumulate(tr, R, nc, &hit[o][b], from[o][b], acc, accr);
+    nb_prev = nb;
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
   for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
+}
+
+static void vertex_direct(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
+                          double *acc, double alb[3], double albr[3]) {
+  vertex_direct_rf(tr, v, bands, rays, seed, acc, alb, albr, NULL, NULL);
+}
+
+int cv_bake_direct_radiance_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                                   const cv_radiance_fn *rf, const uint32_t *verts, size_t count,
+                                   float *td, float *rgb, float *alb_out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1 || !rf || !rf->fn) return CV_ERR_RANGE;
+  int nc = bands * bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], alb[3], albr[3], L[3];
+#pragma omp for schedule(dynamic, 4)
+    for (size_t k = 0; k < count; k++) {
+      vertex_direct_rf(tr, verts[k], bands, rays, seed, acc, alb, albr, rf, L);
+      for (int i = 0; i < nc; i++) td[k * nc + i] = (float)acc[i];
+      for (int c = 0; c < 3; c++) {
+        rgb[3 * k + c] = (float)L[c];
+        alb_out[3 * k + c] = (float)alb[c];
+      }
+    }
+  }
+  return CV_OK;
 }
 
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
@@ -523,6 +715,25 @@ int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t see
     for (size_t k = 0; k < count; k++) {
       vertex_direct(tr, verts[k], bands, rays, seed, acc, alb, albr);
       for (int i = 0; i < nc; i++) out[k * nc + i] = (float)acc[i];
+    }
+  }
+  return CV_OK;
+}
+
+int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const cv_bounce_records *prev, const uint32_t *verts, size_t count,
+                          float *out) {
+  if (bands < 1 || bands > CV_PRT_MAX_BANDS || rays < 1) return CV_ERR_RANGE;
+  if (prev->rec != 3 * (size_t)bands * (size_t)bands || prev->nv != tr->m->nv) return CV_ERR_INVALID;
+  const size_t rec = 3 * (size_t)bands * (size_t)bands;
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+    double acc[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+#pragma omp for schedule(dynamic, 1)
+    for (size_t k = 0; k < count; k++) {
+      vertex_bounce(tr, verts[k], bands, rays, seed, prev, acc, NULL);
+      for (size_t i = 0; i < rec; i++) out[k * rec + i] = (float)acc[i];
     }
   }
   return CV_OK;
@@ -546,7 +757,11 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint32_t spread_bits;
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   /* The estimator's identity: bump when the sampling changes results. */
-  const uint32_t estimator = p->cosine_only ? 1u : 2u;
+  /* +2 with bounces: the bounce passes read half-float records of the
+   * previous bounce and trace 16-ray packets (results move by ~1e-4);
+   * +16 with the geometric tail. */
+  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 2u : 0u) +
+                             (p->tail && p->bounces > 0 ? 16u : 0u);
   uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
                      (uint32_t)p->bounces, p->seed, spread_bits, estimator};
   h = cv_hash64_update(h, hdr, sizeof hdr);
@@ -603,35 +818,135 @@ int cv_prt_bake(const cv_mesh *m, const cv_bake_params *p, cv_prt **out, cv_bake
     cv_progress_destroy(prog_);                                                \
   } while (0)
 
+/* Stores every vertex's 3*n*n values of vals (layout as the transfer) in r. */
+static void records_fill(cv_bounce_records *r, const float *vals, size_t nv) {
+  const size_t rec = r->rec;
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(r, v, vals + v * rec);
+}
+
+/* Interreflection pass `pass`: cur = the bounce carried by the records prev (albedo
+ * applied), ti += the same without a textured receiver's own albedo. */
+static void propagate_pass(const cv_tracer *tr, int bands, int rays, uint32_t seed, int pass,
+                           int quiet, const cv_bounce_records *prev, float *cur, float *ti,
+                           cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  char label[32];
+  snprintf(label, sizeof label, "bake bounce %d", pass);
+  double t0 = cv_now_seconds();
+  const int textured = tr->m->mat_tex != NULL;
+  FOR_VERTICES(label, nv, quiet, {
+    double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
+    const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
+    for (int i = 0; i < 3 * nc; i++) {
+      cur[v * 3 * nc + i] = (float)acc[i];
+      ti[v * 3 * nc + i] += (float)own[i];
+    }
+  });
+  if (stats && pass <= 16) {
+    stats->seconds[pass] = cv_now_seconds() - t0;
+    stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
+    stats->total_rays += stats->rays[pass];
+  }
+}
+
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats) {
   const size_t nv = tr->m->nv;
-  const int nc = bands * bands;
   if (bounces <= 0) return CV_OK;
-  float *cur = malloc(3 * nv * nc * sizeof(float) + 1);
-  if (!cur) return CV_ERR_NOMEM;
+  cv_bounce_records *src = NULL;
+  if (cv_bounce_records_create(bands, nv, &src)) return CV_ERR_NOMEM;
+  records_fill(src, prev, nv);
   for (int pass = 1; pass <= bounces; pass++) {
-    char label[32];
-    snprintf(label, sizeof label, "bake bounce %d", pass);
-    double t0 = cv_now_seconds();
-    const int textured = tr->m->mat_tex != NULL;
-    FOR_VERTICES(label, nv, quiet, {
-      double accr[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-      vertex_bounce(tr, (uint32_t)v, bands, rays, seed, prev, acc, textured ? accr : NULL);
-      const double *own = textured ? accr : acc; /* transfer without a texture's albedo */
-      for (int i = 0; i < 3 * nc; i++) {
-        cur[v * 3 * nc + i] = (float)acc[i];
-        ti[v * 3 * nc + i] += (float)own[i];
-      }
-    });
-    memcpy(prev, cur, 3 * nv * nc * sizeof(float));
-    if (stats && pass <= 16) {
-      stats->seconds[pass] = cv_now_seconds() - t0;
-      stats->rays[pass] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)rays;
-      stats->total_rays += stats->rays[pass];
+    /* src holds the previous bounce, so prev is free to take this one. */
+    propagate_pass(tr, bands, rays, seed, pass, quiet, src, prev, ti, stats);
+    if (pass < bounces) records_fill(src, prev, nv);
+  }
+  cv_bounce_records_destroy(src);
+  return CV_OK;
+}
+
+/* Area of each vertex's share of its opaque fan (a third of each triangle). */
+static double vertex_area(const cv_tracer *tr, uint32_t v) {
+  double a = 0;
+  for (uint32_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) {
+    const uint32_t *t = tr->m->tri + 3 * (tr->fan_tri[k] >> 2);
+    const float *p0 = tr->m->pos + 3 * t[0], *p1 = tr->m->pos + 3 * t[1], *p2 = tr->m->pos + 3 * t[2];
+    double e1[3], e2[3];
+    for (int c = 0; c < 3; c++) {
+      e1[c] = (double)p1[c] - p0[c];
+      e2[c] = (double)p2[c] - p0[c];
+    }
+    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+           cz = e1[0] * e2[1] - e1[1] * e2[0];
+    a += sqrt(cx * cx + cy * cy + cz * cz) / 6.0;
+  }
+  return a;
+}
+
+int cv_prt_tail_ratio(const cv_tracer *tr, int bands, const float *before, const float *last,
+                      double ratio[3]) {
+  const size_t nv = tr->m->nv;
+  const int nc = bands * bands;
+  double num[3] = {0, 0, 0}, den[3] = {0, 0, 0};
+  for (size_t v = 0; v < nv; v++) {
+    double a = vertex_area(tr, (uint32_t)v);
+    for (int c = 0; c < 3; c++) {
+      num[c] += a * last[(v * 3 + c) * nc];
+      den[c] += a * before[(v * 3 + c) * nc];
     }
   }
+  int clamped = 0;
+  for (int c = 0; c < 3; c++) {
+    double r = den[c] > 0 ? num[c] / den[c] : 0.0;
+    if (!(r >= 0)) r = 0, clamped = 1;
+    if (r > CV_BAKE_TAIL_MAX_RATIO) r = CV_BAKE_TAIL_MAX_RATIO, clamped = 1;
+    ratio[c] = r;
+  }
+  return clamped;
+}
+
+/* Passes 1..bounces as cv_prt_propagate, then the geometric tail: every
+ * vertex's last bounce B (without a textured receiver's own albedo) times
+ * r / (1 - r), r per channel from cv_prt_tail_ratio of bounces B and B - 1
+ * (B - 1 = 0: the direct exit transfer). */
+static int propagate_with_tail(const cv_tracer *tr, const cv_bake_params *p, float *prev,
+                               float *ti, cv_bake_stats *stats) {
+  const size_t nv = tr->m->nv;
+  const int nc = p->bands * p->bands;
+  const size_t n = 3 * nv * (size_t)nc;
+  float *cur = malloc(n * sizeof(float) + 1), *last = malloc(n * sizeof(float) + 1);
+  cv_bounce_records *rec = NULL;
+  if (!cur || !last || cv_bounce_records_create(p->bands, nv, &rec)) {
+    free(cur);
+    free(last);
+    return CV_ERR_NOMEM;
+  }
+  records_fill(rec, prev, nv);
+  for (int pass = 1; pass <= p->bounces; pass++) {
+    if (pass == p->bounces) memcpy(last, ti, n * sizeof(float));
+    propagate_pass(tr, p->bands, p->rays, p->seed, pass, p->quiet, rec, cur, ti, stats);
+    if (pass < p->bounces) {
+      memcpy(prev, cur, n * sizeof(float));
+      records_fill(rec, cur, nv);
+    }
+  }
+  cv_bounce_records_destroy(rec);
+  double r[3];
+  stats->tail_clamped = cv_prt_tail_ratio(tr, p->bands, prev, cur, r);
+  for (int c = 0; c < 3; c++) stats->tail_ratio[c] = r[c];
+  for (size_t v = 0; v < nv; v++)
+    for (int c = 0; c < 3; c++) {
+      const double f = r[c] / (1.0 - r[c]);
+      for (int i = 0; i < nc; i++) {
+        const size_t k = (v * 3 + c) * (size_t)nc + (size_t)i;
+        ti[k] += (float)(f * ((double)ti[k] - last[k]));
+      }
+    }
   free(cur);
+  free(last);
   return CV_OK;
 }
 
@@ -696,8 +1011,9 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   stats->rays[0] = (uint64_t)(nv - stats->empty_fans) * (uint64_t)p->rays;
   stats->total_rays = stats->rays[0];
   if (prev) {
-    st = cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev, prt->ti,
-                          stats);
+    st = p->tail && p->bounces > 0 ? propagate_with_tail(tr, p, prev, prt->ti, stats)
+                 : cv_prt_propagate(tr, p->bands, p->rays, p->seed, p->bounces, p->quiet, prev,
+                                    prt->ti, stats);
     free(prev);
     if (st) {
       cv_prt_destroy(prt);
@@ -710,37 +1026,50 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
   return CV_OK;
 }
 
-int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
-                  uint32_t seed, float *out_rgb) {
+/* Direct light of one vertex from a directional light (see cv_sun_direct). */
+static void sun_vertex(const cv_tracer *tr, uint32_t v, const float s[3], const double E[3],
+                       int samples, uint32_t sseed, float *out3) {
+  if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
+  double acc[3] = {0, 0, 0};
+  vseq q;
+  vseq_init(&q, sseed, v);
+  for (int j = 0; j < samples; j++) {
+    float u[6], p[3], org[3];
+    vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
+    uint32_t t = fan_point(tr, v, u, p);
+    const float *n = tr->tri_n + 3 * t;
+    float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+    if (c <= 0) continue;
+    cv_rt_offset_origin(p, n, org);
+    if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
+    const float *a = recv_albedo(tr->m, t);
+    for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
+  }
+  for (int k = 0; k < 3; k++) out3[k] += (float)(E[k] / M_PI * acc[k] / samples);
+}
+
+int cv_sun_direct_subset(const cv_tracer *tr, const double sun_dir[3], const double E[3],
+                         int samples, uint32_t seed, const uint32_t *verts, size_t count,
+                         float *out_rgb) {
   if (samples < 1) return CV_ERR_RANGE;
   double l = sqrt(sun_dir[0] * sun_dir[0] + sun_dir[1] * sun_dir[1] + sun_dir[2] * sun_dir[2]);
   if (!(l > 0) || !isfinite(l)) return CV_ERR_INVALID;
   const float s[3] = {(float)(sun_dir[0] / l), (float)(sun_dir[1] / l), (float)(sun_dir[2] / l)};
-  const size_t nv = tr->m->nv;
+  const size_t nv = verts ? count : tr->m->nv;
   const uint32_t sseed = cv_hash_combine(seed, 0x5317u);
 #pragma omp parallel
   {
     cv_rt_thread_init();
 #pragma omp for schedule(dynamic, 256)
-    for (size_t v = 0; v < nv; v++) {
-      if (tr->fan_off[v + 1] == tr->fan_off[v]) continue;
-      double acc[3] = {0, 0, 0};
-      vseq q;
-      vseq_init(&q, sseed, (uint32_t)v);
-      for (int j = 0; j < samples; j++) {
-        float u[6], p[3], org[3];
-        vseq_sample(&tr->sobol, &q, (uint32_t)j, 6, u);
-        uint32_t t = fan_point(tr, (uint32_t)v, u, p);
-        const float *n = tr->tri_n + 3 * t;
-        float c = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
-        if (c <= 0) continue;
-        cv_rt_offset_origin(p, n, org);
-        if (!cv_rt_reaches_env(tr->rt, org, s, 0.0f)) continue;
-        const float *a = recv_albedo(tr->m, t);
-        for (int k = 0; k < 3; k++) acc[k] += (double)a[k] * c;
-      }
-      for (int k = 0; k < 3; k++) out_rgb[3 * v + k] += (float)(E[k] / M_PI * acc[k] / samples);
+    for (size_t k = 0; k < nv; k++) {
+      const uint32_t v = verts ? verts[k] : (uint32_t)k;
+      sun_vertex(tr, v, s, E, samples, sseed, out_rgb + 3 * (verts ? k : (size_t)v));
     }
   }
   return CV_OK;
+}
+
+int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
+                  uint32_t seed, float *out_rgb) {
+  return cv_sun_direct_subset(tr, sun_dir, E, samples, seed, NULL, 0, out_rgb);
 }

@@ -30,6 +30,9 @@
  * ample against overlaps much thinner than the fan) for lower variance:
  * measured in docs/benchmarks.md. */
 #define CV_BAKE_DEFAULT_SPREAD 0.5f
+/* Largest per-channel ratio of successive bounces the tail estimate accepts
+ * (a tail of r / (1 - r) = 9 times the last bounce). */
+#define CV_BAKE_TAIL_MAX_RATIO 0.9
 
 typedef struct cv_bake_params {
   int bands;      /* SH bands, 2..8 */
@@ -38,6 +41,8 @@ typedef struct cv_bake_params {
   uint32_t seed;
   float spread;   /* 0..1, see CV_BAKE_DEFAULT_SPREAD */
   int cosine_only;/* 1: direct pass without window importance sampling */
+  int tail;       /* 1: add the geometric tail of the bounces after the last one
+                     (cv_prt_tail_ratio); no effect with bounces = 0 */
   int quiet;      /* 1: no progress bar */
 } cv_bake_params;
 
@@ -47,6 +52,8 @@ typedef struct cv_bake_stats {
   double total_seconds;
   uint64_t total_rays;
   uint64_t empty_fans;  /* vertices with no opaque triangle (transfer 0) */
+  double tail_ratio[3]; /* with tail: the per-channel ratio r used (else 0) */
+  int tail_clamped;     /* with tail: 1 if a ratio was clamped to [0, CV_BAKE_TAIL_MAX_RATIO] */
 } cv_bake_stats;
 
 /* Per-scene sampling context: the ray tracer plus each vertex's fan. */
@@ -64,8 +71,12 @@ float cv_tracer_spread(const cv_tracer *tr);
  * only when the mesh has window triangles). */
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on);
 int cv_tracer_window_sampling(const cv_tracer *tr);
+/* The tracer's mesh (its own copy). */
+const cv_mesh *cv_tracer_mesh(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */
 size_t cv_tracer_vertex_count(const cv_tracer *tr);
+/* The i-th vertex the bake's passes visit (0 <= i < vertex count). */
+uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i);
 /* Number of opaque triangles in vertex v's fan. */
 int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v);
 
@@ -79,6 +90,42 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
 int cv_bake_direct_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
                           const uint32_t *verts, size_t count, float *out);
 
+/* The previous bounce's exit transfer as the bounce passes read it: per
+ * vertex 3*n*n values stored as half floats relative to a float scale (the
+ * record's largest |value|), i.e. rounded to 2^-12 of that value; 3 cache
+ * lines per 25-coefficient record instead of 5-6 (docs/benchmarks.md). */
+typedef struct cv_bounce_records cv_bounce_records;
+/* Zeroed records for nv vertices of `bands` bands; CV_ERR_RANGE / NOMEM. */
+int cv_bounce_records_create(int bands, size_t nv, cv_bounce_records **out);
+void cv_bounce_records_destroy(cv_bounce_records *r);
+/* Stores / reads back vertex v's 3*n*n values (layout [c][i]; finite). */
+void cv_bounce_records_set(cv_bounce_records *r, size_t v, const float *val);
+void cv_bounce_records_get(const cv_bounce_records *r, size_t v, float *val);
+
+/* One bounce pass of the listed vertices from the previous bounce's records
+ * (all vertices): out[k*3*n*n + c*n*n + i], as the full pass computes it
+ * (without a texture's albedo split).  Used by the benchmark. */
+int cv_bake_bounce_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                          const cv_bounce_records *prev, const uint32_t *verts, size_t count,
+                          float *out);
+
+/* Radiance arriving from unit direction d (car frame), RGB; called from
+ * several threads at once. */
+typedef struct cv_radiance_fn {
+  void (*fn)(const void *ctx, const float d[3], float rgb[3]);
+  const void *ctx;
+} cv_radiance_fn;
+
+/* The direct pass's estimator on the listed vertices, with the same rays
+ * giving both the SH transfer td (count x bands^2, as cv_bake_direct_subset)
+ * and, for rf's radiance, rgb (3 per vertex) = (1/pi) integral L V cos dw:
+ * the all-frequency direct light that td's SH lighting approximates (the
+ * two share their Monte Carlo noise).  alb_out (3 per vertex): the fan's
+ * hat-weighted material albedo. */
+int cv_bake_direct_radiance_subset(const cv_tracer *tr, int bands, int rays, uint32_t seed,
+                                   const cv_radiance_fn *rf, const uint32_t *verts, size_t count,
+                                   float *td, float *rgb, float *alb_out);
+
 /* Full bake; *out owned by the caller.  With cv_prt_bake_tracer the
  * tracer's spread must equal p->spread.  meta.input_hash is set from
  * cv_prt_input_hash.  Prints a progress bar to stderr unless p->quiet. */
@@ -90,10 +137,21 @@ int cv_prt_bake_tracer(const cv_tracer *tr, const cv_bake_params *p, cv_prt **ou
 
 /* Interreflection passes from a given bounce-0 exit transfer prev
  * ([v][c][i], RGB, albedo applied; overwritten with the last bounce) into ti
- * (same layout, accumulated: ti += bounces 1..B).  The bake calls this after
+ * (same layout, accumulated: ti += bounces 1..B); bounces read the previous
+ * one through cv_bounce_records (half floats).  The bake calls this after
  * its direct pass; tests seed it with a known transfer (furnace). */
 int cv_prt_propagate(const cv_tracer *tr, int bands, int rays, uint32_t seed, int bounces,
                      int quiet, float *prev, float *ti, cv_bake_stats *stats);
+
+/* The bounces a bake leaves out, estimated as a geometric series: with
+ * `before` and `last` the exit transfers of the last two bounces ([v][c][i],
+ * albedo applied), ratio[c] = sum_v A_v last[v][c][0] / sum_v A_v before[v][c][0]
+ * (A_v a third of v's opaque fan area; DC coefficients = the response to a
+ * constant sky), clamped to [0, CV_BAKE_TAIL_MAX_RATIO]; bounce B + k is
+ * taken as ratio^k times bounce B, so the tail is last * r / (1 - r).
+ * Returns 1 if a ratio was clamped. */
+int cv_prt_tail_ratio(const cv_tracer *tr, int bands, const float *before, const float *last,
+                      double ratio[3]);
 
 /* Fingerprint of everything a bake depends on: mesh geometry, materials,
  * parameters and the format version. */
@@ -108,5 +166,11 @@ int cv_bake_params_validate(const cv_bake_params *p, cv_err *err);
  * the car frame; E is the sun's RGB irradiance at normal incidence. */
 int cv_sun_direct(const cv_tracer *tr, const double sun_dir[3], const double E[3], int samples,
                   uint32_t seed, float *out_rgb);
+
+/* cv_sun_direct on the listed vertices only: out_rgb[3k+c] += vertex
+ * verts[k]'s direct light (same samples and result as the full call). */
+int cv_sun_direct_subset(const cv_tracer *tr, const double sun_dir[3], const double E[3],
+                         int samples, uint32_t seed, const uint32_t *verts, size_t count,
+                         float *out_rgb);
 
 #endif

@@ -11,6 +11,17 @@ int cv_prt_relight(const cv_prt *p, const cv_lighting *l, const cv_tracer *tr, i
   return cv_prt_relight_ex(p, l, NULL, 0, tr, sun_samples, out_rgb, stats);
 }
 
+int cv_split_direct(const cv_prt *p, const cv_tracer *tr, const cv_dir_light *extra,
+                    int n_extra, int sun_samples, float *out_rgb) {
+  if (n_extra < 0 || (n_extra > 0 && (!extra || !tr))) return CV_ERR_INVALID;
+  for (int k = 0; k < n_extra; k++) {
+    int st = cv_sun_direct(tr, extra[k].dir, extra[k].E, sun_samples, p->meta.seed + 1u + (uint32_t)k,
+                           out_rgb);
+    if (st) return st;
+  }
+  return CV_OK;
+}
+
 int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
                       int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
                       cv_relight_stats *stats) {
@@ -58,9 +69,8 @@ int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light 
     int st = cv_sun_direct(tr, l->sun_dir, l->sun_E, sun_samples, p->meta.seed, out_rgb);
     if (st) return st;
   }
-  for (int k = 0; k < n_extra; k++) {
-    int st = cv_sun_direct(tr, extra[k].dir, extra[k].E, sun_samples, p->meta.seed + 1u + (uint32_t)k,
-                           out_rgb);
+  if (n_extra > 0) {
+    int st = cv_split_direct(p, tr, extra, n_extra, sun_samples, out_rgb);
     if (st) return st;
   }
   cv_relight_stats s = {0, 0};

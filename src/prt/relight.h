@@ -44,4 +44,11 @@ int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light 
                       int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
                       cv_relight_stats *stats);
 
+/* The direct light of the n_extra lights alone, added to out_rgb (3*nv,
+ * not clamped): what cv_prt_relight_ex adds for them with ray-traced
+ * visibility (same samples and seeds).  The GPU renderer takes it per
+ * vertex (cv_renderer_set_split).  Needs tr when n_extra > 0. */
+int cv_split_direct(const cv_prt *p, const cv_tracer *tr, const cv_dir_light *extra,
+                    int n_extra, int sun_samples, float *out_rgb);
+
 #endif

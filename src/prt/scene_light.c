@@ -339,6 +339,17 @@ int cv_scene_light_extra(const cv_scene_light *sl, const cv_dir_light **lights) 
 
 cv_lighting cv_scene_light_sh(const cv_scene_light *sl) { return sl->l; }
 
+void cv_scene_light_residual(const cv_scene_light *sl, const float d[3], float rgb[3]) {
+  if (!sl->residual) {
+    for (int k = 0; k < 3; k++) rgb[k] = (float)sl->spec.constant[k];
+    return;
+  }
+  float w[3];
+  for (int i = 0; i < 3; i++)
+    w[i] = (float)(sl->R[3 * i] * d[0] + sl->R[3 * i + 1] * d[1] + sl->R[3 * i + 2] * d[2]);
+  cv_envmap_lookup(sl->residual, w, rgb);
+}
+
 void cv_scene_light_background(const cv_scene_light *sl, const float d[3], float rgb[3]) {
   double w[3];
   for (int i = 0; i < 3; i++) w[i] = sl->R[3 * i] * d[0] + sl->R[3 * i + 1] * d[1] + sl->R[3 * i + 2] * d[2];

@@ -23,6 +23,10 @@ void cv_scene_light_destroy(cv_scene_light *sl);
 cv_lighting cv_scene_light_sh(const cv_scene_light *sl);
 /* Radiance arriving from car-frame direction d (unit), sun included. */
 void cv_scene_light_background(const cv_scene_light *sl, const float d[3], float rgb[3]);
+/* Radiance from car-frame direction d (unit) of the map the SH lighting and
+ * the split lights share: the map after the sun extraction (the split cells
+ * included); the constant for a constant environment. */
+void cv_scene_light_residual(const cv_scene_light *sl, const float d[3], float rgb[3]);
 /* All-frequency window light (issue 13): splits up to k more directional
  * lights out of the SH lighting.  The map left after the sun (the residual)
  * is cut into cells of a grid_w x grid_w/2 lat-long grid; each cell scores

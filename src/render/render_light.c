@@ -236,7 +236,8 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   for (int i = 0; i < r->nc; i++) {
     for (int c = 0; c < 3; c++) {
       ul[4 * i + c] = (float)l->sh[3 * i + c];
-      uls[4 * i + c] = (float)(l->sh[3 * i + c] + (sun ? l->sun_E[c] * y[i] : 0.0));
+      uls[4 * i + c] = (float)(l->sh[3 * i + c] + (sun ? l->sun_E[c] * y[i] : 0.0) +
+                               (r->n_split ? r->split_sh[3 * i + c] : 0.0));
     }
     ul[4 * i + 3] = uls[4 * i + 3] = 0;
   }
@@ -244,6 +245,7 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   glUseProgram(p);
   glUniform4fv(glGetUniformLocation(p, "u_l"), r->nc, ul);
   glUniform4fv(glGetUniformLocation(p, "u_ls"), r->nc, uls);
+  cvr_split_bind(r, p);
   glActiveTexture(GL_TEXTURE0 + U_TRANSFER);
   glBindTexture(GL_TEXTURE_BUFFER, r->tex_transfer);
   glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_tiny);

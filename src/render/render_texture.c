@@ -61,7 +61,7 @@ static uint8_t linear_to_srgb8(float x) {
  * each a copy of the original's records; *uvl gets (u, v, layer) per new
  * vertex.  layer_of[m] is material m's layer or -1. */
 static int split_vertices(const cv_prt *p, const int *layer_of, cv_prt **out, float **uvl,
-                          cv_err *err) {
+                          uint32_t **orig, cv_err *err) {
   const size_t nk = 3 * p->nt;
   corner_key *keys = malloc(nk * sizeof *keys + 1);
   uint8_t *used = calloc(p->nv + 1, 1);
@@ -90,7 +90,8 @@ static int split_vertices(const cv_prt *p, const int *layer_of, cv_prt **out, fl
   cv_prt *q = NULL;
   float *uv = NULL;
   if (nv2 > 0xffffffffu || cv_prt_alloc(p->bands, nv2, p->nt, p->nm, p->ti != NULL, &q) ||
-      !(uv = malloc(3 * nv2 * sizeof *uv + 1))) {
+      !(uv = malloc(3 * nv2 * sizeof *uv + 1)) || !(*orig = malloc(nv2 * sizeof **orig + 1))) {
+    free(uv);
     free(keys), free(used), free(new_of_corner), cv_prt_destroy(q);
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting textured vertices");
   }
@@ -105,6 +106,7 @@ static int split_vertices(const cv_prt *p, const int *layer_of, cv_prt **out, fl
       memcpy(q->td + nc * n, p->td + nc * (size_t)(V), nc * sizeof(float));                \
       if (p->ti) memcpy(q->ti + 3 * nc * n, p->ti + 3 * nc * (size_t)(V), 3 * nc * sizeof(float)); \
       uv[3 * n] = (U), uv[3 * n + 1] = (W), uv[3 * n + 2] = (float)(L);                    \
+      (*orig)[n] = (uint32_t)(V);                                                          \
       n++;                                                                                 \
     } while (0)
   size_t i = 0;
@@ -271,7 +273,7 @@ int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err 
   int st = CV_OK;
   if (nlayers) {
     st = upload_layers(r, p, layer_of, nlayers, err);
-    if (!st) st = split_vertices(p, layer_of, split, &r->tex_uvl, err);
+    if (!st) st = split_vertices(p, layer_of, split, &r->tex_uvl, &r->tex_orig, err);
     if (!st) r->tex_split = (*split)->nv - p->nv;
   }
   free(layer_of);

@@ -482,6 +482,10 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     for (int c = 0; c < 3; c++) o[4 * nc + c] = p->albedo[3 * v + c] * usc[3 * v + c];
     o[4 * nc + 3] = 0;
   }
+  /* The split window lights' direct light gets the same factors (by renderer vertex). */
+  if ((p->flags & CV_PRT_TEXTURED) && (r->wl_usc = malloc(3 * p->nv * sizeof *r->wl_usc + 4)))
+    for (size_t v = 0; v < p->nv; v++)
+      for (int c = 0; c < 3; c++) r->wl_usc[3 * v + c] = usc[3 * old_of[v] + c];
   free(usc);
   if (th)
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
@@ -525,6 +529,11 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * nt * sizeof *idx + 4), idx, GL_STATIC_DRAW);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
+  /* Each renderer vertex's PRT vertex, for the split window lights. */
+  r->wl_src = malloc(p->nv * sizeof *r->wl_src + 4);
+  if (r->wl_src)
+    for (size_t v = 0; v < p->nv; v++)
+      r->wl_src[v] = r->tex_orig ? r->tex_orig[old_of[v]] : old_of[v];
   free(tf), free(th), free(old_of), free(new_of), free(alb);
   r->idx_cpu = idx, r->pos_cpu = pos; /* kept for the sun split */
   r->chunk_nf = malloc(r->nchunks * sizeof *r->chunk_nf + 4);
@@ -576,6 +585,8 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
   cv_prt_destroy(split);
   free(r->tex_uvl);
   r->tex_uvl = NULL;
+  free(r->tex_orig);
+  r->tex_orig = NULL;
   if (st ||
       (st = cvr_build("relight.vert", NULL, defs, "v_out", &r->prog_relight, err)) ||
       (st = cvr_build("geom.vert", "depth.frag", "#define DEPTH_ONLY\n", NULL, &r->prog_depth, err)) ||
@@ -624,12 +635,16 @@ void cv_renderer_destroy(cv_renderer *r) {
       for (int f = 0; f < NVARIANT; f++) glDeleteProgram(r->prog_var[k][f]);
     glDeleteBuffers(1, &r->buf_tone);
     glDeleteTextures(1, &r->tex_tone);
+    cvr_split_free(r);
   }
   cv_egl_close(&r->egl);
   cv_window_destroy(r->win);
   free(r->chunk_box);
   free(r->idx_cpu);
   free(r->pos_cpu);
+  free(r->wl_src);
+  free(r->wl_usc);
+  free(r->tex_orig);
   free(r->chunk_nf);
   free(r->chunk_na);
   free(r->tri_n);

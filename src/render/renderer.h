@@ -204,6 +204,20 @@ int cv_renderer_mesh_closed(const cv_renderer *r);
 /* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
 const char *cv_renderer_gl_name(const cv_renderer *r);
 
+/* Split window lights (`cave shade --split`, cv_scene_light_split): n
+ * directional lights cut out of the SH lighting.  Their indirect light goes
+ * through the interreflected transfer (sum_k E_k y_i(s_k) added to the
+ * lighting that multiplies ti, as cv_prt_relight_ex) and their direct light,
+ * with ray-traced visibility, comes per vertex in direct_rgb (3 * the PRT's
+ * vertex count, PRT vertex order, as cv_split_direct gives it: a textured
+ * receiver without its own albedo, which the renderer applies as for the
+ * transfer), added in the relight before negative channels are clamped, as
+ * cv_prt_relight_ex (a texture buffer of one RGBA32F texel per vertex).
+ * Takes effect at the next cv_renderer_set_lighting; n = 0 removes them.
+ * Errors: CV_ERR_INVALID (n < 0, NULL arrays), CV_ERR_NONFINITE, CV_ERR_NOMEM. */
+int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
+                          const float *direct_rgb, cv_err *err);
+
 /* Sets the lighting: relights every vertex on the GPU (as cv_prt_relight
  * without its ray-traced sun) and, with a sun, renders its shadow map.
  * l->bands must be >= the PRT's bands.  stats (may be NULL: then the

@@ -109,6 +109,19 @@ struct cv_renderer {
   float *pos_cpu;
   GLuint buf_idx_sun;
   int sun_split;
+  /* Split window lights (cv_renderer_set_split, render_split.c): wl_src
+   * gives each renderer vertex its PRT vertex (renumbering and texture seam
+   * copies undone); tex_wl (texture buffer, RGBA32F per renderer vertex,
+   * used while n_split > 0) holds their direct light, added in relight.vert
+   * before the clamp; split_sh their SH projection sum_k E_k y_i(s_k)
+   * ([3*i + c]) for the interreflected transfer.  tex_orig: per vertex of
+   * the seam-split PRT its original vertex, until the upload. */
+  uint32_t *wl_src, *tex_orig;
+  float *wl_usc; /* textured PRT drawn without its textures: their mean albedo folded back
+                    (cv_prt_untextured_scale) per renderer vertex; else NULL */
+  GLuint buf_wl, tex_wl;
+  double split_sh[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+  int n_split;
   GLsizei *md_count;  /* scratch for glMultiDrawElements: 1 per chunk */
   const void **md_off;
   /* Lighting changes (opts.shadow_cull, shadow_reuse, split_margin): the
@@ -162,6 +175,8 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
 int cvr_shadow_culled(const cv_renderer *r);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
+void cvr_split_bind(const cv_renderer *r, GLuint prog);
+void cvr_split_free(cv_renderer *r);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);
 GLuint cvr_make_tex(GLenum fmt, int w, int h);
 int cvr_fbo_complete(const char *what, int w, int h, cv_err *err);

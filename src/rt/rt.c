@@ -243,6 +243,55 @@ int cv_rt_window_hit_packet(const cv_rt *rt, int n, const float *org, const floa
                         coherent, hit, found);
 }
 
+/* Occlusion packets (any hit in (tnear, tfar)): the SoA fill of
+ * CV_RT_PACKET_FN without the hit record. */
+#define CV_RT_OCCLUDED_FN(W)                                                                     \
+  static int any##W(RTCScene sc, int n, const float *org, const float *dir, float tnear,          \
+                    float tfar, int coherent, uint8_t *found) {                                  \
+    struct RTCIntersectContext ctx;                                                              \
+    init_context(&ctx, coherent);                                                                \
+    RTC_ALIGN(4 * W) int valid[W];                                                               \
+    struct RTCRay##W r;                                                                          \
+    for (int i = 0; i < W; i++) {                                                                \
+      const int j = i < n ? i : 0;                                                               \
+      valid[i] = i < n ? -1 : 0;                                                                 \
+      r.org_x[i] = org[3 * j];                                                                   \
+      r.org_y[i] = org[3 * j + 1];                                                               \
+      r.org_z[i] = org[3 * j + 2];                                                               \
+      r.dir_x[i] = dir[3 * j];                                                                   \
+      r.dir_y[i] = dir[3 * j + 1];                                                               \
+      r.dir_z[i] = dir[3 * j + 2];                                                               \
+      r.tnear[i] = tnear;                                                                        \
+      r.tfar[i] = tfar;                                                                          \
+      r.time[i] = 0.0f;                                                                          \
+      r.mask[i] = 0xFFFFFFFFu;                                                                   \
+      r.id[i] = (unsigned)i;                                                                     \
+      r.flags[i] = 0;                                                                            \
+    }                                                                                            \
+    rtcOccluded##W(valid, sc, &ctx, &r);                                                         \
+    int count = 0;                                                                               \
+    for (int i = 0; i < n; i++) {                                                                \
+      found[i] = r.tfar[i] < 0.0f; /* Embree sets tfar = -inf on a hit */                        \
+      count += found[i];                                                                         \
+    }                                                                                            \
+    return count;                                                                                \
+  }
+CV_RT_OCCLUDED_FN(4)
+CV_RT_OCCLUDED_FN(8)
+CV_RT_OCCLUDED_FN(16)
+
+int cv_rt_window_any_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                            float tnear, int coherent, uint8_t *found) {
+  if (n < 1 || n > CV_RT_PACKET_MAX) return -1;
+  if (!rt->windows) {
+    memset(found, 0, (size_t)n);
+    return 0;
+  }
+  if (n <= 4) return any4(rt->windows, n, org, dir, tnear, INFINITY, coherent, found);
+  if (n <= 8) return any8(rt->windows, n, org, dir, tnear, INFINITY, coherent, found);
+  return any16(rt->windows, n, org, dir, tnear, INFINITY, coherent, found);
+}
+
 #define STREAM_CHUNK 256
 
 size_t cv_rt_intersect_stream(const cv_rt *rt, size_t n, const float *org, const float *dir,

@@ -79,6 +79,12 @@ int cv_rt_has_windows(const cv_rt *rt);
 int cv_rt_intersect_packet(const cv_rt *rt, int n, const float *org, const float *dir,
                            const uint8_t *active, float tnear, float tfar, int coherent,
                            cv_hit *hit, uint8_t *found);
+/* Whether each of 1 <= n <= CV_RT_PACKET_MAX rays crosses a window
+ * triangle in (tnear, inf) (any one: an occlusion query, cheaper than the
+ * closest crossing); found[i] = 0 for every ray when the mesh has no
+ * windows.  Returns the number of rays that cross, -1 for a bad n. */
+int cv_rt_window_any_packet(const cv_rt *rt, int n, const float *org, const float *dir,
+                            float tnear, int coherent, uint8_t *found);
 /* Closest window triangle crossed in (tnear, inf) for 1 <= n <=
  * CV_RT_PACKET_MAX rays, as cv_rt_window_hit (hit->tri is the window
  * triangle's index in the mesh); found[i] = 0 for every ray when the mesh

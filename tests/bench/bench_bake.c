@@ -1,11 +1,13 @@
 /* Benchmark of the PRT bake on the default cabin (speed against error).
  *
  *   bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]
- *              [--csv FILE]
+ *              [--skip-error] [--skip-direct] [--csv FILE]
  *
  * 1. Throughput: the bake's direct and bounce passes on a vertex subset, next
  *    to a bare Embree loop tracing the SAME rays (pre-generated, so the bare
- *    loop pays only for rtcOccluded1 / rtcIntersect1), measured in this run.
+ *    loop pays only for rtcOccluded1 / rtcIntersect1), measured in this run;
+ *    likewise a bounce pass (runs of neighbouring vertices, as the full bake
+ *    visits them) next to a bare rtcIntersect1 loop over its very rays.
  * 2. The full bake (25 coefficients, R rays, B bounces) of the whole cabin.
  * 3. Error: direct transfer of the subset for SH bands 2..6 and 256..4096
  *    rays against a 16384-ray bake of the same vertices (mean over vertices
@@ -20,6 +22,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "core/progress.h"
 #include "mesh/cabin.h"
@@ -74,9 +77,161 @@ static void transfer_error(const float *cur, const float *ref, size_t ns, int NC
   *global = gr2 > 0 ? sqrt(ge2 / gr2) : 0.0;
 }
 
+/* The bare loop with rays j0..j0+15 of each vertex (R per vertex) as one
+ * rtcIntersect16 packet, the packets the bounce pass traces. */
+static double bare_packet_loop(const cv_tracer *tr, const float *org, const float *dir, size_t nverts,
+                               int R) {
+  const cv_rt *rt = cv_tracer_rt(tr);
+  double t0 = cv_now_seconds();
+#pragma omp parallel
+  {
+    cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 1)
+    for (size_t k = 0; k < nverts; k++)
+      for (int j0 = 0; j0 < R; j0 += 16) {
+        cv_hit hit[16];
+        uint8_t found[16];
+        size_t i = k * (size_t)R + (size_t)j0;
+        cv_rt_intersect_packet(rt, R - j0 < 16 ? R - j0 : 16, org + 3 * i, dir + 3 * i, NULL, 0,
+                               INFINITY, 0, hit, found);
+      }
+  }
+  return cv_now_seconds() - t0;
+}
+
+/* CPU seconds used by the whole process (all threads). */
+static double cpu_seconds(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Bounce pass (25 coefficients, RGB) against a bare closest-hit loop over the
+ * very same rays, alternated run by run REPS times in this run.  The vertices
+ * are runs of RUN neighbours in the bake's visiting order spread over the
+ * mesh, so the previous bounce's records are read with the locality of the
+ * full pass; the previous bounce is synthetic (its values do not change the
+ * work).  Wall and CPU-second ratios: the machine is shared, and CPU seconds
+ * are what the load does not stretch. */
+static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset, int R) {
+  enum { REPS = 5, RUN = 256, BANDS = 5, REC = 3 * BANDS * BANDS };
+  const size_t nv = cv_tracer_vertex_count(tr);
+  size_t runs = (size_t)subset / RUN > 0 ? (size_t)subset / RUN : 1, ns = 0;
+  uint32_t *verts = malloc(runs * RUN * sizeof(uint32_t));
+  size_t *run_at = calloc(runs + 1, sizeof(size_t)); /* first index in verts of each run */
+  for (size_t r = 0; r < runs; r++) {
+    size_t first = nv > RUN ? (nv - RUN) * r / (runs > 1 ? runs - 1 : 1) : 0;
+    run_at[r] = ns;
+    for (size_t i = first; i < first + RUN && i < nv; i++) {
+      uint32_t v = cv_tracer_bake_vertex(tr, i);
+      if (cv_tracer_fan_size(tr, v) > 0) verts[ns++] = v;
+    }
+  }
+  run_at[runs] = ns;
+  size_t nr = ns * (size_t)R;
+  float *org = malloc(3 * nr * sizeof(float)), *dir = malloc(3 * nr * sizeof(float));
+  uint32_t *from = malloc(nr * sizeof(uint32_t));
+  float *prev = malloc(nv * REC * sizeof(float)), *out = malloc(ns * REC * sizeof(float));
+  uint32_t x = 12345u;
+  for (size_t i = 0; i < nv * REC; i++) {
+    x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+    prev[i] = (float)(x >> 8) * (0.5f / 16777216.0f);
+  }
+  cv_bounce_records *recs;
+  if (cv_bounce_records_create(BANDS, nv, &recs)) {
+    fprintf(stderr, "out of memory\n");
+    exit(1);
+  }
+  for (size_t v = 0; v < nv; v++) cv_bounce_records_set(recs, v, prev + v * REC);
+  for (size_t k = 0; k < ns; k++)
+    for (int j = 0; j < R; j++)
+      cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j),
+                       from + k * R + j);
+  uint64_t hits = 0, h;
+  double bare[REPS], bounce[REPS], bare_cpu[REPS], bounce_cpu[REPS], packet[REPS];
+  cv_bake_bounce_subset(tr, BANDS, R / 8 > 0 ? R / 8 : 1, 1, recs, verts, ns, out); /* warm up */
+  for (int k = 0; k < REPS; k++) {
+    bare[k] = bounce[k] = bare_cpu[k] = bounce_cpu[k] = packet[k] = 0;
+    hits = 0;
+    for (size_t r = 0; r < runs; r++) {
+      size_t a = run_at[r], n = run_at[r + 1] - a;
+      double c0 = cpu_seconds();
+      bare[k] += bare_loop(tr, org + 3 * a * R, dir + 3 * a * R, n * R, 1, &h);
+      double c1 = cpu_seconds(), t0 = cv_now_seconds();
+      hits += h;
+      cv_bake_bounce_subset(tr, BANDS, R, 1, recs, verts + a, n, out + a * REC);
+      bounce[k] += cv_now_seconds() - t0;
+      bounce_cpu[k] += cpu_seconds() - c1;
+      bare_cpu[k] += c1 - c0;
+      packet[k] += bare_packet_loop(tr, org + 3 * a * R, dir + 3 * a * R, n, R);
+    }
+  }
+  double check = 0;
+  for (size_t i = 0; i < ns * REC; i++) check += out[i];
+  /* Brute force from the float values over the same rays: the error of the
+   * bake's records (and a check of its pipelined pass). */
+  double e2 = 0, r2 = 0, worst = 0;
+  for (size_t k = 0; k < ns; k++) {
+    double ref[REC] = {0}, ve2 = 0, vr2 = 0;
+    for (int j = 0; j < R; j++) {
+      cv_hit hit;
+      size_t i = k * R + j;
+      if (!cv_rt_intersect(cv_tracer_rt(tr), org + 3 * i, dir + 3 * i, 0, INFINITY, &hit)) continue;
+      const uint32_t *tv = m->tri + 3 * hit.tri;
+      const float *al = m->mats[m->tri_mat[from[i]]].albedo;
+      double w[3] = {1.0 - hit.u - hit.v, hit.u, hit.v};
+      for (int c = 0; c < 3; c++)
+        for (int q = 0; q < REC / 3; q++) {
+          double s = 0;
+          for (int t = 0; t < 3; t++) s += w[t] * prev[(size_t)tv[t] * REC + c * (REC / 3) + q];
+          ref[c * (REC / 3) + q] += al[c] * s / R;
+        }
+    }
+    for (int i = 0; i < REC; i++) {
+      double d = out[k * REC + i] - ref[i];
+      ve2 += d * d;
+      vr2 += ref[i] * ref[i];
+    }
+    e2 += ve2;
+    r2 += vr2;
+    if (vr2 > 0 && sqrt(ve2 / vr2) > worst) worst = sqrt(ve2 / vr2);
+  }
+  double ratio[REPS], ratio_cpu[REPS];
+  for (int k = 0; k < REPS; k++) {
+    ratio[k] = bare[k] / bounce[k];
+    ratio_cpu[k] = bare_cpu[k] / bounce_cpu[k];
+  }
+  printf("## Bounce pass, %zu vertices (%zu runs of %d neighbours) x %d rays = %.1f M rays, %.1f%% hit "
+         "(same rays in both; median of %d alternating runs)\n\n", ns, runs, RUN, R, nr / 1e6,
+         100.0 * hits / nr, REPS);
+  printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
+  double tb = bench_median(bare, REPS), tp = bench_median(bounce, REPS),
+         tk = bench_median(packet, REPS);
+  printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | 1.00 |\n", tb, nr / tb / 1e6);
+  printf("| bare Embree closest hit, the bounce pass's rtcIntersect16 packets | %.3f | %.2f | %.2f |\n",
+         tk, nr / tk / 1e6, tb / tk);
+  printf("| bake bounce pass (sampling, rtcIntersect16 packets of a vertex's rays, %d-value half records of 3 vertices, RGB sums) | %.3f | "
+         "%.2f | **%.2f** |\n\n", REC, tp, nr / tp / 1e6, tb / tp);
+  printf("bounce ratio per run (bare / bounce), wall:");
+  for (int k = 0; k < REPS; k++) printf(" %.2f", ratio[k]);
+  printf("; CPU seconds:");
+  for (int k = 0; k < REPS; k++) printf(" %.2f", ratio_cpu[k]);
+  printf(", median %.2f; checksum of the bounce output %.9e\n\n", bench_median(ratio_cpu, REPS), check);
+  printf("bounce output against a brute-force float sum over the same rays: relative L2 %.2e, "
+         "worst vertex %.2e\n\n", r2 > 0 ? sqrt(e2 / r2) : 0.0, worst);
+  free(org);
+  free(dir);
+  free(prev);
+  free(from);
+  cv_bounce_records_destroy(recs);
+  free(out);
+  free(verts);
+  free(run_at);
+}
 
 int main(int argc, char **argv) {
-  int tess = 8, subset = 4000, bake_rays = 1024, bounces = 2, skip_full = 0;
+  int tess = 8, subset = 4000, bake_rays = 1024, bounces = 2, skip_full = 0, skip_error = 0,
+      skip_direct = 0;
   const char *csv_path = NULL;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
@@ -84,11 +239,13 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--bake-rays") && i + 1 < argc) bake_rays = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--bounces") && i + 1 < argc) bounces = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--skip-full")) skip_full = 1;
+    else if (!strcmp(argv[i], "--skip-error")) skip_error = 1;
+    else if (!strcmp(argv[i], "--skip-direct")) skip_direct = 1;
     else if (!strcmp(argv[i], "--csv") && i + 1 < argc) csv_path = argv[++i];
     else {
       fprintf(stderr,
               "usage: bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]\n"
-              "                  [--csv FILE]\n");
+              "                  [--skip-error] [--skip-direct] [--csv FILE]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
@@ -125,47 +282,51 @@ int main(int argc, char **argv) {
   /* 1. Throughput against the bare loop, same rays. */
   const int R = bake_rays;
   size_t nr = ns * (size_t)R;
-  float *org = malloc(3 * nr * sizeof(float)), *dir = malloc(3 * nr * sizeof(float));
-  for (size_t k = 0; k < ns; k++)
-    for (int j = 0; j < R; j++)
-      cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j), NULL);
-  /* Alternate the loops REPS times and keep medians: the machine is shared. */
-  enum { REPS = 5 };
-  uint64_t hits;
-  bare_loop(tr, org, dir, nr / 8, 0, &hits); /* warm up */
-  double occ[REPS], isect[REPS], direct[REPS];
+  double t_bare_isect = 0;
   float *out = malloc(ns * 64 * sizeof(float));
-  double mis_t[REPS];
-  for (int k = 0; k < REPS; k++) {
-    occ[k] = bare_loop(tr, org, dir, nr, 0, &hits);
-    cv_tracer_set_window_sampling(tr, 0); /* the very rays of the bare loop */
-    t0 = cv_now_seconds();
-    cv_bake_direct_subset(tr, 5, R, 1, verts, ns, out);
-    direct[k] = cv_now_seconds() - t0;
-    cv_tracer_set_window_sampling(tr, 1);
-    t0 = cv_now_seconds();
-    cv_bake_direct_subset(tr, 5, R, 1, verts, ns, out);
-    mis_t[k] = cv_now_seconds() - t0;
-    isect[k] = bare_loop(tr, org, dir, nr, 1, &hits);
+  if (!skip_direct) {
+    float *org = malloc(3 * nr * sizeof(float)), *dir = malloc(3 * nr * sizeof(float));
+    for (size_t k = 0; k < ns; k++)
+      for (int j = 0; j < R; j++)
+        cv_tracer_sample(tr, verts[k], (uint32_t)j, 1, org + 3 * (k * R + j), dir + 3 * (k * R + j), NULL);
+    /* Alternate the loops REPS times and keep medians: the machine is shared. */
+    enum { REPS = 5 };
+    uint64_t hits;
+    bare_loop(tr, org, dir, nr / 8, 0, &hits); /* warm up */
+    double occ[REPS], isect[REPS], direct[REPS];
+    double mis_t[REPS];
+    for (int k = 0; k < REPS; k++) {
+      occ[k] = bare_loop(tr, org, dir, nr, 0, &hits);
+      cv_tracer_set_window_sampling(tr, 0); /* the very rays of the bare loop */
+      t0 = cv_now_seconds();
+      cv_bake_direct_subset(tr, 5, R, 1, verts, ns, out);
+      direct[k] = cv_now_seconds() - t0;
+      cv_tracer_set_window_sampling(tr, 1);
+      t0 = cv_now_seconds();
+      cv_bake_direct_subset(tr, 5, R, 1, verts, ns, out);
+      mis_t[k] = cv_now_seconds() - t0;
+      isect[k] = bare_loop(tr, org, dir, nr, 1, &hits);
+    }
+    double t_mis = bench_median(mis_t, REPS);
+    bare_loop(tr, org, dir, nr, 0, &hits);
+    double esc = (double)hits / nr;
+    double t_bare_occ = bench_median(occ, REPS), t_direct = bench_median(direct, REPS);
+    t_bare_isect = bench_median(isect, REPS);
+    printf("## Throughput, %zu vertices x %d rays = %.1f M rays (same rays in both; median of %d "
+           "alternating runs)\n\n", ns, R, nr / 1e6, REPS);
+    printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
+    printf("| bare Embree occlusion (window rule: 1-2 rtcOccluded1 per ray, %.1f%% escape) | %.3f | %.2f | 1.00 |\n",
+           100 * esc, t_bare_occ, nr / t_bare_occ / 1e6);
+    printf("| bake direct pass, cosine sampling (sampling + SH 25 + window rule) | %.3f | %.2f | %.2f |\n",
+           t_direct, nr / t_direct / 1e6, t_bare_occ / t_direct);
+    printf("| bake direct pass, window MIS (default; +32 pilot rays per vertex, more rays escape) | %.3f | %.2f | %.2f |\n",
+           t_mis, nr / t_mis / 1e6, t_bare_occ / t_mis);
+    printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | - |\n\n", t_bare_isect,
+           nr / t_bare_isect / 1e6);
+    free(org);
+    free(dir);
   }
-  double t_mis = bench_median(mis_t, REPS);
-  bare_loop(tr, org, dir, nr, 0, &hits);
-  double esc = (double)hits / nr;
-  double t_bare_occ = bench_median(occ, REPS), t_direct = bench_median(direct, REPS),
-         t_bare_isect = bench_median(isect, REPS);
-  printf("## Throughput, %zu vertices x %d rays = %.1f M rays (same rays in both; median of %d "
-         "alternating runs)\n\n", ns, R, nr / 1e6, REPS);
-  printf("| loop | seconds | M rays/s | ratio to bare |\n|---|---|---|---|\n");
-  printf("| bare Embree occlusion (window rule: 1-2 rtcOccluded1 per ray, %.1f%% escape) | %.3f | %.2f | 1.00 |\n",
-         100 * esc, t_bare_occ, nr / t_bare_occ / 1e6);
-  printf("| bake direct pass, cosine sampling (sampling + SH 25 + window rule) | %.3f | %.2f | %.2f |\n",
-         t_direct, nr / t_direct / 1e6, t_bare_occ / t_direct);
-  printf("| bake direct pass, window MIS (default; +32 pilot rays per vertex, more rays escape) | %.3f | %.2f | %.2f |\n",
-         t_mis, nr / t_mis / 1e6, t_bare_occ / t_mis);
-  printf("| bare Embree closest hit (rtcIntersect1) | %.3f | %.2f | - |\n\n", t_bare_isect,
-         nr / t_bare_isect / 1e6);
-  free(org);
-  free(dir);
+  bounce_throughput(tr, m, subset, R);
 
   /* 2. Full bake. */
   if (!skip_full) {
@@ -182,11 +343,19 @@ int main(int argc, char **argv) {
       printf("| %s %d | %.2f | %.2f |\n", b ? "bounce" : "direct", b, bs.seconds[b],
              bs.rays[b] / bs.seconds[b] / 1e6);
     printf("| total | %.2f | %.2f |\n\n", bs.total_seconds, bs.total_rays / bs.total_seconds / 1e6);
-    printf("bounce passes vs bare closest-hit loop: %.2f (bounce 1 rays/s over bare rays/s)\n\n",
-           (bs.rays[1] / bs.seconds[1]) / (nr / t_bare_isect));
+    if (t_bare_isect > 0 && bounces > 0)
+      printf("bounce 1 of the full bake over the direct section's bare closest-hit rate (minutes "
+             "apart): %.2f\n\n", (bs.rays[1] / bs.seconds[1]) / (nr / t_bare_isect));
     cv_prt_destroy(prt);
   }
 
+  if (skip_error) {
+    free(out);
+    free(verts);
+    cv_tracer_destroy(tr);
+    cv_mesh_destroy(m);
+    return 0;
+  }
   /* 3. Error against a 16384-ray reference. */
   const int NB = 6, NC = 36, REF = 16384;
   float *ref = malloc(ns * NC * sizeof(float)), *cur = malloc(ns * NC * sizeof(float));

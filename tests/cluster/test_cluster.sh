@@ -145,6 +145,19 @@ else
   bad "LCD 11 vs 13: rc $rc1 $rc2, rounds $r11 $r13 $(tail -2 l11.txt l13.txt)"
 fi
 
+# --- the same with 4 gather ranks: the master is the last rank of the LCD
+# communicator (a leaf of the sum's tree, comm.c), the gather ranks report
+# their rounds and CPU times in the header ---------------------------------
+timeout 600 "${MPI[@]}" -np 15 "$CAVE" run "$CFG" "${COMMON[@]}" "${L[@]}" -o l15 >/dev/null 2>l15.txt; rc2=$?
+ar=$(tail -1 l15/metrics.jsonl 2>/dev/null | grep -o '"lcd_allreduce":{[^}]*}')
+if [ $rc2 -eq 0 ] && cmp -s l11/lcd.exr l15/lcd.exr &&
+   python3 -c 'import json,sys; a=json.loads(sys.argv[1]); sys.exit(not (a["members"] == 5 and a["rounds"] >= 1 and a["gather_rounds"] >= a["rounds"] and a["gather_round_cpu_ms"] > 0))' \
+     "${ar#\"lcd_allreduce\":}" 2>/dev/null; then
+  ok "LCD image bit-identical for 11 and 15 ranks, 4 gather ranks by the allreduce ($ar)"
+else
+  bad "LCD 11 vs 15 ranks: rc $rc2, $ar $(tail -2 l15.txt)"
+fi
+
 # --- `cave lcd` and `cave run` give the same numbers for the same pose and
 # light, both with their defaults and the same scene config (two panels):
 # the 11-rank image above (still drive, default head (0, 1.2, 0) + the scene

@@ -258,6 +258,61 @@ static void test_furnace(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* The geometric tail of the missing bounces (bake.h, prt.tail).  Closed
+ * furnace: successive bounces have the ratio a exactly, so
+ * cv_prt_tail_ratio must find a (within the Monte Carlo noise, 1%).  Open
+ * box (window on top, a = 0.6): the area-weighted DC of ti with 2 bounces
+ * + tail within 1% of an 8-bounce bake (a^9 / (1 - a) ~ 2.5% of the series
+ * left beyond 8), and closer than 2 bounces alone; 0 bounces: no effect. */
+static void test_tail(void **state) {
+  (void)state;
+  const float a = 0.6f;
+  cv_mesh *m = box_mesh(4, a, 0);
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  const int nc = 4;
+  float *prev = calloc(3 * m->nv * nc, sizeof(float)), *ti = calloc(3 * m->nv * nc, sizeof(float));
+  float *b0 = malloc(3 * m->nv * nc * sizeof(float));
+  for (size_t v = 0; v < m->nv; v++)
+    for (int c = 0; c < 3; c++) prev[(v * 3 + c) * nc] = (float)(a / sqrt(4 * M_PI));
+  memcpy(b0, prev, 3 * m->nv * nc * sizeof(float));
+  assert_int_equal(cv_prt_propagate(tr, 2, 256, 3, 1, 1, prev, ti, NULL), CV_OK);
+  double r[3];
+  assert_int_equal(cv_prt_tail_ratio(tr, 2, b0, prev, r), 0);
+  printf("tail ratio in the furnace (a = %.1f): %.4f %.4f %.4f\n", a, r[0], r[1], r[2]);
+  for (int c = 0; c < 3; c++) assert_true(fabs(r[c] / a - 1) < 0.01);
+  free(prev), free(ti), free(b0);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+
+  m = box_mesh(6, a, 1);
+  double dc[3];
+  const int bounces[3] = {8, 2, 2}, tails[3] = {0, 0, 1};
+  for (int k = 0; k < 3; k++) {
+    cv_bake_params p = {.bands = 2, .rays = 512, .bounces = bounces[k], .seed = 5,
+                        .spread = CV_BAKE_DEFAULT_SPREAD, .tail = tails[k], .quiet = 1};
+    cv_prt *prt;
+    cv_bake_stats bs;
+    assert_int_equal(cv_prt_bake(m, &p, &prt, &bs, NULL), CV_OK);
+    dc[k] = 0;
+    for (size_t v = 0; v < prt->nv; v++) dc[k] += prt->ti[(v * 3) * 4];
+    if (tails[k]) printf("open box: tail ratio %.4f\n", bs.tail_ratio[0]);
+    cv_prt_destroy(prt);
+  }
+  printf("open box, sum of ti DC: 8 bounces %.5f, 2 bounces %.5f (%.2f%%), 2 + tail %.5f (%.2f%%)\n",
+         dc[0], dc[1], 100 * (dc[1] / dc[0] - 1), dc[2], 100 * (dc[2] / dc[0] - 1));
+  assert_true(fabs(dc[2] / dc[0] - 1) < 0.01);
+  assert_true(fabs(dc[2] / dc[0] - 1) < 0.5 * fabs(dc[1] / dc[0] - 1));
+  /* bounces = 0: the tail has nothing to extend (no ti). */
+  cv_bake_params p0 = {.bands = 2, .rays = 16, .bounces = 0, .seed = 5,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .tail = 1, .quiet = 1};
+  cv_prt *prt0;
+  assert_int_equal(cv_prt_bake(m, &p0, &prt0, NULL, NULL), CV_OK);
+  assert_null(prt0->ti);
+  cv_prt_destroy(prt0);
+  cv_mesh_destroy(m);
+}
+
 /* xorshift64* for the independent reference */
 static double rnd(uint64_t *s) {
   *s ^= *s >> 12;
@@ -636,6 +691,42 @@ static void write_bytes(const char *path, const void *b, size_t n) {
 /* Hostile .prt files: header counts far beyond the file's size are refused
  * before any allocation, naming the count; NaN or non-unit normals, negative
  * albedo and NaN transfer are refused naming the vertex and the field. */
+/* The bounce passes' half-float records: every value back within 2^-12 of its
+ * record's largest |value| (round to nearest), zeros and signs exact, records
+ * independent of each other. */
+static void test_bounce_records(void **state) {
+  (void)state;
+  enum { B = 5, REC = 3 * B * B, NV = 4 };
+  cv_bounce_records *r;
+  assert_int_equal(cv_bounce_records_create(B, NV, &r), CV_OK);
+  float val[NV][REC], back[REC];
+  uint32_t x = 7u;
+  for (int v = 0; v < NV; v++)
+    for (int i = 0; i < REC; i++) {
+      x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+      float u = (float)(x >> 8) / 16777216.0f;
+      /* v 0: zero record; 1: values in [0, 3); 2: signed, spanning 1e-9..1;
+       * 3: one large value over tiny ones (tiny ones fall in half denormals) */
+      val[v][i] = v == 0 ? 0.0f
+                  : v == 1 ? 3.0f * u
+                  : v == 2 ? (i % 2 ? -1.0f : 1.0f) * powf(10.0f, -9.0f * u)
+                           : (i == 7 ? 5.0f : 1e-6f * u);
+    }
+  for (int v = 0; v < NV; v++) cv_bounce_records_set(r, (size_t)v, val[v]);
+  for (int v = 0; v < NV; v++) {
+    float mx = 0;
+    for (int i = 0; i < REC; i++) mx = fmaxf(mx, fabsf(val[v][i]));
+    cv_bounce_records_get(r, (size_t)v, back);
+    for (int i = 0; i < REC; i++) {
+      assert_true(fabsf(back[i] - val[v][i]) <= mx * 0x1p-12f);
+      if (val[v][i] == 0.0f) assert_true(back[i] == 0.0f);
+      else assert_true(back[i] == 0.0f || (back[i] > 0) == (val[v][i] > 0));
+    }
+  }
+  cv_bounce_records_destroy(r);
+  assert_int_equal(cv_bounce_records_create(0, NV, &r), CV_ERR_RANGE);
+}
+
 static void test_hostile_files(void **state) {
   (void)state;
   const float alb[3] = {0.5f, 0.5f, 0.5f};
@@ -703,7 +794,7 @@ static void test_hostile_files(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_unshadowed_plane),
-      cmocka_unit_test(test_furnace),
+      cmocka_unit_test(test_furnace), cmocka_unit_test(test_tail),
       cmocka_unit_test(test_open_box_vs_brute_force),
       cmocka_unit_test(test_overlap_no_leak),
       cmocka_unit_test(test_duplicate_and_degenerate),
@@ -715,6 +806,7 @@ int main(void) {
       cmocka_unit_test(test_window_mis),
       cmocka_unit_test(test_hostile_files),
       cmocka_unit_test(test_textured_quad),
+      cmocka_unit_test(test_bounce_records),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

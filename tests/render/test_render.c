@@ -526,6 +526,105 @@ static void test_mesh_closed(void **state) {
   }
 }
 
+/* Split window lights (cv_renderer_set_split, as `cave shade --split`): the
+ * Preetham sky's residual split into 16 directional lights, the sun left out
+ * so that only the split lights carry direct light.  GL (per-vertex direct
+ * light from cv_split_direct, SH term through ti) against cv_prt_relight_ex
+ * interpolated on the CPU: the tolerances of the plain comparison (1e-3 per
+ * pixel, <= 2% of pixels beyond, median < 1e-4); the split lights must
+ * change the frame (mean luminance of the geometry by > 5%: the test can
+ * fail), and n = 0 gives back the frame without them. */
+static void test_gl_split(void **state) {
+  (void)state;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3;
+  spec.sun_elevation_deg = 35;
+  spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  cv_err err;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  OK(cv_scene_light_split(sl, F.tr, 16, 32, &err));
+  const cv_dir_light *ex;
+  const int n = cv_scene_light_extra(sl, &ex);
+  assert_true(n > 0);
+  cv_lighting l = cv_scene_light_sh(sl);
+  l.has_sun = 0;
+  const size_t nv = F.prt->nv;
+  float *rad = malloc(3 * nv * sizeof *rad), *direct = calloc(3 * nv, sizeof *direct);
+  float *rad0 = malloc(3 * nv * sizeof *rad0);
+  assert_int_equal(cv_prt_relight_ex(F.prt, &l, ex, n, F.tr, 16, rad, NULL), CV_OK);
+  assert_int_equal(cv_prt_relight(F.prt, &l, NULL, 0, rad0, NULL), CV_OK);
+  assert_int_equal(cv_split_direct(F.prt, F.tr, ex, n, 16, direct), CV_OK);
+  OK(cv_renderer_set_split(F.r, ex, n, direct, &err));
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  cv_image *bg;
+  assert_int_equal(cv_render_background_image(sl, 256, &bg), CV_OK);
+  OK(cv_renderer_set_background(F.r, bg, &err));
+  for (int k = 0; k < 2; k++) {
+    pose p = make_pose(k);
+    cv_render_view v = make_view(&p, 1);
+    const int np = p.w * p.h;
+    cv_image *g, *c, *c0;
+    unsigned char *geom = calloc(np, 1);
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &g), CV_OK);
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &c), CV_OK);
+    assert_int_equal(cv_image_create(p.w, p.h, 3, &c0), CV_OK);
+    OK(cv_renderer_shade(F.r, &v, NULL, 0, NULL, g, NULL, &err));
+    cpu_view(&p, rad, c, sl, geom);
+    cpu_view(&p, rad0, c0, sl, NULL);
+    /* Over the pixels that see geometry (the background is a resampled image). */
+    cv_image *gg, *cg;
+    assert_int_equal(cv_image_create(np, 1, 3, &gg), CV_OK);
+    assert_int_equal(cv_image_create(np, 1, 3, &cg), CV_OK);
+    int ng = 0;
+    double y = 0, y0 = 0;
+    for (int i = 0; i < np; i++)
+      if (geom[i]) {
+        y += lum(c->px + 3 * i), y0 += lum(c0->px + 3 * i);
+        memcpy(gg->px + 3 * ng, g->px + 3 * i, 3 * sizeof(float));
+        memcpy(cg->px + 3 * ng, c->px + 3 * i, 3 * sizeof(float));
+        ng++;
+      }
+    gg->w = cg->w = ng;
+    cmp_stats st = compare(gg, cg, 1e-3, 1e-3);
+    cv_image_destroy(gg);
+    cv_image_destroy(cg);
+    printf("split %d lights, pose %d: %d geometry pixels, %.3f%% beyond 1e-3, median %.2e; the "
+           "lights add %.1f%% to their mean luminance\n",
+           n, k, ng, 100 * st.frac_bad, st.median_rel, 100 * (y / y0 - 1));
+    assert_true(ng > np / 4);
+    assert_true(st.frac_bad < 0.02);
+    assert_true(st.median_rel < 1e-4);
+    assert_true(y > 1.05 * y0);
+    if (k == 0) { /* removing them gives the frame without them */
+      OK(cv_renderer_set_split(F.r, NULL, 0, NULL, &err));
+      OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+      OK(cv_renderer_shade(F.r, &v, NULL, 0, NULL, g, NULL, &err));
+      for (int i = 0; i < np; i++) /* background pixels out of the comparison */
+        if (!geom[i]) memcpy(g->px + 3 * i, c0->px + 3 * i, 3 * sizeof(float));
+      cmp_stats s0 = compare(g, c0, 1e-3, 1e-3);
+      printf("split removed: %.3f%% pixels beyond 1e-3 of the frame without split lights\n",
+             100 * s0.frac_bad);
+      assert_true(s0.frac_bad < 0.02);
+      OK(cv_renderer_set_split(F.r, ex, n, direct, &err));
+      OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+    }
+    free(geom);
+    cv_image_destroy(g);
+    cv_image_destroy(c);
+    cv_image_destroy(c0);
+  }
+  assert_int_equal(cv_renderer_set_split(F.r, ex, -1, direct, &err), CV_ERR_INVALID);
+  OK(cv_renderer_set_split(F.r, NULL, 0, NULL, &err));
+  cv_image_destroy(bg);
+  free(rad);
+  free(rad0);
+  free(direct);
+  cv_scene_light_destroy(sl);
+}
+
 /* Depth EQUAL after the z pre-pass leaves no hole: with the targets cleared
  * to -1 first, no pixel keeps -1, and the image equals a single-pass
  * depth-LESS render except where coplanar triangles tie (<= 0.1%). */
@@ -950,7 +1049,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),

@@ -1,0 +1,85 @@
+/* Split window lights in the wall-eye renderer (cv_renderer_set_split,
+ * renderer.h): what `cave shade --split` adds on the CPU, handed to the GPU
+ * relight as a per-vertex direct term and an SH term for the
+ * interreflected transfer. */
+#include "render/renderer_internal.h"
+
+/* Texture unit of u_split (relight.vert), past the renderer's U_* units. */
+#define U_SPLIT 7
+
+int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
+                          const float *direct_rgb, cv_err *err) {
+  if (!r || n < 0 || (n > 0 && (!lights || !direct_rgb)))
+    return cv_err_set(err, CV_ERR_INVALID, "renderer: split lights: NULL or n = %d", n);
+  if (n == 0) {
+    r->n_split = 0;
+    memset(r->split_sh, 0, sizeof r->split_sh);
+    return CV_OK;
+  }
+  const int bands = (int)lround(sqrt(r->nc));
+  double sh[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS] = {0};
+  for (int k = 0; k < n; k++) {
+    const double *d = lights[k].dir, *E = lights[k].E;
+    const double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(len > 0) || !isfinite(len))
+      return cv_err_set(err, CV_ERR_INVALID, "split light %d: direction has no length", k);
+    for (int c = 0; c < 3; c++)
+      if (!isfinite(E[c]) || E[c] < 0)
+        return cv_err_set(err, CV_ERR_NONFINITE, "split light %d: irradiance[%d] is %g", k, c, E[c]);
+    const double u[3] = {d[0] / len, d[1] / len, d[2] / len};
+    double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
+    cv_sh_eval_d(bands, u, y);
+    for (int i = 0; i < r->nc; i++)
+      for (int c = 0; c < 3; c++) sh[3 * i + c] += E[c] * y[i];
+  }
+  float *rgba = malloc(4 * r->nv * sizeof *rgba + 4);
+  if (!rgba || !r->wl_src) {
+    free(rgba);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory for the split lights");
+  }
+  for (size_t v = 0; v < r->nv; v++) { /* renderer vertex v shows PRT vertex wl_src[v] */
+    float *o = rgba + 4 * v;
+    const size_t src = r->wl_src[v];
+    for (int c = 0; c < 3; c++) {
+      const float x = direct_rgb[3 * src + c];
+      if (!isfinite(x)) {
+        free(rgba);
+        return cv_err_set(err, CV_ERR_NONFINITE, "split lights: direct light of vertex %zu is %g",
+                          src, (double)x);
+      }
+      o[c] = r->wl_usc ? x * r->wl_usc[3 * v + c] : x;
+    }
+    o[3] = 0;
+  }
+  if (cv_egl_make_current(&r->egl)) {
+    free(rgba);
+    return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  }
+  if (!r->tex_wl) {
+    r->tex_wl = cvr_make_tbo(&r->buf_wl, GL_RGBA32F, rgba, 4 * r->nv * sizeof *rgba);
+  } else {
+    glBindBuffer(GL_TEXTURE_BUFFER, r->buf_wl);
+    glBufferSubData(GL_TEXTURE_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof *rgba), rgba);
+    glBindBuffer(GL_TEXTURE_BUFFER, 0);
+  }
+  free(rgba);
+  r->n_split = n;
+  memcpy(r->split_sh, sh, sizeof sh);
+  return cvr_gl_check("split lights upload", err);
+}
+
+/* Binds the split lights for the relight program p (in use). */
+void cvr_split_bind(const cv_renderer *r, GLuint p) {
+  const int on = r->n_split > 0 && r->tex_wl;
+  glUniform1i(glGetUniformLocation(p, "u_split_on"), on);
+  glUniform1i(glGetUniformLocation(p, "u_split"), U_SPLIT);
+  glActiveTexture(GL_TEXTURE0 + U_SPLIT);
+  glBindTexture(GL_TEXTURE_BUFFER, on ? r->tex_wl : 0);
+  glActiveTexture(GL_TEXTURE0);
+}
+
+void cvr_split_free(cv_renderer *r) {
+  if (r->tex_wl) glDeleteTextures(1, &r->tex_wl);
+  if (r->buf_wl) glDeleteBuffers(1, &r->buf_wl);
+  r->tex_wl = r->buf_wl = 0;
+}
