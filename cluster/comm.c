@@ -19,13 +19,22 @@ static size_t g_nsends, g_capsends;
 /* The render ranks' communicator and its barrier in flight (same rule). */
 static MPI_Comm g_render = MPI_COMM_NULL;
 static MPI_Request g_barrier = MPI_REQUEST_NULL;
+/* per world rank: a member of g_render; the swap barrier given up (a member
+ * died: it would never complete) */
+static unsigned char *g_in_render;
+static int g_barrier_abandoned;
 /* The LCD reduction's communicator and its sum in flight (same rule). */
 static MPI_Comm g_lcd = MPI_COMM_NULL;
 static MPI_Request g_lcd_req = MPI_REQUEST_NULL;
 static int g_lcd_abandoned; /* a member died: never waited on (nor freed) again */
 /* Ranks declared dead (cv_comm_mark_dead): nothing is sent to them. */
 static unsigned char *g_dead;
-static int g_size;
+static int g_size, g_rank;
+/* This rank was declared dead by the master (it stalled longer than
+ * --gather-timeout): it leaves (docs/dead-rank.md); *g_stop_flag is set. */
+static int g_self_dead;
+static volatile sig_atomic_t *g_stop_flag;
+static double g_notice_probe_t;
 
 static void release(pending_send *ps);
 
@@ -46,6 +55,7 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
   MPI_Comm_rank(MPI_COMM_WORLD, rank);
   MPI_Comm_size(MPI_COMM_WORLD, size);
   g_size = *size;
+  g_rank = *rank;
   g_dead = calloc((size_t)(*size > 0 ? *size : 1), 1);
   return 0;
 }
@@ -75,7 +85,9 @@ static void take_notices(void) {
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   take_notices();
-  if (g_render != MPI_COMM_NULL) MPI_Comm_free(&g_render);
+  if (g_render != MPI_COMM_NULL && !g_barrier_abandoned) MPI_Comm_free(&g_render);
+  free(g_in_render);
+  g_in_render = NULL;
   if (g_lcd != MPI_COMM_NULL && !g_lcd_abandoned) MPI_Comm_free(&g_lcd);
   for (size_t i = 0; i < g_nsends; i++) {
     MPI_Cancel(&g_sends[i].req);
@@ -119,9 +131,45 @@ int cv_comm_dead_notice(const uint8_t *data, long len) {
   int32_t r;
   if (len != 1 + (long)sizeof r || data[0] != 'D') return 0;
   memcpy(&r, data + 1, sizeof r);
+  if (r == g_rank && g_rank != 0) { /* about this rank: it ran again after a stall */
+    if (!g_self_dead)
+      fprintf(stderr, "cave run: rank %d: the master declared this rank dead (silent longer than "
+                      "--gather-timeout): leaving\n", g_rank);
+    g_self_dead = 1;
+    cv_comm_mark_dead(0); /* the job is over for it: no MPI_Finalize, nothing more waited for */
+    if (g_stop_flag) *g_stop_flag = 1;
+    return 1;
+  }
   cv_comm_mark_dead(r);
   return 1;
 }
+
+void cv_comm_set_stop_flag(volatile sig_atomic_t *flag) { g_stop_flag = flag; }
+
+int cv_comm_declared_dead(void) { return g_self_dead; }
+
+/* A rank without a mailbox for CV_TAG_ALIVE (a wall-eye): the master's
+ * notices, looked for at most every 50 ms. */
+static void probe_notices(void) {
+  if (g_rank == 0 || g_self_dead) return;
+  const double now = MPI_Wtime();
+  if (now - g_notice_probe_t < 0.05) return;
+  g_notice_probe_t = now;
+  for (int i = 0; i < 64; i++) {
+    int flag = 0;
+    MPI_Status st;
+    if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS || !flag) return;
+    uint8_t b[16];
+    int count = 0;
+    MPI_Get_count(&st, MPI_BYTE, &count);
+    if (count > (int)sizeof b ||
+        MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+      return;
+    cv_comm_dead_notice(b, count);
+  }
+}
+
+static int send_to(const void *buf, size_t n, int dest, int tag);
 
 void cv_comm_notify_dead(int rank) {
   uint8_t b[1 + sizeof(int32_t)];
@@ -130,6 +178,9 @@ void cv_comm_notify_dead(int rank) {
   memcpy(b + 1, &r, sizeof r);
   for (int d = 1; d < g_size; d++)
     if (!g_dead[d]) cv_comm_send(b, sizeof b, d, CV_TAG_ALIVE);
+  /* and to it: a rank only stalled (SIGSTOP, a swapping host) reads it when
+   * it runs again and leaves; to a dead one the send is forgotten */
+  if (rank > 0 && rank < g_size) send_to(b, sizeof b, rank, CV_TAG_ALIVE);
 }
 
 static int is_dead(int rank) { return g_dead && rank >= 0 && rank < g_size && g_dead[rank]; }
@@ -137,6 +188,10 @@ static int is_dead(int rank) { return g_dead && rank >= 0 && rank < g_size && g_
 int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
   if (n > (size_t)INT32_MAX) return -1;
   if (is_dead(dest)) return 0; /* dropped: nobody reads it */
+  return send_to(buf, n, dest, tag);
+}
+
+static int send_to(const void *buf, size_t n, int dest, int tag) {
   if (g_nsends == g_capsends) {
     size_t nc = g_capsends ? 2 * g_capsends : 64;
     pending_send *p = realloc(g_sends, nc * sizeof *p);
@@ -208,6 +263,7 @@ static void release(pending_send *ps) {
 }
 
 int cv_comm_progress(void) {
+  probe_notices();
   size_t k = 0;
   for (size_t i = 0; i < g_nsends; i++) {
     int done = 0;
@@ -273,7 +329,16 @@ void cv_mailbox_close(cv_mailbox *m) {
   if (!m) return;
   if (m->posted) {
     MPI_Cancel(&m->req);
-    MPI_Wait(&m->req, MPI_STATUS_IGNORE);
+    /* A receive already matched with a large message whose sender died (or
+     * left) in the middle of it can neither be cancelled nor complete: an
+     * MPI_Wait here kept a master from exiting after a dead rank (seen,
+     * docs/dead-rank.md).  Waited for 1 s at most, then left to MPI with its
+     * buffer, which MPI may still write. */
+    int done = 0;
+    const double t0 = MPI_Wtime();
+    while (!done && MPI_Test(&m->req, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && MPI_Wtime() - t0 < 1.0) {
+    }
+    if (!done) return;
   }
   free(m->buf);
   free(m);
@@ -286,16 +351,44 @@ int cv_comm_render_group(int render) {
   MPI_Comm c;
   if (MPI_Comm_split(MPI_COMM_WORLD, render ? 1 : MPI_UNDEFINED, 0, &c) != MPI_SUCCESS) return -1;
   g_render = c;
+  if (c != MPI_COMM_NULL && (g_in_render = calloc((size_t)g_size, 1))) { /* its members' world ranks */
+    MPI_Group wg, rg;
+    int n = 0;
+    MPI_Comm_group(MPI_COMM_WORLD, &wg);
+    MPI_Comm_group(c, &rg);
+    MPI_Group_size(rg, &n);
+    int *a = malloc((size_t)(n > 0 ? n : 1) * sizeof *a), *b = malloc((size_t)(n > 0 ? n : 1) * sizeof *b);
+    if (a && b) {
+      for (int i = 0; i < n; i++) a[i] = i;
+      if (MPI_Group_translate_ranks(rg, n, a, wg, b) == MPI_SUCCESS)
+        for (int i = 0; i < n; i++)
+          if (b[i] >= 0 && b[i] < g_size) g_in_render[b[i]] = 1;
+    }
+    free(a);
+    free(b);
+    MPI_Group_free(&rg);
+    MPI_Group_free(&wg);
+  }
   return 0;
 }
 
+/* A member of the swap barrier died (or this rank was declared dead): the
+ * barrier would never complete; given up for good. */
+static int barrier_dead(void) {
+  if (g_barrier_abandoned) return 1;
+  int dead = g_self_dead;
+  for (int r = 0; !dead && g_in_render && g_dead && r < g_size; r++) dead = g_in_render[r] && g_dead[r];
+  if (dead) g_barrier_abandoned = 1;
+  return dead;
+}
+
 int cv_comm_render_barrier_start(void) {
-  if (g_render == MPI_COMM_NULL || g_barrier != MPI_REQUEST_NULL) return -1;
+  if (g_render == MPI_COMM_NULL || g_barrier != MPI_REQUEST_NULL || barrier_dead()) return -1;
   return MPI_Ibarrier(g_render, &g_barrier) == MPI_SUCCESS ? 0 : -1;
 }
 
 int cv_comm_render_barrier_test(void) {
-  if (g_barrier == MPI_REQUEST_NULL) return 1;
+  if (g_barrier == MPI_REQUEST_NULL || barrier_dead()) return 1;
   int done = 0;
   MPI_Test(&g_barrier, &done, MPI_STATUS_IGNORE);
   return done;

@@ -20,6 +20,7 @@
 #ifndef CV_CLUSTER_COMM_H
 #define CV_CLUSTER_COMM_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -82,7 +83,9 @@ void cv_comm_barrier(void);
 int cv_comm_render_group(int render);
 /* Starts a non-blocking barrier among the render ranks (MPI_Ibarrier on
  * their communicator); cv_comm_render_barrier_test polls it: 1 done, 0 not
- * yet.  One barrier at a time per rank. */
+ * yet.  One barrier at a time per rank.  Once a render rank is known dead
+ * (or this one was declared dead) the barrier is given up: start fails,
+ * test says done (docs/dead-rank.md). */
 int cv_comm_render_barrier_start(void);
 int cv_comm_render_barrier_test(void);
 /* The LCD reduction's communicator (the master and the gather-only ranks,
@@ -109,8 +112,15 @@ int cv_comm_dead_count(void);
  * CV_TAG_ALIVE), so that none waits for it in MPI_Finalize. */
 void cv_comm_notify_dead(int rank);
 /* A rank: marks the rank of such a notice dead; 1 if data is one, else 0.
- * cv_comm_finalize takes the notices no mailbox took. */
+ * A notice naming this rank itself (it was stalled, not dead) sets
+ * cv_comm_declared_dead and the stop flag: the rank leaves.  cv_comm_progress
+ * looks for notices no mailbox takes (at most every 50 ms); cv_comm_finalize
+ * takes the rest. */
 int cv_comm_dead_notice(const uint8_t *data, long len);
+/* The flag a notice naming this rank sets (the SIGINT/SIGTERM flag). */
+void cv_comm_set_stop_flag(volatile sig_atomic_t *flag);
+/* 1 once the master has declared this rank dead. */
+int cv_comm_declared_dead(void);
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);
 

@@ -23,20 +23,22 @@ static int send_round(const uint8_t *buf, size_t len, void *user) {
 }
 
 /* Gives the allreduce up (a member died, docs/dead-rank.md): when the master
- * says so, or when an epoch has waited --gather-timeout s while states came
- * in (the master or another member is gone).  The rounds then go
- * point-to-point. */
-static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_mailbox *alive_mb, double first_state) {
+ * says so (a death notice, or dead gather ranks in the frame state: told),
+ * or when an epoch has waited --gather-timeout s while states came in (the
+ * master or another member is gone).  The rounds then go point-to-point;
+ * those the allreduce had not carried yet are rendered again. */
+static void maybe_abandon(cv_service *s, cv_lcd_reduce **red, cv_lcd_worker *w, double first_state,
+                          int told) {
   if (!*red) return;
-  int told = 0;
-  const uint8_t *data;
-  long len;
-  while (alive_mb && (len = cv_mailbox_take(alive_mb, &data, NULL)) >= 0)
-    if (cv_comm_dead_notice(data, len)) told = 1;
   const double waited = first_state > 0 ? cv_lcd_reduce_waiting(*red, cv_service_now(), first_state) : 0;
   if (!told && waited <= s->o.gather_timeout_s) return;
-  if (told) fprintf(stderr, "cave run: rank %d: a gather rank died: LCD rounds point-to-point\n", s->rank);
+  if (told) fprintf(stderr, "cave run: rank %d: told a gather rank died: LCD rounds point-to-point\n", s->rank);
   else fprintf(stderr, "cave run: rank %d: LCD sum waited %.1f s: LCD rounds point-to-point\n", s->rank, waited);
+  for (int which = 0; w && which < 4; which++) {
+    cv_lcd_key key;
+    uint32_t first, n;
+    if (cv_lcd_reduce_unsent(*red, which, &key, &first, &n) == 0) cv_lcd_worker_redo(w, &key, first, n);
+  }
   cv_lcd_reduce_abandon(*red);
   cv_lcd_reduce_destroy(*red);
   *red = NULL;
@@ -103,13 +105,25 @@ int cv_gather_run(cv_service *s) {
     }
     if (quit && quit_since == 0) quit_since = cv_service_now();
     if (got && first_state == 0) first_state = cv_service_now();
+    /* the worker shares a dead gather rank's rounds only once the allreduce
+     * (which wants each worker's rounds in stride) is given up */
+    if (got && fs.lcd_dead && !quit_since) maybe_abandon(s, &red, w, first_state, 1);
     if (got && w && !quit_since && !(fs.flags & CV_FS_MEASURE)) cv_lcd_worker_post(w, &fs);
     if (cv_service_now() - beat_t >= 0.25) { /* heartbeat (master_health.c) */
       beats++;
       cv_comm_send(&beats, sizeof beats, 0, CV_TAG_ALIVE);
       beat_t = cv_service_now();
     }
-    if (!quit_since) maybe_abandon(s, &red, alive_mb, first_state);
+    /* the master's death notices: another gather rank (the allreduce is
+     * given up), or this one (it was stalled: it leaves at once) */
+    int told = 0;
+    while (alive_mb && (len = cv_mailbox_take(alive_mb, &data, NULL)) >= 0) {
+      int32_t dead;
+      if (cv_comm_dead_notice(data, len) && (memcpy(&dead, data + 1, sizeof dead), dead > s->n_render))
+        told = 1; /* a gather rank ('D' + int32 rank): the allreduce would wait for it */
+    }
+    if (cv_comm_declared_dead()) break;
+    if (!quit_since) maybe_abandon(s, &red, w, first_state, told);
     if (w && red) {
       cv_lcd_worker_send_ready(w, pool_round, red, NULL, NULL);
       uint64_t rounds;

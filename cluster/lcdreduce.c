@@ -62,6 +62,12 @@ struct cv_lcd_reduce {
   uint32_t *rounds; /* budget: the rounds of a sum */
   /* contributor: rounds since the offer, and the offer in flight */
   pool pool, offer;
+  /* its offers in the last two sums (rounds only): a member that died in
+   * the middle of a sum may have completed it here but not on the master */
+  struct {
+    cv_lcd_key key;
+    uint32_t first, n;
+  } carried[2];
   /* contributor: its work so far (sent in its header slot) */
   int64_t work[WORK];
   /* master: each member's work from the last header */
@@ -274,6 +280,12 @@ static void data_done(cv_lcd_reduce *r, double now, cv_lcd_reduce_fn fn, void *u
         r->rounds[sum.rounds++] = (uint32_t)round;
     }
   }
+  if (r->me > 0 && r->offer.acc && matches(r, r->me, best)) {
+    r->carried[1] = r->carried[0];
+    r->carried[0].key = r->offer.key;
+    r->carried[0].first = r->offer.first;
+    r->carried[0].n = r->offer.n;
+  }
   r->data_epochs++;
   r->nrounds += sum.rounds;
   if (r->me == 0 && fn && clamp > 0) {
@@ -350,6 +362,23 @@ void cv_lcd_reduce_abandon(cv_lcd_reduce *r) {
   cv_comm_lcd_abandon();
   pool_clear(&r->offer);
   r->phase = PH_DONE;
+}
+
+int cv_lcd_reduce_unsent(const cv_lcd_reduce *r, int which, cv_lcd_key *key, uint32_t *first,
+                         uint32_t *n) {
+  if (which == 2 || which == 3) {
+    if (r->carried[which - 2].n == 0) return -1;
+    *key = r->carried[which - 2].key;
+    *first = r->carried[which - 2].first;
+    *n = r->carried[which - 2].n;
+    return 0;
+  }
+  const pool *p = which == 0 ? &r->offer : &r->pool;
+  if (!p->acc || p->n == 0) return -1;
+  *key = p->key;
+  *first = p->first;
+  *n = p->n;
+  return 0;
 }
 
 void cv_lcd_reduce_get_stats(const cv_lcd_reduce *r, cv_lcd_reduce_stats *st) {

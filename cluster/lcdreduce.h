@@ -64,6 +64,15 @@ int cv_lcd_reduce_in_flight(const cv_lcd_reduce *r);
  * freed (MPI may still write them). */
 void cv_lcd_reduce_abandon(cv_lcd_reduce *r);
 
+/* Contributor: the rounds no sum has carried yet, offered in the epoch in
+ * flight (which = 0) or pooled since (which = 1), or carried by the last
+ * (2) and the one before (3) sum here, which a member dying in the middle
+ * of a sum may have kept from the master: key, first round, count (first,
+ * first + stride, ...).  Returns 0, or -1 when there are none.  (Before
+ * cv_lcd_reduce_abandon, which drops them: they are rendered again.) */
+int cv_lcd_reduce_unsent(const cv_lcd_reduce *r, int which, cv_lcd_key *key, uint32_t *first,
+                         uint32_t *n);
+
 /* Totals: epochs finished, those that carried rounds, and the mean time
  * from an epoch's start to its sum on this rank (ms); calls of
  * cv_lcd_reduce_poll, their wall and thread-CPU time (total and largest

@@ -1,7 +1,8 @@
 /* LCD final-gather contributor, shared by the gather-only ranks and the
  * wall-eyes' idle threads: a worker thread that renders this contributor's
- * rounds (round = index + k * contributors, k = 0, 1, ...) of the current
- * key until the budget, and queues each finished round as a message for the
+ * rounds (round = index + k * contributors, k = 0, 1, ...; with dead gather
+ * ranks also its part of theirs, lcdshare.h) of the current key until the
+ * budget, in increasing order, and queues each finished round as a message for the
  * owning (MPI) thread to send.  The owner posts frame states; each round
  * takes the newest as its snapshot: the worker rebuilds the lighting when
  * the light key changed and restarts its rounds when the LCD key (quantised
@@ -21,6 +22,7 @@
 #include "lcd/panels.h"
 #include "lcdwork.h"
 #include "prt/bake.h"
+#include "service/lcdshare.h"
 #include "service_internal.h"
 
 typedef struct msg_node {
@@ -50,6 +52,15 @@ struct cv_lcd_worker {
   size_t queued;
   uint64_t rounds_done;
   double ms_total, cpu_ms_total; /* rounds' wall and thread CPU time */
+  /* the rounds of the current key (shared with cv_lcd_worker_redo): those
+   * taken (rendered or being rendered), the lowest that may still be this
+   * contributor's and not taken, the dead gather ranks of the ownership */
+  uint8_t *taken;
+  uint32_t cursor;
+  uint64_t dead;
+  uint32_t floor; /* the master has the dead ones' rounds of the current key below it */
+  int have_cur;
+  cv_lcd_key cur;
   char error[640];
   pthread_t th;
   int started;
@@ -155,6 +166,21 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
   cv_lcd_accum_destroy(acc);
 }
 
+/* The lowest round of the current key this contributor owns (under the
+ * dead gather ranks it knows of) and has not taken; the budget when none.
+ * Called with the mutex held. */
+static uint32_t next_owned(cv_lcd_worker *w) {
+  const uint32_t budget = (uint32_t)w->s->o.lcd_budget;
+  const int first_gather = w->s->o.lcd_idle ? w->s->n_render : 0;
+  const int count = w->s->n_contributors;
+  while (w->cursor < budget &&
+         (w->taken[w->cursor] ||
+          cv_lcd_round_owner(w->cursor, count, first_gather, w->dead) != w->index ||
+          (w->cursor < w->floor && cv_lcd_contributor_dead((int)(w->cursor % (uint32_t)count), first_gather, w->dead))))
+    w->cursor++;
+  return w->cursor;
+}
+
 /* Each round is a snapshot: before it starts, the newest posted frame state
  * gives its lighting (rebuilt only when the light key changed) and its eye,
  * and the round finishes with them whatever arrives meanwhile.  While the
@@ -177,8 +203,7 @@ static void *worker_main(void *arg) {
   cv_lcd_light *ll = NULL;
   cv_lcd_key key;
   double clamp = 1;
-  uint32_t k = 0, key_frame = 0; /* next round of this contributor = index + k * count */
-  const uint32_t count = (uint32_t)w->s->n_contributors;
+  uint32_t key_frame = 0;
   cv_frame_state fs;
   memset(&fs, 0, sizeof fs);
   for (;;) {
@@ -189,11 +214,18 @@ static void *worker_main(void *arg) {
         fs = w->posted;
         seen_seq = w->posted_seq;
         have_fs = 1;
+        if (fs.lcd_dead != w->dead) { /* a gather rank died: its rounds are shared */
+          w->dead = fs.lcd_dead;
+          w->cursor = 0;
+        }
+        /* the dead ones' rounds the master has (of its key, when it is ours) */
+        w->floor = w->have_cur && fs.lcd_key == cv_service_lcd_key(w->cur.eye_q, w->cur.light_hash)
+                       ? fs.lcd_dead_floor : 0;
       }
       /* work: a newer state than the key's (a new snapshot), or rounds
        * left for the key; at most 4 rounds waiting for the owner */
       const int newer = have_fs && (!have_key || fs.lcd_key != cv_service_lcd_key(key.eye_q, light_key));
-      const int left = have_key && (uint64_t)w->index + (uint64_t)k * count < (uint64_t)w->s->o.lcd_budget;
+      const int left = have_key && next_owned(w) < (uint32_t)w->s->o.lcd_budget;
       if ((newer || left) && w->queued < 4) break;
       pthread_cond_wait(&w->cv, &w->mu);
     }
@@ -221,10 +253,10 @@ static void *worker_main(void *arg) {
       have_fs = 0;
       continue;
     }
-    if (!have_key || !cv_lcd_key_equal(&nk, &key)) {
+    const int new_key = !have_key || !cv_lcd_key_equal(&nk, &key);
+    if (new_key) {
       key = nk;
       have_key = 1;
-      k = 0;
       key_frame = fs.frame;
       cv_lcd_key_eye(&key, w->s->o.lcd_tolerance, w->p.eye);
       /* the key's veils (a pure function of its eye and lighting: every
@@ -232,10 +264,19 @@ static void *worker_main(void *arg) {
       double sun_deg[CV_LCD_MAX_PANELS];
       w->have_veil = cv_lcd_panels_veils(w->ps, ll, w->p.eye, &w->vp, w->veil, sun_deg) == CV_OK;
     }
-    const uint32_t round = (uint32_t)w->index + k * count;
+    pthread_mutex_lock(&w->mu);
+    if (new_key) { /* its rounds start over */
+      memset(w->taken, 0, (size_t)w->s->o.lcd_budget);
+      w->cursor = 0;
+      w->floor = fs.lcd_dead_floor; /* fs is of this key */
+      w->cur = key;
+      w->have_cur = 1;
+    }
+    const uint32_t round = next_owned(w);
+    if (round < (uint32_t)w->s->o.lcd_budget) w->taken[round] = 1;
+    pthread_mutex_unlock(&w->mu);
     if (round >= (uint32_t)w->s->o.lcd_budget) continue;
     render_round(w, ll, &key, clamp, round, key_frame);
-    k++;
   }
   cv_lcd_light_destroy(ll);
   return NULL;
@@ -252,7 +293,8 @@ int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, int 
   w->idle = idle;
   pthread_mutex_init(&w->mu, NULL);
   pthread_cond_init(&w->cv, NULL);
-  int st = worker_init(w, err);
+  w->taken = calloc((size_t)(s->o.lcd_budget > 0 ? s->o.lcd_budget : 1), 1);
+  int st = w->taken ? worker_init(w, err) : cv_err_set(err, CV_ERR_NOMEM, "LCD worker: out of memory");
   if (st) {
     cv_lcd_worker_destroy(w);
     return st;
@@ -299,6 +341,17 @@ int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size
   return n;
 }
 
+void cv_lcd_worker_redo(cv_lcd_worker *w, const cv_lcd_key *key, uint32_t first, uint32_t n) {
+  const uint32_t budget = (uint32_t)w->s->o.lcd_budget, stride = (uint32_t)w->s->n_contributors;
+  pthread_mutex_lock(&w->mu);
+  if (w->have_cur && cv_lcd_key_equal(&w->cur, key)) {
+    for (uint64_t i = 0, r = first; i < n && r < budget; i++, r += stride) w->taken[r] = 0;
+    if (first < w->cursor) w->cursor = first;
+    pthread_cond_signal(&w->cv);
+  }
+  pthread_mutex_unlock(&w->mu);
+}
+
 void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total) {
   pthread_mutex_lock(&w->mu);
   *rounds_done = w->rounds_done;
@@ -329,5 +382,6 @@ void cv_lcd_worker_destroy(cv_lcd_worker *w) {
   cv_mesh_destroy(w->mesh);
   pthread_mutex_destroy(&w->mu);
   pthread_cond_destroy(&w->cv);
+  free(w->taken);
   free(w);
 }

@@ -5,6 +5,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "lcd/accum.h"
 #include "prt/prt.h"
 #include "service.h"
 
@@ -23,6 +24,10 @@ void cv_lcd_worker_post(cv_lcd_worker *w, const cv_frame_state *fs);
  * so far. */
 int cv_lcd_worker_send_ready(cv_lcd_worker *w, int (*send)(const uint8_t *, size_t, void *),
                              void *user, uint64_t *rounds_done, double *ms_total);
+/* The rounds first, first + contributors, ... (n) of key were lost on the
+ * way to the master (an abandoned LCD allreduce): rendered again when key
+ * is still the worker's current key, else nothing. */
+void cv_lcd_worker_redo(cv_lcd_worker *w, const cv_lcd_key *key, uint32_t first, uint32_t n);
 /* Totals so far: rounds finished, their wall time and the worker thread's
  * CPU time in them (CLOCK_THREAD_CPUTIME_ID), ms. */
 void cv_lcd_worker_totals(cv_lcd_worker *w, uint64_t *rounds_done, double *ms_total, double *cpu_ms_total);

@@ -357,6 +357,8 @@ static void frame_lcd_key(master *m, cv_frame_state *fs) {
   }
   fs->lcd_key = m->lcd_key;
   fs->lcd_rounds = m->lcd_rounds;
+  fs->lcd_dead = master_health_lcd_dead(m); /* their rounds shared (docs/dead-rank.md) */
+  fs->lcd_dead_floor = master_health_lcd_floor(m);
 }
 
 static int send_state(master *m, const cv_frame_state *fs) {
@@ -889,7 +891,9 @@ int cv_master_run(cv_service *s) {
   if (!s->o.quiet) printf("cave run: %zu frames; metrics in the out folder\n", m->nframes_done);
   if (m->stop_code)
     printf("cave run: stopped on request: %s\n", m->stop_reason);
-  cv_comm_flush(10);
+  /* with a dead rank the others leave without MPI_Finalize: a large send
+   * (rendezvous) to one that quit before taking it never completes */
+  cv_comm_flush(cv_comm_dead_count() > 0 ? 2 : 10);
   const int lost = m->stop_code == CV_WIN_LOST || m->stop_code == MASTER_STOP_DEAD;
   master_free(m);
   return lost ? 1 : 0;

@@ -9,8 +9,12 @@
  *                it for ever, is given up on the master, and the surviving
  *                gather ranks, told by the death notice every rank gets
  *                (cv_comm_notify_dead), send their rounds point-to-point
- *                (the render ranks' path); the frames never waited for it.
- * With a dead rank no rank calls MPI_Finalize (it would wait for it).
+ *                (the render ranks' path); the frames never waited for it;
+ *                its LCD rounds go to the live contributors (the frame
+ *                state's lcd_dead and lcd_dead_floor, src/service/lcdshare.c).
+ * The notice goes to the dead rank too: one only stalled leaves when it
+ * runs again.  With a dead rank no rank calls MPI_Finalize (it would wait
+ * for it).
  *   wall-eye     (silent: no report for S s while one was owed)
  *                its walls cannot be shown: the run stops cleanly, naming
  *                it (summary stop_reason, exit status 1). */
@@ -21,6 +25,7 @@
 #include "comm.h"
 #include "lcdreduce.h"
 #include "master_internal.h"
+#include "service/lcdshare.h"
 
 int master_health_setup(master *m) {
   m->alive_t = calloc((size_t)m->s->size, sizeof *m->alive_t);
@@ -67,12 +72,42 @@ void master_health_sent(master *m) {
 static void gather_dead(master *m, int r, double silent) {
   fprintf(stderr,
           "cave run: master: rank %d (gather-only) silent for %.1f s: declared dead; "
-          "the LCD goes on without it\n",
+          "its LCD rounds go to the others\n",
           r, silent);
   if (m->lcd_red && !m->lcd_red_abandoned) { /* the others learn it from the notice */
     cv_lcd_reduce_abandon(m->lcd_red);
     m->lcd_red_abandoned = 1;
   }
+  /* its rounds: shared by the live contributors from the next frame state on
+   * (lcd_dead, lcdshare.h) */
+  const int first_gather = m->s->o.lcd_idle ? m->s->n_render : 0;
+  const uint64_t dead = master_health_lcd_dead(m);
+  int live = 0;
+  for (int c = 0; c < m->s->n_contributors; c++) live += !cv_lcd_contributor_dead(c, first_gather, dead);
+  if (m->s->o.lcd && live == 0)
+    fprintf(stderr, "cave run: master: no LCD contributor is left: the LCD image stays at %u rounds\n",
+            m->lcd_rounds);
+}
+
+uint64_t master_health_lcd_dead(const master *m) {
+  uint64_t d = 0;
+  for (int g = 0; m->dead && g < m->s->n_gather && g < 64; g++)
+    if (m->dead[1 + m->s->n_render + g]) d |= 1ull << g;
+  return d;
+}
+
+uint32_t master_health_lcd_floor(const master *m) {
+  const uint64_t dead = master_health_lcd_dead(m);
+  if (!dead || !m->seen) return 0;
+  const int count = m->s->n_contributors, first_gather = m->s->o.lcd_idle ? m->s->n_render : 0;
+  uint32_t floor = (uint32_t)m->s->o.lcd_budget;
+  for (int c = 0; c < count; c++) {
+    if (!cv_lcd_contributor_dead(c, first_gather, dead)) continue;
+    uint32_t r = (uint32_t)c;
+    while (r < floor && m->seen[r]) r += (uint32_t)count;
+    if (r < floor) floor = r;
+  }
+  return floor;
 }
 
 static void walleye_dead(master *m, int r, double silent) {

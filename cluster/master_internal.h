@@ -147,6 +147,7 @@ typedef struct master {
   uint8_t *dead;          /* per rank: declared dead */
   int ndead, health_armed, lcd_red_abandoned;
   uint64_t lcd_gather_p2p; /* gather ranks' rounds summed point-to-point */
+  uint64_t lcd_shared, lcd_dup; /* a dead gather rank's rounds summed from others; rounds come again */
   /* montages of the left eye (written frames) and the viewer simulation */
   cv_mailbox **img_mb;
   cv_image **mont, **mont_unc; /* per wall: display-linear compensated / uncompensated */
@@ -262,6 +263,11 @@ void master_health_seen(master *m, int rank);
 void master_health_sent(master *m);
 /* Takes heartbeats; declares ranks silent for --gather-timeout dead. */
 void master_health_poll(master *m);
+/* The frame state's lcd_dead: bit g for gather-only rank g declared dead. */
+uint64_t master_health_lcd_dead(const master *m);
+/* The frame state's lcd_dead_floor: the lowest round of the current key
+ * that a dead gather rank owned and the master has not summed (0: none dead). */
+uint32_t master_health_lcd_floor(const master *m);
 /* "dead_ranks": [ranks] */
 void master_health_metrics(master *m, cv_metrics_line *ml);
 

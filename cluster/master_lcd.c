@@ -159,6 +159,8 @@ void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_double(ml, "gather_comm_cpu_ms_max", st.gather_comm_cpu_ms_max);
   cv_metrics_bool(ml, "abandoned", m->lcd_red_abandoned); /* a member died: rounds point-to-point */
   cv_metrics_uint(ml, "p2p_rounds", m->lcd_gather_p2p);   /* gather ranks' rounds taken point-to-point */
+  cv_metrics_uint(ml, "shared_rounds", m->lcd_shared);   /* dead gather ranks' rounds from others */
+  cv_metrics_uint(ml, "duplicate_rounds", m->lcd_dup);   /* rounds that came again, dropped */
   cv_metrics_object_end(ml);
 }
 
@@ -191,10 +193,18 @@ void lcd_drain(master *m) {
     cv_lcd_accum view = {.w = h.w, .h = h.h, .clamp = h.clamp,
                          .unit = cv_lcd_unit_for_clamp(h.clamp), .n = h.n,
                          .data = (int64_t *)(void *)(uintptr_t)(data + sizeof h)};
+    /* a round summed already (rendered again after a gather rank died) */
+    if (h.round < (uint32_t)m->s->o.lcd_budget && m->seen[h.round] &&
+        cv_service_lcd_key(h.key.eye_q, h.key.light_hash) == m->lcd_key) {
+      m->lcd_dup++;
+      continue;
+    }
     const uint32_t had = m->lcd_rounds + m->mot.rounds;
     lcd_take(m, &h.key, h.frame, &h.round, 1, &view);
+    if (m->lcd_rounds + m->mot.rounds == had) continue;
     /* a gather rank's round point-to-point: the allreduce was given up */
-    if (from > m->s->n_render && m->lcd_rounds + m->mot.rounds != had) m->lcd_gather_p2p++;
+    if (from > m->s->n_render) m->lcd_gather_p2p++;
+    if (h.round % (uint32_t)m->s->n_contributors != h.contributor) m->lcd_shared++; /* a dead one's */
   }
 }
 

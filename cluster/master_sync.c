@@ -119,6 +119,7 @@ static void take_pongs(master *m) {
     memcpy(v, data, sizeof v);
     cv_clock_sample smp = {v[0], v[1], v[2], t3};
     cv_clock_est_add(&m->clk[from - 1], &smp);
+    master_health_seen(m, from); /* alive (waiting, e.g. in the swap barrier for a dead one) */
   }
 }
 

@@ -57,8 +57,9 @@ static void help(FILE *f) {
           "                       the idle LCD threads use what the renderers leave)\n"
           "  --write-every K      write images every K-th frame (default 10; 0: last only)\n"
           "  --timeout-ms T       wait at most T ms for late ranks per frame (default 2000)\n"
-          "  --gather-timeout S   a gather rank silent S s is dead: named, LCD goes on without\n"
-          "                       it; a wall-eye silent S s stops the run (default 10; 0.5..3600)\n"
+          "  --gather-timeout S   a gather rank silent S s is dead: named, its LCD rounds go to\n"
+          "                       the others; a wall-eye silent S s stops the run; a rank\n"
+          "                       declared dead leaves if it runs again (default 10; 0.5..3600)\n"
           "  --present WHAT       files, window, desktop, none, or a list: window,files or\n"
           "                       desktop,files (default files).\n"
           "                       window: one borderless window per output of the CAVE config\n"
@@ -620,6 +621,7 @@ int cmd_run(int argc, char **argv) {
     fprintf(stderr, "cave run: MPI_Init failed\n");
     return 1;
   }
+  cv_comm_set_stop_flag(&g_stop); /* a rank declared dead leaves (docs/dead-rank.md) */
   check_all(&s, s.size, desktop_view, &pb);
   if (!pb.n && mkdirs(s.o.out_dir)) problem(&pb, "-o: %s: cannot create: %s", s.o.out_dir, strerror(errno));
   if (pb.n) {

@@ -303,6 +303,8 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
       return !(t.flags & CV_FS_QUIT); /* one frame at a time: later states stay queued */
     }
     if (we->ping_mb) idle(we);
+    else cv_comm_progress();
+    if (cv_comm_declared_dead()) return 0; /* stalled, not dead: no quit will come */
     if (*we->s->stop) {
       if (stop_since == 0) stop_since = cv_service_now();
       else if (cv_service_now() - stop_since > 5) return 0;

@@ -131,6 +131,8 @@ int cv_frame_state_pack(const cv_frame_state *s, uint8_t buf[CV_FRAME_STATE_BYTE
   put_u32(&w, s->lcd_rounds);
   put_i32(&w, s->has_eyes);
   put_f64s(&w, &s->eyes[0][0], 6);
+  put_u64(&w, s->lcd_dead);
+  put_u32(&w, s->lcd_dead_floor);
   if (w.off != CV_FRAME_STATE_BYTES) return CV_ERR_INVALID; /* layout bug: caught by tests */
   return w.nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
@@ -179,6 +181,8 @@ int cv_frame_state_unpack(const uint8_t *buf, size_t len, cv_frame_state *out, c
   s.lcd_rounds = get_u32(&r);
   s.has_eyes = get_i32(&r);
   get_f64s(&r, "eyes", &s.eyes[0][0], 6);
+  s.lcd_dead = get_u64(&r);
+  s.lcd_dead_floor = get_u32(&r);
   if (r.off != CV_FRAME_STATE_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
   if (s.flags & ~(CV_FS_QUIT | CV_FS_WRITE | CV_FS_NEW_LIGHT | CV_FS_HOLD | CV_FS_PREVIEW | CV_FS_MEASURE))

@@ -19,7 +19,8 @@
  *    216 u64 light_key  224 i32 bands  228 f64 sh[192]
  *   1764 i32 has_sun  1768 f64 sun_dir[3]  1792 f64 sun_E[3]
  *   1816 f64 lwa  1824 f64 lwmax  1832 f64 adapt[6]
- *   1880 u64 lcd_key  1888 u32 lcd_rounds                     = 1892 bytes
+ *   1880 u64 lcd_key  1888 u32 lcd_rounds  1892 i32 has_eyes  1896 f64 eyes[2][3]
+ *   1944 u64 lcd_dead  1952 u32 lcd_dead_floor                 = 1956 bytes
  */
 #ifndef CV_SERVICE_FRAMESTATE_H
 #define CV_SERVICE_FRAMESTATE_H
@@ -41,7 +42,7 @@
 #define CV_FRAME_MEASURE 0xFFFFFFFFu
 
 #define CV_FRAME_STATE_MAGIC 0x53465643u /* "CVFS" in little-endian bytes */
-#define CV_FRAME_STATE_VERSION 2u
+#define CV_FRAME_STATE_VERSION 3u
 #define CV_FRAME_STATE_SH_MAX (3 * 64) /* bands <= 8 */
 
 /* Packed size of a cv_drive_state: 4 f64, i32, CV_MAX_ENV_MAPS f64, i32, 3 f64. */
@@ -49,7 +50,7 @@
 
 #define CV_FRAME_STATE_BYTES                                                                \
   (4 + 4 + 4 + 4 + 8 * 2 + 8 * 3 + 8 * 3 + 8 + CV_DRIVE_STATE_BYTES + 8 + 4 +              \
-   8 * CV_FRAME_STATE_SH_MAX + 4 + 8 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 4 + 4 + 8 * 6)
+   8 * CV_FRAME_STATE_SH_MAX + 4 + 8 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 4 + 4 + 8 * 6 + 8 + 4)
 
 typedef struct cv_frame_state {
   uint32_t frame;            /* frame index */
@@ -69,6 +70,10 @@ typedef struct cv_frame_state {
   int32_t has_eyes;          /* 1: eyes[] from a calibrated tracker (docs/tracker.md: IPD,
                                 roll); 0: from head, gaze and the CAVE's eye_separation */
   double eyes[2][3];         /* left, right eye, CAVE frame, metres */
+  uint64_t lcd_dead;         /* bit g: gather-only rank g (0 = the first) declared dead; the
+                                LCD contributors share its rounds (docs/dead-rank.md) */
+  uint32_t lcd_dead_floor;   /* the dead gather ranks' rounds of lcd_key below this one are
+                                all summed (not rendered again) */
 } cv_frame_state;
 
 /* Packs s into buf (exactly CV_FRAME_STATE_BYTES written).  All 192 sh

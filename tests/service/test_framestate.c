@@ -53,6 +53,8 @@ static void fill_state(cv_frame_state *s) {
   s->lcd_rounds = 0xFFFFFFFFu;
   s->has_eyes = 1;
   for (int i = 0; i < 6; i++) s->eyes[i / 3][i % 3] = -0.032 + 0.01 * i;
+  s->lcd_dead = 0x8000000000000005ull;
+  s->lcd_dead_floor = 0xA1B2C3D4u;
 }
 
 /* Bitwise equality of two states field by field (struct padding differs). */
@@ -91,12 +93,14 @@ static void assert_states_equal(const cv_frame_state *a, const cv_frame_state *b
   assert_int_equal(a->lcd_rounds, b->lcd_rounds);
   assert_int_equal(a->has_eyes, b->has_eyes);
   assert_same_bits(&a->eyes[0][0], &b->eyes[0][0], 6);
+  assert_true(a->lcd_dead == b->lcd_dead);
+  assert_int_equal(a->lcd_dead_floor, b->lcd_dead_floor);
 }
 
 static void test_size_constants(void **state) {
   (void)state;
   assert_int_equal(CV_DRIVE_STATE_BYTES, 128);
-  assert_int_equal(CV_FRAME_STATE_BYTES, 1944);
+  assert_int_equal(CV_FRAME_STATE_BYTES, 1956);
   assert_int_equal(CV_WALLEYE_REPORT_BYTES, 156);
 }
 
@@ -142,7 +146,7 @@ static void test_layout_little_endian(void **state) {
   uint8_t b[CV_FRAME_STATE_BYTES];
   assert_int_equal(cv_frame_state_pack(&s, b), CV_OK);
   assert_memory_equal(b, "CVFS", 4);
-  assert_int_equal(b[4], 2);
+  assert_int_equal(b[4], 3);
   assert_int_equal(b[8], 0xD4); /* frame 0xA1B2C3D4, low byte first */
   assert_int_equal(b[11], 0xA1);
   assert_true(led(b + 16) == s.time);
@@ -160,6 +164,8 @@ static void test_layout_little_endian(void **state) {
   assert_int_equal(b[1892], 1); /* has_eyes */
   assert_true(led(b + 1896) == s.eyes[0][0]);
   assert_true(led(b + 1896 + 8 * 5) == s.eyes[1][2]);
+  assert_true(le64(b + 1944) == 0x8000000000000005ull); /* lcd_dead */
+  assert_int_equal(b[1952], 0xD4);                      /* lcd_dead_floor, low byte first */
 }
 
 static void test_pack_rejects_nonfinite(void **state) {
@@ -217,7 +223,7 @@ static void test_unpack_rejects_corruption(void **state) {
   assert_int_equal(cv_frame_state_unpack(b, CV_FRAME_STATE_BYTES - 1, &u, &err), CV_ERR_FORMAT);
   assert_int_equal(cv_frame_state_unpack(b, CV_FRAME_STATE_BYTES + 1, &u, &err), CV_ERR_FORMAT);
   assert_int_equal(cv_frame_state_unpack(b, 0, &u, &err), CV_ERR_FORMAT);
-  assert_non_null(strstr(err.msg, "1944"));
+  assert_non_null(strstr(err.msg, "1956"));
   rejected += 3;
 
   memcpy(b, good, sizeof good);

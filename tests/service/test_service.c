@@ -8,5 +8,6 @@ int main(void) {
   failed += run_framestate_tests();
   failed += run_metrics_tests();
   failed += run_clocksync_tests();
+  failed += run_lcdshare_tests();
   return failed ? 1 : 0;
 }

@@ -7,5 +7,6 @@ int run_tracker_tests(void);
 int run_framestate_tests(void);
 int run_metrics_tests(void);
 int run_clocksync_tests(void);
+int run_lcdshare_tests(void);
 
 #endif
