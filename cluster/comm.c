@@ -60,6 +60,19 @@ int cv_comm_init(int *argc, char ***argv, int *rank, int *size) {
   return 0;
 }
 
+/* Receives the probed death notice st from the master and applies it;
+ * non-zero when it is too long or cannot be received. */
+static int receive_notice(const MPI_Status *st) {
+  uint8_t b[16];
+  int count = 0;
+  MPI_Get_count(st, MPI_BYTE, &count);
+  if (count > (int)sizeof b ||
+      MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+    return -1;
+  cv_comm_dead_notice(b, count);
+  return 0;
+}
+
 /* Takes the master's death notices not taken by a mailbox (a render rank
  * has none for CV_TAG_ALIVE). */
 static void take_notices(void) {
@@ -72,13 +85,7 @@ static void take_notices(void) {
     if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS) return;
     if (!flag) continue;
     i++;
-    uint8_t b[16];
-    int count = 0;
-    MPI_Get_count(&st, MPI_BYTE, &count);
-    if (count > (int)sizeof b ||
-        MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
-      return;
-    cv_comm_dead_notice(b, count);
+    if (receive_notice(&st)) return;
   }
 }
 
@@ -159,13 +166,7 @@ static void probe_notices(void) {
     int flag = 0;
     MPI_Status st;
     if (MPI_Iprobe(0, CV_TAG_ALIVE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS || !flag) return;
-    uint8_t b[16];
-    int count = 0;
-    MPI_Get_count(&st, MPI_BYTE, &count);
-    if (count > (int)sizeof b ||
-        MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
-      return;
-    cv_comm_dead_notice(b, count);
+    if (receive_notice(&st)) return;
   }
 }
 

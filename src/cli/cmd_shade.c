@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli/cli.h"
+#include "core/pinhole.h"
 #include "io/exr.h"
 #include "io/ply.h"
 #include "io/texture.h"
@@ -55,37 +56,16 @@ typedef struct {
 static void render_view(const cv_prt *p, const cv_tracer *tr, const cv_scene_light *sl,
                         const float *rad, cv_image *const *tex, const view_opts *v, cv_image *img,
                         uint64_t *escaped) {
-  double f[3], r[3], u[3];
-  for (int k = 0; k < 3; k++) f[k] = v->look[k] - v->eye[k];
-  double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-  for (int k = 0; k < 3; k++) f[k] /= fl;
-  r[0] = f[1] * v->up[2] - f[2] * v->up[1];
-  r[1] = f[2] * v->up[0] - f[0] * v->up[2];
-  r[2] = f[0] * v->up[1] - f[1] * v->up[0];
-  double rl = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-  for (int k = 0; k < 3; k++) r[k] /= rl;
-  u[0] = r[1] * f[2] - r[2] * f[1];
-  u[1] = r[2] * f[0] - r[0] * f[2];
-  u[2] = r[0] * f[1] - r[1] * f[0];
-  double th = tan(v->fov * M_PI / 360), aspect = (double)v->w / v->h;
+  cv_pinhole cam;
+  cv_pinhole_init(&cam, v->eye, v->look, v->up, v->fov, v->w, v->h);
   const cv_rt *rt = cv_tracer_rt(tr);
   uint64_t esc = 0;
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : esc)
   for (int y = 0; y < v->h; y++) {
     cv_rt_thread_init();
     for (int x = 0; x < v->w; x++) {
-      double sx = (2 * (x + 0.5) / v->w - 1) * th * aspect, sy = (1 - 2 * (y + 0.5) / v->h) * th;
       float d[3], o[3];
-      double dl = 0;
-      for (int k = 0; k < 3; k++) {
-        double dk = f[k] + sx * r[k] + sy * u[k];
-        d[k] = (float)dk;
-        dl += dk * dk;
-      }
-      for (int k = 0; k < 3; k++) {
-        d[k] /= (float)sqrt(dl);
-        o[k] = (float)v->eye[k];
-      }
+      cv_pinhole_ray(&cam, x, y, o, d);
       float *px = cv_image_at(img, x, y);
       cv_hit h;
       if (cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) {

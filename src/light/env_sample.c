@@ -113,9 +113,12 @@ static void dir_at(double u, double ct, double d[3]) {
   d[2] = -st * cos(ph);
 }
 
-int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_sampler **out) {
-  *out = NULL;
-  if (!src || !n) return CV_ERR_INVALID;
+/* A sampler over src's grid whose cell weights are src's cell probabilities
+ * times weight(src, x, y, ctx) (>= 0); its total is scaled by src's. */
+typedef double (*cell_weight_fn)(const cv_env_sampler *src, int x, int y, const void *ctx);
+
+static int derive_sampler(const cv_env_sampler *src, cell_weight_fn weight, const void *ctx,
+                          cv_env_sampler **out) {
   const int w = src->w, h = src->h;
   cv_env_sampler *s = sampler_alloc(w, h, src->f);
   double *row = malloc((size_t)h * sizeof(double));
@@ -132,15 +135,8 @@ int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_
   memcpy(s->inv_sa, src->inv_sa, (size_t)h * sizeof(float));
   for (int y = 0; y < h; y++)
     for (int x = 0; x < w; x++) {
-      double p = cv_env_sampler_cell_prob(src, x, y), front = 0;
-      for (int j = 0; j < 3 && p > 0; j++)
-        for (int i = 0; i < 3; i++) {
-          double d[3];
-          const double ct = src->cos_edge[y] + 0.5 * j * ((double)src->cos_edge[y + 1] - src->cos_edge[y]);
-          dir_at((x + 0.5 * i) / w, ct, d);
-          front = fmax(front, d[0] * n[0] + d[1] * n[1] + d[2] * n[2]);
-        }
-      cw[(size_t)y * (size_t)w + (size_t)x] = front > 0 ? p : 0.0;
+      const double p = cv_env_sampler_cell_prob(src, x, y);
+      cw[(size_t)y * (size_t)w + (size_t)x] = p > 0 ? p * weight(src, x, y, ctx) : 0.0;
     }
   build_cdfs(s, cw, row, cum);
   s->total *= src->total;
@@ -151,36 +147,37 @@ int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_
   return CV_OK;
 }
 
+/* 1 when some of cell (x, y) lies in front of the plane with normal n
+ * (3 x 3 points of the cell tested), else 0. */
+static double front_weight(const cv_env_sampler *src, int x, int y, const void *ctx) {
+  const float *n = ctx;
+  double front = 0;
+  for (int j = 0; j < 3; j++)
+    for (int i = 0; i < 3; i++) {
+      double d[3];
+      const double ct = src->cos_edge[y] + 0.5 * j * ((double)src->cos_edge[y + 1] - src->cos_edge[y]);
+      dir_at((x + 0.5 * i) / src->w, ct, d);
+      front = fmax(front, d[0] * n[0] + d[1] * n[1] + d[2] * n[2]);
+    }
+  return front > 0 ? 1.0 : 0.0;
+}
+
+int cv_env_sampler_restrict(const cv_env_sampler *src, const float n[3], cv_env_sampler **out) {
+  *out = NULL;
+  if (!src || !n) return CV_ERR_INVALID;
+  return derive_sampler(src, front_weight, n, out);
+}
+
+/* The caller's weight of cell (x, y); a negative or non-finite one is 0. */
+static double table_weight(const cv_env_sampler *src, int x, int y, const void *ctx) {
+  const double k = ((const float *)ctx)[(size_t)y * (size_t)src->w + (size_t)x];
+  return k > 0 && isfinite(k) ? k : 0.0;
+}
+
 int cv_env_sampler_reweight(const cv_env_sampler *src, const float *cell_w, cv_env_sampler **out) {
   *out = NULL;
   if (!src || !cell_w) return CV_ERR_INVALID;
-  const int w = src->w, h = src->h;
-  cv_env_sampler *s = sampler_alloc(w, h, src->f);
-  double *row = malloc((size_t)h * sizeof(double));
-  double *cum = malloc((size_t)(w + 1) * sizeof(double));
-  double *cw = malloc((size_t)w * (size_t)h * sizeof(double) + 1);
-  if (!s || !row || !cum || !cw) {
-    cv_env_sampler_destroy(s);
-    free(row);
-    free(cum);
-    free(cw);
-    return CV_ERR_NOMEM;
-  }
-  memcpy(s->cos_edge, src->cos_edge, (size_t)(h + 1) * sizeof(float));
-  memcpy(s->inv_sa, src->inv_sa, (size_t)h * sizeof(float));
-  for (int y = 0; y < h; y++)
-    for (int x = 0; x < w; x++) {
-      const size_t i = (size_t)y * (size_t)w + (size_t)x;
-      const double k = cell_w[i];
-      cw[i] = k > 0 && isfinite(k) ? cv_env_sampler_cell_prob(src, x, y) * k : 0.0;
-    }
-  build_cdfs(s, cw, row, cum);
-  s->total *= src->total;
-  free(row);
-  free(cum);
-  free(cw);
-  *out = s;
-  return CV_OK;
+  return derive_sampler(src, table_weight, cell_w, out);
 }
 
 double cv_env_sampler_cell_prob(const cv_env_sampler *s, int x, int y) {

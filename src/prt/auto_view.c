@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/pinhole.h"
 #include "core/progress.h"
 
 #define NB 8
@@ -31,36 +32,15 @@ static void residual_fn(const void *ctx, const float d[3], float rgb[3]) {
 /* Camera rays through the pixel centres (as `cave shade --view`): hit
  * triangle (or UINT32_MAX) and barycentrics per pixel. */
 static void cast_pixels(const cv_tracer *tr, const cv_view_cam *c, uint32_t *tri, float *bary) {
-  double f[3], r[3], u[3];
-  for (int k = 0; k < 3; k++) f[k] = c->look[k] - c->eye[k];
-  double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-  for (int k = 0; k < 3; k++) f[k] /= fl;
-  r[0] = f[1] * c->up[2] - f[2] * c->up[1];
-  r[1] = f[2] * c->up[0] - f[0] * c->up[2];
-  r[2] = f[0] * c->up[1] - f[1] * c->up[0];
-  double rl = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-  for (int k = 0; k < 3; k++) r[k] /= rl;
-  u[0] = r[1] * f[2] - r[2] * f[1];
-  u[1] = r[2] * f[0] - r[0] * f[2];
-  u[2] = r[0] * f[1] - r[1] * f[0];
-  const double th = tan(c->fov_deg * M_PI / 360), aspect = (double)c->w / c->h;
+  cv_pinhole cam;
+  cv_pinhole_init(&cam, c->eye, c->look, c->up, c->fov_deg, c->w, c->h);
   const cv_rt *rt = cv_tracer_rt(tr);
   cv_rt_thread_init();
   for (int y = 0; y < c->h; y++)
     for (int x = 0; x < c->w; x++) {
       const int i = y * c->w + x;
-      double sx = (2 * (x + 0.5) / c->w - 1) * th * aspect, sy = (1 - 2 * (y + 0.5) / c->h) * th;
       float d[3], o[3];
-      double dl = 0;
-      for (int k = 0; k < 3; k++) {
-        double dk = f[k] + sx * r[k] + sy * u[k];
-        d[k] = (float)dk;
-        dl += dk * dk;
-      }
-      for (int k = 0; k < 3; k++) {
-        d[k] /= (float)sqrt(dl);
-        o[k] = (float)c->eye[k];
-      }
+      cv_pinhole_ray(&cam, x, y, o, d);
       cv_hit h;
       tri[i] = UINT32_MAX;
       if (cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) {
