@@ -156,6 +156,43 @@ const char *cv_exr_compression_name(int c) {
   return (c >= 0 && c <= 9) ? names[c] : "?";
 }
 
+/* The most raw bytes one byte of a chunk's payload can stand for under a
+ * compression: deflate's 1032:1 (ZIP, ZIPS, PXR24's zip of 24-bit values),
+ * RLE's 128 bytes from 2, B44's 32 bytes from 14 and B44A's from 3; PIZ's
+ * Huffman run codes and DWA's DCT + deflate are bounded generously.  A
+ * data window needing more than the file can hold is refused before any
+ * allocation (fuzzing found a 669-byte file asking for 2.4 GB). */
+static double max_expansion(int comp) {
+  switch (comp) {
+  case EXR_COMPRESSION_NONE: return 1.0;
+  case EXR_COMPRESSION_RLE: return 64.0;
+  case EXR_COMPRESSION_ZIPS:
+  case EXR_COMPRESSION_ZIP: return 1040.0;
+  case EXR_COMPRESSION_PXR24: return 1400.0;
+  case EXR_COMPRESSION_B44: return 32.0 / 14.0 + 1.0;
+  case EXR_COMPRESSION_B44A: return 32.0 / 3.0 + 1.0;
+  case EXR_COMPRESSION_PIZ: return 8192.0;
+  default: return 65536.0; /* DWAA, DWAB and anything newer */
+  }
+}
+
+static int check_size_against_file(const char *path, const exr_attr_chlist_t *cl, int comp,
+                                   int64_t w, int64_t h, cv_err *err) {
+  struct stat st;
+  if (stat(path, &st) != 0) return CV_OK; /* the reader has opened it: size unknown only on odd files */
+  double bpp = 0;
+  for (int c = 0; c < cl->num_channels; ++c)
+    bpp += cl->entries[c].pixel_type == EXR_PIXEL_HALF ? 2.0 : 4.0;
+  const double raw = (double)w * (double)h * bpp, room = (double)st.st_size * max_expansion(comp);
+  if (raw > room)
+    return cv_err_set(err, CV_ERR_FORMAT,
+                      "%s: data window %lld x %lld (%.0f bytes of pixels) cannot be held by a file "
+                      "of %lld bytes under %s compression (at most %.0f bytes)",
+                      path, (long long)w, (long long)h, raw, (long long)st.st_size,
+                      cv_exr_compression_name(comp), room);
+  return CV_OK;
+}
+
 static const char *pixel_type_name(int t) {
   return t == EXR_PIXEL_HALF ? "half" : t == EXR_PIXEL_FLOAT ? "float" : t == EXR_PIXEL_UINT ? "uint" : "?";
 }
@@ -501,6 +538,7 @@ int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_
                     (long long)w, (long long)h);
     goto done;
   }
+  if ((rc = check_size_against_file(path, r.cl, (int)comp, w, h, err)) != CV_OK) goto done;
   r.width = (int)w;
   r.height = (int)h;
   info->width = r.width;
