@@ -35,6 +35,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_cabin.h"
 #include "bench_util.h"
 #include "mesh/cabin.h"
 #include "prt/bake.h"
@@ -48,43 +49,6 @@
 #define MAXF 64
 #define NV 16
 
-static double now_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-static cv_prt *load_or_bake(void) {
-  const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
-  char path[1024];
-  snprintf(path, sizeof path, "%s/cave_bench_render_t8.prt", tmp);
-  cv_prt *p = NULL;
-  cv_err err;
-  if (cv_prt_read(path, &p, NULL) == CV_OK && p->nt > 500000) return p;
-  cv_prt_destroy(p);
-  p = NULL;
-  cv_cabin_params cp;
-  cv_cabin_default_params(&cp);
-  cp.tess = 8;
-  cv_mesh *m;
-  if (cv_cabin_generate(&cp, &m, &err)) {
-    fprintf(stderr, "cabin: %s\n", err.msg);
-    return NULL;
-  }
-  cv_bake_params bp = {.bands = 5, .rays = 2, .bounces = 1, .seed = 1,
-                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
-  double t0 = now_ms();
-  if (cv_prt_bake(m, &bp, &p, NULL, &err)) {
-    fprintf(stderr, "bake: %s\n", err.msg);
-    cv_mesh_destroy(m);
-    return NULL;
-  }
-  cv_mesh_destroy(m);
-  fprintf(stderr, "baked %zu triangles in %.1f s (2 rays, 1 bounce), cached in %s\n", p->nt,
-          (now_ms() - t0) / 1e3, path);
-  cv_prt_write(path, p, NULL);
-  return p;
-}
 
 int main(int argc, char **argv) {
   int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
@@ -115,7 +79,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
-  cv_prt *prt = load_or_bake();
+  cv_prt *prt = bench_cabin_t8();
   if (!prt) return 1;
   cv_render_opts ro;
   cv_render_default_opts(&ro);
@@ -212,7 +176,7 @@ int main(int argc, char **argv) {
       }
       if (si == 0) {
         /* adaptation statistics of all wall-eyes, as cmd_render.c */
-        double t0 = now_ms();
+        double t0 = bench_now_ms();
         const double ha = 0.5 * cave.foveal_deg * M_PI / 180;
         cv_lumstats acc = {0};
         double lwmax = 0;
@@ -228,7 +192,7 @@ int main(int argc, char **argv) {
         }
         double g;
         cv_lumstats_lwa(&acc, &g);
-        stats_ms[f] = now_ms() - t0;
+        stats_ms[f] = bench_now_ms() - t0;
       }
     }
     double mean[9] = {0}, worst_total = 0, worst_ratio = 0;

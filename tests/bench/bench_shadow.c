@@ -32,6 +32,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_cabin.h"
 #include "bench_util.h"
 #include "mesh/cabin.h"
 #include "prt/bake.h"
@@ -45,42 +46,6 @@
 #define MAXR 32
 #define MAXSUN 8
 
-static double now_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-/* The bench_render cache ($TMPDIR/cave_bench_render_t8.prt), baked here
- * the same way when missing. */
-static cv_prt *load_or_bake(void) {
-  const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
-  char path[1024];
-  snprintf(path, sizeof path, "%s/cave_bench_render_t8.prt", tmp);
-  cv_prt *p = NULL;
-  cv_err err;
-  if (cv_prt_read(path, &p, NULL) == CV_OK && p->nt > 500000) return p;
-  cv_prt_destroy(p);
-  p = NULL;
-  cv_cabin_params cp;
-  cv_cabin_default_params(&cp);
-  cp.tess = 8;
-  cv_mesh *m;
-  if (cv_cabin_generate(&cp, &m, &err)) {
-    fprintf(stderr, "cabin: %s\n", err.msg);
-    return NULL;
-  }
-  cv_bake_params bp = {.bands = 5, .rays = 2, .bounces = 1, .seed = 1,
-                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
-  if (cv_prt_bake(m, &bp, &p, NULL, &err)) {
-    fprintf(stderr, "bake: %s\n", err.msg);
-    cv_mesh_destroy(m);
-    return NULL;
-  }
-  cv_mesh_destroy(m);
-  cv_prt_write(path, p, NULL);
-  return p;
-}
 
 /* stats: the clamp count is read back (as before: always); same_sun: every
  * change repeats the previous sun (the map and split are kept) */
@@ -231,7 +196,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
-  cv_prt *prt = load_or_bake();
+  cv_prt *prt = bench_cabin_t8();
   if (!prt) return 1;
   /* suns: elevation / azimuth (degrees) of a Preetham sky, turbidity 3 */
   const double sun_ea[MAXSUN][2] = {{35, 30}, {20, 100}, {55, 200}, {12, 290},
@@ -286,13 +251,13 @@ int main(int argc, char **argv) {
             fprintf(stderr, "%s\n", err.msg);
             return 1;
           }
-          double w0 = now_ms();
+          double w0 = bench_now_ms();
           if (cv_renderer_set_lighting(R[v], lk, VARIANTS[v].stats ? &ls : NULL, &t, &err)) {
             fprintf(stderr, "%s\n", err.msg);
             return 1;
           }
           T[v][0][n] = t.relight_ms, T[v][1][n] = t.split_ms, T[v][2][n] = t.shadow_ms;
-          T[v][3][n] = now_ms() - w0;
+          T[v][3][n] = bench_now_ms() - w0;
         }
     printf("Per lighting change (%d changes per variant, alternated; medians, [min, max]):\n\n", n);
     printf("| shadow map | relight CPU ms | split CPU ms | shadow map CPU ms | lighting change CPU ms | wall ms |\n");
