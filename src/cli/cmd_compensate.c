@@ -135,7 +135,7 @@ static void out_path(const char *o, const char *suffix, char *buf, size_t n) {
 static double lum(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 typedef struct {
-  double rms, max, lum_all, lum_seam;
+  double rms, max;
 } display_stats;
 
 /* Displayed radiosity for input I and its error against T. */
@@ -154,397 +154,497 @@ static int judge(const cv_scatter_system *s, const float *I, const double *T, do
   return 0;
 }
 
-int cmd_compensate(int argc, char **argv) {
-  const char *display_path = NULL, *out = NULL;
+/* What the command line asks for. */
+typedef struct {
+  const char *display_path, *out;
   const char *img_path[MAX_IMAGES], *right_path[MAX_IMAGES];
-  int n_img = 0, n_right = 0, report = 0, quiet = 0, half = 0, compress = 1;
-  cv_scatter_opts opts;
-  cv_scatter_opts_default(&opts);
-  double drop = -1, seam_budget = 0.01;
+  int n_img, n_right, report, quiet, half;
+  int compress; /* 0 plain, 1 auto, 2 low-rank, 3 direct */
+  cv_scatter_opts solve;
+  double drop, seam_budget;
+} comp_opts;
+
+/* The display and the images to show on it. */
+typedef struct {
+  cv_display *d;
+  size_t ns, n;   /* surfaces, patches */
+  int atlas;      /* one image with the surfaces side by side */
+  int eyes, w0, h0;
+  cv_image *imgs[2][MAX_IMAGES];
+} comp_input;
+
+/* One solve of the display as it is patched now. */
+typedef struct {
+  int direct; /* form factors built compressed, without the dense matrix */
+  cv_ffmatrix *F;
+  cv_hmatrix *H;
+  cv_scatter_system sys;
+  cv_scatter_workspace *ws;
+  cv_scatter_model model;
+  cv_ff_report frep;
+  cv_scatter_stats st;
+  double *R[2];          /* input per patch and eye */
+  float *Tf[2];          /* wanted radiosity per eye */
+  float *I, *I0;         /* projector input: solved, uncompensated */
+  double *T, *B, *delta; /* averaged target, displayed radiosity, I0 - I */
+} comp_solution;
+
+#define COMP_NOMEM() cli_fail("compensate", 1, "out of memory")
+
+/* Returns -1 to go on, else the exit code (0 after --help). */
+static int parse_options(int argc, char **argv, comp_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->compress = 1;
+  o->drop = -1;
+  o->seam_budget = 0.01;
+  cv_scatter_opts_default(&o->solve);
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
     } else if (!strcmp(a, "--report")) {
-      report = 1;
+      o->report = 1;
     } else if (!strcmp(a, "--quiet")) {
-      quiet = 1;
+      o->quiet = 1;
     } else if (!strcmp(a, "--half")) {
-      half = 1;
+      o->half = 1;
     } else if (!strcmp(a, "--seam-budget") && v) {
       i++;
-      if (!strcmp(v, "off")) seam_budget = 0;
-      else if (cli_parse_double(v, &seam_budget) || !(seam_budget > 0 && seam_budget < 1))
+      if (!strcmp(v, "off")) o->seam_budget = 0;
+      else if (cli_parse_double(v, &o->seam_budget) || !(o->seam_budget > 0 && o->seam_budget < 1))
         return cli_fail("compensate", 2, "--seam-budget: expected 0 < E < 1 or off, got '%s'", v);
     } else if (!strcmp(a, "--storage") && v) {
       i++;
-      if (!strcmp(v, "auto")) half = 0, compress = 1;
-      else if (!strcmp(v, "float")) half = 0, compress = 0;
-      else if (!strcmp(v, "half")) half = 1, compress = 0;
-      else if (!strcmp(v, "low-rank")) half = 0, compress = 2;
-      else if (!strcmp(v, "direct")) half = 0, compress = 3;
+      if (!strcmp(v, "auto")) o->half = 0, o->compress = 1;
+      else if (!strcmp(v, "float")) o->half = 0, o->compress = 0;
+      else if (!strcmp(v, "half")) o->half = 1, o->compress = 0;
+      else if (!strcmp(v, "low-rank")) o->half = 0, o->compress = 2;
+      else if (!strcmp(v, "direct")) o->half = 0, o->compress = 3;
       else return cli_fail("compensate", 2, "--storage: expected auto, float, half, low-rank or direct, got '%s'", v);
     } else if (!v) {
       cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
     } else if (!strcmp(a, "--display")) {
-      display_path = argv[++i];
+      o->display_path = argv[++i];
     } else if (!strcmp(a, "-o")) {
-      out = argv[++i];
+      o->out = argv[++i];
     } else if (!strcmp(a, "--image") || !strcmp(a, "--right")) {
-      int *n = a[2] == 'i' ? &n_img : &n_right;
-      const char **list = a[2] == 'i' ? img_path : right_path;
+      int *n = a[2] == 'i' ? &o->n_img : &o->n_right;
+      const char **list = a[2] == 'i' ? o->img_path : o->right_path;
       if (*n == MAX_IMAGES) return cli_fail("compensate", 2, "%s: at most %d images", a, MAX_IMAGES);
       list[(*n)++] = argv[++i];
     } else if (!strcmp(a, "--solver")) {
       const char *s = argv[++i];
-      if (!strcmp(s, "auto")) opts.solver = CV_SCATTER_AUTO;
-      else if (!strcmp(s, "exact")) opts.solver = CV_SCATTER_EXACT;
-      else if (!strcmp(s, "jacobi")) opts.solver = CV_SCATTER_JACOBI;
-      else if (!strcmp(s, "bounded")) opts.solver = CV_SCATTER_BOUNDED;
+      if (!strcmp(s, "auto")) o->solve.solver = CV_SCATTER_AUTO;
+      else if (!strcmp(s, "exact")) o->solve.solver = CV_SCATTER_EXACT;
+      else if (!strcmp(s, "jacobi")) o->solve.solver = CV_SCATTER_JACOBI;
+      else if (!strcmp(s, "bounded")) o->solve.solver = CV_SCATTER_BOUNDED;
       else return cli_fail("compensate", 2, "--solver: expected auto, exact, jacobi or bounded, got '%s'", s);
     } else if (!strcmp(a, "--levels")) {
-      if (cli_parse_int(argv[++i], 1, 64, &opts.levels))
+      if (cli_parse_int(argv[++i], 1, 64, &o->solve.levels))
         return cli_fail("compensate", 2, "--levels: expected 1..64, got '%s'", v);
     } else if (!strcmp(a, "--time-ms")) {
-      if (cli_parse_double(argv[++i], &opts.time_ms) || opts.time_ms <= 0)
+      if (cli_parse_double(argv[++i], &o->solve.time_ms) || o->solve.time_ms <= 0)
         return cli_fail("compensate", 2, "--time-ms: expected a positive number, got '%s'", v);
     } else if (!strcmp(a, "--threshold")) {
-      if (cli_parse_double(argv[++i], &opts.threshold) || opts.threshold <= 0)
+      if (cli_parse_double(argv[++i], &o->solve.threshold) || o->solve.threshold <= 0)
         return cli_fail("compensate", 2, "--threshold: expected a positive number, got '%s'", v);
     } else if (!strcmp(a, "--drop")) {
-      if (cli_parse_double(argv[++i], &drop) || drop < 0 || drop >= 1)
+      if (cli_parse_double(argv[++i], &o->drop) || o->drop < 0 || o->drop >= 1)
         return cli_fail("compensate", 2, "--drop: expected 0 <= F < 1, got '%s'", v);
     } else {
       cli_print_usage(help);
       return cli_fail("compensate", 2, "unknown option '%s'", a);
     }
   }
-  if (!display_path || !out || n_img == 0) {
+  if (!o->display_path || !o->out || o->n_img == 0) {
     cli_print_usage(help);
     return cli_fail("compensate", 2, "--display, at least one --image and -o are required");
   }
-  if (n_right && n_right != n_img)
-    return cli_fail("compensate", 2, "--right: %d images for %d --image", n_right, n_img);
-  if (!cli_has_ext(out, ".exr")) return cli_fail("compensate", 2, "-o: expected an .exr path, got '%s'", out);
-  if (cli_check_output("compensate", "-o", out)) return 1; /* before minutes of work */
+  if (o->n_right && o->n_right != o->n_img)
+    return cli_fail("compensate", 2, "--right: %d images for %d --image", o->n_right, o->n_img);
+  if (!cli_has_ext(o->out, ".exr"))
+    return cli_fail("compensate", 2, "-o: expected an .exr path, got '%s'", o->out);
+  if (cli_check_output("compensate", "-o", o->out)) return 1; /* before minutes of work */
+  return -1;
+}
 
-  int rc = 1;
+/* The display from a display description or a CAVE config. */
+static int load_display(const char *path, cv_display **d) {
   cv_err err;
   cv_err_clear(&err);
-  cv_display *d = NULL;
-  cv_ffmatrix *F = NULL;
-  cv_hmatrix *H = NULL;
-  cv_scatter_workspace *ws = NULL;
-  cv_image *imgs[2][MAX_IMAGES] = {{0}};
-  double *R[2] = {NULL, NULL}, *T = NULL, *B = NULL, *delta = NULL;
-  float *I = NULL, *I0 = NULL, *Tf[2] = {NULL, NULL};
-  if (is_cave_config(display_path)) {
-    /* a CAVE config: the display it describes (its walls and "screens") */
+  if (is_cave_config(path)) { /* its walls and "screens" */
     cv_cave cave;
-    if (cv_cave_load(display_path, &cave, &err)) {
-      rc = cli_fail("compensate", 1, "%s", err.msg);
-      goto done;
-    }
-    if (cv_display_from_cave(&cave, 0, -1, &d, &err)) {
-      rc = cli_fail("compensate", 1, "%s: %s", display_path, err.msg);
-      goto done;
-    }
-  } else if (cv_display_load(display_path, &d, &err)) {
+    if (cv_cave_load(path, &cave, &err)) return cli_fail("compensate", 1, "%s", err.msg);
+    if (cv_display_from_cave(&cave, 0, -1, d, &err))
+      return cli_fail("compensate", 1, "%s: %s", path, err.msg);
+    return 0;
+  }
+  if (cv_display_load(path, d, &err)) {
     char buf[8192];
     int np = 0;
-    cv_display_validate_all(display_path, buf, sizeof buf, &np);
+    cv_display_validate_all(path, buf, sizeof buf, &np);
     if (np > 1) fputs(buf, stderr);
-    rc = cli_fail("compensate", 1, "%s", err.msg);
-    goto done;
+    return cli_fail("compensate", 1, "%s", err.msg);
   }
-  const size_t ns = cv_display_surface_count(d), n = cv_display_patch_count(d);
-  const int atlas = n_img == 1 && ns > 1;
-  if (!atlas && (size_t)n_img != ns) {
-    rc = cli_fail("compensate", 2, "%s has %zu surfaces: give one --image per surface or one atlas, not %d",
-                  display_path, ns, n_img);
-    goto done;
+  return 0;
+}
+
+/* The display and every image, checked against each other. */
+static int load_inputs(const comp_opts *o, comp_input *in) {
+  int rc = load_display(o->display_path, &in->d);
+  if (rc) return rc;
+  in->ns = cv_display_surface_count(in->d);
+  in->n = cv_display_patch_count(in->d);
+  in->atlas = o->n_img == 1 && in->ns > 1;
+  if (!in->atlas && (size_t)o->n_img != in->ns)
+    return cli_fail("compensate", 2,
+                    "%s has %zu surfaces: give one --image per surface or one atlas, not %d",
+                    o->display_path, in->ns, o->n_img);
+  in->eyes = o->n_right ? 2 : 1;
+  cv_err err;
+  cv_err_clear(&err);
+  for (int e = 0; e < in->eyes; e++)
+    for (int k = 0; k < o->n_img; k++)
+      if (cv_exr_read(e ? o->right_path[k] : o->img_path[k], &in->imgs[e][k], &err))
+        return cli_fail("compensate", 1, "%s", err.msg);
+  for (int e = 0; e < in->eyes; e++)
+    for (int k = 0; k < o->n_img; k++) warn_range(e ? o->right_path[k] : o->img_path[k], in->imgs[e][k]);
+  in->w0 = in->imgs[0][0]->w;
+  in->h0 = in->imgs[0][0]->h;
+  if (in->atlas && in->w0 % (int)in->ns)
+    return cli_fail("compensate", 1, "%s: atlas width %d is not a multiple of %zu surfaces",
+                    o->img_path[0], in->w0, in->ns);
+  return 0;
+}
+
+static void input_free(comp_input *in) {
+  for (int e = 0; e < 2; e++)
+    for (int k = 0; k < MAX_IMAGES; k++) cv_image_destroy(in->imgs[e][k]);
+  cv_display_destroy(in->d);
+}
+
+/* Surface k's image of eye e: the image itself, or a copy of its atlas
+ * column (the image type has no stride); *copied says which. */
+static int surface_image(const comp_input *in, int e, size_t k, cv_image **part, int *copied) {
+  cv_image *src = in->imgs[e][in->atlas ? 0 : k];
+  *copied = in->atlas;
+  if (!in->atlas) {
+    *part = src;
+    return 0;
   }
-  const int eyes = n_right ? 2 : 1;
-  for (int e = 0; e < eyes; e++)
-    for (int k = 0; k < n_img; k++)
-      if (cv_exr_read(e ? right_path[k] : img_path[k], &imgs[e][k], &err)) {
-        rc = cli_fail("compensate", 1, "%s", err.msg);
-        goto done;
-      }
-  for (int e = 0; e < eyes; e++)
-    for (int k = 0; k < n_img; k++) warn_range(e ? right_path[k] : img_path[k], imgs[e][k]);
-  /* Per surface views into the inputs (atlas: equal-width columns). */
-  int w0 = imgs[0][0]->w, h0 = imgs[0][0]->h;
-  if (atlas && w0 % (int)ns) {
-    rc = cli_fail("compensate", 1, "%s: atlas width %d is not a multiple of %zu surfaces",
-                  img_path[0], w0, ns);
-    goto done;
+  const int cw = in->w0 / (int)in->ns;
+  if (cv_image_create(cw, in->h0, 3, part)) return -1;
+  for (int y = 0; y < in->h0; y++)
+    memcpy(cv_image_at(*part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
+  return 0;
+}
+
+static void solution_free(comp_solution *s) {
+  for (int e = 0; e < 2; e++) {
+    free(s->R[e]);
+    free(s->Tf[e]);
   }
-  /* Seam refinement rounds: patches graded ever more strongly towards the
-   * seams while the estimated seam error exceeds the budget. */
-  static const double grading[] = {3, 8, 20};
-  int refine_round = 0;
-  cv_seam_estimate seam_est;
-  memset(&seam_est, 0, sizeof seam_est);
-refine_again:
-  for (int e = 0; e < eyes; e++) {
-    R[e] = calloc(3 * n, sizeof(double));
-    if (!R[e]) goto nomem;
-    for (size_t k = 0; k < ns; k++) {
-      const cv_display_surface *S = cv_display_surface_at(d, k);
-      cv_image *src = imgs[e][atlas ? 0 : k], *part = src;
-      if (atlas) { /* copy the column: the image type has no stride */
-        int cw = w0 / (int)ns;
-        if (cv_image_create(cw, h0, 3, &part)) goto nomem;
-        for (int y = 0; y < h0; y++)
-          memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
-      }
-      if (cv_downsample_to_patches(part, S->nu, S->nv, S->edge_u, S->edge_v, R[e] + 3 * S->offset)) goto nomem;
-      if (atlas) cv_image_destroy(part);
+  free(s->I);
+  free(s->I0);
+  free(s->T);
+  free(s->B);
+  free(s->delta);
+  cv_scatter_workspace_destroy(s->ws);
+  cv_ffmatrix_destroy(s->F);
+  cv_hmatrix_destroy(s->H);
+  memset(s, 0, sizeof *s);
+}
+
+/* Every eye's images down-sampled to the display's patches. */
+static int downsample_inputs(const comp_input *in, comp_solution *s) {
+  for (int e = 0; e < in->eyes; e++) {
+    if (!(s->R[e] = calloc(3 * in->n, sizeof(double)))) return COMP_NOMEM();
+    for (size_t k = 0; k < in->ns; k++) {
+      const cv_display_surface *S = cv_display_surface_at(in->d, k);
+      cv_image *part;
+      int copied, bad;
+      if (surface_image(in, e, k, &part, &copied)) return COMP_NOMEM();
+      bad = cv_downsample_to_patches(part, S->nu, S->nv, S->edge_u, S->edge_v, s->R[e] + 3 * S->offset);
+      if (copied) cv_image_destroy(part);
+      if (bad) return COMP_NOMEM();
     }
   }
-  /* Form factors and the system. */
+  return 0;
+}
+
+/* Form factors (dense and sparsified, or compressed from the display), the
+ * scattering system and the workspace its products use. */
+static int build_system(const comp_opts *o, const comp_input *in, comp_solution *s) {
+  cv_err err;
+  cv_err_clear(&err);
   cv_ff_params fp;
   cv_ff_params_default(&fp);
-  fp.quiet = quiet;
-  if (drop >= 0) fp.drop_budget = drop;
-  cv_ff_report frep;
-  memset(&frep, 0, sizeof frep);
-  const int direct = compress == 3 || (compress == 1 && !half && dense_too_big(n));
-  cv_scatter_system sys;
-  if (direct) {
+  fp.quiet = o->quiet;
+  if (o->drop >= 0) fp.drop_budget = o->drop;
+  s->direct = o->compress == 3 || (o->compress == 1 && !o->half && dense_too_big(in->n));
+  if (s->direct) {
     cv_hmatrix_direct_params hp;
     cv_hmatrix_direct_params_default(&hp);
-    hp.quiet = quiet;
+    hp.quiet = o->quiet;
     const double t_ff = cv_now_seconds();
-    if (cv_hmatrix_build_direct(d, &fp, &hp, &H, NULL, &err)) {
-      rc = cli_fail("compensate", 1, "%s", err.msg);
-      goto done;
-    }
-    frep.seconds = cv_now_seconds() - t_ff;
-    cv_display_scatter_system(d, NULL, &sys);
-    sys.H = H;
+    if (cv_hmatrix_build_direct(in->d, &fp, &hp, &s->H, NULL, &err))
+      return cli_fail("compensate", 1, "%s", err.msg);
+    s->frep.seconds = cv_now_seconds() - t_ff;
+    cv_display_scatter_system(in->d, NULL, &s->sys);
+    s->sys.H = s->H;
   } else {
-    if (cv_formfactors_build(d, &fp, &F, &frep, &err)) {
-      rc = cli_fail("compensate", 1, "%s", err.msg);
-      goto done;
-    }
-    cv_display_scatter_system(d, F, &sys);
+    if (cv_formfactors_build(in->d, &fp, &s->F, &s->frep, &err))
+      return cli_fail("compensate", 1, "%s", err.msg);
+    cv_display_scatter_system(in->d, s->F, &s->sys);
   }
-  if (cv_scatter_workspace_create_ex(&sys, (half ? CV_SCATTER_WS_HALF : 0) | (compress ? CV_SCATTER_WS_COMPRESS : 0), &ws, &err)) {
-    rc = cli_fail("compensate", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_scatter_model model;
-  cv_scatter_workspace_get_model(ws, &model);
-  if (compress == 2 && strcmp(model.storage, "block low-rank"))
+  const int flags = (o->half ? CV_SCATTER_WS_HALF : 0) | (o->compress ? CV_SCATTER_WS_COMPRESS : 0);
+  if (cv_scatter_workspace_create_ex(&s->sys, flags, &s->ws, &err))
+    return cli_fail("compensate", 1, "%s", err.msg);
+  cv_scatter_workspace_get_model(s->ws, &s->model);
+  if (o->compress == 2 && strcmp(s->model.storage, "block low-rank"))
     fprintf(stderr, "cave compensate: --storage low-rank: the compressed form (%.1f MB) does not pay "
-            "against %.1f MB plain; using %s\n", model.compressed_bytes / 1e6, model.source_bytes / 1e6,
-            model.storage);
-  /* Wanted radiosity: what the images show without scattering. */
-  for (int e = 0; e < eyes; e++) {
-    Tf[e] = malloc(3 * n * sizeof(float));
-    if (!Tf[e]) goto nomem;
+            "against %.1f MB plain; using %s\n", s->model.compressed_bytes / 1e6,
+            s->model.source_bytes / 1e6, s->model.storage);
+  return 0;
+}
+
+/* Wanted radiosity per eye, the solve, and the (eye-averaged) input, target
+ * and correction at patch resolution. */
+static int solve_patches(const comp_opts *o, const comp_input *in, comp_solution *s) {
+  const size_t n = in->n;
+  const cv_scatter_system *sys = &s->sys;
+  for (int e = 0; e < in->eyes; e++) { /* what the images show without scattering */
+    if (!(s->Tf[e] = malloc(3 * n * sizeof(float)))) return COMP_NOMEM();
     for (size_t i = 0; i < n; i++)
       for (int c = 0; c < 3; c++)
-        Tf[e][3 * i + c] = (float)(sys.proj[i] * sys.refl[3 * i + c] * R[e][3 * i + c] +
-                                   sys.env[3 * i + c] * sys.refl[3 * i + c]);
+        s->Tf[e][3 * i + c] = (float)(sys->proj[i] * sys->refl[3 * i + c] * s->R[e][3 * i + c] +
+                                      sys->env[3 * i + c] * sys->refl[3 * i + c]);
   }
-  I = malloc(3 * n * sizeof(float));
-  I0 = malloc(3 * n * sizeof(float));
-  T = malloc(3 * n * sizeof(double));
-  B = malloc(3 * n * sizeof(double));
-  delta = malloc(3 * n * sizeof(double));
-  if (!I || !I0 || !T || !B || !delta) goto nomem;
-  cv_scatter_stats st;
-  int srt = eyes == 2 ? cv_scatter_solve_stereo(ws, Tf[0], Tf[1], &opts, I, &st, &err)
-                      : cv_scatter_solve(ws, Tf[0], &opts, I, &st, &err);
-  if (srt) {
-    rc = cli_fail("compensate", 1, "%s", err.msg);
-    goto done;
-  }
-  /* The (averaged) input and target at patch resolution. */
+  s->I = malloc(3 * n * sizeof(float));
+  s->I0 = malloc(3 * n * sizeof(float));
+  s->T = malloc(3 * n * sizeof(double));
+  s->B = malloc(3 * n * sizeof(double));
+  s->delta = malloc(3 * n * sizeof(double));
+  if (!s->I || !s->I0 || !s->T || !s->B || !s->delta) return COMP_NOMEM();
+  cv_err err;
+  cv_err_clear(&err);
+  int bad = in->eyes == 2 ? cv_scatter_solve_stereo(s->ws, s->Tf[0], s->Tf[1], &o->solve, s->I, &s->st, &err)
+                          : cv_scatter_solve(s->ws, s->Tf[0], &o->solve, s->I, &s->st, &err);
+  if (bad) return cli_fail("compensate", 1, "%s", err.msg);
   for (size_t k = 0; k < 3 * n; k++) {
-    double r = eyes == 2 ? 0.5 * (R[0][k] + R[1][k]) : R[0][k];
-    I0[k] = (float)r;
-    T[k] = eyes == 2 ? 0.5 * ((double)Tf[0][k] + Tf[1][k]) : Tf[0][k];
-    delta[k] = r - I[k];
+    double r = in->eyes == 2 ? 0.5 * (s->R[0][k] + s->R[1][k]) : s->R[0][k];
+    s->I0[k] = (float)r;
+    s->T[k] = in->eyes == 2 ? 0.5 * ((double)s->Tf[0][k] + s->Tf[1][k]) : s->Tf[0][k];
+    s->delta[k] = r - s->I[k];
   }
-  if (seam_budget > 0 && ns > 1) {
-    if (cv_seam_estimate_error(d, delta, 0.5, &seam_est)) goto nomem;
-    if (!quiet)
-      printf("seam error estimate of the up-sampled correction within 0.5 m of a seam: RMS %.4f, "
-             "max %.4f (budget %.4f RMS)%s\n", seam_est.seam_rms, seam_est.seam_max, seam_budget,
-             refine_round ? " after grading" : "");
-    int nr = 0;
-    if (seam_est.seam_rms > seam_budget && refine_round < 3) {
-      if (cv_display_refine_seams(d, grading[refine_round], 0.15, &nr)) goto nomem;
-      if (nr) {
-        if (!quiet)
-          printf("  over budget: patches graded towards the seams (strength %g, width 0.15), "
-                 "solving again\n", grading[refine_round]);
-        refine_round++;
-        for (int e = 0; e < 2; e++) {
-          free(R[e]);
-          free(Tf[e]);
-          R[e] = NULL;
-          Tf[e] = NULL;
-        }
-        free(I);
-        free(I0);
-        free(T);
-        free(B);
-        free(delta);
-        I = I0 = NULL;
-        T = B = delta = NULL;
-        cv_scatter_workspace_destroy(ws);
-        ws = NULL;
-        cv_ffmatrix_destroy(F);
-        F = NULL;
-        cv_hmatrix_destroy(H);
-        H = NULL;
-        goto refine_again;
-      }
-    }
-  }
-  /* Full resolution: equation 7 per surface and eye. */
-  uint64_t clamped = 0;
-  for (int e = 0; e < eyes; e++) {
+  return 0;
+}
+
+static int solve_display(const comp_opts *o, const comp_input *in, comp_solution *s) {
+  int rc = downsample_inputs(in, s);
+  if (!rc) rc = build_system(o, in, s);
+  if (!rc) rc = solve_patches(o, in, s);
+  return rc;
+}
+
+/* Seam refinement: while the estimated error of the up-sampled correction
+ * near the seams exceeds the budget (up to 3 rounds), the patches are graded
+ * ever more strongly towards the seams.  Sets *again when it re-patched. */
+static int refine_seams(const comp_opts *o, const comp_input *in, const comp_solution *s, int *round,
+                        cv_seam_estimate *est, int *again) {
+  static const double grading[] = {3, 8, 20};
+  *again = 0;
+  if (!(o->seam_budget > 0 && in->ns > 1)) return 0;
+  if (cv_seam_estimate_error(in->d, s->delta, 0.5, est)) return COMP_NOMEM();
+  if (!o->quiet)
+    printf("seam error estimate of the up-sampled correction within 0.5 m of a seam: RMS %.4f, "
+           "max %.4f (budget %.4f RMS)%s\n", est->seam_rms, est->seam_max, o->seam_budget,
+           *round ? " after grading" : "");
+  if (!(est->seam_rms > o->seam_budget && *round < 3)) return 0;
+  int nr = 0;
+  if (cv_display_refine_seams(in->d, grading[*round], 0.15, &nr)) return COMP_NOMEM();
+  if (!nr) return 0;
+  if (!o->quiet)
+    printf("  over budget: patches graded towards the seams (strength %g, width 0.15), "
+           "solving again\n", grading[*round]);
+  (*round)++;
+  *again = 1;
+  return 0;
+}
+
+static int write_exr(const char *path, const cv_image *im, int quiet) {
+  cv_err err;
+  cv_err_clear(&err);
+  if (cv_exr_write(path, im, 1, CV_EXR_ZIP, &err)) return cli_fail("compensate", 1, "%s", err.msg);
+  if (!quiet) printf("wrote %s\n", path);
+  return 0;
+}
+
+/* Full resolution: the paper's equation 7 per surface and eye, written as
+ * one atlas per eye or one image per surface.  Counts the clamped channels. */
+static int write_outputs(const comp_opts *o, const comp_input *in, const comp_solution *s,
+                         uint64_t *clamped) {
+  for (int e = 0; e < in->eyes; e++) {
+    const char *eye = in->eyes == 2 ? (e ? "_right" : "_left") : "";
     cv_image *res = NULL;
-    if (atlas && cv_image_create(w0, h0, 3, &res)) goto nomem;
-    for (size_t k = 0; k < ns; k++) {
-      const cv_display_surface *S = cv_display_surface_at(d, k);
-      cv_image *src = imgs[e][atlas ? 0 : k], *part = src, *o;
-      int cw = atlas ? w0 / (int)ns : src->w;
-      if (atlas) {
-        if (cv_image_create(cw, h0, 3, &part)) goto nomem;
-        for (int y = 0; y < h0; y++)
-          memcpy(cv_image_at(part, 0, y), cv_image_at(src, (int)k * cw, y), 3 * cw * sizeof(float));
+    if (in->atlas && cv_image_create(in->w0, in->h0, 3, &res)) return COMP_NOMEM();
+    for (size_t k = 0; k < in->ns; k++) {
+      const cv_display_surface *S = cv_display_surface_at(in->d, k);
+      cv_image *part, *im;
+      int copied, rc = 0;
+      if (surface_image(in, e, k, &part, &copied)) {
+        cv_image_destroy(res);
+        return COMP_NOMEM();
       }
-      if (cv_image_create(part->w, part->h, 3, &o)) goto nomem;
-      clamped += cv_apply_patch_delta(part, delta + 3 * S->offset, S->nu, S->nv, S->edge_u,
-                                      S->edge_v, o);
-      if (atlas) {
-        for (int y = 0; y < h0; y++)
-          memcpy(cv_image_at(res, (int)k * cw, y), cv_image_at(o, 0, y), 3 * cw * sizeof(float));
-        cv_image_destroy(part);
+      if (cv_image_create(part->w, part->h, 3, &im)) {
+        if (copied) cv_image_destroy(part);
+        cv_image_destroy(res);
+        return COMP_NOMEM();
+      }
+      *clamped += cv_apply_patch_delta(part, s->delta + 3 * S->offset, S->nu, S->nv, S->edge_u,
+                                       S->edge_v, im);
+      if (in->atlas) {
+        for (int y = 0; y < in->h0; y++)
+          memcpy(cv_image_at(res, (int)k * part->w, y), cv_image_at(im, 0, y), 3 * part->w * sizeof(float));
       } else {
         char path[1200], suffix[100];
-        snprintf(suffix, sizeof suffix, "%s%s%s", ns > 1 ? "_" : "", ns > 1 ? S->name : "",
-                 eyes == 2 ? (e ? "_right" : "_left") : "");
-        out_path(out, suffix, path, sizeof path);
-        if (cv_exr_write(path, o, 1, CV_EXR_ZIP, &err)) {
-          cv_image_destroy(o);
-          rc = cli_fail("compensate", 1, "%s", err.msg);
-          goto done;
-        }
-        if (!quiet) printf("wrote %s\n", path);
+        snprintf(suffix, sizeof suffix, "%s%s%s", in->ns > 1 ? "_" : "", in->ns > 1 ? S->name : "", eye);
+        out_path(o->out, suffix, path, sizeof path);
+        rc = write_exr(path, im, o->quiet);
       }
-      cv_image_destroy(o);
+      cv_image_destroy(im);
+      if (copied) cv_image_destroy(part);
+      if (rc) {
+        cv_image_destroy(res);
+        return rc;
+      }
     }
-    if (atlas) {
+    if (in->atlas) {
       char path[1200];
-      out_path(out, eyes == 2 ? (e ? "_right" : "_left") : "", path, sizeof path);
-      int wst = cv_exr_write(path, res, 1, CV_EXR_ZIP, &err);
+      out_path(o->out, eye, path, sizeof path);
+      int rc = write_exr(path, res, o->quiet);
       cv_image_destroy(res);
-      if (wst) {
-        rc = cli_fail("compensate", 1, "%s", err.msg);
-        goto done;
-      }
-      if (!quiet) printf("wrote %s\n", path);
+      if (rc) return rc;
     }
   }
-  if (!quiet && direct)
+  return 0;
+}
+
+static void print_summary(const comp_input *in, const comp_solution *s, uint64_t clamped) {
+  if (s->direct)
     printf("compensate: %zu patches, form factors built compressed (%.1f MB, %.1f s), solver %s, "
            "%d iterations, %.2f ms; %llu pixel channels clamped by equation 7\n",
-           n, model.bytes / 1e6, frep.seconds, cv_scatter_solver_name(st.solver), st.iterations,
-           st.ms, (unsigned long long)clamped);
-  else if (!quiet)
+           in->n, s->model.bytes / 1e6, s->frep.seconds, cv_scatter_solver_name(s->st.solver),
+           s->st.iterations, s->st.ms, (unsigned long long)clamped);
+  else
     printf("compensate: %zu patches, %zu form factors (%.2f%% of the energy dropped), solver %s, "
            "%d iterations, %.2f ms; %llu pixel channels clamped by equation 7\n",
-           n, frep.nnz, 100 * frep.dropped_total, cv_scatter_solver_name(st.solver), st.iterations,
-           st.ms, (unsigned long long)clamped);
-  if (report) {
-    display_stats un, co;
-    double *Bu = malloc(3 * n * sizeof(double));
-    if (!Bu || judge(&sys, I0, T, Bu, &un) || judge(&sys, I, T, B, &co)) {
-      free(Bu);
-      rc = cli_fail("compensate", 1, "the display physics did not converge");
-      goto done;
+           in->n, s->frep.nnz, 100 * s->frep.dropped_total, cv_scatter_solver_name(s->st.solver),
+           s->st.iterations, s->st.ms, (unsigned long long)clamped);
+}
+
+/* Luminance compensated = (uncompensated - compensated) / uncompensated,
+ * area-weighted, over all patches and over those within 0.5 m of another
+ * surface (the seams); *peak is the most compensated patch's share. */
+typedef struct {
+  double all_u, all_c, seam_u, seam_c, peak;
+  size_t seam_n;
+} lum_compensated;
+
+static void luminance_compensated(const cv_display *d, size_t n, const double *Bu, const double *Bc,
+                                  lum_compensated *r) {
+  memset(r, 0, sizeof *r);
+  for (size_t i = 0; i < n; i++) {
+    const cv_patch *p = cv_display_patch(d, i);
+    double a = p->area, yu = a * lum(Bu + 3 * i), yc = a * lum(Bc + 3 * i);
+    r->all_u += yu;
+    r->all_c += yc;
+    if (yu > 0 && (yu - yc) / yu > r->peak) r->peak = (yu - yc) / yu;
+    int near = 0;
+    for (size_t j = 0; j < n && !near; j++) {
+      const cv_patch *q = cv_display_patch(d, j);
+      if (q->surface == p->surface) continue;
+      double dx = p->c[0] - q->c[0], dy = p->c[1] - q->c[1], dz = p->c[2] - q->c[2];
+      near = dx * dx + dy * dy + dz * dz < 0.25;
     }
-    /* Luminance compensated = (uncompensated - compensated) / uncompensated,
-     * area-weighted, over all patches and over those within 0.5 m of
-     * another surface (the seams). */
-    double all_u = 0, all_c = 0, seam_u = 0, seam_c = 0, peak = 0;
-    size_t seam_n = 0;
-    for (size_t i = 0; i < n; i++) {
-      const cv_patch *p = cv_display_patch(d, i);
-      double a = p->area, yu = a * lum(Bu + 3 * i), yc = a * lum(B + 3 * i);
-      all_u += yu;
-      all_c += yc;
-      if (yu > 0 && (yu - yc) / yu > peak) peak = (yu - yc) / yu;
-      int near = 0;
-      for (size_t j = 0; j < n && !near; j++) {
-        const cv_patch *q = cv_display_patch(d, j);
-        if (q->surface == p->surface) continue;
-        double dx = p->c[0] - q->c[0], dy = p->c[1] - q->c[1], dz = p->c[2] - q->c[2];
-        near = dx * dx + dy * dy + dz * dz < 0.25;
-      }
-      if (near) {
-        seam_u += yu;
-        seam_c += yc;
-        seam_n++;
-      }
+    if (near) {
+      r->seam_u += yu;
+      r->seam_c += yc;
+      r->seam_n++;
     }
+  }
+}
+
+static double share(double u, double c) { return u > 0 ? 100 * (u - c) / u : 0.0; }
+
+/* --report: displayed error without and with compensation, luminance
+ * compensated, the solver, seam refinement, storage and form factors. */
+static int print_report(const comp_opts *o, const comp_input *in, comp_solution *s, int refine_round,
+                        const cv_seam_estimate *seam_est) {
+  display_stats un, co;
+  double *Bu = malloc(3 * in->n * sizeof(double));
+  if (!Bu || judge(&s->sys, s->I0, s->T, Bu, &un) || judge(&s->sys, s->I, s->T, s->B, &co)) {
     free(Bu);
-    printf("report (radiosity units; wanted = what the images show without scattering):\n");
-    printf("  %-14s displayed RMS error %.5f, max %.5f\n", "uncompensated", un.rms, un.max);
-    printf("  %-14s displayed RMS error %.5f, max %.5f\n", "compensated", co.rms, co.max);
-    if (seam_n)
-      printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches), "
-             "%.2f%% on the most compensated patch\n",
-             all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0,
-             seam_u > 0 ? 100 * (seam_u - seam_c) / seam_u : 0.0, seam_n, 100 * peak);
-    else
-      printf("  luminance compensated: %.2f%% overall (no seams: a single surface)\n",
-             all_u > 0 ? 100 * (all_u - all_c) / all_u : 0.0);
-    printf("  solver %s%s, %d iterations, %zu clipped patches (%zu channels), spectral radius %.4f, "
-           "%.2f ms\n",
-           cv_scatter_solver_name(st.solver), st.stereo ? " (stereo average)" : "", st.iterations,
-           st.clipped_patches, st.clipped_channels, st.rho, st.ms);
-    if (seam_budget > 0 && ns > 1)
-      printf("  seam refinement: %s (estimated seam RMS %.4f, budget %.4f)\n",
-             refine_round ? "graded towards the seams" : "not needed", seam_est.seam_rms, seam_budget);
-    printf("  storage of K: %s, %.2f MB read per product (plain %.2f MB), product error <= %.2e x max|x|\n",
-           model.storage, model.bytes / 1e6, model.source_bytes / 1e6, model.error_bound);
-    if (direct)
-      printf("  form factors: built compressed from the display (no dense matrix), %.2f s; "
-             "row error estimated <= %.2e of the row\n",
-             frep.seconds, model.compress_info.max_rel_row_error);
-    else
-      printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
-             frep.nnz, frep.nnz_full, 100 * frep.dropped_total, 100 * frep.dropped_max, frep.seconds);
+    return cli_fail("compensate", 1, "the display physics did not converge");
   }
-  rc = 0;
-  goto done;
-nomem:
-  rc = cli_fail("compensate", 1, "out of memory");
-done:
-  for (int e = 0; e < 2; e++) {
-    for (int k = 0; k < MAX_IMAGES; k++) cv_image_destroy(imgs[e][k]);
-    free(R[e]);
-    free(Tf[e]);
+  lum_compensated lc;
+  luminance_compensated(in->d, in->n, Bu, s->B, &lc);
+  free(Bu);
+  const cv_scatter_stats *st = &s->st;
+  printf("report (radiosity units; wanted = what the images show without scattering):\n");
+  printf("  %-14s displayed RMS error %.5f, max %.5f\n", "uncompensated", un.rms, un.max);
+  printf("  %-14s displayed RMS error %.5f, max %.5f\n", "compensated", co.rms, co.max);
+  if (lc.seam_n)
+    printf("  luminance compensated: %.2f%% overall, %.2f%% within 0.5 m of a seam (%zu patches), "
+           "%.2f%% on the most compensated patch\n",
+           share(lc.all_u, lc.all_c), share(lc.seam_u, lc.seam_c), lc.seam_n, 100 * lc.peak);
+  else
+    printf("  luminance compensated: %.2f%% overall (no seams: a single surface)\n",
+           share(lc.all_u, lc.all_c));
+  printf("  solver %s%s, %d iterations, %zu clipped patches (%zu channels), spectral radius %.4f, "
+         "%.2f ms\n",
+         cv_scatter_solver_name(st->solver), st->stereo ? " (stereo average)" : "", st->iterations,
+         st->clipped_patches, st->clipped_channels, st->rho, st->ms);
+  if (o->seam_budget > 0 && in->ns > 1)
+    printf("  seam refinement: %s (estimated seam RMS %.4f, budget %.4f)\n",
+           refine_round ? "graded towards the seams" : "not needed", seam_est->seam_rms, o->seam_budget);
+  printf("  storage of K: %s, %.2f MB read per product (plain %.2f MB), product error <= %.2e x max|x|\n",
+         s->model.storage, s->model.bytes / 1e6, s->model.source_bytes / 1e6, s->model.error_bound);
+  if (s->direct)
+    printf("  form factors: built compressed from the display (no dense matrix), %.2f s; "
+           "row error estimated <= %.2e of the row\n",
+           s->frep.seconds, s->model.compress_info.max_rel_row_error);
+  else
+    printf("  form factors: %zu of %zu kept, %.3f%% of the energy dropped (worst row %.3f%%), %.2f s\n",
+           s->frep.nnz, s->frep.nnz_full, 100 * s->frep.dropped_total, 100 * s->frep.dropped_max,
+           s->frep.seconds);
+  return 0;
+}
+
+int cmd_compensate(int argc, char **argv) {
+  comp_opts o;
+  int rc = parse_options(argc, argv, &o);
+  if (rc >= 0) return rc;
+  comp_input in;
+  comp_solution s;
+  memset(&in, 0, sizeof in);
+  memset(&s, 0, sizeof s);
+  int refine_round = 0, again = 1;
+  cv_seam_estimate seam_est;
+  memset(&seam_est, 0, sizeof seam_est);
+  uint64_t clamped = 0;
+  rc = load_inputs(&o, &in);
+  while (!rc && again) { /* solve; re-patch towards the seams while over budget */
+    solution_free(&s);
+    rc = solve_display(&o, &in, &s);
+    if (!rc) rc = refine_seams(&o, &in, &s, &refine_round, &seam_est, &again);
   }
-  free(I);
-  free(I0);
-  free(T);
-  free(B);
-  free(delta);
-  cv_scatter_workspace_destroy(ws);
-  cv_ffmatrix_destroy(F);
-  cv_hmatrix_destroy(H);
-  cv_display_destroy(d);
+  if (!rc) rc = write_outputs(&o, &in, &s, &clamped);
+  if (!rc && !o.quiet) print_summary(&in, &s, clamped);
+  if (!rc && o.report) rc = print_report(&o, &in, &s, refine_round, &seam_est);
+  solution_free(&s);
+  input_free(&in);
   return rc;
 }
