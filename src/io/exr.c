@@ -523,7 +523,7 @@ int cv_exr_read_with(const char *path, const cv_exr_guard *g, cv_image **out,
   memset(&r, 0, sizeof r);
   r.path = path;
   r.info = info;
-  r.stream.fd = open(path, O_RDONLY | O_CLOEXEC);
+  r.stream.fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK); /* a FIFO must not block the open */
   if (r.stream.fd < 0)
     return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
   struct stat sb;
