@@ -19,6 +19,11 @@
  *    AddressSanitizer, which reserves terabytes of address space for its
  *    shadow memory (cv_child_memory_limit_applies() says which).
  *
+ * Call it from one thread at a time: a child forked meanwhile by another
+ * thread would hold this call's pipe open and delay its end until that
+ * child ends.  Only the calling thread exists in the child, so the function
+ * must not wait for work of other threads (locks they held at the fork).
+ *
  * The child ends with _exit, not exit: atexit handlers of the parent
  * (libFuzzer's "fuzz target exited" among them) must not run in it.  Under
  * AddressSanitizer LeakSanitizer checks the child before it ends. */
