@@ -98,7 +98,8 @@ static void test_time_limit(void **state) {
     assert_int_equal(cv_child_error(&res, &lim, &k_lab, &err), CV_ERR_RANGE);
     print_message("%s\n", err.msg);
     assert_one_line(&err);
-    assert_non_null(strstr(err.msg, "stopped after 1.0 s: time limit 1 s hit (TEST_TIMEOUT sets it)"));
+    assert_non_null(strstr(err.msg, "stopped after ")); /* 1.0 s, more on a loaded machine */
+    assert_non_null(strstr(err.msg, " s: time limit 1 s hit (TEST_TIMEOUT sets it)"));
     cv_child_result_free(&res);
     assert_no_child();
   }

@@ -151,8 +151,8 @@ static void test_time_limit(void **state) {
   const cv_exr_window win = {0, 0, 4, 4};
   assert_int_equal(cv_exr_imf_decode(fifo, &win, 96, px, &g, &err), CV_ERR_RANGE);
   print_message("%s\n", err.msg);
-  assert_non_null(strstr(err.msg, "blocked.exr: EXR decode stopped after 1.0 s: time limit 1 s hit "
-                                  "(CAVE_EXR_TIMEOUT sets it)"));
+  assert_non_null(strstr(err.msg, "blocked.exr: EXR decode stopped after ")); /* 1.0 s, more if loaded */
+  assert_non_null(strstr(err.msg, " s: time limit 1 s hit (CAVE_EXR_TIMEOUT sets it)"));
   cv_exr_rgba_free(px, 4, 4);
   unlink(fifo);
   assert_no_child();
