@@ -212,6 +212,20 @@ static int read_cstring(int fd, int64_t size, int64_t *off, char *s, size_t n) {
   return 0;
 }
 
+/* Bytes a channel list at off takes when read the way OpenEXR's C++
+ * library reads it - entries (name, NUL, 16 bytes) up to an empty name,
+ * whatever the declared size - or -1 when the file ends first. */
+static int64_t chlist_extent(int fd, int64_t size, int64_t off) {
+  const int64_t start = off;
+  char name[257];
+  for (;;) {
+    if (read_cstring(fd, size, &off, name, sizeof name)) return -1;
+    if (!name[0]) return off - start;
+    off += 16; /* pixel type, pLinear and reserved, x and y sampling */
+    if (off > size) return -1;
+  }
+}
+
 /* Walks the (first) header's attributes - name, type, 4-byte size, value -
  * and refuses one whose declared size is more than the file holds after it,
  * before OpenEXR's C++ library would try to read it (libFuzzer found a
@@ -241,6 +255,17 @@ static int check_attribute_sizes(const char *path, int fd, int64_t size, cv_err 
                         path, cv_json_key_show(name, shown, sizeof shown),
                         cv_json_key_show(type, tshown, sizeof tshown), (long)decl,
                         (long long)(size - off));
+    }
+    if (strcmp(type, "chlist") == 0) {
+      /* the Core skips the declared size, the C++ library reads to the
+       * list's end: where they differ, the two see different headers */
+      int64_t ext = chlist_extent(fd, size, off);
+      if (ext != decl)
+        return cv_err_set(err, CV_ERR_FORMAT,
+                          "%s: header attribute '%s' (chlist) declares %ld bytes, its channel list "
+                          "takes %lld",
+                          path, cv_json_key_show(name, shown, sizeof shown), (long)decl,
+                          (long long)ext);
     }
     off += decl;
   }
@@ -421,7 +446,7 @@ static int store_chunk(exr_reader *r, int x0, int y0, int cw, int chh, cv_err *e
 static int read_via_imf(exr_reader *r, const cv_exr_guard *g, double raw_bytes, cv_err *err) {
   const size_t w = (size_t)r->width, h = (size_t)r->height;
   uint16_t *buf = cv_exr_rgba_alloc(w, h);
-  if (!buf) return CV_ERR_NOMEM;
+  if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory for %zu x %zu pixels", r->path, w, h);
   const cv_exr_window win = {r->dw.min.x, r->dw.min.y, r->width, r->height};
   int rc = cv_exr_imf_decode(r->path, &win, raw_bytes, buf, g, err);
   r->info->guarded = !g->in_process;
@@ -618,10 +643,9 @@ int cv_exr_read_with(const char *path, const cv_exr_guard *g, cv_image **out,
   }
   if (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB || comp == EXR_COMPRESSION_B44 ||
       comp == EXR_COMPRESSION_B44A)
-    rc = read_via_imf(&r, g, raw, err);
-  else
-    rc = read_pixels(&r, storage, err);
-  if (rc == CV_ERR_NOMEM) cv_err_set(err, rc, "%s: out of memory", path);
+    rc = read_via_imf(&r, g, raw, err); /* sets err itself, the guard's limits included */
+  else if ((rc = read_pixels(&r, storage, err)) == CV_ERR_NOMEM)
+    cv_err_set(err, rc, "%s: out of memory", path);
 
 done:
   if (r.ctxt) exr_finish(&r.ctxt);
