@@ -59,7 +59,10 @@ int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights)
   "  --illuminance LUX|auto  calibrate the env map(s): the horizontal illuminance of\n"     \
   "                  the upper hemisphere becomes LUX (pixels then in cd/m^2); auto:\n"     \
   "                  each blender-data map at its documented daylight level (forest\n"     \
-  "                  10000 lx, ...: docs/scene-config.md); not with --scale\n"
+  "                  10000 lx, ...: docs/scene-config.md); not with --scale\n"     \
+  "  (DWA/B44 maps, blender-data's among them, are decoded in a child process\n"           \
+  "   under limits: CAVE_EXR_TIMEOUT=S (default 120), CAVE_EXR_MEMORY_MB=M (default\n"     \
+  "   1024 + twice the pixel bytes), CAVE_EXR_VERBOSE=1; docs/fuzzing.md)\n"
 
 /* 1 if path ends with ext (case-insensitive, ext includes the dot). */
 int cli_has_ext(const char *path, const char *ext);

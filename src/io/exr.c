@@ -7,17 +7,22 @@
  * are read through the same package's C interface to its C++ library
  * (<ImfCRgbaFile.h>): RGBA at half precision, which is what those codecs
  * store for lossy channels.  A float value beyond the half range (65504) in
- * such a file becomes Inf and is rejected like any non-finite pixel.
+ * such a file becomes Inf and is rejected like any non-finite pixel.  That
+ * library is not hardened against hostile files, so it runs in a guarded
+ * child process (exr_imf.c, child_guard.c).
  *
  * Layout of this file:
  *   1. half <-> float
  *   2. file streams and error capture (the library must never print)
- *   4. reader (3. the ImfCRgbaFile path for DWA and B44)
+ *   4. reader (3. the guarded ImfCRgbaFile path for DWA and B44)
  *   5. writer */
 #include "io/exr.h"
 
 #include "core/outfile.h"
+#include "io/exr_imf.h"
+#include "io/json_keys.h"
 
+#include <endian.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -28,7 +33,6 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <ImfCRgbaFile.h>
 
 /* ------------------------------------------------------------------------ */
 /* 1. half <-> float                                                        */
@@ -176,21 +180,96 @@ static double max_expansion(int comp) {
   }
 }
 
-static int check_size_against_file(const char *path, const exr_attr_chlist_t *cl, int comp,
-                                   int64_t w, int64_t h, cv_err *err) {
-  struct stat st;
-  if (stat(path, &st) != 0) return CV_OK; /* the reader has opened it: size unknown only on odd files */
+/* Bytes of the raw pixels of a w x h window: all channels, half 2 bytes,
+ * float and uint 4. */
+static double raw_pixel_bytes(const exr_attr_chlist_t *cl, int64_t w, int64_t h) {
   double bpp = 0;
   for (int c = 0; c < cl->num_channels; ++c)
     bpp += cl->entries[c].pixel_type == EXR_PIXEL_HALF ? 2.0 : 4.0;
-  const double raw = (double)w * (double)h * bpp, room = (double)st.st_size * max_expansion(comp);
+  return (double)w * (double)h * bpp;
+}
+
+static int check_size_against_file(const char *path, int64_t file_size, int comp, double raw,
+                                   int64_t w, int64_t h, cv_err *err) {
+  const double room = (double)file_size * max_expansion(comp);
   if (raw > room)
     return cv_err_set(err, CV_ERR_FORMAT,
                       "%s: data window %lld x %lld (%.0f bytes of pixels) cannot be held by a file "
                       "of %lld bytes under %s compression (at most %.0f bytes)",
-                      path, (long long)w, (long long)h, raw, (long long)st.st_size,
+                      path, (long long)w, (long long)h, raw, (long long)file_size,
                       cv_exr_compression_name(comp), room);
   return CV_OK;
+}
+
+/* Reads a NUL-terminated string of at most n - 1 bytes at *off; 0 and
+ * *off past it, or -1 when the file ends first or it is longer. */
+static int read_cstring(int fd, int64_t size, int64_t *off, char *s, size_t n) {
+  ssize_t got = *off < size ? pread(fd, s, n, (off_t)*off) : 0;
+  if (got <= 0) return -1;
+  void *nul = memchr(s, '\0', (size_t)got);
+  if (!nul) return -1;
+  *off += (char *)nul - s + 1;
+  return 0;
+}
+
+/* Bytes a channel list at off takes when read the way OpenEXR's C++
+ * library reads it - entries (name, NUL, 16 bytes) up to an empty name,
+ * whatever the declared size - or -1 when the file ends first. */
+static int64_t chlist_extent(int fd, int64_t size, int64_t off) {
+  const int64_t start = off;
+  char name[257];
+  for (;;) {
+    if (read_cstring(fd, size, &off, name, sizeof name)) return -1;
+    if (!name[0]) return off - start;
+    off += 16; /* pixel type, pLinear and reserved, x and y sampling */
+    if (off > size) return -1;
+  }
+}
+
+/* Walks the (first) header's attributes - name, type, 4-byte size, value -
+ * and refuses one whose declared size is more than the file holds after it,
+ * before OpenEXR's C++ library would try to read it (libFuzzer found a
+ * 471-byte file declaring a 1.9 GB attribute that damages that library's
+ * heap).  OpenEXR's Core has parsed the header already, so running off
+ * the file here is refused too. */
+static int check_attribute_sizes(const char *path, int fd, int64_t size, cv_err *err) {
+  int64_t off = 8; /* magic and version */
+  char name[257], type[257];
+  for (int k = 0; k < 100000; ++k) {
+    if (read_cstring(fd, size, &off, name, sizeof name))
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: header ends inside attribute %d", path, k + 1);
+    if (!name[0]) return CV_OK; /* end of the header */
+    int32_t decl = 0;
+    char shown[64];
+    if (read_cstring(fd, size, &off, type, sizeof type) || off + 4 > size ||
+        pread(fd, &decl, 4, (off_t)off) != 4)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: header ends inside attribute '%s'", path,
+                        cv_json_key_show(name, shown, sizeof shown));
+    decl = (int32_t)le32toh((uint32_t)decl);
+    off += 4;
+    if (decl < 0 || decl > size - off) {
+      char tshown[64];
+      return cv_err_set(err, CV_ERR_FORMAT,
+                        "%s: header attribute '%s' (type '%s') declares %ld bytes, the file has %lld "
+                        "after it",
+                        path, cv_json_key_show(name, shown, sizeof shown),
+                        cv_json_key_show(type, tshown, sizeof tshown), (long)decl,
+                        (long long)(size - off));
+    }
+    if (strcmp(type, "chlist") == 0) {
+      /* the Core skips the declared size, the C++ library reads to the
+       * list's end: where they differ, the two see different headers */
+      int64_t ext = chlist_extent(fd, size, off);
+      if (ext != decl)
+        return cv_err_set(err, CV_ERR_FORMAT,
+                          "%s: header attribute '%s' (chlist) declares %ld bytes, its channel list "
+                          "takes %lld",
+                          path, cv_json_key_show(name, shown, sizeof shown), (long)decl,
+                          (long long)ext);
+    }
+    off += decl;
+  }
+  return cv_err_set(err, CV_ERR_FORMAT, "%s: header has more than 100000 attributes", path);
 }
 
 static const char *pixel_type_name(int t) {
@@ -360,51 +439,32 @@ static int store_chunk(exr_reader *r, int x0, int y0, int cw, int chh, cv_err *e
   return CV_OK;
 }
 
-/* 3. DWAA/DWAB/B44/B44A through the C interface of OpenEXR's C++ library.
- * Same checks as store_chunk: non-finite pixels rejected with their
- * position, negatives clamped and counted.  Grey (Y-only) files come back
- * with R = G = B. */
-static int read_via_imf(exr_reader *r, cv_err *err) {
-  ImfInputFile *in = ImfOpenInputFile(r->path);
-  if (!in)
-    return cv_err_set(err, CV_ERR_FORMAT, "%s: not a readable OpenEXR file: %s", r->path,
-                      ImfErrorMessage());
-  int chans = ImfInputChannels(in);
-  if (!(chans & (IMF_WRITE_R | IMF_WRITE_G | IMF_WRITE_B | IMF_WRITE_Y))) {
-    ImfCloseInputFile(in);
-    return cv_err_set(err, CV_ERR_FORMAT, "%s: no R,G,B or Y channels (found: %s)", r->path,
-                      r->info->channels[0] ? r->info->channels : "none");
-  }
+/* 3. DWAA/DWAB/B44/B44A through the C interface of OpenEXR's C++ library,
+ * in a guarded child (exr_imf.c) unless g says otherwise.  Same checks as
+ * store_chunk: non-finite pixels rejected with their position, negatives
+ * clamped and counted.  Grey (Y-only) files come back with R = G = B. */
+static int read_via_imf(exr_reader *r, const cv_exr_guard *g, double raw_bytes, cv_err *err) {
   const size_t w = (size_t)r->width, h = (size_t)r->height;
-  ImfRgba *buf = malloc(w * h * sizeof *buf);
-  if (!buf) {
-    ImfCloseInputFile(in);
-    return CV_ERR_NOMEM;
-  }
-  /* The frame buffer is addressed with absolute data-window coordinates. */
-  ImfRgba *base = buf - (ptrdiff_t)r->dw.min.x - (ptrdiff_t)r->dw.min.y * (ptrdiff_t)w;
-  int ok = ImfInputSetFrameBuffer(in, base, 1, w) &&
-           ImfInputReadPixels(in, r->dw.min.y, r->dw.max.y);
-  if (!ok) {
-    int rc = cv_err_set(err, CV_ERR_FORMAT, "%s: cannot decode pixels: %s", r->path,
-                        ImfErrorMessage());
-    free(buf);
-    ImfCloseInputFile(in);
+  uint16_t *buf = cv_exr_rgba_alloc(w, h);
+  if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory for %zu x %zu pixels", r->path, w, h);
+  const cv_exr_window win = {r->dw.min.x, r->dw.min.y, r->width, r->height};
+  int rc = cv_exr_imf_decode(r->path, &win, raw_bytes, buf, g, err);
+  r->info->guarded = !g->in_process;
+  if (rc != CV_OK) {
+    cv_exr_rgba_free(buf, w, h);
     return rc;
   }
-  ImfCloseInputFile(in);
   static const char *cname[3] = {"R", "G", "B"};
   for (size_t y = 0; y < h; y++)
     for (size_t x = 0; x < w; x++) {
-      const ImfRgba *p = &buf[y * w + x];
-      float v[3] = {ImfHalfToFloat(p->r), ImfHalfToFloat(p->g), ImfHalfToFloat(p->b)};
+      const uint16_t *p = &buf[4 * (y * w + x)];
+      float v[3] = {cv_half_to_float(p[0]), cv_half_to_float(p[1]), cv_half_to_float(p[2])};
       float *dst = cv_image_at(r->img, (int)x, (int)y);
       for (int k = 0; k < 3; k++) {
         if (!isfinite(v[k])) {
-          int rc = cv_err_set(err, CV_ERR_NONFINITE, "%s: pixel (%zu, %zu) channel %s is %s",
-                              r->path, x, y, cname[k],
-                              isnan(v[k]) ? "NaN" : (v[k] > 0 ? "+Inf" : "-Inf"));
-          free(buf);
+          rc = cv_err_set(err, CV_ERR_NONFINITE, "%s: pixel (%zu, %zu) channel %s is %s", r->path, x, y,
+                          cname[k], isnan(v[k]) ? "NaN" : (v[k] > 0 ? "+Inf" : "-Inf"));
+          cv_exr_rgba_free(buf, w, h);
           return rc;
         }
         if (v[k] < 0.0f) {
@@ -414,7 +474,7 @@ static int read_via_imf(exr_reader *r, cv_err *err) {
         dst[k] = v[k];
       }
     }
-  free(buf);
+  cv_exr_rgba_free(buf, w, h);
   return CV_OK;
 }
 
@@ -467,7 +527,17 @@ static int read_pixels(exr_reader *r, exr_storage_t storage, cv_err *err) {
 }
 
 int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_err *err) {
+  return cv_exr_read_with(path, NULL, out, info, err);
+}
+
+int cv_exr_read_with(const char *path, const cv_exr_guard *g, cv_image **out,
+                     cv_exr_read_info *info, cv_err *err) {
   cv_exr_read_info dummy;
+  cv_exr_guard gdef;
+  if (!g) {
+    cv_exr_guard_default(&gdef);
+    g = &gdef;
+  }
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "cv_exr_read: out is NULL");
   *out = NULL;
   if (!info) info = &dummy;
@@ -478,7 +548,7 @@ int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_
   memset(&r, 0, sizeof r);
   r.path = path;
   r.info = info;
-  r.stream.fd = open(path, O_RDONLY | O_CLOEXEC);
+  r.stream.fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK); /* a FIFO must not block the open */
   if (r.stream.fd < 0)
     return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
   struct stat sb;
@@ -538,7 +608,9 @@ int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_
                     (long long)w, (long long)h);
     goto done;
   }
-  if ((rc = check_size_against_file(path, r.cl, (int)comp, w, h, err)) != CV_OK) goto done;
+  const double raw = raw_pixel_bytes(r.cl, w, h);
+  if ((rc = check_size_against_file(path, r.stream.size, (int)comp, raw, w, h, err)) != CV_OK) goto done;
+  if ((rc = check_attribute_sizes(path, r.stream.fd, r.stream.size, err)) != CV_OK) goto done;
   r.width = (int)w;
   r.height = (int)h;
   info->width = r.width;
@@ -571,10 +643,9 @@ int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_
   }
   if (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB || comp == EXR_COMPRESSION_B44 ||
       comp == EXR_COMPRESSION_B44A)
-    rc = read_via_imf(&r, err);
-  else
-    rc = read_pixels(&r, storage, err);
-  if (rc == CV_ERR_NOMEM) cv_err_set(err, rc, "%s: out of memory", path);
+    rc = read_via_imf(&r, g, raw, err); /* sets err itself, the guard's limits included */
+  else if ((rc = read_pixels(&r, storage, err)) == CV_ERR_NOMEM)
+    cv_err_set(err, rc, "%s: out of memory", path);
 
 done:
   if (r.ctxt) exr_finish(&r.ctxt);
@@ -589,7 +660,7 @@ done:
 }
 
 int cv_exr_read(const char *path, cv_image **out, cv_err *err) {
-  return cv_exr_read_ex(path, out, NULL, err);
+  return cv_exr_read_with(path, NULL, out, NULL, err);
 }
 
 /* ------------------------------------------------------------------------ */

@@ -13,8 +13,16 @@
  * are read through OpenEXR's other C API, the C interface to its C++
  * library (<ImfCRgbaFile.h>), at half precision (what those codecs store
  * for lossy channels); a float value beyond 65504 in such a file comes
- * back as Inf and is rejected.  All other compressions go through
- * OpenEXRCore at full precision.
+ * back as Inf and is rejected.  That library is not hardened against
+ * hostile files, so it runs in a guarded child process under a time and a
+ * memory limit (cv_exr_guard; src/io/exr_imf.c): a crash or hang inside it
+ * becomes one line of error.  All other compressions go through
+ * OpenEXRCore at full precision, in this process.
+ *
+ * Before any pixel is decoded the header is walked once more: an attribute
+ * whose declared size is more than the file holds after it is refused, and
+ * so is a data window needing more pixel bytes than the file can hold under
+ * its compression.
  *
  * Pixels are validated: any NaN or Inf fails the read (CV_ERR_NONFINITE,
  * naming the pixel and channel); negative values are clamped to 0 and
@@ -61,7 +69,22 @@ typedef struct cv_exr_read_info {
   char channels[160];    /* their names, comma-separated (truncated) */
   char used[48];         /* the channels that were read, e.g. "R,G,B" or "Y" */
   uint64_t negative_clamped; /* channel values < 0 set to 0 */
+  int guarded;           /* 1 when the pixels were decoded in a guarded child */
 } cv_exr_read_info;
+
+/* How the C++ fallback (DWAA/DWAB, B44/B44A) runs. */
+typedef struct cv_exr_guard {
+  int in_process;   /* 1: in this process, no limits (tests, measurements) */
+  double seconds;   /* wall-clock limit (0 = none); CAVE_EXR_TIMEOUT, default 120 */
+  double memory_mb; /* MB the child may add to the process's address space (0 = none;
+                       < 0: 1024 + twice the file's raw pixel bytes, the default);
+                       CAVE_EXR_MEMORY_MB; not applied under AddressSanitizer */
+  int verbose;      /* CAVE_EXR_VERBOSE=1: the library's output copied to stderr */
+} cv_exr_guard;
+
+/* The defaults above, from the environment (an unparsable value or a
+ * negative number is ignored). */
+void cv_exr_guard_default(cv_exr_guard *g);
 
 /* Reads path into a new w x h x 3 float image (*out, owned by the caller;
  * cv_image_destroy).  Errors (err gets one line naming the file):
@@ -74,6 +97,12 @@ int cv_exr_read(const char *path, cv_image **out, cv_err *err);
 /* As cv_exr_read; info (may be NULL) is filled on success and, as far as
  * known, on failure. */
 int cv_exr_read_ex(const char *path, cv_image **out, cv_exr_read_info *info, cv_err *err);
+
+/* As cv_exr_read_ex with the fallback run as g says (NULL: defaults).  More
+ * errors from the guard: CV_ERR_RANGE (time limit hit), CV_ERR_NOMEM (memory
+ * limit hit), CV_ERR_BACKEND ("crashed: signal SIGSEGV (...) in OpenEXR"). */
+int cv_exr_read_with(const char *path, const cv_exr_guard *g, cv_image **out,
+                     cv_exr_read_info *info, cv_err *err);
 
 /* What a write did. */
 typedef struct cv_exr_write_info {

@@ -1,32 +1,17 @@
-/* Guarded mesh import (mesh_import.h): assimp runs in a forked child under a
- * memory limit (RLIMIT_AS) and a wall-clock limit (the parent kills it), so
- * a file that makes assimp loop or allocate without end costs the caller at
- * most the limits.  The child sends the mesh back through a pipe; whatever
+/* Guarded mesh import (mesh_import.h): assimp runs in a guarded child
+ * (child_guard.h) under a memory limit and a wall-clock limit, so a file
+ * that makes assimp loop or allocate without end costs the caller at most
+ * the limits.  The child sends the mesh back through the pipe; whatever
  * assimp prints (stray "nullptr returned by creating DDLNode." lines and the
- * like) goes to a second pipe and is dropped, unless the child crashed or
- * CAVE_IMPORT_VERBOSE=1, when it is copied to our stderr after the error. */
-#define _GNU_SOURCE
-#include <errno.h>
-#include <poll.h>
-#include <signal.h>
+ * like) is dropped, unless the child crashed or CAVE_IMPORT_VERBOSE=1, when
+ * it is copied to our stderr after the error. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
-#include <sys/types.h>
-#include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
+#include "io/child_guard.h"
 #include "io/mesh_import.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define CV_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define CV_ASAN 1
-#endif
-#endif
 
 /* The record the child writes first; the arrays follow. */
 typedef struct reply {
@@ -54,41 +39,20 @@ void cv_import_limits_default(cv_import_opts *o) {
   o->limit_memory_mb = env_number("CAVE_IMPORT_MEMORY_MB", mb);
 }
 
-static int write_all(int fd, const void *buf, size_t n) {
-  const char *p = buf;
-  while (n) {
-    ssize_t w = write(fd, p, n);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) return -1;
-    p += w;
-    n -= (size_t)w;
-  }
-  return 0;
-}
+typedef struct import_job {
+  const char *path;
+  const cv_import_opts *opts;
+} import_job;
 
-/* In the child: limits, import, reply; never returns. */
-static void child(const char *path, const cv_import_opts *opts, int data_fd, int out_fd) {
-  dup2(out_fd, STDOUT_FILENO);
-  dup2(out_fd, STDERR_FILENO);
-  close(out_fd);
-#ifndef CV_ASAN /* ASan reserves terabytes of address space: RLIMIT_AS would stop it at once */
-  if (opts->limit_memory_mb > 0) {
-    rlim_t b = (rlim_t)(opts->limit_memory_mb * 1048576.0);
-    struct rlimit rl = {b, b};
-    setrlimit(RLIMIT_AS, &rl);
-  }
-#endif
-  if (opts->limit_seconds > 0) {
-    rlim_t s = (rlim_t)opts->limit_seconds + 1;
-    struct rlimit rl = {s, s + 1};
-    setrlimit(RLIMIT_CPU, &rl);
-  }
+/* In the child: the import, then the reply and the arrays to fd. */
+static int import_child(void *ctx, int fd) {
+  const import_job *job = ctx;
   reply r;
   memset(&r, 0, sizeof r);
   cv_err err;
   cv_err_clear(&err);
   cv_mesh *m = NULL;
-  r.status = cv_mesh_import_direct(path, opts, &m, &r.stats, &err);
+  r.status = cv_mesh_import_direct(job->path, job->opts, &m, &r.stats, &err);
   snprintf(r.msg, sizeof r.msg, "%s", err.msg);
   if (m) {
     r.nv = m->nv;
@@ -97,80 +61,16 @@ static void child(const char *path, const cv_import_opts *opts, int data_fd, int
     r.has_uv = m->tri_uv != NULL;
     r.has_tex = m->mat_tex != NULL;
   }
-  int bad = write_all(data_fd, &r, sizeof r);
+  int bad = cv_child_write(fd, &r, sizeof r);
   if (!bad && m)
-    bad = write_all(data_fd, m->pos, 3 * m->nv * sizeof(float)) ||
-          write_all(data_fd, m->tri, 3 * m->nt * sizeof(uint32_t)) ||
-          write_all(data_fd, m->tri_mat, m->nt * sizeof(uint32_t)) ||
-          write_all(data_fd, m->mats, m->nm * sizeof(cv_material)) ||
-          (r.has_uv && write_all(data_fd, m->tri_uv, 6 * m->nt * sizeof(float))) ||
-          (r.has_tex && write_all(data_fd, m->mat_tex, m->nm * (size_t)CV_TEX_PATH_MAX));
+    bad = cv_child_write(fd, m->pos, 3 * m->nv * sizeof(float)) ||
+          cv_child_write(fd, m->tri, 3 * m->nt * sizeof(uint32_t)) ||
+          cv_child_write(fd, m->tri_mat, m->nt * sizeof(uint32_t)) ||
+          cv_child_write(fd, m->mats, m->nm * sizeof(cv_material)) ||
+          (r.has_uv && cv_child_write(fd, m->tri_uv, 6 * m->nt * sizeof(float))) ||
+          (r.has_tex && cv_child_write(fd, m->mat_tex, m->nm * (size_t)CV_TEX_PATH_MAX));
   cv_mesh_destroy(m);
-  close(data_fd);
-  fflush(NULL);
-  exit(bad ? 3 : 0); /* exit, not _exit: LeakSanitizer checks the child too */
-}
-
-typedef struct buf {
-  unsigned char *p;
-  size_t n, cap;
-  int failed; /* out of memory: the rest is drained and dropped */
-} buf;
-
-static void buf_take(buf *b, int fd, int *open_fd) {
-  unsigned char tmp[65536];
-  ssize_t r = read(fd, tmp, sizeof tmp);
-  if (r < 0 && (errno == EINTR || errno == EAGAIN)) return;
-  if (r <= 0) {
-    *open_fd = 0;
-    return;
-  }
-  if (b->failed) return;
-  if (b->n + (size_t)r > b->cap) {
-    size_t cap = b->cap ? b->cap : 1 << 16;
-    while (cap < b->n + (size_t)r) cap *= 2;
-    unsigned char *np = realloc(b->p, cap);
-    if (!np) {
-      b->failed = 1;
-      return;
-    }
-    b->p = np;
-    b->cap = cap;
-  }
-  memcpy(b->p + b->n, tmp, (size_t)r);
-  b->n += (size_t)r;
-}
-
-static double now_s(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* Reads both pipes until the child closes them or the deadline passes;
- * returns 1 when the deadline killed the child. */
-static int collect(pid_t pid, int data_fd, int out_fd, double seconds, buf *data, buf *out) {
-  int data_open = 1, out_open = 1, killed = 0;
-  double deadline = seconds > 0 ? now_s() + seconds : 0;
-  while (data_open || out_open) {
-    struct pollfd pf[2] = {{data_open ? data_fd : -1, POLLIN, 0}, {out_open ? out_fd : -1, POLLIN, 0}};
-    int wait_ms = -1;
-    if (deadline > 0) {
-      double left = deadline - now_s();
-      if (left <= 0) {
-        kill(pid, SIGKILL);
-        killed = 1;
-        break;
-      }
-      wait_ms = (int)(left * 1000) + 1;
-    }
-    int n = poll(pf, 2, wait_ms);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) break;
-    if (pf[0].revents) buf_take(data, data_fd, &data_open);
-    if (pf[1].revents) buf_take(out, out_fd, &out_open);
-  }
-  return killed;
+  return bad ? CV_ERR_IO : CV_OK;
 }
 
 static const char *format_of(const char *path, char *fmt, size_t n) {
@@ -182,20 +82,11 @@ static const char *format_of(const char *path, char *fmt, size_t n) {
   return fmt;
 }
 
-/* Copies the child's output to stderr (a crash or CAVE_IMPORT_VERBOSE=1). */
-static void show_output(const char *path, const buf *out) {
-  if (!out->n) return;
-  fprintf(stderr, "--- output of the import of %s ---\n", path);
-  fwrite(out->p, 1, out->n, stderr);
-  if (out->p[out->n - 1] != '\n') fputc('\n', stderr);
-  fprintf(stderr, "--- end of output ---\n");
-}
-
 /* Builds the mesh from the child's reply. */
-static int unpack(const char *path, const buf *data, cv_mesh **out, cv_import_stats *stats,
-                  cv_err *err) {
+static int unpack(const char *path, const cv_child_result *data, cv_mesh **out,
+                  cv_import_stats *stats, cv_err *err) {
   reply r;
-  memcpy(&r, data->p, sizeof r);
+  memcpy(&r, data->data, sizeof r);
   if (stats) *stats = r.stats;
   if (r.status) {
     r.msg[sizeof r.msg - 1] = '\0';
@@ -205,16 +96,16 @@ static int unpack(const char *path, const buf *data, cv_mesh **out, cv_import_st
                 (size_t)r.nm * sizeof(cv_material) +
                 (r.has_uv ? (size_t)r.nt * 6 * sizeof(float) : 0) +
                 (r.has_tex ? (size_t)r.nm * CV_TEX_PATH_MAX : 0);
-  if (data->n != want)
+  if (data->data_n != want)
     return cv_err_set(err, CV_ERR_BACKEND, "%s: import: the child process sent %zu bytes, expected %zu",
-                      path, data->n, want);
+                      path, data->data_n, want);
   cv_mesh *m;
   if (cv_mesh_create(&m) || cv_mesh_reserve(m, r.nv, r.nt)) {
     if (m) cv_mesh_destroy(m);
     return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory for %llu vertices", path,
                       (unsigned long long)r.nv);
   }
-  const unsigned char *p = data->p + sizeof r;
+  const unsigned char *p = data->data + sizeof r;
   memcpy(m->pos, p, r.nv * 3 * sizeof(float));
   p += r.nv * 3 * sizeof(float);
   memcpy(m->tri, p, r.nt * 3 * sizeof(uint32_t));
@@ -262,84 +153,43 @@ int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **ou
     opts = &def;
   }
   if (stats) memset(stats, 0, sizeof *stats);
-  int dp[2], op[2];
-  if (pipe(dp)) return cv_err_set(err, CV_ERR_IO, "%s: import: pipe: %s", path, strerror(errno));
-  if (pipe(op)) {
-    close(dp[0]);
-    close(dp[1]);
-    return cv_err_set(err, CV_ERR_IO, "%s: import: pipe: %s", path, strerror(errno));
+  char fmtb[16], what[40];
+  snprintf(what, sizeof what, "import (%s)", format_of(path, fmtb, sizeof fmtb));
+  const cv_child_limits lim = {opts->limit_seconds, opts->limit_memory_mb};
+  const cv_child_labels lab = {path, what, "assimp", "CAVE_IMPORT_TIMEOUT", "CAVE_IMPORT_MEMORY_MB"};
+  import_job job = {path, opts};
+  cv_child_result res;
+  int st = cv_child_run(import_child, &job, &lim, &res, err);
+  if (st != CV_OK) {
+    cv_err_prefix(err, "%s: import", path);
+    return st;
   }
-  fflush(NULL); /* nothing buffered is written twice */
-  pid_t pid = fork();
-  if (pid < 0) {
-    close(dp[0]), close(dp[1]), close(op[0]), close(op[1]);
-    return cv_err_set(err, CV_ERR_IO, "%s: import: fork: %s", path, strerror(errno));
-  }
-  if (pid == 0) {
-    close(dp[0]);
-    close(op[0]);
-    child(path, opts, dp[1], op[1]);
-  }
-  close(dp[1]);
-  close(op[1]);
-  buf data = {0}, outb = {0};
-  double t0 = now_s();
-  int killed = collect(pid, dp[0], op[0], opts->limit_seconds, &data, &outb);
-  close(dp[0]);
-  close(op[0]);
-  int ws = 0;
-  while (waitpid(pid, &ws, 0) < 0 && errno == EINTR) {
-  }
-  double took = now_s() - t0;
-  char fmtb[16];
-  const char *fmt = format_of(path, fmtb, sizeof fmtb);
-  int st;
   const char *verbose = getenv("CAVE_IMPORT_VERBOSE");
   int show = verbose && verbose[0] == '1';
-  if (killed || (WIFSIGNALED(ws) && WTERMSIG(ws) == SIGXCPU)) {
-    st = cv_err_set(err, CV_ERR_RANGE,
-                    "%s: import (%s) stopped after %.1f s: time limit %g s hit (CAVE_IMPORT_TIMEOUT "
-                    "sets it)",
-                    path, fmt, took, opts->limit_seconds);
-  } else if (data.failed) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "%s: import (%s): out of memory receiving the mesh", path, fmt);
-  } else if (WIFEXITED(ws) && WEXITSTATUS(ws) == 0 && data.n >= sizeof(reply)) {
-    st = unpack(path, &data, out, stats, err);
-    if (err && (st == CV_ERR_NOMEM || (st && strstr(err->msg, "bad_alloc"))) &&
-        opts->limit_memory_mb > 0) {
+  if (res.outcome == CV_CHILD_DONE && res.data_n >= sizeof(reply)) {
+    st = unpack(path, &res, out, stats, err);
+    /* assimp caught its own std::bad_alloc: under a limit, that is the limit */
+    if (err && (st == CV_ERR_NOMEM || (st && strstr(err->msg, "bad_alloc"))) && res.memory_limited) {
       char was[sizeof err->msg];
       size_t np = strlen(path);
       const char *why = strncmp(err->msg, path, np) == 0 && err->msg[np] == ':' ? err->msg + np + 2
                                                                                  : err->msg;
       snprintf(was, sizeof was, "%s", why);
-      st = cv_err_set(err, CV_ERR_NOMEM,
-                      "%s: import (%s) stopped: memory limit %.0f MB hit (CAVE_IMPORT_MEMORY_MB "
-                      "sets it): %.300s",
-                      path, fmt, opts->limit_memory_mb, was);
+      st = cv_err_set(err, CV_ERR_NOMEM, "%s: %s stopped: memory limit %.0f MB hit (%s sets it): %.300s",
+                      path, what, opts->limit_memory_mb, lab.memory_env, was);
     }
+  } else if (res.outcome == CV_CHILD_DONE) {
+    st = cv_err_set(err, CV_ERR_BACKEND, "%s: %s: the child process sent %zu bytes, no reply", path,
+                    what, res.data_n);
   } else {
-    /* The child died without a reply: with RLIMIT_AS set, assimp's failed
-     * new (std::bad_alloc, uncaught) ends it with SIGABRT. */
-    int sig = WIFSIGNALED(ws) ? WTERMSIG(ws) : 0;
-    int mem = sig == SIGABRT && opts->limit_memory_mb > 0;
-#ifdef CV_ASAN
-    mem = 0;
-#endif
-    if (mem)
-      st = cv_err_set(err, CV_ERR_NOMEM,
-                      "%s: import (%s) stopped: memory limit %.0f MB hit (CAVE_IMPORT_MEMORY_MB "
-                      "sets it)",
-                      path, fmt, opts->limit_memory_mb);
-    else if (sig)
-      st = cv_err_set(err, CV_ERR_BACKEND, "%s: import (%s) crashed: signal %d (%s) in assimp", path,
-                      fmt, sig, strsignal(sig));
-    else
-      st = cv_err_set(err, CV_ERR_BACKEND, "%s: import (%s) failed: child exit status %d", path,
-                      fmt, WIFEXITED(ws) ? WEXITSTATUS(ws) : -1);
-    show = show || !mem;
+    st = cv_child_error(&res, &lim, &lab, err);
+    show = show || res.outcome == CV_CHILD_SIGNAL || res.outcome == CV_CHILD_FAILED;
   }
-  if (show) show_output(path, &outb);
-  free(data.p);
-  free(outb.p);
+  if (show) {
+    char whose[600];
+    snprintf(whose, sizeof whose, "the import of %s", path);
+    cv_child_show_output(&res, whose);
+  }
+  cv_child_result_free(&res);
   return st;
 }

@@ -52,7 +52,8 @@ typedef struct cv_import_opts {
   float default_albedo[3]; /* for materials with no colour (default 0.5 grey) */
   double scale;            /* multiplies coordinates (file units -> metres), default 1 */
   /* Guards of cv_mesh_import(_ex), which runs assimp in a child process:
-   * wall-clock seconds and address space in MB (0 = no limit).  Defaults:
+   * wall-clock seconds and MB of address space the import child may add to
+   * the process's at the fork (0 = no limit; child_guard.h).  Defaults:
    * CAVE_IMPORT_TIMEOUT (seconds, else CV_IMPORT_DEFAULT_SECONDS) and
    * CAVE_IMPORT_MEMORY_MB (else CV_IMPORT_DEFAULT_MEMORY_MB or 3/4 of the
    * physical memory, whichever is less); raise them for
