@@ -544,17 +544,20 @@ static uint16_t half_from_float(float x) {
 }
 
 /* Float of half bits h (finite halves only), exact, also with the bake's
- * flush-to-zero / denormals-are-zero on (cv_rt_thread_init): a normal half by
- * rebiasing its exponent in the integer bits, a denormal as its integer
- * mantissa times 2^-24 (never a float denormal on the way, which DAZ would
- * read as 0); the same values as F16C's vcvtph2ps.  Branch-free. */
+ * flush-to-zero / denormals-are-zero on (cv_rt_thread_init); the same values
+ * as F16C's vcvtph2ps.  The exponent is rebiased in the integer bits; a
+ * denormal half m x 2^-24 is first read as the normal float 2^-14 (1 + m /
+ * 1024), then 2^-14 is subtracted (exact), so no float denormal is ever made
+ * (DAZ would read it as 0).  Integer masks, no branch: loops of it vectorise. */
 static inline float half_to_float(uint16_t h) {
   const uint32_t mag = h & 0x7fffu, sign = (uint32_t)(h & 0x8000u) << 16;
-  const uint32_t nbits = (mag << 13) + ((uint32_t)(127 - 15) << 23);
-  float fn, fd = (float)(mag & 0x3ffu) * 0x1p-24f;
-  memcpy(&fn, &nbits, 4);
-  float f = mag >= 0x400u ? fn : fd;
-  uint32_t bits;
+  const uint32_t den = (uint32_t)-(int32_t)(mag < 0x400u); /* all ones for a denormal */
+  uint32_t bits = (mag << 13) + ((uint32_t)(127 - 15) << 23) + (den & (1u << 23));
+  const uint32_t magic = den & (113u << 23); /* 2^-14 or +0 */
+  float f, mf;
+  memcpy(&f, &bits, 4);
+  memcpy(&mf, &magic, 4);
+  f -= mf;
   memcpy(&bits, &f, 4);
   bits |= sign;
   memcpy(&f, &bits, 4);
@@ -640,6 +643,7 @@ static void bounce_add_portable(const bounce_hit *h, size_t rec, int nc, double 
   float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], w[3];
   const uint16_t *q[3];
   hit_weights(h, w, q);
+#pragma omp simd
   for (size_t i = 0; i < rec; i++)
     tmp[i] = w[0] * half_to_float(q[0][i]) + w[1] * half_to_float(q[1][i]) +
              w[2] * half_to_float(q[2][i]);
@@ -651,6 +655,7 @@ static void bounce_add_portable(const bounce_hit *h, size_t rec, int nc, double 
       const double a = al[c];
       double *o = out + c * nc;
       const float *t = tmp + c * nc;
+#pragma omp simd
       for (int i = 0; i < nc; i++) o[i] += a * t[i];
     }
   }
