@@ -12,6 +12,19 @@
 #include "core/sobol.h"
 #include "sh/sh.h"
 
+/* gcc only, as src/compensate/solve.c: clang 14 (the fuzz build) rejects
+ * __builtin_cpu_supports("f16c"). */
+#if defined(__GNUC__) && !defined(__clang__) && (defined(__x86_64__) || defined(__i386__))
+#include <immintrin.h>
+#define CV_BAKE_X86_SIMD 1
+#endif
+
+/* One hit of the bounce pass and the function that adds it to the sums
+ * (defined with the bounce pass below). */
+typedef struct bounce_hit bounce_hit;
+typedef void (*bounce_add_fn)(const bounce_hit *h, size_t rec, int nc, double *acc,
+                              double *accr);
+
 struct cv_tracer {
   cv_mesh *m;
   cv_rt *rt;
@@ -34,6 +47,7 @@ struct cv_tracer {
   } *groups;
   int *tri_group;      /* nt: group of a window triangle, -1 otherwise */
   int window_mis;      /* 1: MIS of cosine and window sampling when nwin > 0 */
+  bounce_add_fn bounce_add; /* the bounce pass's hit sums (AVX2 or portable) */
 };
 
 void cv_tracer_destroy(cv_tracer *tr) {
@@ -68,6 +82,7 @@ int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err) {
   size_t nv = m->nv, nt = m->nt;
   cv_sobol_tab_init(&tr->sobol);
   tr->spread = CV_BAKE_DEFAULT_SPREAD;
+  cv_tracer_set_simd(tr, 1);
   tr->tri_n = malloc(3 * nt * sizeof(float));
   tr->fan_off = calloc(nv + 1, sizeof(size_t));
   double *area = malloc(nt * sizeof(double));
@@ -496,21 +511,29 @@ struct cv_bounce_records {
 #define HUGE_PAGE ((size_t)2 << 20)
 
 /* Half float (bits) of x, |x| <= 1 and finite; rounds to nearest even
- * (after F. Giesen's float_to_half_fast3_rtne, public domain). */
+ * (after F. Giesen's float_to_half_fast3_rtne, public domain).  Below the
+ * smallest normal half (2^-14) the FPU does the rounding: adding 0.5, whose
+ * ulp (2^-24) is the half denormal's, leaves the denormal's bits in the low
+ * mantissa.  (The magic number was once 2^8, whose ulp is 2^-15: denormals
+ * came out 2^9 times too small, at most 2^-14 of the record's scale off.) */
 static uint16_t half_from_float(float x) {
   uint32_t f, sign;
   memcpy(&f, &x, 4);
   sign = f & 0x80000000u;
   f ^= sign;
   uint16_t o;
-  if (f < (113u << 23)) { /* below the smallest normal half: denormal via the FPU */
-    float d, magic;
-    uint32_t mb = (126u - 15u + 23u + 1u) << 23; /* 0.5 in the half's denormal ulp */
-    memcpy(&magic, &mb, 4);
-    memcpy(&d, &f, 4);
-    d += magic;
-    memcpy(&f, &d, 4);
-    o = (uint16_t)(f - mb);
+  if (f < (113u << 23)) { /* below 2^-14, the smallest normal half */
+    if (f < (102u << 23)) { /* below 2^-25, half the smallest denormal: 0 (also under DAZ) */
+      o = 0;
+    } else {
+      float d, magic;
+      const uint32_t mb = 126u << 23; /* 0.5 */
+      memcpy(&magic, &mb, 4);
+      memcpy(&d, &f, 4);
+      d += magic;
+      memcpy(&f, &d, 4);
+      o = (uint16_t)(f - mb);
+    }
   } else {
     uint32_t mant_odd = (f >> 13) & 1u;
     f += ((uint32_t)(15 - 127) << 23) + 0xfffu;
@@ -520,13 +543,21 @@ static uint16_t half_from_float(float x) {
   return (uint16_t)(o | (sign >> 16));
 }
 
-/* Float of half bits h (finite halves only): exponent rebias by one multiply,
- * which also makes denormals exact; branch-free so loops of it vectorise. */
+/* Float of half bits h (finite halves only), exact, also with the bake's
+ * flush-to-zero / denormals-are-zero on (cv_rt_thread_init); the same values
+ * as F16C's vcvtph2ps.  The exponent is rebiased in the integer bits; a
+ * denormal half m x 2^-24 is first read as the normal float 2^-14 (1 + m /
+ * 1024), then 2^-14 is subtracted (exact), so no float denormal is ever made
+ * (DAZ would read it as 0).  Integer masks, no branch: loops of it vectorise. */
 static inline float half_to_float(uint16_t h) {
-  uint32_t bits = (uint32_t)(h & 0x7fffu) << 13, sign = (uint32_t)(h & 0x8000u) << 16;
-  float f;
+  const uint32_t mag = h & 0x7fffu, sign = (uint32_t)(h & 0x8000u) << 16;
+  const uint32_t den = (uint32_t)-(int32_t)(mag < 0x400u); /* all ones for a denormal */
+  uint32_t bits = (mag << 13) + ((uint32_t)(127 - 15) << 23) + (den & (1u << 23));
+  const uint32_t magic = den & (113u << 23); /* 2^-14 or +0 */
+  float f, mf;
   memcpy(&f, &bits, 4);
-  f *= 0x1p112f;
+  memcpy(&mf, &magic, 4);
+  f -= mf;
   memcpy(&bits, &f, 4);
   bits |= sign;
   memcpy(&f, &bits, 4);
@@ -584,40 +615,45 @@ void cv_bounce_records_get(const cv_bounce_records *r, size_t v, float *val) {
   for (size_t i = 0; i < r->rec; i++) val[i] = scale * half_to_float(h[i]);
 }
 
-/* Adds one hit to the bounce sums: tmp = the previous bounce interpolated at
- * the hit, acc += albedo(from) * tmp (and accr with the receiver's albedo). */
-static inline void bounce_accumulate(const cv_tracer *tr, const cv_bounce_records *R, int nc,
-                                     const cv_hit *h, uint32_t from, double *acc, double *accr) {
-  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS];
-  const uint32_t *tv = tr->m->tri + 3 * h->tri;
-  const unsigned char *p0 = R->data + (size_t)tv[0] * R->stride,
-                      *p1 = R->data + (size_t)tv[1] * R->stride,
-                      *p2 = R->data + (size_t)tv[2] * R->stride;
-  float s0, s1, s2;
-  memcpy(&s0, p0, 4);
-  memcpy(&s1, p1, 4);
-  memcpy(&s2, p2, 4);
-  const float w0 = (1.0f - h->u - h->v) * s0, w1 = h->u * s1, w2 = h->v * s2;
-  const uint16_t *q0 = (const uint16_t *)(const void *)(p0 + 4),
-                 *q1 = (const uint16_t *)(const void *)(p1 + 4),
-                 *q2 = (const uint16_t *)(const void *)(p2 + 4);
-  const size_t rec = R->rec;
+/* --- the bounce pass's sums -------------------------------------------------
+ * One hit adds albedo(from) x (the three vertex records of the hit triangle
+ * weighted by barycentrics and scales) to the vertex's 75 double sums.  Two
+ * versions give the same bits: AVX2 + F16C (8 halves converted per
+ * instruction, 4 doubles per add), chosen at run time when the CPU has both,
+ * and a portable one; both compute each value as ((w0 h0 + w1 h1) + w2 h2) in
+ * float with no fused multiply-add, then o += (double)a * value. */
+struct bounce_hit {
+  const unsigned char *rec[3]; /* records of the hit triangle's vertices */
+  float b[3];                  /* barycentric weights of those vertices */
+  const float *al, *alr;       /* albedo of the ray's origin triangle; receiver's own */
+};
+
+/* w[k] = barycentric k times record k's scale; q[k] = its half values. */
+static inline void hit_weights(const bounce_hit *h, float w[3], const uint16_t *q[3]) {
+  for (int k = 0; k < 3; k++) {
+    float s;
+    memcpy(&s, h->rec[k], sizeof s);
+    w[k] = h->b[k] * s;
+    q[k] = (const uint16_t *)(const void *)(h->rec[k] + sizeof(float));
+  }
+}
+
+static void bounce_add_portable(const bounce_hit *h, size_t rec, int nc, double *acc,
+                                double *accr) {
+  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], w[3];
+  const uint16_t *q[3];
+  hit_weights(h, w, q);
 #pragma omp simd
   for (size_t i = 0; i < rec; i++)
-    tmp[i] = w0 * half_to_float(q0[i]) + w1 * half_to_float(q1[i]) + w2 * half_to_float(q2[i]);
-  const float *al = tr->m->mats[tr->m->tri_mat[from]].albedo;
-  for (int c = 0; c < 3; c++) {
-    const double a = al[c];
-    double *o = acc + c * nc;
-    const float *t = tmp + c * nc;
-#pragma omp simd
-    for (int i = 0; i < nc; i++) o[i] += a * t[i];
-  }
-  if (accr) {
-    const float *ar = recv_albedo(tr->m, from);
+    tmp[i] = w[0] * half_to_float(q[0][i]) + w[1] * half_to_float(q[1][i]) +
+             w[2] * half_to_float(q[2][i]);
+  for (int pass = 0; pass < 2; pass++) {
+    const float *al = pass ? h->alr : h->al;
+    double *out = pass ? accr : acc;
+    if (!out) continue;
     for (int c = 0; c < 3; c++) {
-      const double a = ar[c];
-      double *o = accr + c * nc;
+      const double a = al[c];
+      double *o = out + c * nc;
       const float *t = tmp + c * nc;
 #pragma omp simd
       for (int i = 0; i < nc; i++) o[i] += a * t[i];
@@ -625,52 +661,149 @@ static inline void bounce_accumulate(const cv_tracer *tr, const cv_bounce_record
   }
 }
 
+#ifdef CV_BAKE_X86_SIMD
+__attribute__((target("avx2,f16c"))) static void bounce_add_avx2(const bounce_hit *h,
+                                                                  size_t rec, int nc,
+                                                                  double *acc, double *accr) {
+  float tmp[3 * CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS], w[3];
+  const uint16_t *q[3];
+  hit_weights(h, w, q);
+  const __m256 w0 = _mm256_set1_ps(w[0]), w1 = _mm256_set1_ps(w[1]), w2 = _mm256_set1_ps(w[2]);
+  size_t i = 0;
+  for (; i + 8 <= rec; i += 8) {
+    const __m256 a = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(const void *)(q[0] + i)));
+    const __m256 b = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(const void *)(q[1] + i)));
+    const __m256 c = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(const void *)(q[2] + i)));
+    const __m256 s = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(w0, a), _mm256_mul_ps(w1, b)),
+                                   _mm256_mul_ps(w2, c));
+    _mm256_storeu_ps(tmp + i, s);
+  }
+  for (; i < rec; i++)
+    tmp[i] = w[0] * half_to_float(q[0][i]) + w[1] * half_to_float(q[1][i]) +
+             w[2] * half_to_float(q[2][i]);
+  for (int pass = 0; pass < 2; pass++) {
+    const float *al = pass ? h->alr : h->al;
+    double *out = pass ? accr : acc;
+    if (!out) continue;
+    for (int c = 0; c < 3; c++) {
+      const double as = al[c];
+      const __m256d a = _mm256_set1_pd(as);
+      double *o = out + c * nc;
+      const float *t = tmp + c * nc;
+      int k = 0;
+      for (; k + 4 <= nc; k += 4)
+        _mm256_storeu_pd(o + k, _mm256_add_pd(_mm256_loadu_pd(o + k),
+                                              _mm256_mul_pd(a, _mm256_cvtps_pd(_mm_loadu_ps(t + k)))));
+      for (; k < nc; k++) o[k] += as * t[k];
+    }
+  }
+}
+#endif
+
+/* The sums the CPU runs best, or the portable ones when simd == 0. */
+static bounce_add_fn bounce_add_pick(int simd) {
+#ifdef CV_BAKE_X86_SIMD
+  if (simd && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c"))
+    return bounce_add_avx2;
+#else
+  (void)simd;
+#endif
+  return bounce_add_portable;
+}
+
+int cv_tracer_set_simd(cv_tracer *tr, int on) {
+  tr->bounce_add = bounce_add_pick(on);
+  return tr->bounce_add != bounce_add_portable;
+}
+
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
- * Rays are traced in batches of BOUNCE_BATCH consecutive samples as one Embree
- * packet (rtcIntersect16): their origins share the vertex's fan, which makes
- * them coherent enough that the packet beats 16 rtcIntersect1 calls
- * (docs/benchmarks.md).  A batch is always samples j0..j0+15 of this vertex,
- * so the result does not depend on threads.  Each hit reads three vertex
- * records scattered over the whole previous bounce, so the work is
- * software-pipelined: batch k is traced (its hit triangles' index entries
- * prefetched), then the records of batch k's hits are prefetched, then batch
- * k-1 (whose records were requested one batch earlier) is accumulated, in
- * ray order. */
-#define BOUNCE_BATCH 16
+ * Rays are traced in packets of BOUNCE_BATCH consecutive samples
+ * (rtcIntersect16 through cv_rt_intersect_packet_soa): their origins share
+ * the vertex's fan, which makes them coherent enough that the packet beats 16
+ * rtcIntersect1 calls (docs/benchmarks.md).  A packet is always samples
+ * j0..j0+15 of this vertex, so the result does not depend on threads.  Each
+ * hit reads three vertex records scattered over the whole previous bounce,
+ * so the work is a three-stage software pipeline, one packet per stage:
+ * packet k is sampled and traced (the index entries of its hit primitives
+ * prefetched), packet k-1's vertices are read and their records prefetched,
+ * and packet k-2 (whose records were requested one packet earlier) is
+ * summed, in ray order. */
+#define BOUNCE_BATCH CV_RT_PACKET_MAX
+typedef struct {
+  int n;
+  uint32_t from[BOUNCE_BATCH], prim[BOUNCE_BATCH];
+  float u[BOUNCE_BATCH], v[BOUNCE_BATCH];
+  const unsigned char *rec[BOUNCE_BATCH][3];
+} bounce_packet;
+
+/* Stage 1: samples rays j0..j0+n-1 of v and traces them. */
+static void bounce_trace(const cv_tracer *tr, uint32_t v, int j0, int n, const vseq *q,
+                         bounce_packet *pk) {
+  cv_ray_soa r;
+  pk->n = n;
+  for (int b = 0; b < n; b++) {
+    float org[3], dir[3];
+    pk->from[b] = sample_ray(tr, v, (uint32_t)(j0 + b), q, org, dir);
+    for (int k = 0; k < 3; k++) {
+      r.org[k][b] = org[k];
+      r.dir[k][b] = dir[k];
+    }
+  }
+  cv_rt_intersect_packet_soa(tr->rt, n, &r, 0.0f, INFINITY, pk->prim, pk->u, pk->v);
+  const uint32_t *ov = cv_rt_opaque_vertices(tr->rt);
+  for (int b = 0; b < n; b++)
+    if (pk->prim[b] != CV_RT_NO_HIT) __builtin_prefetch(ov + 3 * (size_t)pk->prim[b], 0, 1);
+}
+
+/* Stage 2: the hit vertices' records located and prefetched. */
+static void bounce_locate(const cv_tracer *tr, const cv_bounce_records *R, bounce_packet *pk) {
+  const uint32_t *ov = cv_rt_opaque_vertices(tr->rt);
+  const size_t used = sizeof(float) + 2 * R->rec; /* bytes of a record that are read */
+  for (int b = 0; b < pk->n; b++) {
+    if (pk->prim[b] == CV_RT_NO_HIT) continue;
+    const uint32_t *tv = ov + 3 * (size_t)pk->prim[b];
+    for (int k = 0; k < 3; k++) {
+      pk->rec[b][k] = R->data + (size_t)tv[k] * R->stride;
+      prefetch_range(pk->rec[b][k], used);
+    }
+  }
+}
+
+/* Stage 3: the packet's hits added to the sums, in ray order. */
+static void bounce_sum(const cv_tracer *tr, const cv_bounce_records *R, int nc,
+                       const bounce_packet *pk, double *acc, double *accr) {
+  const bounce_add_fn add = tr->bounce_add;
+  const cv_mesh *m = tr->m;
+  for (int b = 0; b < pk->n; b++) {
+    if (pk->prim[b] == CV_RT_NO_HIT) continue;
+    bounce_hit h;
+    for (int k = 0; k < 3; k++) h.rec[k] = pk->rec[b][k];
+    h.b[0] = 1.0f - pk->u[b] - pk->v[b];
+    h.b[1] = pk->u[b];
+    h.b[2] = pk->v[b];
+    h.al = m->mats[m->tri_mat[pk->from[b]]].albedo;
+    h.alr = accr ? recv_albedo(m, pk->from[b]) : NULL;
+    add(&h, R->rec, nc, acc, accr);
+  }
+}
+
 static void vertex_bounce(const cv_tracer *tr, uint32_t v, int bands, int rays, uint32_t seed,
                           const cv_bounce_records *R, double *acc, double *accr) {
   int nc = bands * bands;
   memset(acc, 0, 3 * (size_t)nc * sizeof(double));
   if (accr) memset(accr, 0, 3 * (size_t)nc * sizeof(double));
   if (tr->fan_off[v + 1] == tr->fan_off[v]) return;
-  const size_t used = sizeof(float) + 2 * R->rec; /* bytes of a record that are read */
   vseq q;
   vseq_init(&q, seed, v);
-  cv_hit hit[2][BOUNCE_BATCH];
-  uint32_t from[2][BOUNCE_BATCH];
-  int ok[2][BOUNCE_BATCH], nb_prev = 0;
-  for (int j0 = 0, cur = 0; j0 < rays + BOUNCE_BATCH; j0 += BOUNCE_BATCH, cur ^= 1) {
-    const int nb = j0 >= rays ? 0 : (rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH);
-    if (nb > 0) {
-      float org[3 * BOUNCE_BATCH], dir[3 * BOUNCE_BATCH];
-      uint8_t found[BOUNCE_BATCH];
-      for (int b = 0; b < nb; b++)
-        from[cur][b] = sample_ray(tr, v, (uint32_t)(j0 + b), &q, org + 3 * b, dir + 3 * b);
-      cv_rt_intersect_packet(tr->rt, nb, org, dir, NULL, 0.0f, INFINITY, 0, hit[cur], found);
-      for (int b = 0; b < nb; b++) {
-        ok[cur][b] = found[b];
-        if (ok[cur][b]) __builtin_prefetch(tr->m->tri + 3 * hit[cur][b].tri, 0, 1);
-      }
+  bounce_packet pk[3];
+  const int npk = (rays + BOUNCE_BATCH - 1) / BOUNCE_BATCH;
+  for (int k = 0; k < npk + 2; k++) {
+    if (k < npk) {
+      const int j0 = k * BOUNCE_BATCH;
+      bounce_trace(tr, v, j0, rays - j0 < BOUNCE_BATCH ? rays - j0 : BOUNCE_BATCH, &q, &pk[k % 3]);
     }
-    for (int b = 0; b < nb; b++) {
-      if (!ok[cur][b]) continue;
-      const uint32_t *tv = tr->m->tri + 3 * hit[cur][b].tri;
-      for (int k = 0; k < 3; k++) prefetch_range(R->data + (size_t)tv[k] * R->stride, used);
-    }
-    const int o = cur ^ 1;
-    for (int b = 0; b < nb_prev; b++)
-      if (ok[o][b]) bounce_accumulate(tr, R, nc, &hit[o][b], from[o][b], acc, accr);
-    nb_prev = nb;
+    if (k >= 1 && k - 1 < npk) bounce_locate(tr, R, &pk[(k - 1) % 3]);
+    if (k >= 2) bounce_sum(tr, R, nc, &pk[(k - 2) % 3], acc, accr);
   }
   for (int i = 0; i < 3 * nc; i++) acc[i] /= rays;
   for (int i = 0; accr && i < 3 * nc; i++) accr[i] /= rays;
@@ -757,10 +890,12 @@ uint64_t cv_prt_input_hash(const cv_mesh *m, const cv_bake_params *p) {
   uint32_t spread_bits;
   memcpy(&spread_bits, &p->spread, sizeof spread_bits);
   /* The estimator's identity: bump when the sampling changes results. */
-  /* +2 with bounces: the bounce passes read half-float records of the
-   * previous bounce and trace 16-ray packets (results move by ~1e-4);
-   * +16 with the geometric tail. */
-  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 2u : 0u) +
+  /* +4 with bounces: the bounce passes read half-float records of the
+   * previous bounce and trace 16-ray packets (+2, results moved by ~1e-4),
+   * and the records' half denormals are right (+4: values below 2^-14 of a
+   * record's largest were 2^9 too small, then read as 0); +16 with the
+   * geometric tail. */
+  const uint32_t estimator = (p->cosine_only ? 1u : 2u) + (p->bounces > 0 ? 4u : 0u) +
                              (p->tail && p->bounces > 0 ? 16u : 0u);
   uint32_t hdr[7] = {CV_PRT_VERSION, (uint32_t)p->bands, (uint32_t)p->rays,
                      (uint32_t)p->bounces, p->seed, spread_bits, estimator};

@@ -71,6 +71,10 @@ float cv_tracer_spread(const cv_tracer *tr);
  * only when the mesh has window triangles). */
 void cv_tracer_set_window_sampling(cv_tracer *tr, int on);
 int cv_tracer_window_sampling(const cv_tracer *tr);
+/* on != 0 (the default): the bounce pass sums hits with AVX2 + F16C when the
+ * CPU has both; 0: the portable sums (the same bits, for tests and
+ * benchmarks).  Returns 1 when the AVX2 sums are in use. */
+int cv_tracer_set_simd(cv_tracer *tr, int on);
 /* The tracer's mesh (its own copy). */
 const cv_mesh *cv_tracer_mesh(const cv_tracer *tr);
 /* Number of vertices of the tracer's mesh. */

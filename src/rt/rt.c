@@ -18,6 +18,7 @@ struct cv_rt {
   RTCScene windows; /* NULL when the mesh has no window triangles */
   uint32_t *prim_to_tri; /* opaque primitive index -> mesh triangle */
   uint32_t *win_to_tri;  /* window primitive index -> mesh triangle */
+  const uint32_t *opaque_vtx; /* Embree's index buffer of the opaque scene */
 };
 
 void cv_rt_thread_init(void) {
@@ -30,7 +31,7 @@ void cv_rt_thread_init(void) {
 /* Builds one committed scene from the triangles whose window flag equals
  * `want_window`; writes the primitive -> triangle map when map != NULL. */
 static int build_scene(RTCDevice dev, const cv_mesh *m, int want_window, uint32_t *map,
-                       RTCScene *out, size_t *count) {
+                       RTCScene *out, size_t *count, const uint32_t **index) {
   size_t n = 0;
   for (size_t t = 0; t < m->nt; t++)
     if (!!(m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) == want_window) n++;
@@ -59,6 +60,7 @@ static int build_scene(RTCDevice dev, const cv_mesh *m, int want_window, uint32_
     k++;
   }
   rtcCommitGeometry(g);
+  if (index) *index = ib; /* kept alive by the scene that holds g */
   rtcAttachGeometry(sc, g);
   rtcReleaseGeometry(g);
   rtcCommitScene(sc);
@@ -85,8 +87,8 @@ int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory building the ray tracer");
   }
   size_t nop = 0, nwin = 0;
-  st = build_scene(rt->dev, m, 0, rt->prim_to_tri, &rt->opaque, &nop);
-  if (!st) st = build_scene(rt->dev, m, 1, rt->win_to_tri, &rt->windows, &nwin);
+  st = build_scene(rt->dev, m, 0, rt->prim_to_tri, &rt->opaque, &nop, &rt->opaque_vtx);
+  if (!st) st = build_scene(rt->dev, m, 1, rt->win_to_tri, &rt->windows, &nwin, NULL);
   if (st) {
     cv_rt_destroy(rt);
     return cv_err_set(err, st, "Embree: scene build failed (error %d)",
@@ -242,6 +244,60 @@ int cv_rt_window_hit_packet(const cv_rt *rt, int n, const float *org, const floa
   return closest_packet(rt->windows, rt->win_to_tri, n, org, dir, active, tnear, INFINITY,
                         coherent, hit, found);
 }
+
+/* SoA packets returning primitives: the lanes copied as they are, unused
+ * lanes given lane 0's finite ray and masked off. */
+#define CV_RT_SOA_FN(W)                                                                          \
+  static int soa##W(RTCScene sc, int n, const cv_ray_soa *r, float tnear, float tfar,           \
+                    uint32_t *prim, float *u, float *v) {                                        \
+    struct RTCIntersectContext ctx;                                                              \
+    init_context(&ctx, 0);                                                                       \
+    RTC_ALIGN(4 * W) int valid[W];                                                               \
+    struct RTCRayHit##W rh;                                                                      \
+    for (int i = 0; i < W; i++) {                                                                \
+      const int j = i < n ? i : 0;                                                               \
+      valid[i] = i < n ? -1 : 0;                                                                 \
+      rh.ray.org_x[i] = r->org[0][j];                                                            \
+      rh.ray.org_y[i] = r->org[1][j];                                                            \
+      rh.ray.org_z[i] = r->org[2][j];                                                            \
+      rh.ray.dir_x[i] = r->dir[0][j];                                                            \
+      rh.ray.dir_y[i] = r->dir[1][j];                                                            \
+      rh.ray.dir_z[i] = r->dir[2][j];                                                            \
+      rh.ray.tnear[i] = tnear;                                                                   \
+      rh.ray.tfar[i] = tfar;                                                                     \
+      rh.ray.time[i] = 0.0f;                                                                     \
+      rh.ray.mask[i] = 0xFFFFFFFFu;                                                              \
+      rh.ray.id[i] = (unsigned)i;                                                                \
+      rh.ray.flags[i] = 0;                                                                       \
+      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;                                                \
+      rh.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;                                                \
+    }                                                                                            \
+    rtcIntersect##W(valid, sc, &ctx, &rh);                                                       \
+    int count = 0;                                                                               \
+    for (int i = 0; i < n; i++) {                                                                \
+      const int hit = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;                               \
+      prim[i] = hit ? rh.hit.primID[i] : CV_RT_NO_HIT;                                           \
+      u[i] = hit ? rh.hit.u[i] : 0.0f;                                                           \
+      v[i] = hit ? rh.hit.v[i] : 0.0f;                                                           \
+      count += hit;                                                                              \
+    }                                                                                            \
+    return count;                                                                                \
+  }
+CV_RT_SOA_FN(4)
+CV_RT_SOA_FN(8)
+CV_RT_SOA_FN(16)
+
+int cv_rt_intersect_packet_soa(const cv_rt *rt, int n, const cv_ray_soa *r, float tnear,
+                               float tfar, uint32_t *prim, float *u, float *v) {
+  if (n < 1 || n > CV_RT_PACKET_MAX) return -1;
+  if (n <= 4) return soa4(rt->opaque, n, r, tnear, tfar, prim, u, v);
+  if (n <= 8) return soa8(rt->opaque, n, r, tnear, tfar, prim, u, v);
+  return soa16(rt->opaque, n, r, tnear, tfar, prim, u, v);
+}
+
+const uint32_t *cv_rt_opaque_vertices(const cv_rt *rt) { return rt->opaque_vtx; }
+
+uint32_t cv_rt_opaque_triangle(const cv_rt *rt, uint32_t prim) { return rt->prim_to_tri[prim]; }
 
 /* Occlusion packets (any hit in (tnear, tfar)): the SoA fill of
  * CV_RT_PACKET_FN without the hit record. */

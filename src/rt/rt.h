@@ -92,6 +92,31 @@ int cv_rt_window_any_packet(const cv_rt *rt, int n, const float *org, const floa
 int cv_rt_window_hit_packet(const cv_rt *rt, int n, const float *org, const float *dir,
                             const uint8_t *active, float tnear, int coherent, cv_hit *hit,
                             uint8_t *found);
+/* A packet in SoA layout (lane i: origin org[0..2][i], unit direction
+ * dir[0..2][i]), which Embree's packet kernels take as is. */
+typedef struct cv_ray_soa {
+  float org[3][CV_RT_PACKET_MAX];
+  float dir[3][CV_RT_PACKET_MAX];
+} cv_ray_soa;
+
+/* prim[i] of a lane that hits nothing. */
+#define CV_RT_NO_HIT UINT32_MAX
+
+/* Closest opaque hits of lanes 0..n-1 of r (1 <= n <= CV_RT_PACKET_MAX),
+ * traced as cv_rt_intersect_packet traces them (same packet width, hence the
+ * same hits to the bit), returning only what a caller interpolating vertex
+ * data needs: prim[i] = the hit's opaque primitive (an index into
+ * cv_rt_opaque_vertices) or CV_RT_NO_HIT, u[i], v[i] its barycentrics.
+ * Returns the number of hits, -1 (nothing traced) for a bad n. */
+int cv_rt_intersect_packet_soa(const cv_rt *rt, int n, const cv_ray_soa *r, float tnear,
+                               float tfar, uint32_t *prim, float *u, float *v);
+/* The three mesh vertex indices of each opaque primitive (3 per primitive,
+ * in the primitive order of cv_rt_intersect_packet_soa): a hit's vertices in
+ * one read, without the primitive -> triangle map.  Valid while rt lives. */
+const uint32_t *cv_rt_opaque_vertices(const cv_rt *rt);
+/* The mesh triangle of opaque primitive prim. */
+uint32_t cv_rt_opaque_triangle(const cv_rt *rt, uint32_t prim);
+
 /* Closest opaque hits of any number of rays through Embree's stream
  * interface (rtcIntersect1M, in chunks of 256 rays). */
 size_t cv_rt_intersect_stream(const cv_rt *rt, size_t n, const float *org, const float *dir,

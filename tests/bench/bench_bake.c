@@ -1,7 +1,9 @@
 /* Benchmark of the PRT bake on the default cabin (speed against error).
  *
  *   bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]
- *              [--skip-error] [--skip-direct] [--csv FILE]
+ *              [--skip-error] [--skip-direct] [--portable] [--csv FILE]
+ *
+ * --portable: the bounce pass sums hits without AVX2 / F16C (same bits).
  *
  * 1. Throughput: the bake's direct and bounce passes on a vertex subset, next
  *    to a bare Embree loop tracing the SAME rays (pre-generated, so the bare
@@ -231,7 +233,7 @@ static void bounce_throughput(const cv_tracer *tr, const cv_mesh *m, int subset,
 
 int main(int argc, char **argv) {
   int tess = 8, subset = 4000, bake_rays = 1024, bounces = 2, skip_full = 0, skip_error = 0,
-      skip_direct = 0;
+      skip_direct = 0, portable = 0;
   const char *csv_path = NULL;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
@@ -241,11 +243,12 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--skip-full")) skip_full = 1;
     else if (!strcmp(argv[i], "--skip-error")) skip_error = 1;
     else if (!strcmp(argv[i], "--skip-direct")) skip_direct = 1;
+    else if (!strcmp(argv[i], "--portable")) portable = 1;
     else if (!strcmp(argv[i], "--csv") && i + 1 < argc) csv_path = argv[++i];
     else {
       fprintf(stderr,
               "usage: bench_bake [--tess N] [--subset V] [--bake-rays R] [--bounces B] [--skip-full]\n"
-              "                  [--skip-error] [--skip-direct] [--csv FILE]\n");
+              "                  [--skip-error] [--skip-direct] [--portable] [--csv FILE]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
@@ -270,7 +273,8 @@ int main(int argc, char **argv) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
-  printf("BVH build + fans: %.2f s\n\n", cv_now_seconds() - t0);
+  printf("BVH build + fans: %.2f s; bounce sums: %s\n\n", cv_now_seconds() - t0,
+         cv_tracer_set_simd(tr, !portable) ? "AVX2 + F16C" : "portable");
 
   /* Subset: every k-th vertex with geometry. */
   size_t nv = m->nv, ns = 0;

@@ -22,6 +22,7 @@
 #include "prt/bake.h"
 #include "prt/prt.h"
 #include "prt/relight.h"
+#include "rt/rt.h"
 #include "sh/sh.h"
 #include "io/png.h"
 #include "io/texture.h"
@@ -727,6 +728,76 @@ static void test_bounce_records(void **state) {
   assert_int_equal(cv_bounce_records_create(0, NV, &r), CV_ERR_RANGE);
 }
 
+/* Half denormals (values below 2^-14 of the record's largest): rounded to the
+ * nearest multiple of 2^-24 of it, and read back exactly also with the bake
+ * threads' flush-to-zero / denormals-are-zero on.  (They once came out 2^9
+ * times too small, then read as 0 under DAZ.) */
+static void test_bounce_records_denormal(void **state) {
+  (void)state;
+  enum { B = 3, REC = 3 * B * B };
+  cv_bounce_records *r;
+  assert_int_equal(cv_bounce_records_create(B, 1, &r), CV_OK);
+  float val[REC], back[REC];
+  val[0] = 1.0f;
+  for (int i = 1; i < REC; i++) /* 2^-14 down to 2^-27, both signs, odd mantissas */
+    val[i] = (i % 2 ? 1.0f : -1.0f) * ldexpf(1.0f + 0.37f * (float)(i % 3), -14 - (i % 14));
+  for (int daz = 0; daz < 2; daz++) {
+    if (daz) cv_rt_thread_init();
+    cv_bounce_records_set(r, 0, val);
+    cv_bounce_records_get(r, 0, back);
+    for (int i = 1; i < REC; i++) {
+      const double want = nearbyint((double)val[i] * 0x1p24) * 0x1p-24; /* ties to even */
+      if (fabs(val[i]) < 0x1p-14) assert_true(back[i] == (float)want);
+      else assert_true(fabsf(back[i] - val[i]) <= 0x1p-25f);
+    }
+  }
+  cv_bounce_records_destroy(r);
+}
+
+/* The bounce pass's AVX2 + F16C sums and the portable ones give the same
+ * bits (with the bake's FTZ/DAZ on, records with half denormals). */
+static void test_bounce_simd_equal(void **state) {
+  (void)state;
+  enum { B = 5, REC = 3 * B * B };
+  cv_mesh *m = box_mesh(4, 0.5f, 1);
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  const size_t nv = cv_tracer_vertex_count(tr);
+  cv_bounce_records *rec;
+  assert_int_equal(cv_bounce_records_create(B, nv, &rec), CV_OK);
+  float *val = malloc(REC * sizeof(float)), *a = malloc(nv * REC * sizeof(float)),
+        *b = malloc(nv * REC * sizeof(float));
+  uint32_t *verts = malloc(nv * sizeof(uint32_t)), x = 11u;
+  for (size_t v = 0; v < nv; v++) {
+    for (int i = 0; i < REC; i++) {
+      x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+      const float u = (float)(x >> 8) / 16777216.0f;
+      val[i] = i % 5 == 0 ? ldexpf(u, -20) : (i % 2 ? u : -0.3f * u);
+    }
+    cv_bounce_records_set(rec, v, val);
+    verts[v] = (uint32_t)v;
+  }
+  const int simd = cv_tracer_set_simd(tr, 1);
+  print_message("bounce sums: %s\n", simd ? "AVX2 + F16C" : "portable only (no AVX2/F16C)");
+  for (int rays = 16; rays <= 37; rays += 21) { /* whole packets, then a partial one */
+    cv_tracer_set_simd(tr, 1);
+    assert_int_equal(cv_bake_bounce_subset(tr, B, rays, 9, rec, verts, nv, a), CV_OK);
+    assert_int_equal(cv_tracer_set_simd(tr, 0), 0);
+    assert_int_equal(cv_bake_bounce_subset(tr, B, rays, 9, rec, verts, nv, b), CV_OK);
+    assert_memory_equal(a, b, nv * REC * sizeof(float));
+    double s = 0;
+    for (size_t i = 0; i < nv * REC; i++) s += fabs(a[i]);
+    assert_true(s > 0);
+  }
+  free(val);
+  free(a);
+  free(b);
+  free(verts);
+  cv_bounce_records_destroy(rec);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
 static void test_hostile_files(void **state) {
   (void)state;
   const float alb[3] = {0.5f, 0.5f, 0.5f};
@@ -807,6 +878,8 @@ int main(void) {
       cmocka_unit_test(test_hostile_files),
       cmocka_unit_test(test_textured_quad),
       cmocka_unit_test(test_bounce_records),
+      cmocka_unit_test(test_bounce_records_denormal),
+      cmocka_unit_test(test_bounce_simd_equal),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -171,6 +171,60 @@ static void test_packets_match_single(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* SoA packets give the very hits of cv_rt_intersect_packet (incoherent,
+ * every lane active): the same primitive's triangle, u and v to the bit; a
+ * primitive's entry in cv_rt_opaque_vertices is its triangle's vertices. */
+static void test_packet_soa(void **state) {
+  (void)state;
+  cv_mesh *m = box_scene();
+  cv_rt *rt;
+  cv_err err;
+  assert_int_equal(cv_rt_create(m, &rt, &err), CV_OK);
+  cv_rt_thread_init();
+  const uint32_t *ov = cv_rt_opaque_vertices(rt);
+  assert_non_null(ov);
+  int bad = 0, hits = 0;
+  for (int rep = 0; rep < 200; rep++) {
+    const int n = 1 + rep % CV_RT_PACKET_MAX;
+    float org[3 * CV_RT_PACKET_MAX], dir[3 * CV_RT_PACKET_MAX], u[CV_RT_PACKET_MAX],
+        v[CV_RT_PACKET_MAX];
+    uint32_t prim[CV_RT_PACKET_MAX];
+    uint8_t found[CV_RT_PACKET_MAX];
+    cv_hit hit[CV_RT_PACKET_MAX];
+    cv_ray_soa r;
+    make_rays(n, (rep / 7) % 2, org, dir);
+    for (int i = 0; i < n; i++)
+      for (int k = 0; k < 3; k++) {
+        r.org[k][i] = org[3 * i + k];
+        r.dir[k][i] = dir[3 * i + k];
+      }
+    int c = cv_rt_intersect_packet(rt, n, org, dir, NULL, 0, INFINITY, 0, hit, found);
+    int cs = cv_rt_intersect_packet_soa(rt, n, &r, 0, INFINITY, prim, u, v);
+    assert_int_equal(c, cs);
+    for (int i = 0; i < n; i++) {
+      if (found[i] != (prim[i] != CV_RT_NO_HIT)) {
+        bad++;
+        continue;
+      }
+      if (!found[i]) continue;
+      hits++;
+      const uint32_t t = cv_rt_opaque_triangle(rt, prim[i]);
+      if (t != hit[i].tri || memcmp(&u[i], &hit[i].u, 4) || memcmp(&v[i], &hit[i].v, 4)) bad++;
+      for (int k = 0; k < 3; k++)
+        if (ov[3 * (size_t)prim[i] + k] != m->tri[3 * (size_t)t + k]) bad++;
+    }
+  }
+  assert_int_equal(bad, 0);
+  assert_true(hits > 1000);
+  cv_ray_soa r;
+  uint32_t prim[1];
+  float u[1], v[1];
+  assert_int_equal(cv_rt_intersect_packet_soa(rt, 0, &r, 0, INFINITY, prim, u, v), -1);
+  assert_int_equal(cv_rt_intersect_packet_soa(rt, CV_RT_PACKET_MAX + 1, &r, 0, INFINITY, prim, u, v), -1);
+  cv_rt_destroy(rt);
+  cv_mesh_destroy(m);
+}
+
 static void test_stream_and_no_windows(void **state) {
   (void)state;
   cv_mesh *m = box_scene();
@@ -226,6 +280,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_packets_match_single),
       cmocka_unit_test(test_stream_and_no_windows),
+      cmocka_unit_test(test_packet_soa),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
