@@ -76,13 +76,18 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed) {
   return to_unit(owen(cv_sobol_u32(i, dim), cv_hash_combine(seed, (uint32_t)dim + 1u)));
 }
 
+static inline uint32_t reverse_byte(uint32_t v) { return reverse_bits(v) >> 24; }
+
 void cv_sobol_tab_init(cv_sobol_tab *tab) {
   for (int d = 0; d < CV_SOBOL_DIMS; d++)
     for (int b = 0; b < 4; b++)
       for (uint32_t v = 0; v < 256; v++) {
+        /* byte b of the scrambled index y = lk(reverse(index)) is byte 3 - b
+         * of i = reverse(y), bit-reversed */
+        const uint32_t vi = reverse_byte(v);
         uint32_t x = 0;
         for (int j = 0; j < 8; j++)
-          if (v & (1u << j)) x ^= dirnum[d][8 * b + j];
+          if (vi & (1u << j)) x ^= dirnum[d][8 * (3 - b) + j];
         tab->t[d][b][v] = reverse_bits(x); /* stored reversed: owen() starts there */
       }
 }
@@ -93,11 +98,14 @@ void cv_sobol_dim_seeds(uint32_t seed, int ndims, uint32_t *dim_seeds) {
 
 void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
                        const uint32_t *dim_seeds, int ndims, float *u) {
-  uint32_t i = owen(index, seed);
+  /* the shuffled index owen(index, seed) = reverse(y): the tables are
+   * indexed by the bytes of y, which saves its reversal */
+  const uint32_t y = lk_permutation(reverse_bits(index), seed);
+  const uint32_t y0 = y & 255u, y1 = (y >> 8) & 255u, y2 = (y >> 16) & 255u, y3 = y >> 24;
   for (int d = 0; d < ndims; d++) {
     const uint32_t(*t)[256] = tab->t[d];
     /* bit-reversed Sobol component (reversal is linear over XOR) */
-    uint32_t xr = t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][(i >> 16) & 255u] ^ t[3][i >> 24];
+    const uint32_t xr = t[0][y0] ^ t[1][y1] ^ t[2][y2] ^ t[3][y3];
     u[d] = to_unit(reverse_bits(lk_permutation(xr, dim_seeds[d])));
   }
 }

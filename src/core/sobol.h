@@ -25,10 +25,12 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed);
  * shuffled once, so all dimensions of a sample stay consistent). */
 void cv_sobol_owen_n(uint32_t index, uint32_t seed, int ndims, float *u);
 /* Byte tables for fast generation: entry [d][b][v] is the bit-reversed XOR
- * of the direction numbers of dimension d selected by byte b of the index
- * having value v, so a point component costs 4 lookups instead of up to 32
- * steps, and the Owen scramble (which works on reversed bits) skips one
- * reversal.
+ * of the direction numbers of dimension d selected by the shuffled index
+ * i = reverse(y) whose byte b of y (y = the index's scramble before its
+ * last reversal) has value v, so a point component costs 4 lookups instead
+ * of up to 32 steps, the index shuffle skips its last reversal and the Owen
+ * scramble of the component (which works on reversed bits) its first: the
+ * values are those of cv_sobol_owen_n bit for bit (tests/core).
  * 32 KiB; fill once with cv_sobol_tab_init and share read-only. */
 typedef struct cv_sobol_tab {
   uint32_t t[CV_SOBOL_DIMS][4][256];

@@ -2,7 +2,7 @@
  * section 4.3) on the default cabin under blender-data's forest.exr.
  *
  *   bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] [--ref-spp N]
- *             [--max-spp N] [--reps N] [--dat FILE]
+ *             [--max-spp N] [--reps N] [--dat FILE] [--speed]
  *
  * --sky: the Preetham sky (turbidity 3) with its sun at that elevation and
  * azimuth (degrees, clockwise from ahead) instead of the map.  Strategies:
@@ -34,7 +34,10 @@
  *    by the haze and diffuse lobes dominates the variance), too coarse to
  *    measure 1%.
  * Prints markdown tables; --dat writes gnuplot-ready blocks (one per
- * strategy: spp, seconds, rmse). */
+ * strategy: spp, seconds, rmse).  --speed: steps 1 and 2 only, for the
+ * library's default and the two MIS mixes that were or are the default
+ * (window 0.5; window 0.25 + env 0.25), then exit (for before/after timing
+ * of two builds, alternated). */
 #include <math.h>
 #include <omp.h>
 #include <stdint.h>
@@ -85,6 +88,12 @@ static int default_strategy(void) {
         strategies[s].i == d.interior_fraction)
       return s;
   return -1;
+}
+
+/* The strategies step 1 times: all, or with --speed the default and the
+ * two MIS mixes that were or are the default (rows 3 and 5). */
+static int timed(int s, int default_strat, int speed_only) {
+  return !speed_only || s == default_strat || s == 3 || s == 5;
 }
 
 static void set_strategy(cv_lcd_params *p, int s) {
@@ -224,6 +233,7 @@ static double spp_at(const int *spp, const double *err, int n, double target, in
 int main(int argc, char **argv) {
   int tess = 2, cw = 16, ch = 12, ref_spp = 262144, max_spp = 16384, reps = 3;
   const char *env = "forest.exr", *dat = NULL;
+  int speed_only = 0; /* --speed: step 1-2 for the two MIS defaults only, then exit */
   double sky_el = -1000, sky_az = 0; /* --sky: analytic sky instead of the map */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
@@ -237,9 +247,10 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--max-spp") && i + 1 < argc) max_spp = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--dat") && i + 1 < argc) dat = argv[++i];
+    else if (!strcmp(argv[i], "--speed")) speed_only = 1;
     else {
       fprintf(stderr, "usage: bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] "
-                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE]\n");
+                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE] [--speed]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
@@ -399,6 +410,7 @@ int main(int argc, char **argv) {
     t_bare[r] = bare_loop(rt, org, dir, nvalid, &bare_hits);
     t_pack[r] = bare_packets(rt, porg, pdir, npk, &pack_hits);
     for (int s = 0; s < NSTRAT; s++) {
+      if (!timed(s, DEFAULT_STRAT, speed_only)) continue;
       set_strategy(&p, s);
       cv_lcd_accum_clear(acc);
       double w0 = cv_now_seconds();
@@ -415,6 +427,10 @@ int main(int argc, char **argv) {
   const double tb = bench_median(t_bare, reps), tpk = bench_median(t_pack, reps);
   double tg[NSTRAT], wg[NSTRAT];
   for (int s = 0; s < NSTRAT; s++) {
+    if (!timed(s, DEFAULT_STRAT, speed_only)) {
+      tg[s] = wg[s] = tg_lo[s] = tg_hi[s] = 0;
+      continue;
+    }
     range(t_gather[s], reps, &tg_lo[s], &tg_hi[s]);
     tg[s] = bench_median(t_gather[s], reps);
     wg[s] = bench_median(w_gather[s], reps);
@@ -437,6 +453,7 @@ int main(int argc, char **argv) {
          "queries | closest-hit M rays/s | vs bare single-ray loop | vs bare packet loop "
          "|\n|---|---|---|---|---|---|---|---|---|\n");
   for (int s = 0; s < NSTRAT; s++) {
+    if (!timed(s, DEFAULT_STRAT, speed_only)) continue;
     double nr = (double)(cnt[s][CV_LCD_ACC_HITS] + cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]);
     double nq = (double)(cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]) +
                 (double)cnt[s][CV_LCD_ACC_SHADOW];
@@ -466,6 +483,7 @@ int main(int argc, char **argv) {
   free(porg);
   free(pdir);
   cv_lcd_accum_destroy(acc);
+  if (speed_only) return 0;
 
   /* Where the environment-light samples go, from the panel centre: behind
    * the panel, onto the car body, or out through a window (what limits
