@@ -46,6 +46,7 @@
 #include <string.h>
 
 #include "bench_util.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "lcd/gather.h"
 #include "mesh/cabin.h"
@@ -405,7 +406,7 @@ int main(int argc, char **argv) {
   const cv_rt *rt = cv_tracer_rt(tr);
   double t_gather[NSTRAT][15], w_gather[NSTRAT][15], t_bare[15], t_pack[15];
   int64_t cnt[NSTRAT][CV_LCD_ACC_HEADER];
-  uint64_t bare_hits = 0, pack_hits = 0;
+  uint64_t bare_hits = 0, pack_hits = 0, digest[NSTRAT][15];
   for (int r = 0; r < reps; r++) {
     t_bare[r] = bare_loop(rt, org, dir, nvalid, &bare_hits);
     t_pack[r] = bare_packets(rt, porg, pdir, npk, &pack_hits);
@@ -419,6 +420,7 @@ int main(int argc, char **argv) {
       t_gather[s][r] = cpu_seconds() - t0;
       w_gather[s][r] = cv_now_seconds() - w0;
       memcpy(cnt[s], acc->data, sizeof cnt[s]);
+      digest[s][r] = cv_hash64(acc->data, acc->n * sizeof(int64_t));
     }
   }
   double tb_lo, tb_hi, tp_lo, tp_hi, tg_lo[NSTRAT], tg_hi[NSTRAT];
@@ -470,6 +472,14 @@ int main(int argc, char **argv) {
          "them, coherent packets of %d) | 1 | %.3f [%.3f, %.3f] | | %zu | | %.2f | %.2f | 1.00 "
          "|\n\n",
          CV_RT_PACKET_MAX, tpk, tp_lo, tp_hi, npk, npk / tpk / 1e6, tb / tpk);
+  /* the buffers' FNV-1a digests: two builds that must agree bit for bit
+   * print the same */
+  printf("buffer digests (round: FNV-1a of the accumulation buffer):");
+  for (int s = 0; s < NSTRAT; s++)
+    if (timed(s, DEFAULT_STRAT, speed_only))
+      for (int r = 0; r < reps && r < 2; r++)
+        printf(" s%d r%d %016llx", s, r, (unsigned long long)digest[s][r]);
+  printf("\n\n");
   const int64_t *cd = cnt[DEFAULT_STRAT];
   printf("default round: %.1f%% of gather rays hit the interior, %.1f%% left through a window, "
          "%.2f%% lost; sun shadow rays %lld (%lld unblocked); clamped channel values %lld; bare "
