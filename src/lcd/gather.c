@@ -338,8 +338,9 @@ static void panel_point(const cv_lcd_panel *pn, float fx, float fy, float o[3]) 
 }
 
 /* envvis: from 4 points of each region (its quarters' centres), one ray
- * each into the 4 quarters of each cell in front of the panel (one per
- * point): the share that reaches the environment through a window. */
+ * each into the centres of the 4 quarters of each cell in front of the
+ * panel (16 probes a cell): the share that reaches the environment through
+ * a window.  About 0.8 M rays, once per gather. */
 static int env_visibility(cv_lcd_gather *g) {
   const cv_lcd_panel *pn = &g->panel;
   g->envvis = calloc((size_t)ENV_RX * ENV_RY * VIS_W * VIS_H, sizeof(float));
@@ -358,13 +359,14 @@ static int env_visibility(cv_lcd_gather *g) {
       float *row = g->envvis + ((size_t)r * VIS_H + (size_t)Y) * VIS_W;
       for (int X = 0; X < VIS_W; X++) {
         int seen = 0;
-        for (int k = 0; k < 4; k++) {
-          const double u = (X + 0.25 + 0.5 * (k & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (k >> 1)) / VIS_H;
+        for (int q = 0; q < 4; q++) {
+          const double u = (X + 0.25 + 0.5 * (q & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (q >> 1)) / VIS_H;
           const double ph = 2 * M_PI * (u - 0.5);
           const float d[3] = {(float)(sin(th) * sin(ph)), (float)cos(th), (float)(-sin(th) * cos(ph))};
-          if (dot3(d, pn->normal) > 0 && cv_rt_reaches_env(g->rt, o[k], d, 0.0f)) seen++;
+          if (!(dot3(d, pn->normal) > 0)) continue;
+          for (int k = 0; k < 4; k++) seen += cv_rt_reaches_env(g->rt, o[k], d, 0.0f);
         }
-        row[X] = (float)seen / 4;
+        row[X] = (float)seen / 16;
       }
     }
   }
@@ -425,7 +427,7 @@ static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const 
         float fc = 0;
         if (z > 0) {
           float f[3];
-          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(atan2f(dot3(d, bn), dot3(d, tn)));
+          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(cv_fast_atan2(dot3(d, bn), dot3(d, tn)));
           cv_brdf_eval_bins(smp, kb, tb, th, ph, f);
           fc = (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) * z;
         }
@@ -631,8 +633,6 @@ static inline void add_sample(float v[3], double clamp, double inv_unit, int64_t
   s2[0] += (int64_t)(q >> CV_LCD_M2_SHIFT);
   s2[1] += (int64_t)(q & ((1ull << CV_LCD_M2_SHIFT) - 1));
 }
-
-#define GATHER_ATAN2 atan2f
 
 /* Strategies (gather.h). */
 enum { STRAT_BRDF = 0, STRAT_COS, STRAT_WIN, STRAT_ENV, STRAT_INT, NSTRAT };
@@ -913,7 +913,7 @@ static inline uint32_t env_texel(const cv_image *img, const float d[3], float *t
   const int w = img->w, h = img->h;
   float y = d[1];
   y = y > 1 ? 1 : (y < -1 ? -1 : y);
-  float u = 0.5f + atan2f(d[0], -d[2]) * (float)(0.5 * M_1_PI);
+  float u = 0.5f + cv_fast_atan2(d[0], -d[2]) * (float)(0.5 * M_1_PI);
   if (u >= 1) u -= 1;
   if (u < 0) u = 0;
   const float v = acosf(y) * (float)M_1_PI;
@@ -1102,7 +1102,9 @@ static void sun_disc_init(const cv_lcd_light *l, sun_disc *sf) {
 static inline void sun_disc_dir(const sun_disc *sf, uint32_t h0, uint32_t h1, float d[3]) {
   const float u0 = (float)(h0 >> 8) * 0x1p-24f, u1 = (float)(h1 >> 8) * 0x1p-24f;
   const float ct = 1 - u0 * (1 - sf->cos_a), st = sqrtf(fmaxf(0.0f, 1 - ct * ct));
-  const float ph = 6.28318530717958647692f * u1, a = st * cosf(ph), b = st * sinf(ph);
+  float sp, cp;
+  cv_fast_sincos2pi(u1, &sp, &cp);
+  const float a = st * cp, b = st * sp;
   for (int k = 0; k < 3; k++) d[k] = ct * sf->dir[k] + a * sf->t[k] + b * sf->b[k];
 }
 
@@ -1291,7 +1293,7 @@ static void sun_next_event(const round_ctx *R, block_buf *bb, int tx0, int ty0, 
     if (!cv_rt_reaches_env(R->g->rt, o, sd, 0)) continue;
     cnt[CV_LCD_ACC_SUNLIT]++;
     const float th = acosf(cs > 1 ? 1 : cs);
-    const float ph = fabsf(GATHER_ATAN2(dot3(sd, T->bn), dot3(sd, T->tn)));
+    const float ph = fabsf(cv_fast_atan2(dot3(sd, T->bn), dot3(sd, T->tn)));
     cv_brdf_eval_bins(R->g->smp, T->kb, T->tb, th, ph, T->nee);
     for (int c = 0; c < 3; c++) T->nee[c] *= cs * R->sf.E_omega[c];
   }
@@ -1355,7 +1357,7 @@ static size_t generate_rays(const round_ctx *R, block_buf *bb, int tx0, int ty0,
       }
       if (live && (st == STRAT_COS || st == STRAT_INT)) {
         th = acosf(wl[2] > 1 ? 1 : wl[2]);
-        ph = fabsf(GATHER_ATAN2(wl[1], wl[0]));
+        ph = fabsf(cv_fast_atan2(wl[1], wl[0]));
         if (cb > 0) pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
         cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
       }
@@ -1468,7 +1470,7 @@ static void shade_rays(const round_ctx *R, block_buf *bb, size_t n, const win_re
       if (win) {
         /* the deferred f cos and interior denominator of a window or
          * environment sample */
-        const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(GATHER_ATAN2(rf[1], rf[0]));
+        const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(cv_fast_atan2(rf[1], rf[0]));
         const float pb = cb > 0 ? cv_brdf_pdf_cs(smp, T->kb, T->tb, rf[2], rf[0] * rf[0] + rf[1] * rf[1], th, ph) : 0.0f;
         cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, fc);
         for (int c = 0; c < 3; c++) fc[c] *= rf[2];

@@ -193,9 +193,9 @@ typedef struct cv_lcd_params {
 } cv_lcd_params;
 
 /* Default window_fraction (measured on the default cabin: docs/benchmarks.md). */
-#define CV_LCD_WINDOW_FRACTION 0.5
+#define CV_LCD_WINDOW_FRACTION 0.25
 /* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
-#define CV_LCD_ENV_FRACTION 0.0
+#define CV_LCD_ENV_FRACTION 0.25
 /* Default interior_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_INTERIOR_FRACTION 0.0
 /* Angular radius of the solar disc (degrees; the sun's mean apparent
