@@ -31,6 +31,15 @@ static inline uint32_t reverse_bits(uint32_t x) {
   return __builtin_bswap32(x);
 }
 
+/* The same by shifts and masks only (vectorises where bswap does not). */
+static inline uint32_t reverse_bits_sm(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
 /* Burley 2020, listing 2: a hash whose low bits depend only on lower bits
  * (Laine-Karras), applied to reversed bits = nested uniform (Owen) scramble. */
 static inline uint32_t lk_permutation(uint32_t x, uint32_t seed) {
@@ -102,10 +111,13 @@ void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
    * indexed by the bytes of y, which saves its reversal */
   const uint32_t y = lk_permutation(reverse_bits(index), seed);
   const uint32_t y0 = y & 255u, y1 = (y >> 8) & 255u, y2 = (y >> 16) & 255u, y3 = y >> 24;
-  for (int d = 0; d < ndims; d++) {
-    const uint32_t(*t)[256] = tab->t[d];
-    /* bit-reversed Sobol component (reversal is linear over XOR) */
-    const uint32_t xr = t[0][y0] ^ t[1][y1] ^ t[2][y2] ^ t[3][y3];
-    u[d] = to_unit(reverse_bits(lk_permutation(xr, dim_seeds[d])));
-  }
+  uint32_t xr[CV_SOBOL_DIMS], z[CV_SOBOL_DIMS];
+  const int n = ndims < CV_SOBOL_DIMS ? ndims : CV_SOBOL_DIMS;
+  /* bit-reversed Sobol components (reversal is linear over XOR), then
+   * their scrambles in a separate loop of independent lanes (the compiler
+   * vectorises it: the reversal by shifts and masks, no byte swap) */
+  for (int d = 0; d < n; d++)
+    xr[d] = tab->t[d][0][y0] ^ tab->t[d][1][y1] ^ tab->t[d][2][y2] ^ tab->t[d][3][y3];
+  for (int d = 0; d < n; d++) z[d] = reverse_bits_sm(lk_permutation(xr[d], dim_seeds[d]));
+  for (int d = 0; d < n; d++) u[d] = to_unit(z[d]);
 }

@@ -1211,7 +1211,7 @@ static inline void sample_origin(const round_ctx *R, const texel_state *T, int x
 static inline int sample_point(const round_ctx *R, const texel_state *T, int j, float u[4]) {
   const int st = strategy_of(R, j);
   const uint32_t idx = R->round * (uint32_t)R->nstr[st] + (uint32_t)(j - R->first[st]);
-  cv_sobol_owen_tab(&R->g->sobol, idx, T->seed[st], T->dseed[st], 4, u);
+  cv_sobol_owen_tab4(&R->g->sobol, idx, T->seed[st], T->dseed[st], u);
   return st;
 }
 

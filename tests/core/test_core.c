@@ -227,8 +227,14 @@ static uint64_t sobol_digest(int use_tab) {
     for (uint32_t k = 0; k < 65536 + 64; k++) {
       const uint32_t i = k < 65536 ? k : cv_hash_u32(k) ; /* some indices above 2^16 */
       float u[CV_SOBOL_DIMS];
-      if (use_tab) cv_sobol_owen_tab(tab, i, seeds[s], ds, CV_SOBOL_DIMS, u);
-      else cv_sobol_owen_n(i, seeds[s], CV_SOBOL_DIMS, u);
+      if (use_tab) {
+        cv_sobol_owen_tab(tab, i, seeds[s], ds, CV_SOBOL_DIMS, u);
+        float u4[4];
+        cv_sobol_owen_tab4(tab, i, seeds[s], ds, u4);
+        if (memcmp(u, u4, sizeof u4)) fail_msg("cv_sobol_owen_tab4 differs at index %u", i);
+      } else {
+        cv_sobol_owen_n(i, seeds[s], CV_SOBOL_DIMS, u);
+      }
       h = cv_hash64_floats(h, u, CV_SOBOL_DIMS);
     }
   }
