@@ -34,6 +34,11 @@ struct cv_lcd_gather {
   float *envvis; /* ENV_RX x ENV_RY regions of VIS_H x VIS_W lat-long cells: the fraction of
                     probe rays from the region that reach the environment (NULL: no windows);
                     computed by cv_lcd_gather_create, like tgeo */
+  /* the environment strategy's tables of the last (light, eye) (env_tables
+   * below); a pure function of them, kept across calls under the lock */
+  struct env_tables *etab;
+  omp_lock_t etab_lock;
+  int lock_ready;
   float *tgeo;  /* per triangle: unoccluded share of its light the panel receives, up to a
                    constant: cos at the triangle x cos at the panel / r^2 from the panel
                    centre, times the fraction of 5 panel points that see its centroid */
@@ -447,6 +452,69 @@ static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const 
   return CV_OK;
 }
 
+/* The environment strategy's tables for one (light, eye): the light's
+ * tables restricted to the panel's front and, with windows, the region
+ * tables (env_regions).  About 12 ms to build on the default cabin, so
+ * they are kept for the last (light, eye) a call used: a progressive
+ * gather renders round after round, tile after tile, with the same light
+ * and eye.  Reference-counted (the cache holds one reference, each round
+ * using them another), so a call never sees them freed under it; being a
+ * pure function of (gather, light, eye), whoever builds them, the samples
+ * are the same. */
+typedef struct env_tables {
+  int refs;
+  uint64_t light_hash;
+  float eye[3];
+  cv_env_sampler *esr;                   /* restricted to the panel's front */
+  cv_env_sampler *ereg[ENV_RX * ENV_RY]; /* per region (NULL: esr for all) */
+} env_tables;
+
+static void env_tables_free(env_tables *t) {
+  if (!t) return;
+  cv_env_sampler_destroy(t->esr);
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(t->ereg[r]);
+  free(t);
+}
+
+static void env_tables_release(const cv_lcd_gather *cg, env_tables *t) {
+  if (!t) return;
+  cv_lcd_gather *g = (cv_lcd_gather *)cg; /* the cache is not part of the value */
+  omp_set_lock(&g->etab_lock);
+  const int last = --t->refs == 0;
+  omp_unset_lock(&g->etab_lock);
+  if (last) env_tables_free(t);
+}
+
+/* The tables of (l, eye), from the cache or built (one reference for the
+ * caller).  NULL: out of memory. */
+static env_tables *env_tables_get(const cv_lcd_gather *cg, const cv_lcd_light *l, const float eye[3]) {
+  cv_lcd_gather *g = (cv_lcd_gather *)cg;
+  omp_set_lock(&g->etab_lock);
+  env_tables *t = g->etab;
+  if (t && t->light_hash == l->hash && !memcmp(t->eye, eye, sizeof t->eye)) {
+    t->refs++;
+    omp_unset_lock(&g->etab_lock);
+    return t;
+  }
+  omp_unset_lock(&g->etab_lock);
+  if (!(t = calloc(1, sizeof *t))) return NULL;
+  t->light_hash = l->hash;
+  memcpy(t->eye, eye, sizeof t->eye);
+  if (cv_env_sampler_restrict(l->env_smp, g->panel.normal, &t->esr) ||
+      (t->esr->total > 0 && g->envvis && env_regions(g, t->esr, eye, t->ereg))) {
+    env_tables_free(t);
+    return NULL;
+  }
+  t->refs = 2; /* the caller's and the cache's */
+  omp_set_lock(&g->etab_lock);
+  env_tables *old = g->etab;
+  g->etab = t;
+  const int drop = old && --old->refs == 0;
+  omp_unset_lock(&g->etab_lock);
+  if (drop) env_tables_free(old);
+  return t;
+}
+
 /* tgeo: how much of each triangle's exit radiance the panel can receive
  * (the interior strategy's weights, gather.h), from the panel centre and 4
  * points halfway to its corners; one shadow ray each (nt x 5 rays). */
@@ -504,6 +572,8 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
   g->has_windows = cv_rt_has_windows(rt);
   g->panel = *panel;
   g->brdf = brdf;
+  omp_init_lock(&g->etab_lock);
+  g->lock_ready = 1;
   g->tri = malloc(3 * m->nt * sizeof(uint32_t) + 1);
   if (!g->tri || cv_brdf_sampler_create(brdf, &g->smp)) {
     cv_lcd_gather_destroy(g);
@@ -546,6 +616,10 @@ void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   free(g->tnA);
   free(g->tgeo);
   free(g->envvis);
+  if (g->lock_ready) {
+    env_tables_release(g, g->etab);
+    omp_destroy_lock(&g->etab_lock);
+  }
   cv_brdf_sampler_destroy(g->smp);
   free(g);
 }
@@ -1126,8 +1200,9 @@ typedef struct round_ctx {
   uint32_t round;
   int nstr[NSTRAT], first[NSTRAT];
   float cb, cc, cw, ce, ci; /* c_s = n_s / spp */
-  cv_env_sampler *esr;      /* the environment tables restricted to the panel's front */
-  cv_env_sampler *ereg[ENV_RX * ENV_RY]; /* and per region (NULL: esr for all) */
+  env_tables *et;           /* the environment strategy's tables (NULL: not used) */
+  const cv_env_sampler *esr;/* et's: restricted to the panel's front */
+  const cv_env_sampler *const *ereg; /* and per region (ereg[0] NULL: esr for all) */
   int_table itab;
   double clamp, inv_unit;
   int sun, sun_in_env;
@@ -1137,15 +1212,13 @@ typedef struct round_ctx {
 } round_ctx;
 
 static void round_free(round_ctx *R) {
-  cv_env_sampler_destroy(R->esr);
-  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(R->ereg[r]);
+  env_tables_release(R->g, R->et);
   int_table_free(&R->itab);
 }
 
 /* Samples per strategy and the light tables of this round (R zeroed). */
 static int round_setup(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
                        uint32_t round, const cv_lcd_accum *acc, round_ctx *R) {
-  const cv_lcd_panel *pn = &g->panel;
   const int spp = p->spp;
   R->g = g, R->l = l, R->p = p, R->round = round;
   int *nstr = R->nstr;
@@ -1155,9 +1228,11 @@ static int round_setup(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_l
   /* environment-light tables restricted to the panel's hemisphere (the
    * light's own tables cover the whole sphere: half of their samples would
    * fall behind the panel) */
-  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0 &&
-      cv_env_sampler_restrict(l->env_smp, pn->normal, &R->esr))
-    return CV_ERR_NOMEM;
+  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0) {
+    if (!(R->et = env_tables_get(g, l, p->eye))) return CV_ERR_NOMEM;
+    R->esr = R->et->esr;
+    R->ereg = (const cv_env_sampler *const *)R->et->ereg;
+  }
   nstr[STRAT_ENV] = R->esr && R->esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
   if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
   /* interior light tables from this light's vertex radiance */
@@ -1176,10 +1251,6 @@ static int round_setup(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_l
   R->cb = (float)nstr[STRAT_BRDF] / (float)spp, R->cc = (float)nstr[STRAT_COS] / (float)spp;
   R->cw = (float)nstr[STRAT_WIN] / (float)spp, R->ce = (float)nstr[STRAT_ENV] / (float)spp;
   R->ci = (float)nstr[STRAT_INT] / (float)spp;
-  /* the environment tables cut further, per region of the panel, to what
-   * the region sees through the windows */
-  if (nstr[STRAT_ENV] > 0 && g->envvis && env_regions(g, R->esr, p->eye, R->ereg))
-    return CV_ERR_NOMEM;
   R->clamp = acc->clamp, R->inv_unit = 1 / acc->unit;
   R->sun = p->sun && l->has_sun;
   /* without next-event estimation the rays that leave find the sun's disc */
@@ -1552,7 +1623,7 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       const int bw = w - tx0 < BLOCK ? w - tx0 : BLOCK, bh = h - ty0 < BLOCK ? h - ty0 : BLOCK;
       /* the environment table of the region that holds the block's centre */
       const int erx = (int)((2 * tx0 + bw) * ENV_RX / (2 * w)), ery = (int)((2 * ty0 + bh) * ENV_RY / (2 * h));
-      const cv_env_sampler *esm = R.ereg[0] ? R.ereg[ery * ENV_RX + erx] : R.esr;
+      const cv_env_sampler *esm = R.ereg && R.ereg[0] ? R.ereg[ery * ENV_RX + erx] : R.esr;
       win_rects wr;
       block_setup(&R, &bb, tx0, ty0, bw, bh, &wr, cnt);
       sun_next_event(&R, &bb, tx0, ty0, bw, bh, cnt);
