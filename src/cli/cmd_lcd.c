@@ -55,8 +55,10 @@ static void help(FILE *f) {
           "  --size WxH        panel texels (default 400 wide, height from the panel's aspect)\n"
           "  --brdf FILE       BRDF table (docs/brdf-format.md), MERL .binary, or\n"
           "                    builtin:antiglare (default)\n"
-          "  --sampling S      brdf, cosine, or mis (default: mis: half the samples towards\n"
-          "                    the windows, the rest 90%% BRDF / 10%% cosine)\n"
+          "  --sampling S      brdf, cosine, or mis (default: mis: a quarter of the samples\n"
+          "                    towards the windows, a quarter from the environment map by\n"
+          "                    luminance x visibility, the rest 90%% BRDF / 10%% cosine; the\n"
+          "                    sun by next-event estimation in all three)\n"
           "  --content FILE    .png (sRGB) or .exr shown on the panel (default: a test pattern)\n"
           "  --luminance CD    content white luminance in cd/m^2 (default 500)\n"
           "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (docs/scene-config.md);\n"
@@ -605,8 +607,8 @@ int cmd_lcd(int argc, char **argv) {
   par.h = L.h[0];
   par.spp = lc.spp;
   par.brdf_fraction = lc.brdf_fraction;
-  /* brdf / cosine alone: no window samples (mis: the default share) */
-  if (sampling && strcmp(sampling, "mis")) par.window_fraction = 0;
+  /* brdf / cosine alone: no window or environment samples (mis: the default shares) */
+  if (sampling && strcmp(sampling, "mis")) par.window_fraction = par.env_fraction = 0;
   par.seed = lc.seed;
   if (drive_s) {
     drive_job dj = {drive_s, head_s, out, {offset[0], offset[1], offset[2]},

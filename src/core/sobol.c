@@ -31,6 +31,15 @@ static inline uint32_t reverse_bits(uint32_t x) {
   return __builtin_bswap32(x);
 }
 
+/* The same by shifts and masks only (vectorises where bswap does not). */
+static inline uint32_t reverse_bits_sm(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
 /* Burley 2020, listing 2: a hash whose low bits depend only on lower bits
  * (Laine-Karras), applied to reversed bits = nested uniform (Owen) scramble. */
 static inline uint32_t lk_permutation(uint32_t x, uint32_t seed) {
@@ -76,13 +85,18 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed) {
   return to_unit(owen(cv_sobol_u32(i, dim), cv_hash_combine(seed, (uint32_t)dim + 1u)));
 }
 
+static inline uint32_t reverse_byte(uint32_t v) { return reverse_bits(v) >> 24; }
+
 void cv_sobol_tab_init(cv_sobol_tab *tab) {
   for (int d = 0; d < CV_SOBOL_DIMS; d++)
     for (int b = 0; b < 4; b++)
       for (uint32_t v = 0; v < 256; v++) {
+        /* byte b of the scrambled index y = lk(reverse(index)) is byte 3 - b
+         * of i = reverse(y), bit-reversed */
+        const uint32_t vi = reverse_byte(v);
         uint32_t x = 0;
         for (int j = 0; j < 8; j++)
-          if (v & (1u << j)) x ^= dirnum[d][8 * b + j];
+          if (vi & (1u << j)) x ^= dirnum[d][8 * (3 - b) + j];
         tab->t[d][b][v] = reverse_bits(x); /* stored reversed: owen() starts there */
       }
 }
@@ -93,11 +107,17 @@ void cv_sobol_dim_seeds(uint32_t seed, int ndims, uint32_t *dim_seeds) {
 
 void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
                        const uint32_t *dim_seeds, int ndims, float *u) {
-  uint32_t i = owen(index, seed);
-  for (int d = 0; d < ndims; d++) {
-    const uint32_t(*t)[256] = tab->t[d];
-    /* bit-reversed Sobol component (reversal is linear over XOR) */
-    uint32_t xr = t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][(i >> 16) & 255u] ^ t[3][i >> 24];
-    u[d] = to_unit(reverse_bits(lk_permutation(xr, dim_seeds[d])));
-  }
+  /* the shuffled index owen(index, seed) = reverse(y): the tables are
+   * indexed by the bytes of y, which saves its reversal */
+  const uint32_t y = lk_permutation(reverse_bits(index), seed);
+  const uint32_t y0 = y & 255u, y1 = (y >> 8) & 255u, y2 = (y >> 16) & 255u, y3 = y >> 24;
+  uint32_t xr[CV_SOBOL_DIMS], z[CV_SOBOL_DIMS];
+  const int n = ndims < CV_SOBOL_DIMS ? ndims : CV_SOBOL_DIMS;
+  /* bit-reversed Sobol components (reversal is linear over XOR), then
+   * their scrambles in a separate loop of independent lanes (the compiler
+   * vectorises it: the reversal by shifts and masks, no byte swap) */
+  for (int d = 0; d < n; d++)
+    xr[d] = tab->t[d][0][y0] ^ tab->t[d][1][y1] ^ tab->t[d][2][y2] ^ tab->t[d][3][y3];
+  for (int d = 0; d < n; d++) z[d] = reverse_bits_sm(lk_permutation(xr[d], dim_seeds[d]));
+  for (int d = 0; d < n; d++) u[d] = to_unit(z[d]);
 }

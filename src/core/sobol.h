@@ -25,10 +25,12 @@ float cv_sobol_owen(uint32_t index, int dim, uint32_t seed);
  * shuffled once, so all dimensions of a sample stay consistent). */
 void cv_sobol_owen_n(uint32_t index, uint32_t seed, int ndims, float *u);
 /* Byte tables for fast generation: entry [d][b][v] is the bit-reversed XOR
- * of the direction numbers of dimension d selected by byte b of the index
- * having value v, so a point component costs 4 lookups instead of up to 32
- * steps, and the Owen scramble (which works on reversed bits) skips one
- * reversal.
+ * of the direction numbers of dimension d selected by the shuffled index
+ * i = reverse(y) whose byte b of y (y = the index's scramble before its
+ * last reversal) has value v, so a point component costs 4 lookups instead
+ * of up to 32 steps, the index shuffle skips its last reversal and the Owen
+ * scramble of the component (which works on reversed bits) its first: the
+ * values are those of cv_sobol_owen_n bit for bit (tests/core).
  * 32 KiB; fill once with cv_sobol_tab_init and share read-only. */
 typedef struct cv_sobol_tab {
   uint32_t t[CV_SOBOL_DIMS][4][256];
@@ -41,6 +43,36 @@ void cv_sobol_dim_seeds(uint32_t seed, int ndims, uint32_t *dim_seeds);
  * and the seeds from cv_sobol_dim_seeds(seed, ...). */
 void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
                        const uint32_t *dim_seeds, int ndims, float *u);
+/* cv_sobol_owen_tab for ndims = 4, inline (the LCD gather draws 4
+ * dimensions a sample: the call, the dimension loop's bounds and the byte
+ * swaps, which do not vectorise, cost it about half its time; tests/core
+ * checks the values bit for bit against cv_sobol_owen_n). */
+static inline uint32_t cv_sobol_rev_(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+  return (x >> 16) | (x << 16);
+}
+static inline uint32_t cv_sobol_lk_(uint32_t x, uint32_t seed) {
+  x += seed; /* Burley 2020, listing 2 (as sobol.c) */
+  x ^= x * 0x6c50b47cu;
+  x ^= x * 0xb82f1e52u;
+  x ^= x * 0xc7afe638u;
+  x ^= x * 0x8d22f6e6u;
+  return x;
+}
+static inline void cv_sobol_owen_tab4(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
+                                      const uint32_t dim_seeds[4], float u[4]) {
+  const uint32_t y = cv_sobol_lk_(cv_sobol_rev_(index), seed);
+  const uint32_t y0 = y & 255u, y1 = (y >> 8) & 255u, y2 = (y >> 16) & 255u, y3 = y >> 24;
+  uint32_t xr[4];
+  for (int d = 0; d < 4; d++)
+    xr[d] = tab->t[d][0][y0] ^ tab->t[d][1][y1] ^ tab->t[d][2][y2] ^ tab->t[d][3][y3];
+  for (int d = 0; d < 4; d++)
+    u[d] = (float)(cv_sobol_rev_(cv_sobol_lk_(xr[d], dim_seeds[d])) >> 8) * 0x1p-24f;
+}
+
 /* 32-bit integer hash (for deriving per-vertex / per-pixel seeds). */
 uint32_t cv_hash_u32(uint32_t x);
 /* Combines a seed with a value, order-dependent. */

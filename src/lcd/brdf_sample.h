@@ -48,6 +48,7 @@
 #include <math.h>
 #include <stdint.h>
 
+#include "core/fast_trig.h"
 #include "lcd/brdf.h"
 
 /* Guide-table buckets per CDF (Chen & Asau's cutpoint method): a search
@@ -150,9 +151,10 @@ static inline void cv_brdf_eval_bins(const cv_brdf_sampler *s, int k, float t, f
 
 /* Cosine-weighted hemisphere direction from u[0..1]; pdf = cos/pi. */
 static inline void cv_cosine_sample(const float u[2], float wi[3]) {
-  float r = sqrtf(u[0]), ph = 6.28318530717958647692f * u[1];
-  wi[0] = r * cosf(ph);
-  wi[1] = r * sinf(ph);
+  float r = sqrtf(u[0]), sp, cp;
+  cv_fast_sincos2pi(u[1], &sp, &cp); /* 2 pi u[1], within 1e-7 (core/fast_trig.h) */
+  wi[0] = r * cp;
+  wi[1] = r * sp;
   float z2 = 1 - u[0];
   wi[2] = z2 > 0 ? sqrtf(z2) : 0;
 }

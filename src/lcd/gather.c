@@ -3,10 +3,10 @@
 
 #include <math.h>
 #include <omp.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/fast_trig.h"
 #include "core/hash.h"
 #include "io/exr.h"
 #include "io/png.h"
@@ -32,10 +32,13 @@ struct cv_lcd_gather {
   float *pos;
   float *tnA;
   float *envvis; /* ENV_RX x ENV_RY regions of VIS_H x VIS_W lat-long cells: the fraction of
-                    probe rays from the region that reach the environment (NULL: no windows) */
-  /* the two tables above and below: computed on the first round that
-   * needs them (geometry only: the same whoever computes them) */
-  atomic_int envvis_ready, tgeo_ready;
+                    probe rays from the region that reach the environment (NULL: no windows);
+                    computed by cv_lcd_gather_create, like tgeo */
+  /* the environment strategy's tables of the last (light, eye) (env_tables
+   * below); a pure function of them, kept across calls under the lock */
+  struct env_tables *etab;
+  omp_lock_t etab_lock;
+  int lock_ready;
   float *tgeo;  /* per triangle: unoccluded share of its light the panel receives, up to a
                    constant: cos at the triangle x cos at the panel / r^2 from the panel
                    centre, times the fraction of 5 panel points that see its centroid */
@@ -340,8 +343,9 @@ static void panel_point(const cv_lcd_panel *pn, float fx, float fy, float o[3]) 
 }
 
 /* envvis: from 4 points of each region (its quarters' centres), one ray
- * each into the 4 quarters of each cell in front of the panel (one per
- * point): the share that reaches the environment through a window. */
+ * each into the centres of the 4 quarters of each cell in front of the
+ * panel (16 probes a cell): the share that reaches the environment through
+ * a window.  About 0.8 M rays, once per gather. */
 static int env_visibility(cv_lcd_gather *g) {
   const cv_lcd_panel *pn = &g->panel;
   g->envvis = calloc((size_t)ENV_RX * ENV_RY * VIS_W * VIS_H, sizeof(float));
@@ -360,13 +364,14 @@ static int env_visibility(cv_lcd_gather *g) {
       float *row = g->envvis + ((size_t)r * VIS_H + (size_t)Y) * VIS_W;
       for (int X = 0; X < VIS_W; X++) {
         int seen = 0;
-        for (int k = 0; k < 4; k++) {
-          const double u = (X + 0.25 + 0.5 * (k & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (k >> 1)) / VIS_H;
+        for (int q = 0; q < 4; q++) {
+          const double u = (X + 0.25 + 0.5 * (q & 1)) / VIS_W, th = M_PI * (Y + 0.25 + 0.5 * (q >> 1)) / VIS_H;
           const double ph = 2 * M_PI * (u - 0.5);
           const float d[3] = {(float)(sin(th) * sin(ph)), (float)cos(th), (float)(-sin(th) * cos(ph))};
-          if (dot3(d, pn->normal) > 0 && cv_rt_reaches_env(g->rt, o[k], d, 0.0f)) seen++;
+          if (!(dot3(d, pn->normal) > 0)) continue;
+          for (int k = 0; k < 4; k++) seen += cv_rt_reaches_env(g->rt, o[k], d, 0.0f);
         }
-        row[X] = (float)seen / 4;
+        row[X] = (float)seen / 16;
       }
     }
   }
@@ -427,7 +432,7 @@ static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const 
         float fc = 0;
         if (z > 0) {
           float f[3];
-          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(atan2f(dot3(d, bn), dot3(d, tn)));
+          const float th = acosf(z > 1 ? 1 : z), ph = fabsf(cv_fast_atan2(dot3(d, bn), dot3(d, tn)));
           cv_brdf_eval_bins(smp, kb, tb, th, ph, f);
           fc = (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) * z;
         }
@@ -445,6 +450,69 @@ static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const 
   free(cw);
   free(dir);
   return CV_OK;
+}
+
+/* The environment strategy's tables for one (light, eye): the light's
+ * tables restricted to the panel's front and, with windows, the region
+ * tables (env_regions).  About 12 ms to build on the default cabin, so
+ * they are kept for the last (light, eye) a call used: a progressive
+ * gather renders round after round, tile after tile, with the same light
+ * and eye.  Reference-counted (the cache holds one reference, each round
+ * using them another), so a call never sees them freed under it; being a
+ * pure function of (gather, light, eye), whoever builds them, the samples
+ * are the same. */
+typedef struct env_tables {
+  int refs;
+  uint64_t light_hash;
+  float eye[3];
+  cv_env_sampler *esr;                   /* restricted to the panel's front */
+  cv_env_sampler *ereg[ENV_RX * ENV_RY]; /* per region (NULL: esr for all) */
+} env_tables;
+
+static void env_tables_free(env_tables *t) {
+  if (!t) return;
+  cv_env_sampler_destroy(t->esr);
+  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(t->ereg[r]);
+  free(t);
+}
+
+static void env_tables_release(const cv_lcd_gather *cg, env_tables *t) {
+  if (!t) return;
+  cv_lcd_gather *g = (cv_lcd_gather *)cg; /* the cache is not part of the value */
+  omp_set_lock(&g->etab_lock);
+  const int last = --t->refs == 0;
+  omp_unset_lock(&g->etab_lock);
+  if (last) env_tables_free(t);
+}
+
+/* The tables of (l, eye), from the cache or built (one reference for the
+ * caller).  NULL: out of memory. */
+static env_tables *env_tables_get(const cv_lcd_gather *cg, const cv_lcd_light *l, const float eye[3]) {
+  cv_lcd_gather *g = (cv_lcd_gather *)cg;
+  omp_set_lock(&g->etab_lock);
+  env_tables *t = g->etab;
+  if (t && t->light_hash == l->hash && !memcmp(t->eye, eye, sizeof t->eye)) {
+    t->refs++;
+    omp_unset_lock(&g->etab_lock);
+    return t;
+  }
+  omp_unset_lock(&g->etab_lock);
+  if (!(t = calloc(1, sizeof *t))) return NULL;
+  t->light_hash = l->hash;
+  memcpy(t->eye, eye, sizeof t->eye);
+  if (cv_env_sampler_restrict(l->env_smp, g->panel.normal, &t->esr) ||
+      (t->esr->total > 0 && g->envvis && env_regions(g, t->esr, eye, t->ereg))) {
+    env_tables_free(t);
+    return NULL;
+  }
+  t->refs = 2; /* the caller's and the cache's */
+  omp_set_lock(&g->etab_lock);
+  env_tables *old = g->etab;
+  g->etab = t;
+  const int drop = old && --old->refs == 0;
+  omp_unset_lock(&g->etab_lock);
+  if (drop) env_tables_free(old);
+  return t;
 }
 
 /* tgeo: how much of each triangle's exit radiance the panel can receive
@@ -492,32 +560,6 @@ static int panel_view_factors(cv_lcd_gather *g) {
   return CV_OK;
 }
 
-/* The lazily computed tables a round needs (want_vis: envvis, want_tgeo:
- * tgeo), computed once under a lock by the first call that needs them. */
-static int gather_lazy(const cv_lcd_gather *cg, int want_vis, int want_tgeo) {
-  cv_lcd_gather *g = (cv_lcd_gather *)cg; /* the cache is not part of the value */
-  int st = CV_OK;
-  if ((want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) ||
-      (want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire))) {
-#pragma omp critical(cv_lcd_gather_lazy)
-    {
-      if (want_vis && !atomic_load_explicit(&g->envvis_ready, memory_order_acquire)) {
-        free(g->envvis);
-        g->envvis = NULL;
-        st = env_visibility(g);
-        if (st == CV_OK) atomic_store_explicit(&g->envvis_ready, 1, memory_order_release);
-      }
-      if (st == CV_OK && want_tgeo && !atomic_load_explicit(&g->tgeo_ready, memory_order_acquire)) {
-        free(g->tgeo);
-        g->tgeo = NULL;
-        st = panel_view_factors(g);
-        if (st == CV_OK) atomic_store_explicit(&g->tgeo_ready, 1, memory_order_release);
-      }
-    }
-  }
-  return st;
-}
-
 int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *panel,
                          const cv_brdf *brdf, cv_lcd_gather **out, cv_err *err) {
   *out = NULL;
@@ -530,6 +572,8 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
   g->has_windows = cv_rt_has_windows(rt);
   g->panel = *panel;
   g->brdf = brdf;
+  omp_init_lock(&g->etab_lock);
+  g->lock_ready = 1;
   g->tri = malloc(3 * m->nt * sizeof(uint32_t) + 1);
   if (!g->tri || cv_brdf_sampler_create(brdf, &g->smp)) {
     cv_lcd_gather_destroy(g);
@@ -550,9 +594,10 @@ int cv_lcd_gather_create(const cv_rt *rt, const cv_mesh *m, const cv_lcd_panel *
     for (int k = 0; k < 3; k++) g->tnA[4 * t + k] = l > 0 ? n[k] / l : 0.0f;
     g->tnA[4 * t + 3] = 0.5f * l;
   }
-  atomic_init(&g->envvis_ready, 0);
-  atomic_init(&g->tgeo_ready, 0);
-  if (g->has_windows && collect_openings(g, m)) {
+  /* the openings, and the geometry tables of the environment and interior
+   * strategies (probe rays, once per gather: the same whoever computes
+   * them) */
+  if ((g->has_windows && (collect_openings(g, m) || env_visibility(g))) || panel_view_factors(g)) {
     cv_lcd_gather_destroy(g);
     return cv_err_set(err, CV_ERR_NOMEM, "lcd gather: out of memory");
   }
@@ -571,6 +616,10 @@ void cv_lcd_gather_destroy(cv_lcd_gather *g) {
   free(g->tnA);
   free(g->tgeo);
   free(g->envvis);
+  if (g->lock_ready) {
+    env_tables_release(g, g->etab);
+    omp_destroy_lock(&g->etab_lock);
+  }
   cv_brdf_sampler_destroy(g->smp);
   free(g);
 }
@@ -938,7 +987,7 @@ static inline uint32_t env_texel(const cv_image *img, const float d[3], float *t
   const int w = img->w, h = img->h;
   float y = d[1];
   y = y > 1 ? 1 : (y < -1 ? -1 : y);
-  float u = 0.5f + atan2f(d[0], -d[2]) * (float)(0.5 * M_1_PI);
+  float u = 0.5f + cv_fast_atan2(d[0], -d[2]) * (float)(0.5 * M_1_PI);
   if (u >= 1) u -= 1;
   if (u < 0) u = 0;
   const float v = acosf(y) * (float)M_1_PI;
@@ -1127,8 +1176,404 @@ static void sun_disc_init(const cv_lcd_light *l, sun_disc *sf) {
 static inline void sun_disc_dir(const sun_disc *sf, uint32_t h0, uint32_t h1, float d[3]) {
   const float u0 = (float)(h0 >> 8) * 0x1p-24f, u1 = (float)(h1 >> 8) * 0x1p-24f;
   const float ct = 1 - u0 * (1 - sf->cos_a), st = sqrtf(fmaxf(0.0f, 1 - ct * ct));
-  const float ph = 6.28318530717958647692f * u1, a = st * cosf(ph), b = st * sinf(ph);
+  float sp, cp;
+  cv_fast_sincos2pi(u1, &sp, &cp);
+  const float a = st * cp, b = st * sp;
   for (int k = 0; k < 3; k++) d[k] = ct * sf->dir[k] + a * sf->t[k] + b * sf->b[k];
+}
+
+/* --- one round, in phases -------------------------------------------------
+ *
+ * cv_lcd_render_round: round_setup (strategy counts, light tables), then per
+ * 16 x 16 block: block_setup (texel frames and seeds, window rectangles),
+ * sun_next_event (the sun's shadow ray per texel), and per chunk of
+ * samples generate_rays (Sobol points -> strategy directions, rays that
+ * carry no sample are added at once), order_rays (sort by direction),
+ * trace_sorted (Embree packets), shade_rays (MIS weights and radiance read
+ * at the hits), then accumulate_block (texel sums into the buffer). */
+
+/* What a round shares, read-only in the parallel part. */
+typedef struct round_ctx {
+  const cv_lcd_gather *g;
+  const cv_lcd_light *l;
+  const cv_lcd_params *p;
+  uint32_t round;
+  int nstr[NSTRAT], first[NSTRAT];
+  float cb, cc, cw, ce, ci; /* c_s = n_s / spp */
+  env_tables *et;           /* the environment strategy's tables (NULL: not used) */
+  const cv_env_sampler *esr;/* et's: restricted to the panel's front */
+  const cv_env_sampler *const *ereg; /* and per region (ereg[0] NULL: esr for all) */
+  int_table itab;
+  double clamp, inv_unit;
+  int sun, sun_in_env;
+  sun_disc sf;
+  int chunk;
+  int acc_w, acc_h; /* the buffer's tile */
+} round_ctx;
+
+static void round_free(round_ctx *R) {
+  env_tables_release(R->g, R->et);
+  int_table_free(&R->itab);
+}
+
+/* Samples per strategy and the light tables of this round (R zeroed). */
+static int round_setup(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
+                       uint32_t round, const cv_lcd_accum *acc, round_ctx *R) {
+  const int spp = p->spp;
+  R->g = g, R->l = l, R->p = p, R->round = round;
+  int *nstr = R->nstr;
+  /* samples per strategy and round; at least one non-window sample */
+  nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
+  if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
+  /* environment-light tables restricted to the panel's hemisphere (the
+   * light's own tables cover the whole sphere: half of their samples would
+   * fall behind the panel) */
+  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0) {
+    if (!(R->et = env_tables_get(g, l, p->eye))) return CV_ERR_NOMEM;
+    R->esr = R->et->esr;
+    R->ereg = (const cv_env_sampler *const *)R->et->ereg;
+  }
+  nstr[STRAT_ENV] = R->esr && R->esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
+  if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
+  /* interior light tables from this light's vertex radiance */
+  if (p->interior_fraction > 0 && int_table_build(g, l, &R->itab)) return CV_ERR_NOMEM;
+  nstr[STRAT_INT] = R->itab.total > 0 ? (int)lround(p->interior_fraction * spp) : 0;
+  if (nstr[STRAT_INT] > spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV])
+    nstr[STRAT_INT] = spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV];
+  const int nbc = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_INT];
+  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * nbc);
+  nstr[STRAT_COS] = nbc - nstr[STRAT_BRDF];
+  R->first[STRAT_BRDF] = 0;
+  R->first[STRAT_COS] = nstr[STRAT_BRDF];
+  R->first[STRAT_WIN] = R->first[STRAT_COS] + nstr[STRAT_COS];
+  R->first[STRAT_ENV] = R->first[STRAT_WIN] + nstr[STRAT_WIN];
+  R->first[STRAT_INT] = R->first[STRAT_ENV] + nstr[STRAT_ENV];
+  R->cb = (float)nstr[STRAT_BRDF] / (float)spp, R->cc = (float)nstr[STRAT_COS] / (float)spp;
+  R->cw = (float)nstr[STRAT_WIN] / (float)spp, R->ce = (float)nstr[STRAT_ENV] / (float)spp;
+  R->ci = (float)nstr[STRAT_INT] / (float)spp;
+  R->clamp = acc->clamp, R->inv_unit = 1 / acc->unit;
+  R->sun = p->sun && l->has_sun;
+  /* without next-event estimation the rays that leave find the sun's disc */
+  R->sun_in_env = !p->sun && l->has_sun;
+  if (l->has_sun) sun_disc_init(l, &R->sf);
+  R->chunk = spp < CHUNK_SPP ? spp : CHUNK_SPP;
+  return CV_OK;
+}
+
+/* The strategy of sample j of a round. */
+static inline int strategy_of(const round_ctx *R, int j) {
+  return j >= R->first[STRAT_INT] ? STRAT_INT
+         : j >= R->first[STRAT_ENV] ? STRAT_ENV
+         : j >= R->first[STRAT_WIN] ? STRAT_WIN
+         : (j >= R->first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
+}
+
+/* Sample j's ray origin on texel (x, y) from its position coordinates u[2..3]. */
+static inline void sample_origin(const round_ctx *R, const texel_state *T, int x, int y,
+                                 const float u[4], float o[3]) {
+  const cv_lcd_panel *pn = &R->g->panel;
+  const float jx = ((float)x + u[2]) / (float)R->p->w - 0.5f, jy = 0.5f - ((float)y + u[3]) / (float)R->p->h;
+  for (int k = 0; k < 3; k++)
+    o[k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + T->off[k];
+}
+
+/* The Sobol point of sample j of the round (dims 0, 1 (a (0,2)-sequence):
+ * direction; 2, 3: position) and its strategy. */
+static inline int sample_point(const round_ctx *R, const texel_state *T, int j, float u[4]) {
+  const int st = strategy_of(R, j);
+  const uint32_t idx = R->round * (uint32_t)R->nstr[st] + (uint32_t)(j - R->first[st]);
+  cv_sobol_owen_tab4(&R->g->sobol, idx, T->seed[st], T->dseed[st], u);
+  return st;
+}
+
+/* Per-texel state of the block (tx0, ty0, bw x bh) and its window
+ * rectangles; texels whose back the eye sees are counted. */
+static void block_setup(const round_ctx *R, block_buf *bb, int tx0, int ty0, int bw, int bh,
+                        win_rects *wr, int64_t *cnt) {
+  const cv_lcd_gather *g = R->g;
+  const cv_lcd_params *p = R->p;
+  const cv_lcd_panel *pn = &g->panel;
+  const int w = p->w, h = p->h, aw = (int)R->acc_w, ah = (int)R->acc_h;
+  wr->n = 0;
+  wr->total = 0;
+  if (R->nstr[STRAT_WIN] > 0) {
+    const float fx = ((float)tx0 + 0.5f * (float)bw) / (float)w - 0.5f;
+    const float fy = 0.5f - ((float)ty0 + 0.5f * (float)bh) / (float)h;
+    const float ex = (float)bw / (float)w * pn->size[0], ey = (float)bh / (float)h * pn->size[1];
+    float c[3];
+    for (int k = 0; k < 3; k++)
+      c[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
+    block_rects(g, c, 0.5f * sqrtf(ex * ex + ey * ey), wr);
+  }
+  for (int i = 0; i < bw * bh; i++) {
+    texel_state *T = &bb->ts[i];
+    const int x = tx0 + i % bw, y = ty0 + i / bw;
+    T->in_tile = x >= p->x0 && x < p->x0 + aw && y >= p->y0 && y < p->y0 + ah;
+    T->aix = T->in_tile ? (size_t)(y - p->y0) * (size_t)aw + (size_t)(x - p->x0) : 0;
+    memset(T->s, 0, sizeof T->s);
+    memset(T->s2, 0, sizeof T->s2);
+    memset(T->nee, 0, sizeof T->nee);
+    float wo[3];
+    const float fx = ((float)x + 0.5f) / (float)w - 0.5f, fy = 0.5f - ((float)y + 0.5f) / (float)h;
+    for (int k = 0; k < 3; k++) {
+      T->pc[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
+      wo[k] = p->eye[k] - T->pc[k];
+    }
+    normalize3(wo);
+    const float co = dot3(wo, pn->normal);
+    T->behind = !(co > 1e-6f);
+    if (T->behind) {
+      if (T->in_tile) cnt[CV_LCD_ACC_BEHIND] += p->spp; /* the eye sees the panel's back: black */
+      continue;
+    }
+    for (int k = 0; k < 3; k++) T->tn[k] = wo[k] - co * pn->normal[k];
+    if (!normalize3(T->tn)) memcpy(T->tn, pn->u, sizeof T->tn);
+    cross3(pn->normal, T->tn, T->bn);
+    /* The panel is flat: one scale-aware offset along the normal serves
+     * every jittered origin of the texel. */
+    cv_rt_offset_origin(T->pc, pn->normal, T->off);
+    for (int k = 0; k < 3; k++) T->off[k] -= T->pc[k];
+    cv_brdf_view_bins(g->smp, acosf(co > 1 ? 1 : co), &T->kb, &T->tb);
+    const uint32_t tix = (uint32_t)y * (uint32_t)w + (uint32_t)x; /* panel texel: the seed */
+    const uint32_t ts = cv_hash_combine(p->seed, tix);
+    for (int st = 0; st < NSTRAT; st++) {
+      T->seed[st] = st == STRAT_BRDF ? ts : cv_hash_combine(ts, 0x51u + (uint32_t)st);
+      cv_sobol_dim_seeds(T->seed[st], 4, T->dseed[st]);
+    }
+  }
+}
+
+/* The sun's next-event estimate of each texel of the tile for the round,
+ * from sample 0's position: one direction drawn uniformly in the solar
+ * disc, one shadow ray; the term is added to every sample of the round. */
+static void sun_next_event(const round_ctx *R, block_buf *bb, int tx0, int ty0, int bw, int bh,
+                           int64_t *cnt) {
+  if (!R->sun) return;
+  const cv_lcd_panel *pn = &R->g->panel;
+  for (int i = 0; i < bw * bh; i++) {
+    texel_state *T = &bb->ts[i];
+    if (T->behind || !T->in_tile) continue;
+    float u[4], o[3], sd[3];
+    sample_point(R, T, 0, u);
+    sample_origin(R, T, tx0 + i % bw, ty0 + i / bw, u, o);
+    const uint32_t hs = cv_hash_combine(T->seed[STRAT_BRDF] ^ 0x5017u, R->round);
+    sun_disc_dir(&R->sf, hs, cv_hash_combine(hs, 0x9e3779b9u), sd);
+    const float cs = dot3(sd, pn->normal);
+    if (!(cs > 0)) continue;
+    cnt[CV_LCD_ACC_SHADOW]++;
+    if (!cv_rt_reaches_env(R->g->rt, o, sd, 0)) continue;
+    cnt[CV_LCD_ACC_SUNLIT]++;
+    const float th = acosf(cs > 1 ? 1 : cs);
+    const float ph = fabsf(cv_fast_atan2(dot3(sd, T->bn), dot3(sd, T->tn)));
+    cv_brdf_eval_bins(R->g->smp, T->kb, T->tb, th, ph, T->nee);
+    for (int c = 0; c < 3; c++) T->nee[c] *= cs * R->sf.E_omega[c];
+  }
+}
+
+/* Samples j0 .. j0 + nj - 1 of every texel of the block: a direction by
+ * the sample's strategy and what its weight needs (f cos and the interior
+ * MIS denominator, or, for window and environment samples, the local
+ * direction: evaluated only if the ray leaves), appended to bb's rays with
+ * their sort keys; a sample without a ray (below the horizon, a zero
+ * density) is added at once as the sun term alone.  Returns the rays. */
+static size_t generate_rays(const round_ctx *R, block_buf *bb, int tx0, int ty0, int bw, int bh,
+                            const win_rects *wr, const cv_env_sampler *esm, int j0, int nj,
+                            int64_t *cnt) {
+  const cv_lcd_gather *g = R->g;
+  const cv_lcd_panel *pn = &g->panel;
+  const cv_brdf_sampler *smp = g->smp;
+  const cv_lcd_params *p = R->p;
+  const float cb = R->cb, cc = R->cc, ci = R->ci;
+  size_t n = 0;
+  for (int i = 0; i < bw * bh; i++) {
+    texel_state *T = &bb->ts[i];
+    if (T->behind) continue;
+    const int x = tx0 + i % bw, y = ty0 + i / bw;
+    /* the texel's points first: short independent iterations overlap */
+    float uu[CHUNK_SPP][4];
+    uint8_t sj[CHUNK_SPP];
+    for (int j = j0; j < j0 + nj; j++) sj[j - j0] = (uint8_t)sample_point(R, T, j, uu[j - j0]);
+    for (int j = j0; j < j0 + nj; j++) {
+      const float *u = uu[j - j0];
+      const int st = sj[j - j0];
+      float o[3];
+      sample_origin(R, T, x, y, u, o);
+      float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, pe = 0, f[3] = {0, 0, 0};
+      float pint = 0;
+      uint32_t want = NO_TRI;
+      int live = 0;
+      if (st == STRAT_BRDF) {
+        live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
+      } else if (st == STRAT_COS) {
+        cv_cosine_sample(u, wl);
+        live = 1;
+      } else if (st == STRAT_INT) {
+        /* a point on a bright interior triangle; counts only if it is the
+         * ray's first hit */
+        const uint32_t hh = cv_hash_combine(T->seed[STRAT_INT], R->round * (uint32_t)p->spp + (uint32_t)j);
+        want = interior_sample(g, &R->itab, o, u, hh, rd, &pint);
+        live = want != NO_TRI;
+      } else {
+        /* window, environment: f and p_b wait until the ray is known to
+         * leave (only then does the sample count) */
+        live = st == STRAT_ENV ? cv_env_sampler_sample(esm, u, rd, &pe) : window_sample(pn, wr, u, rd);
+      }
+      if (live && (st == STRAT_BRDF || st == STRAT_COS)) {
+        for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
+      } else if (live) {
+        wl[0] = dot3(rd, T->tn);
+        wl[1] = dot3(rd, T->bn);
+        wl[2] = dot3(rd, pn->normal);
+        live = st != STRAT_INT || wl[2] > 0;
+      }
+      if (live && (st == STRAT_COS || st == STRAT_INT)) {
+        th = acosf(wl[2] > 1 ? 1 : wl[2]);
+        ph = fabsf(cv_fast_atan2(wl[1], wl[0]));
+        if (cb > 0) pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
+        cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
+      }
+      const int defer = st == STRAT_WIN || st == STRAT_ENV;
+      /* the interior MIS denominator; an interior-strategy ray's own
+       * density is known now, the others' p_int when they hit */
+      const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI + ci * pint;
+      if (!(live && wl[2] > 0 && (dint > 0 || defer))) {
+        /* no ray: the sample is the sun term alone */
+        if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, R->clamp, R->inv_unit, T->s, T->s2, cnt);
+        continue;
+      }
+      float *ro = bb->org + 3 * n, *rdir = bb->dir + 3 * n, *rf = bb->fc + 4 * n;
+      for (int k = 0; k < 3; k++) {
+        ro[k] = o[k];
+        rdir[k] = rd[k];
+        rf[k] = defer ? wl[k] : f[k] * wl[2]; /* window, environment: the local direction */
+      }
+      rf[3] = dint;
+      bb->tex[n] = (uint32_t)i | (defer ? TEX_WIN : 0u);
+      bb->want[n] = want;
+      bb->key[n] = dir_key(rd);
+      if (p->ray_log && R->round == 0 && T->in_tile) {
+        float *rl = p->ray_log + 6 * (T->aix * (size_t)p->spp + (size_t)j);
+        memcpy(rl, ro, 3 * sizeof(float));
+        memcpy(rl + 3, rd, 3 * sizeof(float));
+      }
+      n++;
+    }
+  }
+  return n;
+}
+
+/* Sorts the n rays by direction and permutes them once into that order:
+ * packets and shading then read consecutive memory. */
+static void order_rays(block_buf *bb, size_t n) {
+  sort_by_key(bb->key, n, bb->ord, bb->tmp);
+  for (size_t q = 0; q < n; q++) {
+    const uint32_t r = bb->ord[q];
+    memcpy(bb->sorg + 3 * q, bb->org + 3 * (size_t)r, 3 * sizeof(float));
+    memcpy(bb->sdir + 3 * q, bb->dir + 3 * (size_t)r, 3 * sizeof(float));
+    memcpy(bb->sfc + 4 * q, bb->fc + 4 * (size_t)r, 4 * sizeof(float));
+    bb->stex[q] = bb->tex[r];
+    bb->swant[q] = bb->want[r];
+  }
+}
+
+/* The value of each traced sample (in direction order): MIS-weighted
+ * radiance read at the interior hit or in the environment, plus the sun
+ * term, added to its texel's sums. */
+static void shade_rays(const round_ctx *R, block_buf *bb, size_t n, const win_rects *wr,
+                       const cv_env_sampler *esm, int64_t *cnt) {
+  const cv_lcd_gather *g = R->g;
+  const cv_lcd_light *l = R->l;
+  const cv_lcd_panel *pn = &g->panel;
+  const cv_brdf_sampler *smp = g->smp;
+  const cv_image *img = l->env->img;
+  const float cb = R->cb, cc = R->cc, cw = R->cw, ce = R->ce, ci = R->ci;
+  /* environment texels of the rays that left: computed and prefetched for
+   * all of them first (they miss the cache; this overlaps the misses),
+   * kept in htri / huv, which only interior hits use */
+  for (size_t q = 0; q < n; q++) {
+    if (bb->kind[q] != 2) continue;
+    const uint32_t t = env_texel(img, bb->sdir + 3 * q, &bb->huv[2 * q], &bb->huv[2 * q + 1]);
+    bb->htri[q] = t;
+    const float *px = env_px(img, t);
+    __builtin_prefetch(px);
+    __builtin_prefetch(px + 3 * (size_t)img->w);
+  }
+  /* shade in direction order: consecutive rays hit nearby triangles; the
+   * vertex records of a hit a few rays ahead are prefetched */
+  for (size_t q = 0; q < n; q++) {
+    if (q + 8 < n && bb->kind[q + 8] == 1) {
+      const uint32_t *t8 = g->tri + 3 * (size_t)bb->htri[q + 8];
+      __builtin_prefetch(l->vrad + 3 * (size_t)t8[0]);
+      __builtin_prefetch(l->vrad + 3 * (size_t)t8[1]);
+      __builtin_prefetch(l->vrad + 3 * (size_t)t8[2]);
+    }
+    if (q + 16 < n && bb->kind[q + 16] == 1) __builtin_prefetch(g->tri + 3 * (size_t)bb->htri[q + 16]);
+    texel_state *T = &bb->ts[bb->stex[q] & ~TEX_WIN];
+    if (!T->in_tile) continue;
+    const int win = (bb->stex[q] & TEX_WIN) != 0;
+    const float *rf = bb->sfc + 4 * q;
+    float v[3] = {T->nee[0], T->nee[1], T->nee[2]};
+    if (bb->kind[q] == 1) {
+      cnt[CV_LCD_ACC_HITS]++;
+      /* interior: MIS over BRDF, cosine and interior sampling; an
+       * interior-strategy ray counts only on the triangle it aimed at */
+      const uint32_t ht = bb->htri[q], aim = bb->swant[q];
+      if (!win && (aim == NO_TRI || aim == ht)) {
+        const uint32_t *t = g->tri + 3 * (size_t)ht;
+        const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
+                    *r2 = l->vrad + 3 * (size_t)t[2];
+        const float hu = bb->huv[2 * q], hv = bb->huv[2 * q + 1];
+        float den = rf[3];
+        if (aim == NO_TRI && ci > 0) den += ci * interior_pdf(g, &R->itab, ht, bb->ht[q], bb->sdir + 3 * q);
+        const float w0 = 1 - hu - hv, inv = 1 / den;
+        for (int c = 0; c < 3; c++) v[c] += rf[c] * inv * (w0 * r0[c] + hu * r1[c] + hv * r2[c]);
+      }
+    } else if (bb->kind[q] == 2) {
+      float L[3], fc[3], dint = rf[3];
+      cnt[CV_LCD_ACC_ENV]++;
+      if (bb->swant[q] != NO_TRI) { /* an interior-strategy ray: weight 0 outside */
+        add_sample(v, R->clamp, R->inv_unit, T->s, T->s2, cnt);
+        continue;
+      }
+      env_fetch(img, bb->htri[q], bb->huv[2 * q], bb->huv[2 * q + 1], L);
+      if (R->sun_in_env && dot3(bb->sdir + 3 * q, R->sf.dir) >= R->sf.cos_a)
+        for (int c = 0; c < 3; c++) L[c] += R->sf.L[c];
+      if (win) {
+        /* the deferred f cos and interior denominator of a window or
+         * environment sample */
+        const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(cv_fast_atan2(rf[1], rf[0]));
+        const float pb = cb > 0 ? cv_brdf_pdf_cs(smp, T->kb, T->tb, rf[2], rf[0] * rf[0] + rf[1] * rf[1], th, ph) : 0.0f;
+        cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, fc);
+        for (int c = 0; c < 3; c++) fc[c] *= rf[2];
+        dint = cb * pb + cc * rf[2] * (float)M_1_PI;
+      } else {
+        memcpy(fc, rf, sizeof fc);
+      }
+      const float den = dint + (cw > 0 ? cw * window_pdf(pn, wr, bb->sdir + 3 * q) : 0.0f) +
+                        (ce > 0 ? ce * cv_env_sampler_pdf(esm, bb->sdir + 3 * q) : 0.0f);
+      if (den > 0)
+        for (int c = 0; c < 3; c++) v[c] += fc[c] / den * L[c];
+    } else {
+      cnt[CV_LCD_ACC_LOST]++;
+    }
+    add_sample(v, R->clamp, R->inv_unit, T->s, T->s2, cnt);
+  }
+}
+
+/* The block's texel sums into the buffer (each texel belongs to one block:
+ * no two threads write the same words). */
+static void accumulate_block(const round_ctx *R, const block_buf *bb, int nbt, int64_t *data,
+                             int aw, int ah) {
+  (void)R;
+  for (int i = 0; i < nbt; i++) {
+    const texel_state *T = &bb->ts[i];
+    if (!T->in_tile || T->behind) continue;
+    int64_t *q = data + CV_LCD_ACC_HEADER + 3 * T->aix;
+    for (int c = 0; c < 3; c++) q[c] += T->s[c];
+    int64_t *q2 = data + CV_LCD_ACC_HEADER + 3 * (size_t)aw * (size_t)ah + 2 * T->aix;
+    q2[0] += T->s2[0];
+    q2[1] += T->s2[1];
+  }
 }
 
 int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_lcd_params *p,
@@ -1144,62 +1589,15 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
     return CV_ERR_INVALID;
   if (acc->data[CV_LCD_ACC_SPP] + p->spp > CV_LCD_MAX_SPP) return CV_ERR_RANGE;
   if ((uint64_t)round * (uint64_t)p->spp + (uint64_t)p->spp > 4294967296ull) return CV_ERR_RANGE;
-  const cv_lcd_panel *pn = &g->panel;
-  const cv_brdf_sampler *smp = g->smp;
-  const int w = p->w, h = p->h, spp = p->spp, aw = acc->w, ah = acc->h;
-  /* samples per strategy and round; at least one non-window sample */
-  int nstr[NSTRAT];
-  nstr[STRAT_WIN] = g->nopen > 0 ? (int)lround(p->window_fraction * spp) : 0;
-  if (nstr[STRAT_WIN] > spp - 1) nstr[STRAT_WIN] = spp - 1;
-  /* environment-light tables restricted to the panel's hemisphere (the
-   * light's own tables cover the whole sphere: half of their samples would
-   * fall behind the panel) */
-  cv_env_sampler *esr = NULL;
-  if (p->env_fraction > 0 && l->env_smp && l->env_smp->total > 0 &&
-      cv_env_sampler_restrict(l->env_smp, pn->normal, &esr))
-    return CV_ERR_NOMEM;
-  nstr[STRAT_ENV] = esr && esr->total > 0 ? (int)lround(p->env_fraction * spp) : 0;
-  if (nstr[STRAT_ENV] > spp - 1 - nstr[STRAT_WIN]) nstr[STRAT_ENV] = spp - 1 - nstr[STRAT_WIN];
-  /* interior light tables from this light's vertex radiance */
-  int_table itab;
-  memset(&itab, 0, sizeof itab);
-  if (gather_lazy(g, p->env_fraction > 0 && esr && g->has_windows, p->interior_fraction > 0) ||
-      (p->interior_fraction > 0 && int_table_build(g, l, &itab))) {
-    cv_env_sampler_destroy(esr);
+  round_ctx R;
+  memset(&R, 0, sizeof R);
+  R.acc_w = acc->w, R.acc_h = acc->h;
+  if (round_setup(g, l, p, round, acc, &R)) {
+    round_free(&R);
     return CV_ERR_NOMEM;
   }
-  nstr[STRAT_INT] = itab.total > 0 ? (int)lround(p->interior_fraction * spp) : 0;
-  if (nstr[STRAT_INT] > spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV])
-    nstr[STRAT_INT] = spp - 1 - nstr[STRAT_WIN] - nstr[STRAT_ENV];
-  const int nbc = spp - nstr[STRAT_WIN] - nstr[STRAT_ENV] - nstr[STRAT_INT];
-  nstr[STRAT_BRDF] = (int)lround(p->brdf_fraction * nbc);
-  nstr[STRAT_COS] = nbc - nstr[STRAT_BRDF];
-  const int first[NSTRAT] = {0, nstr[STRAT_BRDF], nstr[STRAT_BRDF] + nstr[STRAT_COS],
-                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN],
-                             nstr[STRAT_BRDF] + nstr[STRAT_COS] + nstr[STRAT_WIN] + nstr[STRAT_ENV]};
-  const float cb = (float)nstr[STRAT_BRDF] / (float)spp, cc = (float)nstr[STRAT_COS] / (float)spp,
-              cw = (float)nstr[STRAT_WIN] / (float)spp, ce = (float)nstr[STRAT_ENV] / (float)spp,
-              ci = (float)nstr[STRAT_INT] / (float)spp;
-  const int_table *itp = &itab;
-  /* the environment tables cut further, per region of the panel, to the
-   * cells that the region's window rectangles hold */
-  cv_env_sampler *ereg[ENV_RX * ENV_RY];
-  memset(ereg, 0, sizeof ereg);
-  if (nstr[STRAT_ENV] > 0 && g->envvis && env_regions(g, esr, p->eye, ereg)) {
-    for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
-    cv_env_sampler_destroy(esr);
-    int_table_free(&itab);
-    return CV_ERR_NOMEM;
-  }
-  const double clamp = acc->clamp, inv_unit = 1 / acc->unit;
-  const int sun = p->sun && l->has_sun;
-  /* without next-event estimation the rays that leave find the sun's disc */
-  const int sun_in_env = !p->sun && l->has_sun;
-  sun_disc sf;
-  memset(&sf, 0, sizeof sf);
-  if (l->has_sun) sun_disc_init(l, &sf);
+  const int w = p->w, h = p->h, spp = p->spp, aw = acc->w, ah = acc->h, chunk = R.chunk;
   const int nthreads = p->threads > 0 ? p->threads : omp_get_max_threads();
-  const int chunk = spp < CHUNK_SPP ? spp : CHUNK_SPP;
   /* blocks that hold a texel of the tile */
   const int bx0 = p->x0 / BLOCK, bx1 = (p->x0 + aw - 1) / BLOCK;
   const int by0 = p->y0 / BLOCK, by1 = (p->y0 + ah - 1) / BLOCK;
@@ -1223,278 +1621,24 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       if (!ok) continue;
       const int tx0 = (bx0 + bi % nbx) * BLOCK, ty0 = (by0 + bi / nbx) * BLOCK;
       const int bw = w - tx0 < BLOCK ? w - tx0 : BLOCK, bh = h - ty0 < BLOCK ? h - ty0 : BLOCK;
-      const int nbt = bw * bh;
-      /* the region that holds the block's centre */
+      /* the environment table of the region that holds the block's centre */
       const int erx = (int)((2 * tx0 + bw) * ENV_RX / (2 * w)), ery = (int)((2 * ty0 + bh) * ENV_RY / (2 * h));
-      const cv_env_sampler *esm = ereg[0] ? ereg[ery * ENV_RX + erx] : esr;
+      const cv_env_sampler *esm = R.ereg && R.ereg[0] ? R.ereg[ery * ENV_RX + erx] : R.esr;
       win_rects wr;
-      wr.n = 0;
-      wr.total = 0;
-      if (nstr[STRAT_WIN] > 0) {
-        const float fx = ((float)tx0 + 0.5f * (float)bw) / (float)w - 0.5f;
-        const float fy = 0.5f - ((float)ty0 + 0.5f * (float)bh) / (float)h;
-        const float ex = (float)bw / (float)w * pn->size[0], ey = (float)bh / (float)h * pn->size[1];
-        float c[3];
-        for (int k = 0; k < 3; k++)
-          c[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
-        block_rects(g, c, 0.5f * sqrtf(ex * ex + ey * ey), &wr);
-      }
-      /* per-texel setup */
-      for (int i = 0; i < nbt; i++) {
-        texel_state *T = &bb.ts[i];
-        const int x = tx0 + i % bw, y = ty0 + i / bw;
-        T->in_tile = x >= p->x0 && x < p->x0 + aw && y >= p->y0 && y < p->y0 + ah;
-        T->aix = T->in_tile ? (size_t)(y - p->y0) * (size_t)aw + (size_t)(x - p->x0) : 0;
-        memset(T->s, 0, sizeof T->s);
-        memset(T->s2, 0, sizeof T->s2);
-        memset(T->nee, 0, sizeof T->nee);
-        float wo[3];
-        const float fx = ((float)x + 0.5f) / (float)w - 0.5f, fy = 0.5f - ((float)y + 0.5f) / (float)h;
-        for (int k = 0; k < 3; k++) {
-          T->pc[k] = pn->center[k] + pn->u[k] * fx * pn->size[0] + pn->v[k] * fy * pn->size[1];
-          wo[k] = p->eye[k] - T->pc[k];
-        }
-        normalize3(wo);
-        const float co = dot3(wo, pn->normal);
-        T->behind = !(co > 1e-6f);
-        if (T->behind) {
-          if (T->in_tile) cnt[CV_LCD_ACC_BEHIND] += spp; /* the eye sees the panel's back: black */
-          continue;
-        }
-        for (int k = 0; k < 3; k++) T->tn[k] = wo[k] - co * pn->normal[k];
-        if (!normalize3(T->tn)) memcpy(T->tn, pn->u, sizeof T->tn);
-        cross3(pn->normal, T->tn, T->bn);
-        /* The panel is flat: one scale-aware offset along the normal serves
-         * every jittered origin of the texel. */
-        cv_rt_offset_origin(T->pc, pn->normal, T->off);
-        for (int k = 0; k < 3; k++) T->off[k] -= T->pc[k];
-        cv_brdf_view_bins(smp, acosf(co > 1 ? 1 : co), &T->kb, &T->tb);
-        const uint32_t tix = (uint32_t)y * (uint32_t)w + (uint32_t)x; /* panel texel: the seed */
-        const uint32_t ts = cv_hash_combine(p->seed, tix);
-        for (int st = 0; st < NSTRAT; st++) {
-          T->seed[st] = st == STRAT_BRDF ? ts : cv_hash_combine(ts, 0x51u + (uint32_t)st);
-          cv_sobol_dim_seeds(T->seed[st], 4, T->dseed[st]);
-        }
-      }
+      block_setup(&R, &bb, tx0, ty0, bw, bh, &wr, cnt);
+      sun_next_event(&R, &bb, tx0, ty0, bw, bh, cnt);
       for (int j0 = 0; j0 < spp; j0 += chunk) {
         const int nj = spp - j0 < chunk ? spp - j0 : chunk;
-        size_t n = 0;
-        for (int i = 0; i < nbt; i++) {
-          texel_state *T = &bb.ts[i];
-          if (T->behind) continue;
-          const int x = tx0 + i % bw, y = ty0 + i / bw;
-          /* the texel's points first: short independent iterations overlap */
-          float uu[CHUNK_SPP][4];
-          uint8_t sj[CHUNK_SPP];
-          for (int j = j0; j < j0 + nj; j++) {
-            const int st = j >= first[STRAT_INT] ? STRAT_INT
-                           : j >= first[STRAT_ENV] ? STRAT_ENV
-                           : j >= first[STRAT_WIN] ? STRAT_WIN
-                           : (j >= first[STRAT_COS] ? STRAT_COS : STRAT_BRDF);
-            sj[j - j0] = (uint8_t)st;
-            const uint32_t idx = round * (uint32_t)nstr[st] + (uint32_t)(j - first[st]);
-            cv_sobol_owen_tab(&g->sobol, idx, T->seed[st], T->dseed[st], 4, uu[j - j0]);
-          }
-          for (int j = j0; j < j0 + nj; j++) {
-            /* dims 0, 1 (a (0,2)-sequence): direction; 2, 3: position */
-            const float *u = uu[j - j0];
-            const int st = sj[j - j0];
-            float o[3];
-            const float jx = ((float)x + u[2]) / (float)w - 0.5f, jy = 0.5f - ((float)y + u[3]) / (float)h;
-            for (int k = 0; k < 3; k++)
-              o[k] = pn->center[k] + pn->u[k] * jx * pn->size[0] + pn->v[k] * jy * pn->size[1] + T->off[k];
-            if (j == 0 && sun && T->in_tile) {
-              /* next-event estimate of the sun from sample 0's position, for
-               * the round: one direction drawn uniformly in the solar disc */
-              float sd[3];
-              const uint32_t hs = cv_hash_combine(T->seed[STRAT_BRDF] ^ 0x5017u, round);
-              sun_disc_dir(&sf, hs, cv_hash_combine(hs, 0x9e3779b9u), sd);
-              const float cs = dot3(sd, pn->normal);
-              if (cs > 0) {
-                cnt[CV_LCD_ACC_SHADOW]++;
-                if (cv_rt_reaches_env(g->rt, o, sd, 0)) {
-                  cnt[CV_LCD_ACC_SUNLIT]++;
-                  const float th = acosf(cs > 1 ? 1 : cs);
-                  const float ph = fabsf(atan2f(dot3(sd, T->bn), dot3(sd, T->tn)));
-                  cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, T->nee);
-                  for (int c = 0; c < 3; c++) T->nee[c] *= cs * sf.E_omega[c];
-                }
-              }
-            }
-            float wl[3] = {0, 0, 0}, rd[3], th = 0, ph = 0, pb = 0, pe = 0, f[3] = {0, 0, 0};
-            float pint = 0;
-            uint32_t want = NO_TRI;
-            int live = 0;
-            if (st == STRAT_INT) {
-              /* a point on a bright interior triangle; counts only if it is
-               * the ray's first hit */
-              const uint32_t hh = cv_hash_combine(T->seed[STRAT_INT], round * (uint32_t)spp + (uint32_t)j);
-              want = interior_sample(g, itp, o, u, hh, rd, &pint);
-              if (want != NO_TRI) {
-                wl[0] = dot3(rd, T->tn);
-                wl[1] = dot3(rd, T->bn);
-                wl[2] = dot3(rd, pn->normal);
-                live = wl[2] > 0;
-              }
-              if (live) {
-                th = acosf(wl[2] > 1 ? 1 : wl[2]);
-                ph = fabsf(atan2f(wl[1], wl[0]));
-                if (cb > 0)
-                  pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
-                cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
-              }
-            } else if (st == STRAT_BRDF) {
-              live = cv_brdf_sample(smp, T->kb, T->tb, u, wl, &th, &ph, &pb, f);
-              if (live)
-                for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
-            } else {
-              if (st == STRAT_COS) {
-                cv_cosine_sample(u, wl);
-                for (int k = 0; k < 3; k++) rd[k] = T->tn[k] * wl[0] + T->bn[k] * wl[1] + pn->normal[k] * wl[2];
-                live = 1;
-              } else if (st == STRAT_ENV ? cv_env_sampler_sample(esm, u, rd, &pe)
-                                         : window_sample(pn, &wr, u, rd)) {
-                /* f and p_b wait until the ray is known to leave: only
-                 * then does a window or environment sample count */
-                wl[0] = dot3(rd, T->tn);
-                wl[1] = dot3(rd, T->bn);
-                wl[2] = dot3(rd, pn->normal);
-                live = 1;
-              }
-              if (live && st == STRAT_COS) {
-                th = acosf(wl[2] > 1 ? 1 : wl[2]);
-                ph = fabsf(atan2f(wl[1], wl[0]));
-                if (cb > 0)
-                  pb = cv_brdf_pdf_cs(smp, T->kb, T->tb, wl[2], wl[0] * wl[0] + wl[1] * wl[1], th, ph);
-                cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, f);
-              }
-            }
-            const int defer = st == STRAT_WIN || st == STRAT_ENV;
-            /* the interior MIS denominator; an interior-strategy ray's own
-             * density is known now, the others' p_int when they hit */
-            const float dint = defer ? -1.0f : cb * pb + cc * wl[2] * (float)M_1_PI + ci * pint;
-            if (!(live && wl[2] > 0 && (dint > 0 || defer))) {
-              /* no ray: the sample is the sun term alone */
-              if (T->in_tile) add_sample((float[3]){T->nee[0], T->nee[1], T->nee[2]}, clamp, inv_unit, T->s, T->s2, cnt);
-              continue;
-            }
-            float *ro = bb.org + 3 * n, *rdir = bb.dir + 3 * n, *rf = bb.fc + 4 * n;
-            for (int k = 0; k < 3; k++) {
-              ro[k] = o[k];
-              rdir[k] = rd[k];
-              rf[k] = defer ? wl[k] : f[k] * wl[2]; /* window, environment: the local direction */
-            }
-            rf[3] = dint;
-            bb.tex[n] = (uint32_t)i | (defer ? TEX_WIN : 0u);
-            bb.want[n] = want;
-            bb.key[n] = dir_key(rd);
-            if (p->ray_log && round == 0 && T->in_tile) {
-              float *rl = p->ray_log + 6 * (T->aix * (size_t)spp + (size_t)j);
-              memcpy(rl, ro, 3 * sizeof(float));
-              memcpy(rl + 3, rd, 3 * sizeof(float));
-            }
-            n++;
-          }
-        }
-        sort_by_key(bb.key, n, bb.ord, bb.tmp);
-        /* permute once into direction order: packets and shading then read
-         * consecutive memory */
-        for (size_t q = 0; q < n; q++) {
-          const uint32_t r = bb.ord[q];
-          memcpy(bb.sorg + 3 * q, bb.org + 3 * (size_t)r, 3 * sizeof(float));
-          memcpy(bb.sdir + 3 * q, bb.dir + 3 * (size_t)r, 3 * sizeof(float));
-          memcpy(bb.sfc + 4 * q, bb.fc + 4 * (size_t)r, 4 * sizeof(float));
-          bb.stex[q] = bb.tex[r];
-          bb.swant[q] = bb.want[r];
-        }
+        const size_t n = generate_rays(&R, &bb, tx0, ty0, bw, bh, &wr, esm, j0, nj, cnt);
+        order_rays(&bb, n);
         trace_sorted(g->rt, g->has_windows, &bb, n);
-        /* environment texels of the rays that left: computed and prefetched
-         * for all of them first (they miss the cache; this overlaps the
-         * misses), kept in htri / huv, which only interior hits use */
-        for (size_t q = 0; q < n; q++) {
-          if (bb.kind[q] != 2) continue;
-          const uint32_t t = env_texel(l->env->img, bb.sdir + 3 * q, &bb.huv[2 * q], &bb.huv[2 * q + 1]);
-          bb.htri[q] = t;
-          const float *px = env_px(l->env->img, t);
-          __builtin_prefetch(px);
-          __builtin_prefetch(px + 3 * (size_t)l->env->img->w);
-        }
-        /* shade in direction order: consecutive rays hit nearby triangles;
-         * the vertex records of a hit a few rays ahead are prefetched */
-        for (size_t q = 0; q < n; q++) {
-          if (q + 8 < n && bb.kind[q + 8] == 1) {
-            const uint32_t *t8 = g->tri + 3 * (size_t)bb.htri[q + 8];
-            __builtin_prefetch(l->vrad + 3 * (size_t)t8[0]);
-            __builtin_prefetch(l->vrad + 3 * (size_t)t8[1]);
-            __builtin_prefetch(l->vrad + 3 * (size_t)t8[2]);
-          }
-          if (q + 16 < n && bb.kind[q + 16] == 1) __builtin_prefetch(g->tri + 3 * (size_t)bb.htri[q + 16]);
-          texel_state *T = &bb.ts[bb.stex[q] & ~TEX_WIN];
-          if (!T->in_tile) continue;
-          const int win = (bb.stex[q] & TEX_WIN) != 0;
-          const float *rf = bb.sfc + 4 * q;
-          float v[3] = {T->nee[0], T->nee[1], T->nee[2]};
-          if (bb.kind[q] == 1) {
-            cnt[CV_LCD_ACC_HITS]++;
-            /* interior: MIS over BRDF, cosine and interior sampling; an
-             * interior-strategy ray counts only on the triangle it aimed at */
-            const uint32_t ht = bb.htri[q], aim = bb.swant[q];
-            if (!win && (aim == NO_TRI || aim == ht)) {
-              const uint32_t *t = g->tri + 3 * (size_t)ht;
-              const float *r0 = l->vrad + 3 * (size_t)t[0], *r1 = l->vrad + 3 * (size_t)t[1],
-                          *r2 = l->vrad + 3 * (size_t)t[2];
-              const float hu = bb.huv[2 * q], hv = bb.huv[2 * q + 1];
-              float den = rf[3];
-              if (aim == NO_TRI && ci > 0) den += ci * interior_pdf(g, itp, ht, bb.ht[q], bb.sdir + 3 * q);
-              const float w0 = 1 - hu - hv, inv = 1 / den;
-              for (int c = 0; c < 3; c++) v[c] += rf[c] * inv * (w0 * r0[c] + hu * r1[c] + hv * r2[c]);
-            }
-          } else if (bb.kind[q] == 2) {
-            float L[3], fc[3], dint = rf[3];
-            cnt[CV_LCD_ACC_ENV]++;
-            if (bb.swant[q] != NO_TRI) { /* an interior-strategy ray: weight 0 outside */
-              add_sample(v, clamp, inv_unit, T->s, T->s2, cnt);
-              continue;
-            }
-            env_fetch(l->env->img, bb.htri[q], bb.huv[2 * q], bb.huv[2 * q + 1], L);
-            if (sun_in_env && dot3(bb.sdir + 3 * q, sf.dir) >= sf.cos_a)
-              for (int c = 0; c < 3; c++) L[c] += sf.L[c];
-            if (win) {
-              /* the deferred f cos and interior denominator of a window or
-               * environment sample */
-              const float th = acosf(rf[2] > 1 ? 1 : rf[2]), ph = fabsf(atan2f(rf[1], rf[0]));
-              const float pb = cb > 0 ? cv_brdf_pdf_cs(smp, T->kb, T->tb, rf[2], rf[0] * rf[0] + rf[1] * rf[1], th, ph) : 0.0f;
-              cv_brdf_eval_bins(smp, T->kb, T->tb, th, ph, fc);
-              for (int c = 0; c < 3; c++) fc[c] *= rf[2];
-              dint = cb * pb + cc * rf[2] * (float)M_1_PI;
-            } else {
-              memcpy(fc, rf, sizeof fc);
-            }
-            const float den = dint + (cw > 0 ? cw * window_pdf(pn, &wr, bb.sdir + 3 * q) : 0.0f) +
-                              (ce > 0 ? ce * cv_env_sampler_pdf(esm, bb.sdir + 3 * q) : 0.0f);
-            if (den > 0)
-              for (int c = 0; c < 3; c++) v[c] += fc[c] / den * L[c];
-          } else {
-            cnt[CV_LCD_ACC_LOST]++;
-          }
-          add_sample(v, clamp, inv_unit, T->s, T->s2, cnt);
-        }
+        shade_rays(&R, &bb, n, &wr, esm, cnt);
       }
-      for (int i = 0; i < nbt; i++) {
-        const texel_state *T = &bb.ts[i];
-        if (!T->in_tile || T->behind) continue;
-        int64_t *q = data + CV_LCD_ACC_HEADER + 3 * T->aix;
-        for (int c = 0; c < 3; c++) q[c] += T->s[c];
-        int64_t *q2 = data + CV_LCD_ACC_HEADER + 3 * (size_t)aw * (size_t)ah + 2 * T->aix;
-        q2[0] += T->s2[0];
-        q2[1] += T->s2[1];
-      }
+      accumulate_block(&R, &bb, bw * bh, data, aw, ah);
     }
     block_buf_free(&bb);
   }
-  cv_env_sampler_destroy(esr);
-  for (int r = 0; r < ENV_RX * ENV_RY; r++) cv_env_sampler_destroy(ereg[r]);
-  int_table_free(&itab);
+  round_free(&R);
   if (status != CV_OK) return status;
   for (int i = 0; i < CV_LCD_ACC_HEADER; i++) data[i] += cnt[i];
   data[CV_LCD_ACC_SPP] += spp;

@@ -5,16 +5,31 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/fast_trig.h"
+
 void cv_env_sampler_destroy(cv_env_sampler *s) {
   if (!s) return;
   free(s->marg);
   free(s->cond);
   free(s->cos_edge);
   free(s->inv_sa);
+  free(s->mguide);
+  free(s->cguide);
   free(s);
 }
 
-/* marg, cond and total from per-cell weights cw (w * h, >= 0). */
+/* guide[g] = the largest i in [0, n) with cdf[i] <= g / CV_ENV_GUIDE (g in
+ * [0, CV_ENV_GUIDE]); cdf non-decreasing with cdf[0] = 0. */
+static void build_guide(const float *cdf, int n, uint16_t *guide) {
+  int i = 0;
+  for (int g = 0; g <= CV_ENV_GUIDE; g++) {
+    const float x = (float)g / CV_ENV_GUIDE; /* exact: CV_ENV_GUIDE is a power of two */
+    while (i < n - 1 && cdf[i + 1] <= x) i++;
+    guide[g] = (uint16_t)i;
+  }
+}
+
+/* marg, cond, their guides and total from per-cell weights cw (w * h, >= 0). */
 static void build_cdfs(cv_env_sampler *s, const double *cw, double *row, double *cum) {
   const int w = s->w, h = s->h;
   double total = 0;
@@ -35,6 +50,9 @@ static void build_cdfs(cv_env_sampler *s, const double *cw, double *row, double 
     s->marg[y + 1] = total > 0 ? (float)(acc / total) : 0.0f;
   }
   if (total > 0) s->marg[h] = 1.0f;
+  build_guide(s->marg, h, s->mguide);
+  for (int y = 0; y < h; y++)
+    build_guide(s->cond + (size_t)y * (size_t)(w + 1), w, s->cguide + (size_t)y * (CV_ENV_GUIDE + 1));
 }
 
 static cv_env_sampler *sampler_alloc(int w, int h, int f) {
@@ -47,7 +65,9 @@ static cv_env_sampler *sampler_alloc(int w, int h, int f) {
   s->cond = malloc((size_t)h * (size_t)(w + 1) * sizeof(float));
   s->cos_edge = malloc((size_t)(h + 1) * sizeof(float));
   s->inv_sa = malloc((size_t)h * sizeof(float));
-  if (!s->marg || !s->cond || !s->cos_edge || !s->inv_sa) {
+  s->mguide = malloc((CV_ENV_GUIDE + 1) * sizeof(uint16_t));
+  s->cguide = malloc((size_t)h * (CV_ENV_GUIDE + 1) * sizeof(uint16_t));
+  if (!s->marg || !s->cond || !s->cos_edge || !s->inv_sa || !s->mguide || !s->cguide) {
     cv_env_sampler_destroy(s);
     return NULL;
   }
@@ -187,9 +207,13 @@ double cv_env_sampler_cell_prob(const cv_env_sampler *s, int x, int y) {
 }
 
 /* The i in [0, n) with cdf[i] <= u < cdf[i + 1] (cdf[0] = 0 <= u < cdf[n] = 1):
- * never an empty interval. */
-static inline int cdf_find(const float *cdf, int n, float u) {
-  int lo = 0, hi = n; /* cdf[lo] <= u < cdf[hi] */
+ * never an empty interval.  It lies between the guides of u's bucket
+ * (Chen & Asau's cutpoint method): a binary search over those few cells
+ * instead of the whole CDF, with the same answer. */
+static inline int cdf_find(const float *cdf, const uint16_t *guide, float u) {
+  int g = (int)(u * CV_ENV_GUIDE); /* u < 1: g < CV_ENV_GUIDE */
+  g = g < 0 ? 0 : g;
+  int lo = guide[g], hi = guide[g + 1] + 1; /* cdf[lo] <= u < cdf[hi] */
   while (hi - lo > 1) {
     const int mid = (lo + hi) >> 1;
     if (cdf[mid] <= u) lo = mid;
@@ -200,21 +224,22 @@ static inline int cdf_find(const float *cdf, int n, float u) {
 
 int cv_env_sampler_sample(const cv_env_sampler *s, const float u[2], float d[3], float *pdf) {
   if (!(s->total > 0)) return 0;
-  const int w = s->w, h = s->h;
+  const int w = s->w;
   const float u0 = u[0] < 1.0f ? u[0] : 0x1.fffffep-1f, u1 = u[1] < 1.0f ? u[1] : 0x1.fffffep-1f;
-  const int y = cdf_find(s->marg, h, u1);
+  const int y = cdf_find(s->marg, s->mguide, u1);
   const float *c = s->cond + (size_t)y * (size_t)(w + 1);
-  const int x = cdf_find(c, w, u0);
+  const int x = cdf_find(c, s->cguide + (size_t)y * (CV_ENV_GUIDE + 1), u0);
   const float pr = s->marg[y + 1] - s->marg[y], pc = c[x + 1] - c[x];
   float r1 = (u1 - s->marg[y]) / pr, r0 = (u0 - c[x]) / pc;
   r0 = r0 < 0 ? 0 : (r0 >= 1 ? 0x1.fffffep-1f : r0);
   r1 = r1 < 0 ? 0 : (r1 >= 1 ? 0x1.fffffep-1f : r1);
   const float ct = s->cos_edge[y] + r1 * (s->cos_edge[y + 1] - s->cos_edge[y]);
   const float st = sqrtf(fmaxf(0.0f, 1 - ct * ct));
-  const float ph = (float)(2 * M_PI) * (((float)x + r0) / (float)w - 0.5f);
-  d[0] = st * sinf(ph);
+  float sp, cp;
+  cv_fast_sincos2pi(((float)x + r0) / (float)w - 0.5f, &sp, &cp);
+  d[0] = st * sp;
   d[1] = ct;
-  d[2] = -st * cosf(ph);
+  d[2] = -st * cp;
   *pdf = (float)((double)pr * (double)pc * (double)s->inv_sa[y]);
   return 1;
 }
@@ -228,7 +253,7 @@ float cv_env_sampler_pdf(const cv_env_sampler *s, const float d[3]) {
   /* the row whose (cos_edge[y + 1], cos_edge[y]] holds ct, as sampled */
   while (y > 0 && ct > s->cos_edge[y]) y--;
   while (y < h - 1 && ct <= s->cos_edge[y + 1]) y++;
-  float uu = 0.5f + atan2f(d[0], -d[2]) * (float)(0.5 * M_1_PI);
+  float uu = 0.5f + cv_fast_atan2(d[0], -d[2]) * (float)(0.5 * M_1_PI);
   if (uu >= 1) uu -= 1;
   if (uu < 0) uu = 0;
   int x = (int)(uu * (float)w);

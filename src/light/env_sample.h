@@ -25,9 +25,15 @@
 #ifndef CV_LIGHT_ENV_SAMPLE_H
 #define CV_LIGHT_ENV_SAMPLE_H
 
+#include <stdint.h>
+
 #include "light/envmap.h"
 
 #define CV_ENV_SAMPLE_MAX_W 256
+/* Guide-table buckets per CDF (Chen & Asau 1974): u's bucket brackets the
+ * cell, so a draw searches a few cells instead of log2(w) + log2(h)
+ * dependent loads over the whole rows. */
+#define CV_ENV_GUIDE 64
 
 typedef struct cv_env_sampler {
   int w, h;        /* cells */
@@ -36,6 +42,8 @@ typedef struct cv_env_sampler {
   float *cond;     /* h * (w + 1): per-row CDF over its cells */
   float *cos_edge; /* h + 1: cos(pi y / h) */
   float *inv_sa;   /* h: 1 / Omega_y */
+  uint16_t *mguide;/* CV_ENV_GUIDE + 1: largest row y with marg[y] <= g / CV_ENV_GUIDE */
+  uint16_t *cguide;/* h * (CV_ENV_GUIDE + 1): the same over each row's cond */
   double total;    /* sum of Y Omega over the cells (cd/m^2 sr); 0: a black map */
 } cv_env_sampler;
 

@@ -2,7 +2,7 @@
  * section 4.3) on the default cabin under blender-data's forest.exr.
  *
  *   bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] [--ref-spp N]
- *             [--max-spp N] [--reps N] [--dat FILE]
+ *             [--max-spp N] [--reps N] [--dat FILE] [--speed]
  *
  * --sky: the Preetham sky (turbidity 3) with its sun at that elevation and
  * azimuth (degrees, clockwise from ahead) instead of the map.  Strategies:
@@ -34,7 +34,10 @@
  *    by the haze and diffuse lobes dominates the variance), too coarse to
  *    measure 1%.
  * Prints markdown tables; --dat writes gnuplot-ready blocks (one per
- * strategy: spp, seconds, rmse). */
+ * strategy: spp, seconds, rmse).  --speed: steps 1 and 2 only, for the
+ * library's default and the two MIS mixes that were or are the default
+ * (window 0.5; window 0.25 + env 0.25), then exit (for before/after timing
+ * of two builds, alternated). */
 #include <math.h>
 #include <omp.h>
 #include <stdint.h>
@@ -43,6 +46,7 @@
 #include <string.h>
 
 #include "bench_util.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "lcd/gather.h"
 #include "mesh/cabin.h"
@@ -85,6 +89,12 @@ static int default_strategy(void) {
         strategies[s].i == d.interior_fraction)
       return s;
   return -1;
+}
+
+/* The strategies step 1 times: all, or with --speed the default and the
+ * two MIS mixes that were or are the default (rows 3 and 5). */
+static int timed(int s, int default_strat, int speed_only) {
+  return !speed_only || s == default_strat || s == 3 || s == 5;
 }
 
 static void set_strategy(cv_lcd_params *p, int s) {
@@ -224,6 +234,7 @@ static double spp_at(const int *spp, const double *err, int n, double target, in
 int main(int argc, char **argv) {
   int tess = 2, cw = 16, ch = 12, ref_spp = 262144, max_spp = 16384, reps = 3;
   const char *env = "forest.exr", *dat = NULL;
+  int speed_only = 0; /* --speed: step 1-2 for the two MIS defaults only, then exit */
   double sky_el = -1000, sky_az = 0; /* --sky: analytic sky instead of the map */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
@@ -237,9 +248,10 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--max-spp") && i + 1 < argc) max_spp = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--dat") && i + 1 < argc) dat = argv[++i];
+    else if (!strcmp(argv[i], "--speed")) speed_only = 1;
     else {
       fprintf(stderr, "usage: bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] "
-                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE]\n");
+                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE] [--speed]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
@@ -311,11 +323,17 @@ int main(int argc, char **argv) {
   cv_lcd_gather *g;
   t0 = cv_now_seconds();
   if (cv_brdf_load(CV_BRDF_BUILTIN_ANTIGLARE, &brdf, &brep, &err) ||
-      cv_lcd_panel_from_mesh(m, &panel, &err) ||
-      cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
+      cv_lcd_panel_from_mesh(m, &panel, &err)) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
+  const clock_t c0 = clock(); /* process CPU time: the create traces on all threads */
+  const double t1 = cv_now_seconds();
+  if (cv_lcd_gather_create(cv_tracer_rt(tr), m, &panel, brdf, &g, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  const double t_create = cv_now_seconds() - t1, c_create = (double)(clock() - c0) / CLOCKS_PER_SEC;
   double t_setup = cv_now_seconds() - t0;
   cv_lcd_params p;
   cv_lcd_params_default(&p);
@@ -335,8 +353,10 @@ int main(int argc, char **argv) {
          tess, m->nt, m->nv, bp.bands, bp.rays, bp.bounces, t_bake, spec.kind == CV_LIGHT_SKY ? "Preetham sky" : env, light->sun_source,
          p.eye[0], p.eye[1], p.eye[2], W, H, 1000 * panel.size[0], 1000 * panel.size[1],
          brep.albedo_max, omp_get_max_threads());
-  printf("per lighting state: relight + background table %.2f s; BRDF table + sampler %.2f s\n\n",
-         t_light, t_setup);
+  printf("per lighting state: relight + background table %.2f s; BRDF table + sampler %.2f s "
+         "(of which cv_lcd_gather_create %.2f s wall, %.2f s CPU of all threads: the BRDF sampling "
+         "tables and the probe-ray tables)\n\n",
+         t_light, t_setup, t_create, c_create);
   /* Where the sun is against the panel: the mirror direction of the eye
    * ray at the panel centre (the coating's haze lobe is around it), in the
    * sky's angles (elevation, azimuth clockwise from ahead, -Z). */
@@ -394,11 +414,12 @@ int main(int argc, char **argv) {
   const cv_rt *rt = cv_tracer_rt(tr);
   double t_gather[NSTRAT][15], w_gather[NSTRAT][15], t_bare[15], t_pack[15];
   int64_t cnt[NSTRAT][CV_LCD_ACC_HEADER];
-  uint64_t bare_hits = 0, pack_hits = 0;
+  uint64_t bare_hits = 0, pack_hits = 0, digest[NSTRAT][15];
   for (int r = 0; r < reps; r++) {
     t_bare[r] = bare_loop(rt, org, dir, nvalid, &bare_hits);
     t_pack[r] = bare_packets(rt, porg, pdir, npk, &pack_hits);
     for (int s = 0; s < NSTRAT; s++) {
+      if (!timed(s, DEFAULT_STRAT, speed_only)) continue;
       set_strategy(&p, s);
       cv_lcd_accum_clear(acc);
       double w0 = cv_now_seconds();
@@ -407,6 +428,7 @@ int main(int argc, char **argv) {
       t_gather[s][r] = cpu_seconds() - t0;
       w_gather[s][r] = cv_now_seconds() - w0;
       memcpy(cnt[s], acc->data, sizeof cnt[s]);
+      digest[s][r] = cv_hash64(acc->data, acc->n * sizeof(int64_t));
     }
   }
   double tb_lo, tb_hi, tp_lo, tp_hi, tg_lo[NSTRAT], tg_hi[NSTRAT];
@@ -415,6 +437,10 @@ int main(int argc, char **argv) {
   const double tb = bench_median(t_bare, reps), tpk = bench_median(t_pack, reps);
   double tg[NSTRAT], wg[NSTRAT];
   for (int s = 0; s < NSTRAT; s++) {
+    if (!timed(s, DEFAULT_STRAT, speed_only)) {
+      tg[s] = wg[s] = tg_lo[s] = tg_hi[s] = 0;
+      continue;
+    }
     range(t_gather[s], reps, &tg_lo[s], &tg_hi[s]);
     tg[s] = bench_median(t_gather[s], reps);
     wg[s] = bench_median(w_gather[s], reps);
@@ -437,6 +463,7 @@ int main(int argc, char **argv) {
          "queries | closest-hit M rays/s | vs bare single-ray loop | vs bare packet loop "
          "|\n|---|---|---|---|---|---|---|---|---|\n");
   for (int s = 0; s < NSTRAT; s++) {
+    if (!timed(s, DEFAULT_STRAT, speed_only)) continue;
     double nr = (double)(cnt[s][CV_LCD_ACC_HITS] + cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]);
     double nq = (double)(cnt[s][CV_LCD_ACC_ENV] + cnt[s][CV_LCD_ACC_LOST]) +
                 (double)cnt[s][CV_LCD_ACC_SHADOW];
@@ -453,6 +480,14 @@ int main(int argc, char **argv) {
          "them, coherent packets of %d) | 1 | %.3f [%.3f, %.3f] | | %zu | | %.2f | %.2f | 1.00 "
          "|\n\n",
          CV_RT_PACKET_MAX, tpk, tp_lo, tp_hi, npk, npk / tpk / 1e6, tb / tpk);
+  /* the buffers' FNV-1a digests: two builds that must agree bit for bit
+   * print the same */
+  printf("buffer digests (round: FNV-1a of the accumulation buffer):");
+  for (int s = 0; s < NSTRAT; s++)
+    if (timed(s, DEFAULT_STRAT, speed_only))
+      for (int r = 0; r < reps && r < 2; r++)
+        printf(" s%d r%d %016llx", s, r, (unsigned long long)digest[s][r]);
+  printf("\n\n");
   const int64_t *cd = cnt[DEFAULT_STRAT];
   printf("default round: %.1f%% of gather rays hit the interior, %.1f%% left through a window, "
          "%.2f%% lost; sun shadow rays %lld (%lld unblocked); clamped channel values %lld; bare "
@@ -466,6 +501,7 @@ int main(int argc, char **argv) {
   free(porg);
   free(pdir);
   cv_lcd_accum_destroy(acc);
+  if (speed_only) return 0;
 
   /* Where the environment-light samples go, from the panel centre: behind
    * the panel, onto the car body, or out through a window (what limits

@@ -13,7 +13,9 @@
 #include "core/hash.h"
 #include "core/parse.h"
 #include "core/progress.h"
+#include "core/sobol.h"
 #include "core/status.h"
+#include "core/fast_trig.h"
 
 /* Published FNV-1a 64 test vectors (Fowler/Noll/Vo reference code). */
 static void test_hash_vectors(void **state) {
@@ -207,12 +209,85 @@ static void test_parse_seconds(void **state) {
   }
 }
 
+/* FNV-1a of the float bits of the table-driven Owen-scrambled Sobol points
+ * (8 dimensions, 3 seeds, indices 0..65535 and 64 large ones), and of the
+ * reference path cv_sobol_owen_n.  SOBOL_GOLDEN was printed by the
+ * implementation before the faster tables (issue 12, deliverable 6): the
+ * PRT bake and the LCD gather must draw bit-identical points. */
+#define SOBOL_GOLDEN 0x7f2c199a159d462aull
+static uint64_t sobol_digest(int use_tab) {
+  cv_sobol_tab *tab = malloc(sizeof *tab);
+  assert_non_null(tab);
+  cv_sobol_tab_init(tab);
+  const uint32_t seeds[3] = {1u, 0xdeadbeefu, 12345u};
+  uint64_t h = cv_hash64_init();
+  for (int s = 0; s < 3; s++) {
+    uint32_t ds[CV_SOBOL_DIMS];
+    cv_sobol_dim_seeds(seeds[s], CV_SOBOL_DIMS, ds);
+    for (uint32_t k = 0; k < 65536 + 64; k++) {
+      const uint32_t i = k < 65536 ? k : cv_hash_u32(k) ; /* some indices above 2^16 */
+      float u[CV_SOBOL_DIMS];
+      if (use_tab) {
+        cv_sobol_owen_tab(tab, i, seeds[s], ds, CV_SOBOL_DIMS, u);
+        float u4[4];
+        cv_sobol_owen_tab4(tab, i, seeds[s], ds, u4);
+        if (memcmp(u, u4, sizeof u4)) fail_msg("cv_sobol_owen_tab4 differs at index %u", i);
+      } else {
+        cv_sobol_owen_n(i, seeds[s], CV_SOBOL_DIMS, u);
+      }
+      h = cv_hash64_floats(h, u, CV_SOBOL_DIMS);
+    }
+  }
+  free(tab);
+  return h;
+}
+
+static void test_sobol_bit_identical(void **state) {
+  (void)state;
+  const uint64_t a = sobol_digest(1), b = sobol_digest(0);
+  if (SOBOL_GOLDEN == 0) printf("sobol digest tab %016llx ref %016llx\n", (unsigned long long)a,
+                                (unsigned long long)b);
+  assert_true(a == b);
+  assert_true(a == SOBOL_GOLDEN);
+}
+
+/* fast_trig.h: the stated bounds over a dense sweep (and the identity
+ * sin^2 + cos^2 = 1 within a few ulp, which a direction's length needs). */
+static void test_fast_trig(void **state) {
+  (void)state;
+  double es = 0, ec = 0, en = 0, ea = 0;
+  for (int i = 0; i <= 1 << 20; i++) {
+    const float u = (float)i / (float)(1 << 20);
+    float s, c;
+    cv_fast_sincos2pi(u, &s, &c);
+    es = fmax(es, fabs(s - sin(2 * M_PI * u)));
+    ec = fmax(ec, fabs(c - cos(2 * M_PI * u)));
+    en = fmax(en, fabs((double)s * s + (double)c * c - 1));
+    const float x = 2 * u - 1;
+    for (int k = 0; k < 2; k++) {
+      const float y = k ? x : -x, z = k ? 0.3f - u : u + 0.01f;
+      ea = fmax(ea, fabs(cv_fast_atan2(y, z) - atan2(y, z)));
+    }
+  }
+  printf("fast_trig: |sin err| %.3g, |cos err| %.3g, |s^2+c^2-1| %.3g, |atan2 err| %.3g\n", es, ec,
+         en, ea);
+  assert_true(es <= CV_FAST_SINCOS_MAX_ERR);
+  assert_true(ec <= CV_FAST_SINCOS_MAX_ERR);
+  assert_true(en <= 4 * CV_FAST_SINCOS_MAX_ERR);
+  assert_true(ea <= CV_FAST_ATAN2_MAX_ERR);
+  float s, c;
+  cv_fast_sincos2pi(0.0f, &s, &c);
+  assert_true(fabsf(s) <= CV_FAST_SINCOS_MAX_ERR && fabsf(c - 1) <= CV_FAST_SINCOS_MAX_ERR);
+  assert_true(cv_fast_atan2(0.0f, 0.0f) == 0.0f);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_hash_vectors),         cmocka_unit_test(test_hash_typed),
       cmocka_unit_test(test_progress_null),        cmocka_unit_test(test_progress_plain_lines),
       cmocka_unit_test(test_progress_tty_and_quiet), cmocka_unit_test(test_progress_openmp),
       cmocka_unit_test(test_progress_unknown_total), cmocka_unit_test(test_parse_seconds),
+      cmocka_unit_test(test_sobol_bit_identical),  cmocka_unit_test(test_fast_trig),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
