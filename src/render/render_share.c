@@ -193,3 +193,10 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
   }
   return CV_OK;
 }
+
+void cv_renderer_lighting_forget(cv_renderer *r) {
+  if (!r) return;
+  r->lit = 0;
+  r->shadow_valid = r->split_valid = 0;
+  r->shadow_import = r->split_import = 0;
+}

@@ -258,6 +258,11 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
 int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_frame_timing *t,
                                 cv_err *err);
 
+/* Forgets the lighting, its shadow map and split: the next
+ * cv_renderer_set_lighting computes everything (after an import that may
+ * have read a buffer while it was rewritten). */
+void cv_renderer_lighting_forget(cv_renderer *r);
+
 /* Sets the background seen through the windows: a lat-long RGB image
  * (c >= 3, row 0 = zenith; docs/conventions.md), copied; NULL = black.
  * Errors: CV_ERR_INVALID, CV_ERR_BACKEND. */
