@@ -89,10 +89,12 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
   glGetBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), b + L.rad);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
   if (res && (fresh || h.shadow_gen != r->shadow_gen || h.shadow_res != res)) {
-    glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+    /* glReadPixels of the depth attachment: Mesa copies Z32F rows as they
+     * are (glGetTexImage of a depth texture converts texel by texel) */
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTexImage(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
-    glBindTexture(GL_TEXTURE_2D, 0);
+    glReadPixels(0, 0, res, res, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
   }
   if (r->split_valid && (fresh || h.split_gen != r->split_gen)) {
     glBindBuffer(GL_ARRAY_BUFFER, r->buf_idx_sun);
