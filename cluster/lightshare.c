@@ -179,6 +179,7 @@ int cv_lightshare_relight(cv_lightshare *ls, const cv_service *s, cv_renderer *r
     msg->ms = clock_ms(CLOCK_MONOTONIC) - w0;
     msg->cpu_ms = clock_ms(CLOCK_PROCESS_CPUTIME_ID) - c0;
     msg->wait_ms = wait_ms;
+    msg->cpu_s = clock_ms(CLOCK_PROCESS_CPUTIME_ID) * 1e-3;
   }
   return st;
 }

@@ -51,6 +51,7 @@ typedef struct cv_light_msg {
   double ms;           /* wall ms of the lighting step (renderer + background) */
   double cpu_ms;       /* process CPU ms of it (the renderer's GL threads included) */
   double wait_ms;      /* importers: of ms, waiting for the leader */
+  double cpu_s;        /* the rank's process CPU seconds so far (all its threads) */
 } cv_light_msg;
 
 typedef struct cv_lightshare {

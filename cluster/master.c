@@ -562,6 +562,7 @@ static void light_metrics(master *m, cv_metrics_line *ml, int rank, uint32_t f) 
   cv_metrics_double(ml, "light_ms", l->ms);
   cv_metrics_double(ml, "light_cpu_ms", l->cpu_ms);
   cv_metrics_double(ml, "light_wait_ms", l->wait_ms);
+  cv_metrics_double(ml, "cpu_s", l->cpu_s);
 }
 
 /* Summary: lighting changes per kind, summed over the render ranks. */
