@@ -30,7 +30,7 @@
 struct cv_lightmix;
 
 /* --share-lighting */
-enum { CV_SHARE_OFF = 0, CV_SHARE_HOST = 1 };
+enum { CV_SHARE_OFF = 0, CV_SHARE_HOST = 1, CV_SHARE_HOST_NOW = 2 /* host without the prefetch */ };
 
 /* What a rank did for one lighting change. */
 enum {
@@ -47,9 +47,13 @@ enum {
 typedef struct cv_light_msg {
   uint32_t frame;      /* the frame whose state changed the lighting */
   uint32_t what;       /* CV_LIGHT_* of that change */
+  uint32_t prefetched; /* the leader: this change was computed ahead (cv_lightshare_prefetch) */
+  uint32_t pad;
   uint64_t count[6];   /* changes so far per CV_LIGHT_* */
+  uint64_t prefetch[2];/* the leader's prefetches so far: came true, did not (restored) */
   double ms;           /* wall ms of the lighting step (renderer + background) */
-  double cpu_ms;       /* process CPU ms of it (the renderer's GL threads included) */
+  double cpu_ms;       /* process CPU ms of it (the renderer's GL threads included; a
+                          prefetched change: the prefetch's CPU) */
   double wait_ms;      /* importers: of ms, waiting for the leader */
   double cpu_s;        /* the rank's process CPU seconds so far (all its threads) */
 } cv_light_msg;
@@ -62,6 +66,15 @@ typedef struct cv_lightshare {
   uint64_t changes;   /* lighting changes this rank has made */
   uint64_t count[6];
   double wait_s;      /* how long an importer waits for the leader */
+  /* the segment holds two slots; active: the published one (-1: none) */
+  int active;
+  /* the leader's prefetch: on, one pending (r holds it, slot pend_slot
+   * written, unpublished), its key, lighting and CPU ms; came true / not */
+  int prefetch_on, pending, pend_slot;
+  uint64_t pend_key;
+  cv_lighting pend_l;
+  double pend_cpu_ms;
+  uint64_t count_prefetch[2];
 } cv_lightshare;
 
 /* Collective over the render ranks (mode != off): joins the host group of
@@ -78,5 +91,24 @@ void cv_lightshare_describe(const cv_lightshare *ls, char *buf, size_t cap);
 int cv_lightshare_relight(cv_lightshare *ls, const cv_service *s, cv_renderer *r, const struct cv_lightmix *mix,
                           const cv_lighting *l, const cv_drive_state *drive, uint64_t key, cv_frame_timing *tm,
                           void (*idle)(void *), void *user, cv_light_msg *msg, cv_err *err);
+
+/* 1 while the leader's renderer holds a prefetched lighting not yet
+ * confirmed by a frame state. */
+int cv_lightshare_pending(const cv_lightshare *ls);
+/* A frame state whose light key did not change while a prefetch is
+ * pending: the renderer back to the published lighting (exactly: imported
+ * from the leader's own slot).  0, or non-zero (err). */
+int cv_lightshare_restore(cv_lightshare *ls, cv_renderer *r, cv_err *err);
+
+/* The leader, after rendering frame fs (lighting key key_now): predicts the
+ * next frame's drive state as the master will make it (sim clock: frame + 1
+ * steps of --dt; wall clock: the last step again), and when its light key
+ * differs, computes that lighting now (while the other wall-eyes still
+ * render) and writes it to the unpublished slot.  cv_lightshare_relight
+ * publishes it at once when the next state's key and lighting are
+ * bit-equal to the prediction, else restores and computes.  1 when
+ * prefetched. */
+int cv_lightshare_prefetch(cv_lightshare *ls, const cv_service *s, cv_renderer *r, const struct cv_lightmix *mix,
+                           const cv_frame_state *fs, uint64_t key_now);
 
 #endif

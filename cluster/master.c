@@ -258,7 +258,8 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_bool(ml, "desktop", m->desk != NULL);
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
-    cv_metrics_string(ml, "share_lighting", s->o.share_lighting == CV_SHARE_HOST ? "host" : "off");
+    cv_metrics_string(ml, "share_lighting", s->o.share_lighting == CV_SHARE_HOST ? "host"
+                                            : (s->o.share_lighting == CV_SHARE_HOST_NOW ? "host-now" : "off"));
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
       char k[16];
@@ -559,6 +560,7 @@ static void light_metrics(master *m, cv_metrics_line *ml, int rank, uint32_t f) 
   const cv_light_msg *l = &m->light[rank - 1];
   if (!m->light_have[rank - 1] || l->frame != f) return;
   cv_metrics_string(ml, "light", light_name(l->what));
+  if (l->what == CV_LIGHT_LED) cv_metrics_bool(ml, "light_prefetched", l->prefetched != 0);
   cv_metrics_double(ml, "light_ms", l->ms);
   cv_metrics_double(ml, "light_cpu_ms", l->cpu_ms);
   cv_metrics_double(ml, "light_wait_ms", l->wait_ms);
@@ -572,8 +574,14 @@ static void light_summary(master *m, cv_metrics_line *ml) {
   for (int i = 0; i < m->s->n_render; i++)
     for (int k = 0; k < 6; k++) c[k] += m->light_have[i] ? m->light[i].count[k] : 0;
   cv_metrics_object_begin(ml, "shared_lighting");
-  cv_metrics_string(ml, "mode", m->s->o.share_lighting == CV_SHARE_HOST ? "host" : "off");
+  const int mode = m->s->o.share_lighting;
+  cv_metrics_string(ml, "mode", mode == CV_SHARE_HOST ? "host" : (mode == CV_SHARE_HOST_NOW ? "host-now" : "off"));
   for (int k = 0; k < 6; k++) cv_metrics_uint(ml, light_name((uint32_t)k), c[k]);
+  uint64_t p[2] = {0, 0};
+  for (int i = 0; i < m->s->n_render; i++)
+    for (int k = 0; k < 2; k++) p[k] += m->light_have[i] ? m->light[i].prefetch[k] : 0;
+  cv_metrics_uint(ml, "prefetched", p[0]);
+  cv_metrics_uint(ml, "prefetch_missed", p[1]);
   cv_metrics_object_end(ml);
 }
 

@@ -94,7 +94,11 @@ static void help(FILE *f) {
           "                       background into shared memory, the others upload them\n"
           "                       (the same images, byte for byte); an importer waits for\n"
           "                       the leader at most --timeout-ms / 4, then computes itself\n"
-          "                       (counted: docs/metrics.md); off: every wall-eye computes\n"
+          "                       (counted: docs/metrics.md).  The leader also computes the\n"
+          "                       next frame's lighting ahead, predicted from the drive, and\n"
+          "                       publishes it when the next state confirms it bit for bit.\n"
+          "                       host-now: sharing without that prefetch; off: every\n"
+          "                       wall-eye computes its own\n"
           "  --display FILE.json  compensation display (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default: the\n"
           "                       config's screens.patches, 24)\n"
@@ -217,8 +221,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--share-lighting")) {
       NEED();
       if (!strcmp(v, "host")) o->share_lighting = CV_SHARE_HOST;
+      else if (!strcmp(v, "host-now")) o->share_lighting = CV_SHARE_HOST_NOW;
       else if (!strcmp(v, "off")) o->share_lighting = CV_SHARE_OFF;
-      else problem(pb, "--share-lighting: expected host or off, got '%s'", v);
+      else problem(pb, "--share-lighting: expected host, host-now or off, got '%s'", v);
     } else if (!strcmp(a, "--swap-sync")) {
       NEED();
       if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;

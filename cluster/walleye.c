@@ -322,7 +322,16 @@ static void idle_cb(void *we) { idle(we); }
 /* A new light key: the lighting computed, or taken from the host's leader
  * (lightshare.h); what was done goes to the master (CV_TAG_LIGHT). */
 static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_timing *tm) {
-  if (we->have_light && fs->light_key == we->light_key) return;
+  cv_err err;
+  if (we->have_light && fs->light_key == we->light_key) {
+    /* a prefetch the state did not confirm: back to the current lighting */
+    if (cv_lightshare_pending(&we->ls) && cv_lightshare_restore(&we->ls, we->r, &err)) {
+      fprintf(stderr, "cave run: rank %d: lighting: %s\n", we->s->rank, err.msg);
+      we->have_light = 0;
+    } else {
+      return;
+    }
+  }
   cv_lighting l;
   memset(&l, 0, sizeof l);
   l.bands = fs->bands;
@@ -330,7 +339,6 @@ static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_ti
   l.has_sun = fs->has_sun;
   memcpy(l.sun_dir, fs->sun_dir, sizeof l.sun_dir);
   memcpy(l.sun_E, fs->sun_E, sizeof l.sun_E);
-  cv_err err;
   cv_light_msg msg;
   if (cv_lightshare_relight(&we->ls, we->s, we->r, we->mix, &l, &fs->drive, fs->light_key, tm, idle_cb, we,
                             &msg, &err)) {
@@ -701,6 +709,8 @@ int cv_walleye_run(cv_service *s) {
           fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
           rc = 1;
         }
+    /* the host's leader: the next frame's lighting while the others render */
+    if (we->have_light) cv_lightshare_prefetch(&we->ls, s, we->r, we->mix, &fs, we->light_key);
     idle(we);
   }
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, NULL, NULL);

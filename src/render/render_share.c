@@ -161,6 +161,9 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
     memcpy(r->split_s, h.split_s, sizeof r->split_s);
     r->split_valid = 1;
     r->split_import = h.split_gen;
+    r->split_gen++; /* new contents here: a later export of it must write it */
+  } else if (!h.split_valid) {
+    r->split_valid = 0; /* as the exporter: the next sun makes its own */
   }
   const double t2 = cvr_tick(r);
   /* the shadow map, likewise */
@@ -176,6 +179,9 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
     r->shadow_texel = h.shadow_texel;
     r->shadow_valid = h.shadow_valid;
     r->shadow_import = h.shadow_gen;
+    r->shadow_gen++;
+  } else if (h.shadow_res <= 0) {
+    r->shadow_valid = 0;
   }
   memcpy(r->shadow_q, h.shadow_q, sizeof r->shadow_q);
   memcpy(r->shadow_k, h.shadow_k, sizeof r->shadow_k);
