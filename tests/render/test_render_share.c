@@ -5,7 +5,9 @@
  * shadow texel so the leader keeps its map, turned by 3 degrees, no sun, the
  * sun back) the importer's images equal the computing renderer's byte for
  * byte (linear HDR and 8-bit display), also after the importer computed one
- * change itself in between (a late leader in `cave run`).  Errors: export
+ * change itself in between (a late leader in `cave run`), and the leader
+ * after a prefetch that did not come true (its own export taken back, then
+ * the real change).  Errors: export
  * before any lighting, a truncated or foreign buffer, another shadow size. */
 #include <math.h>
 #include <setjmp.h>
@@ -148,6 +150,34 @@ static void test_export_import_identical(void **state) {
     if (step == 1) assert_int_equal(tl.shadow_reused, 1);
     if (step == 1) assert_int_equal(ti.shadow_reused, 1);
     if (step == 2) assert_int_equal(ti.shadow_reused, 0);
+  }
+  /* The leader's prefetch that does not come true (cluster/lightshare.c):
+   * it draws another sun, then takes its own export back (restore) and
+   * computes the real next lighting; a sun moved by far less than a texel
+   * after the restore keeps the restored map, as the computing renderer
+   * keeps its own: the images stay bit-equal. */
+  {
+    cv_lighting cur = base, wrong = base, next = base;
+    const double a = total, c = cos(a), s = sin(a), c2 = cos(a + 1.0), s2 = sin(a + 1.0);
+    cur.sun_dir[0] = c * base.sun_dir[0] + s * base.sun_dir[2];
+    cur.sun_dir[2] = -s * base.sun_dir[0] + c * base.sun_dir[2];
+    wrong.sun_dir[0] = c2 * base.sun_dir[0] + s2 * base.sun_dir[2];
+    wrong.sun_dir[2] = -s2 * base.sun_dir[0] + c2 * base.sun_dir[2];
+    next = cur;
+    next.sun_dir[1] += 1e-7;
+    cv_frame_timing tl = {0};
+    OK(cv_renderer_lighting_export(leader, buf, cap, &err)); /* the published lighting */
+    OK(cv_renderer_set_lighting(leader, &wrong, NULL, NULL, &err)); /* the prefetch */
+    OK(cv_renderer_lighting_import(leader, buf, cap, NULL, &err));  /* restored */
+    OK(cv_renderer_set_lighting(leader, &next, NULL, &tl, &err));
+    OK(cv_renderer_set_lighting(own, &next, NULL, NULL, &err));
+    shade(leader, hi, di);
+    shade(own, ho, dn);
+    printf("prefetch restored, then a sun moved 1e-7 (map %s): %zu HDR, %zu display values differ\n",
+           tl.shadow_reused ? "kept" : "redrawn", differing(hi, ho), differing(di, dn));
+    assert_int_equal(tl.shadow_reused, 1);
+    assert_int_equal(differing(hi, ho), 0);
+    assert_int_equal(differing(di, dn), 0);
   }
   /* a truncated buffer, a foreign one */
   assert_int_equal(cv_renderer_lighting_import(importer, buf, cap - 8, NULL, &err), CV_ERR_FORMAT);
