@@ -175,9 +175,9 @@ int cv_lightshare_pending(const cv_lightshare *ls) { return ls->pending; }
 static int restore(cv_lightshare *ls, cv_renderer *r, cv_err *err) {
   ls->pending = 0;
   ls->count_prefetch[1]++;
-  if (ls->active < 0) {
+  if (ls->active < 0) { /* nothing published to return to: computed again by the caller */
     cv_renderer_lighting_forget(r);
-    return CV_OK;
+    return cv_err_set(err, CV_ERR_INVALID, "shared lighting: no published lighting to return to");
   }
   return import_slot(ls, ls->active, r, NULL, err);
 }
