@@ -27,6 +27,9 @@ static int g_barrier_abandoned;
 static MPI_Comm g_lcd = MPI_COMM_NULL;
 static MPI_Request g_lcd_req = MPI_REQUEST_NULL;
 static int g_lcd_abandoned; /* a member died: never waited on (nor freed) again */
+/* Shared lighting: the host group of the render ranks and its window. */
+static MPI_Comm g_host = MPI_COMM_NULL;
+static MPI_Win g_host_win = MPI_WIN_NULL;
 /* Ranks declared dead (cv_comm_mark_dead): nothing is sent to them. */
 static unsigned char *g_dead;
 static int g_size, g_rank;
@@ -92,6 +95,12 @@ static void take_notices(void) {
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   take_notices();
+  /* the shared-lighting window: freeing it is collective over its host
+   * group, so not with a dead rank (left to the process's exit) */
+  if (cv_comm_dead_count() == 0 && !g_self_dead) {
+    if (g_host_win != MPI_WIN_NULL) MPI_Win_free(&g_host_win);
+    if (g_host != MPI_COMM_NULL) MPI_Comm_free(&g_host);
+  }
   if (g_render != MPI_COMM_NULL && !g_barrier_abandoned) MPI_Comm_free(&g_render);
   free(g_in_render);
   g_in_render = NULL;
@@ -185,6 +194,8 @@ void cv_comm_notify_dead(int rank) {
 }
 
 static int is_dead(int rank) { return g_dead && rank >= 0 && rank < g_size && g_dead[rank]; }
+
+int cv_comm_is_dead(int rank) { return is_dead(rank); }
 
 int cv_comm_send(const void *buf, size_t n, int dest, int tag) {
   if (n > (size_t)INT32_MAX) return -1;
@@ -446,4 +457,49 @@ void cv_comm_host(char *buf, size_t cap) {
   if (MPI_Get_processor_name(name, &len) != MPI_SUCCESS) len = 0;
   name[len] = 0;
   snprintf(buf, cap, "%s", name);
+}
+
+int cv_comm_host_share(int color, size_t bytes, cv_host_share *out) {
+  memset(out, 0, sizeof *out);
+  out->leader = -1;
+  if (g_render == MPI_COMM_NULL || bytes > (size_t)INT64_MAX) return -1;
+  MPI_Comm node = MPI_COMM_NULL, grp = MPI_COMM_NULL;
+  if (MPI_Comm_split_type(g_render, MPI_COMM_TYPE_SHARED, g_rank, MPI_INFO_NULL, &node) != MPI_SUCCESS)
+    return -1;
+  const int rc = MPI_Comm_split(node, color >= 0 ? color : MPI_UNDEFINED, g_rank, &grp);
+  MPI_Comm_free(&node);
+  if (rc != MPI_SUCCESS) return -1;
+  if (grp == MPI_COMM_NULL) return 0; /* no part in it */
+  int me = 0, n = 0;
+  MPI_Comm_rank(grp, &me);
+  MPI_Comm_size(grp, &n);
+  /* the leader's world rank, known to all: the smallest (key = world rank) */
+  int leader = g_rank;
+  MPI_Bcast(&leader, 1, MPI_INT, 0, grp);
+  void *mine = NULL;
+  MPI_Win win = MPI_WIN_NULL;
+  if (MPI_Win_allocate_shared((MPI_Aint)(me == 0 ? bytes : 0), 64, MPI_INFO_NULL, grp, &mine, &win) !=
+      MPI_SUCCESS) {
+    MPI_Comm_free(&grp);
+    return -1;
+  }
+  MPI_Aint size = 0;
+  int disp = 0;
+  void *base = NULL;
+  if (MPI_Win_shared_query(win, 0, &size, &disp, &base) != MPI_SUCCESS || (size_t)size < bytes || !base) {
+    MPI_Win_free(&win);
+    MPI_Comm_free(&grp);
+    return -1;
+  }
+  /* the leader clears the segment before anyone reads it */
+  if (me == 0) memset(base, 0, bytes);
+  MPI_Barrier(grp);
+  g_host = grp;
+  g_host_win = win;
+  out->base = base;
+  out->bytes = (size_t)size;
+  out->members = n;
+  out->index = me;
+  out->leader = leader;
+  return 0;
 }

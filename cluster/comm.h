@@ -39,8 +39,9 @@ enum {
   CV_TAG_SWAPREADY = 12, /* render rank -> master: frame drawn and finished (u32 frame) */
   CV_TAG_GO = 13,       /* master -> render rank: swap frame at this time of the rank's clock */
   CV_TAG_PREVIEW = 14,  /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
-  CV_TAG_ALIVE = 15     /* gather rank -> master: heartbeat (u32 count), every 0.25 s;
+  CV_TAG_ALIVE = 15,    /* gather rank -> master: heartbeat (u32 count), every 0.25 s;
                            master -> all: 'D' + int32 rank: that rank is dead */
+  CV_TAG_LIGHT = 16     /* render rank -> master: its lighting step (cv_light_msg, lightshare.h) */
 };
 
 /* MPI_Init_thread, and MPI_ERRORS_RETURN on MPI_COMM_WORLD: an error with a
@@ -121,6 +122,27 @@ int cv_comm_dead_notice(const uint8_t *data, long len);
 void cv_comm_set_stop_flag(volatile sig_atomic_t *flag);
 /* 1 once the master has declared this rank dead. */
 int cv_comm_declared_dead(void);
+/* 1 when rank was marked dead (cv_comm_mark_dead or a master's notice). */
+int cv_comm_is_dead(int rank);
+
+/* Shared lighting (cluster/lightshare.c): one shared-memory segment per
+ * host for the render ranks of that host that pass the same color (>= 0:
+ * the same scene and GL).  Collective over the render ranks (every one
+ * calls it, color -1 on a rank that takes no part):
+ * MPI_Comm_split_type(MPI_COMM_TYPE_SHARED) of the render communicator,
+ * MPI_Comm_split of that by color (key: world rank), and
+ * MPI_Win_allocate_shared of `bytes` by the group's first rank (the
+ * leader), 0 by the others, who map the leader's segment
+ * (MPI_Win_shared_query).  0 on success; then base (NULL when not a member),
+ * members (1: alone on its host), index (0 = the leader) and leader (its
+ * world rank).  The segment is freed by cv_comm_finalize. */
+typedef struct cv_host_share {
+  void *base;
+  size_t bytes;
+  int members, index, leader;
+} cv_host_share;
+int cv_comm_host_share(int color, size_t bytes, cv_host_share *out);
+
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);
 

@@ -71,6 +71,9 @@ static void master_free(master *m) {
   if (m->rep_mb)
     for (int k = 0; k < m->s->n_render; k++) cv_mailbox_close(m->rep_mb[k]);
   free(m->rep_mb);
+  cv_mailbox_close(m->light_mb);
+  free(m->light);
+  free(m->light_have);
   free(m->reps);
   free(m->got);
   master_sync_free(m);
@@ -154,7 +157,11 @@ static int master_setup(master *m, cv_err *err) {
   m->rep_mb = calloc((size_t)s->n_render, sizeof *m->rep_mb);
   m->reps = calloc((size_t)s->n_walleyes, sizeof *m->reps);
   m->got = calloc((size_t)s->n_walleyes, sizeof *m->got);
-  if (!m->rep_mb || !m->reps || !m->got) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+  m->light = calloc((size_t)s->n_render, sizeof *m->light);
+  m->light_have = calloc((size_t)s->n_render, 1);
+  m->light_mb = cv_mailbox_open(-1, CV_TAG_LIGHT, sizeof(cv_light_msg));
+  if (!m->rep_mb || !m->reps || !m->got || !m->light || !m->light_have || !m->light_mb)
+    return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   for (int i = 0; i < s->n_render; i++) {
     m->rep_mb[i] = cv_mailbox_open(i + 1, CV_TAG_REPORT, walleye_msg_cap(m, s->cave.outputs[i].wall));
     if (!m->rep_mb[i]) return cv_err_set(err, CV_ERR_NOMEM, "master: cannot post receives");
@@ -251,6 +258,8 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_bool(ml, "desktop", m->desk != NULL);
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
+    cv_metrics_string(ml, "share_lighting", s->o.share_lighting == CV_SHARE_HOST ? "host"
+                                            : (s->o.share_lighting == CV_SHARE_HOST_NOW ? "host-now" : "off"));
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
       char k[16];
@@ -529,10 +538,58 @@ static double thread_cpu_ms(void) {
   return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
+/* The render ranks' lighting steps (CV_TAG_LIGHT) that came so far. */
+static void light_drain(master *m) {
+  const uint8_t *data;
+  int from;
+  long len;
+  while ((len = cv_mailbox_take(m->light_mb, &data, &from)) >= 0) {
+    if (len != (long)sizeof(cv_light_msg) || from < 1 || from > m->s->n_render) continue;
+    memcpy(&m->light[from - 1], data, sizeof(cv_light_msg));
+    m->light_have[from - 1] = 1;
+  }
+}
+
+static const char *light_name(uint32_t what) {
+  static const char *names[] = {"computed", "led", "imported", "late_leader", "dead_leader", "torn"};
+  return what < 6 ? names[what] : "?";
+}
+
+/* A rank's lighting step of frame f, in its object of the frame line. */
+static void light_metrics(master *m, cv_metrics_line *ml, int rank, uint32_t f) {
+  const cv_light_msg *l = &m->light[rank - 1];
+  if (!m->light_have[rank - 1] || l->frame != f) return;
+  cv_metrics_string(ml, "light", light_name(l->what));
+  if (l->what == CV_LIGHT_LED) cv_metrics_bool(ml, "light_prefetched", l->prefetched != 0);
+  cv_metrics_double(ml, "light_ms", l->ms);
+  cv_metrics_double(ml, "light_cpu_ms", l->cpu_ms);
+  cv_metrics_double(ml, "light_wait_ms", l->wait_ms);
+  cv_metrics_double(ml, "cpu_s", l->cpu_s);
+}
+
+/* Summary: lighting changes per kind, summed over the render ranks. */
+static void light_summary(master *m, cv_metrics_line *ml) {
+  light_drain(m);
+  uint64_t c[6] = {0};
+  for (int i = 0; i < m->s->n_render; i++)
+    for (int k = 0; k < 6; k++) c[k] += m->light_have[i] ? m->light[i].count[k] : 0;
+  cv_metrics_object_begin(ml, "shared_lighting");
+  const int mode = m->s->o.share_lighting;
+  cv_metrics_string(ml, "mode", mode == CV_SHARE_HOST ? "host" : (mode == CV_SHARE_HOST_NOW ? "host-now" : "off"));
+  for (int k = 0; k < 6; k++) cv_metrics_uint(ml, light_name((uint32_t)k), c[k]);
+  uint64_t p[2] = {0, 0};
+  for (int i = 0; i < m->s->n_render; i++)
+    for (int k = 0; k < 2; k++) p[k] += m->light_have[i] ? m->light[i].prefetch[k] : 0;
+  cv_metrics_uint(ml, "prefetched", p[0]);
+  cv_metrics_uint(ml, "prefetch_missed", p[1]);
+  cv_metrics_object_end(ml);
+}
+
 static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs, const cv_lumstats *acc,
                                 int late, const frame_times *t, double overhead, double overhead_cpu) {
   cv_service *s = m->s;
   cv_metrics_line *ml = m->ml;
+  light_drain(m);
   cv_metrics_begin(ml);
   cv_metrics_string(ml, "type", "frame");
   cv_metrics_uint(ml, "frame", f);
@@ -631,6 +688,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       cv_metrics_double(ml, "barrier_ms", r->ms_barrier);
       cv_metrics_double(ml, "lcd_ms", r->ms_lcd);
       cv_metrics_uint(ml, "lcd_rounds", r->lcd_rounds_done);
+      light_metrics(m, ml, rank, f);
     } else {
       cv_metrics_bool(ml, "late", 1);
     }
@@ -697,6 +755,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_double(ml, "master_thread_cpu_s", (thread_cpu_ms() - m->run_cpu0_ms) * 1e-3);
   master_sync_summary(m, ml);
   cv_metrics_uint(ml, "late_reports", m->late_reports);
+  light_summary(m, ml);
   master_health_metrics(m, ml);
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
   cv_metrics_uint(ml, "montages", m->montages);

@@ -21,6 +21,7 @@
 #include "service/clocksync.h"
 #include "service/metrics.h"
 #include "service/tracker_calib.h"
+#include "lightshare.h"
 #include "service_internal.h"
 #include "tonemap/adapt.h"
 #include "tonemap/drago.h"
@@ -125,6 +126,11 @@ typedef struct master {
   int state_mismatch;     /* reports of this frame rendered with other bytes */
   uint64_t state_mismatch_total;
   cv_walleye_report *reps; /* per wall-eye, this frame */
+  /* shared lighting (lightshare.h): per render rank its last lighting step
+   * and whether it came for the frame being written */
+  cv_mailbox *light_mb;
+  cv_light_msg *light;
+  uint8_t *light_have;
   int *got;               /* per wall-eye */
   /* synchronisation (master_sync.c) */
   cv_mailbox *pong_mb, *stop_mb, *ready_mb;

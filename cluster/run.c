@@ -14,6 +14,7 @@
 
 #include "core/parse.h"
 #include "comm.h"
+#include "lightshare.h"
 #include "prt/prt.h"
 #include "service.h"
 #include "service_internal.h"
@@ -87,6 +88,17 @@ static void help(FILE *f) {
           "                       (MPI_Ibarrier among the render ranks, swap on release)\n"
           "  --swap-margin-ms T   scheduled swaps: the swap time is T ms after the last rank\n"
           "                       is ready (default 3)\n"
+          "  --share-lighting S   host (default): the wall-eyes of one host with the same\n"
+          "                       scene and GL compute each lighting change once: the first\n"
+          "                       (leader) relights, draws the sun's shadow map and the\n"
+          "                       background into shared memory, the others upload them\n"
+          "                       (the same images, byte for byte); an importer waits for\n"
+          "                       the leader at most --timeout-ms / 4, then computes itself\n"
+          "                       (counted: docs/metrics.md).  The leader also computes the\n"
+          "                       next frame's lighting ahead, predicted from the drive, and\n"
+          "                       publishes it when the next state confirms it bit for bit.\n"
+          "                       host-now: sharing without that prefetch; off: every\n"
+          "                       wall-eye computes its own\n"
           "  --display FILE.json  compensation display (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default: the\n"
           "                       config's screens.patches, 24)\n"
@@ -206,6 +218,12 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (!strcmp(v, "wall")) o->clock = 1;
       else if (!strcmp(v, "sim")) o->clock = 0;
       else problem(pb, "--clock: expected wall or sim, got '%s'", v);
+    } else if (!strcmp(a, "--share-lighting")) {
+      NEED();
+      if (!strcmp(v, "host")) o->share_lighting = CV_SHARE_HOST;
+      else if (!strcmp(v, "host-now")) o->share_lighting = CV_SHARE_HOST_NOW;
+      else if (!strcmp(v, "off")) o->share_lighting = CV_SHARE_OFF;
+      else problem(pb, "--share-lighting: expected host, host-now or off, got '%s'", v);
     } else if (!strcmp(a, "--swap-sync")) {
       NEED();
       if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;

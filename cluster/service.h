@@ -89,6 +89,8 @@ typedef struct cv_run_opts {
   double lcd_luminance;          /* panel white, cd/m2 (< 0 = the config's, 500) */
   int lcd_idle;                  /* 1: wall-eye idle threads contribute rounds (default 1) */
   int lcd_wait;                  /* 1: after the frames, wait until the LCD budget is summed */
+  int share_lighting;            /* --share-lighting: CV_SHARE_HOST (default) or CV_SHARE_OFF
+                                    (cluster/lightshare.h) */
   uint32_t seed;
   int seed_set;                  /* --seed given: it also sets the LCD sequences' seed */
   int quiet;

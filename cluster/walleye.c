@@ -31,6 +31,7 @@
 #include "io/png.h"
 #include "lcd/gather.h"
 #include "lcdwork.h"
+#include "lightshare.h"
 #include "render/renderer.h"
 #include "render/window.h"
 #include "service_internal.h"
@@ -72,6 +73,7 @@ typedef struct walleye {
   int have_delta;
   uint64_t light_key;
   int have_light;
+  cv_lightshare ls;   /* --share-lighting (lightshare.h) */
   cv_mailbox *state_mb, *corr_mb, *lcdimg_mb, *ping_mb, *go_mb;
   uint64_t lcd_rounds_done;
   double lcd_ms;
@@ -315,8 +317,21 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
 
 /* ---- phases of a frame ----------------------------------------------------- */
 
+static void idle_cb(void *we) { idle(we); }
+
+/* A new light key: the lighting computed, or taken from the host's leader
+ * (lightshare.h); what was done goes to the master (CV_TAG_LIGHT). */
 static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_timing *tm) {
-  if (we->have_light && fs->light_key == we->light_key) return;
+  cv_err err;
+  if (we->have_light && fs->light_key == we->light_key) {
+    /* a prefetch the state did not confirm: back to the current lighting */
+    if (cv_lightshare_pending(&we->ls) && cv_lightshare_restore(&we->ls, we->r, &err)) {
+      fprintf(stderr, "cave run: rank %d: lighting: %s\n", we->s->rank, err.msg);
+      we->have_light = 0;
+    } else {
+      return;
+    }
+  }
   cv_lighting l;
   memset(&l, 0, sizeof l);
   l.bands = fs->bands;
@@ -324,18 +339,16 @@ static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_ti
   l.has_sun = fs->has_sun;
   memcpy(l.sun_dir, fs->sun_dir, sizeof l.sun_dir);
   memcpy(l.sun_E, fs->sun_E, sizeof l.sun_E);
-  cv_image *bg = NULL;
-  cv_lighting unused;
-  cv_err err;
-  if (cv_renderer_set_lighting(we->r, &l, NULL, tm, &err) ||
-      cv_service_lighting(we->s, we->mix, &fs->drive, fs->bands, &unused, 512, &bg, &err) ||
-      cv_renderer_set_background(we->r, bg, &err)) {
+  cv_light_msg msg;
+  if (cv_lightshare_relight(&we->ls, we->s, we->r, we->mix, &l, &fs->drive, fs->light_key, tm, idle_cb, we,
+                            &msg, &err)) {
     fprintf(stderr, "cave run: rank %d: lighting: %s\n", we->s->rank, err.msg);
   } else {
     we->light_key = fs->light_key;
     we->have_light = 1;
   }
-  cv_image_destroy(bg);
+  msg.frame = fs->frame;
+  cv_comm_send(&msg, sizeof msg, 0, CV_TAG_LIGHT);
 }
 
 /* Renders one eye and fills its report's statistics and stage times. */
@@ -606,10 +619,12 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   if (win) snprintf(where, sizeof where, "window %dx%d+%d+%d on %s", ww, wh, we->spec.x, we->spec.y,
                     cv_renderer_platform(we->r));
   else snprintf(where, sizeof where, "headless on the %s", cv_renderer_platform(we->r));
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none (EGL has no swap-group extension)",
+  char share[160];
+  cv_lightshare_describe(&we->ls, share, sizeof share);
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
-           cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU");
+           cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU", share);
 }
 
 /* The master's adaptation priming (CV_FS_MEASURE): every eye rendered and
@@ -641,6 +656,9 @@ int cv_walleye_run(cv_service *s) {
   cv_err err;
   cv_err_clear(&err);
   int st = walleye_setup(we, &err);
+  /* collective over the render ranks, also after a failed set-up (no part) */
+  if (cv_lightshare_setup(&we->ls, s, st == CV_OK ? we->r : NULL, 512, 256))
+    fprintf(stderr, "cave run: rank %d: shared lighting: MPI shared memory failed, computing the lighting\n", s->rank);
   {
     char msg[900];
     if (st == CV_OK) ready_text(we, msg, sizeof msg);
@@ -691,6 +709,8 @@ int cv_walleye_run(cv_service *s) {
           fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
           rc = 1;
         }
+    /* the host's leader: the next frame's lighting while the others render */
+    if (we->have_light) cv_lightshare_prefetch(&we->ls, s, we->r, we->mix, &fs, we->light_key);
     idle(we);
   }
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, NULL, NULL);

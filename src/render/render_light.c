@@ -68,8 +68,7 @@ int cvr_shadow_culled(const cv_renderer *r) {
   return r->o.shadow_cull < 0 ? r->closed : r->o.shadow_cull != 0;
 }
 
-int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
-  const int n = r->o.shadow_res;
+int cvr_shadow_target(cv_renderer *r, int n, cv_err *err) {
   if (!r->fbo_shadow || r->shadow_res != n) {
     if (!r->fbo_shadow) glGenFramebuffers(1, &r->fbo_shadow);
     if (!r->tex_shadow) glGenTextures(1, &r->tex_shadow);
@@ -90,6 +89,13 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
       return cv_err_set(err, CV_ERR_BACKEND, "shadow map framebuffer incomplete (%d texels)", n);
     r->shadow_res = n;
   }
+  return CV_OK;
+}
+
+int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
+  const int n = r->o.shadow_res;
+  int st = cvr_shadow_target(r, n, err);
+  if (st) return st;
   float clip[16], texel;
   cvr_sun_matrices(r, s, clip, &texel);
   /* Against self-shadowing acne the lookup point moves 1.5 texels along the
@@ -109,6 +115,7 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
   r->shadow_texel = texel;
   r->shadow_valid = 1;
+  r->shadow_gen++, r->shadow_import = 0; /* drawn here (render_share.c) */
   return cvr_gl_check("shadow map", err);
 }
 
@@ -202,6 +209,7 @@ int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
   free(out);
   for (int j = 0; j < 3; j++) r->split_s[j] = s[j];
   r->split_valid = 1;
+  r->split_gen++, r->split_import = 0; /* made here (render_share.c) */
   return cvr_gl_check("sun split", err);
 }
 

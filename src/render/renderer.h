@@ -48,6 +48,7 @@
 #ifndef CV_RENDER_RENDERER_H
 #define CV_RENDER_RENDERER_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "core/image.h"
@@ -225,6 +226,42 @@ int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
  * Errors: CV_ERR_RANGE (bands), CV_ERR_NONFINITE (lighting), CV_ERR_BACKEND. */
 int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
                              cv_frame_timing *t, cv_err *err);
+
+/* ---- shared lighting (render_share.c) ------------------------------------
+ * What cv_renderer_set_lighting produces (the relit vertex colours, the
+ * sun's shadow map with its matrices, the sun split) copied into a byte
+ * buffer by one renderer and taken from it by another of the same scene
+ * (same PRT, opts.shadow_res and kind of GL: a software and a hardware GL
+ * may relight to other bits), which then draws images bit-identical to those
+ * it would draw after computing the lighting itself: the float bits are
+ * copied, never converted.  `cave run --share-lighting` shares them among
+ * the wall-eyes of one host (docs/service.md, "Shared lighting"). */
+
+/* Bytes of an export buffer for r (the largest export: with a shadow map
+ * of opts.shadow_res texels and a split). */
+size_t cv_renderer_lighting_bytes(const cv_renderer *r);
+/* Fingerprint of r's scene for sharing (mesh, vertex and chunk counts,
+ * shadow size): renderers whose fingerprints differ cannot share. */
+uint64_t cv_renderer_lighting_scene(cv_renderer *r);
+/* Writes the current lighting's products into buf (cap >= _bytes).  A
+ * buffer that holds an export of this renderer already gets the shadow map
+ * and the split only when they were redrawn since (the relit colours
+ * always), so keep exporting into one buffer.  Errors: CV_ERR_INVALID (no
+ * lighting set), CV_ERR_RANGE (cap), CV_ERR_BACKEND. */
+int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *err);
+/* Takes an export instead of cv_renderer_set_lighting: uploads the relit
+ * colours, and the shadow map and split unless it took those of the same
+ * generation already.  t (may be NULL) gets the upload times in relight_ms,
+ * split_ms and shadow_ms, shadow_reused = 1 when the map was kept.
+ * Errors: CV_ERR_FORMAT (not an export, truncated), CV_ERR_INVALID (another
+ * scene or shadow size), CV_ERR_BACKEND. */
+int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_frame_timing *t,
+                                cv_err *err);
+
+/* Forgets the lighting, its shadow map and split: the next
+ * cv_renderer_set_lighting computes everything (after an import that may
+ * have read a buffer while it was rewritten). */
+void cv_renderer_lighting_forget(cv_renderer *r);
 
 /* Sets the background seen through the windows: a lat-long RGB image
  * (c >= 3, row 0 = zenith; docs/conventions.md), copied; NULL = black.

@@ -6,6 +6,7 @@
  *                     passes, Drago tables, the unlit reference
  *   render_present.c  window presentation and swap
  *   render_texture.c  albedo textures: vertex split at UV seams, texture array
+ *   render_share.c    shared lighting: the set_lighting products exported / imported
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -137,6 +138,11 @@ struct cv_renderer {
   int split_valid, shadow_valid;
   size_t nv_used;
   int closed;         /* cv_renderer_mesh_closed */
+  /* Shared lighting (render_share.c): shadow maps drawn and splits made
+   * here so far (the generation an export names), the exporter's generation
+   * of the imported ones (0: made here), the scene's fingerprint (0: not
+   * computed yet). */
+  uint64_t shadow_gen, split_gen, shadow_import, split_import, share_scene;
   /* albedo textures (render_texture.c): the array (0 = none), its layers and
    * size, textures that could not be read (+ the first message), vertices
    * added by the split, and (u, v, layer) per vertex until the upload */
@@ -173,6 +179,7 @@ int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
 void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
 int cvr_shadow_culled(const cv_renderer *r);
+int cvr_shadow_target(cv_renderer *r, int n, cv_err *err);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);

@@ -24,8 +24,18 @@
  * pixels to the nearest counted pixel of the other reference state (an
  * edge of the reference shadow): <= 1, <= 3, farther.
  *
+ * --share: shared lighting instead (render_share.c, `cave run
+ * --share-lighting`): three renderers with the wall-eyes' options, timed
+ * alternately over the same lighting changes (the suns cycling: every map
+ * redrawn): one computes (cv_renderer_set_lighting), the leader computes
+ * and exports into a buffer, the importer uploads that buffer
+ * (cv_renderer_lighting_import); process CPU ms and wall ms around each
+ * call, and what a host of 10 wall-eyes spends per change (10 computing vs
+ * the leader + 9 importers).  The importer's images are checked bit-equal
+ * to the computing renderer's at the end (one 360^2 view).
+ *
  * usage (from the repository root): bench_shadow [--reps N (5)] [--size S (360)]
- *   [--suns K (4)] [--no-error] [--no-time] */
+ *   [--suns K (4)] [--no-error] [--no-time] [--share] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -44,6 +54,12 @@
 #include "view/offaxis.h"
 
 #define MAXR 32
+
+static double cpu_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
 #define MAXSUN 8
 
 
@@ -169,8 +185,10 @@ static void compare_view(const ref_view *rv, const cv_image *hdr, int S, err_acc
     }
 }
 
+static int bench_share(cv_prt *prt, const cv_lighting *L, int nsun, int reps, const cv_cave *cave);
+
 int main(int argc, char **argv) {
-  int reps = 5, S = 360, nsun = 4, do_err = 1, do_time = 1;
+  int reps = 5, S = 360, nsun = 4, do_err = 1, do_time = 1, share = 0;
   const char *cave_path = "configs/caves/cave5.json";
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
@@ -178,8 +196,9 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--suns") && i + 1 < argc) nsun = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--no-error")) do_err = 0;
     else if (!strcmp(argv[i], "--no-time")) do_time = 0;
+    else if (!strcmp(argv[i], "--share")) share = 1;
     else if (!strcmp(argv[i], "--help")) {
-      printf("usage: bench_shadow [--reps N] [--size S] [--suns K] [--no-error] [--no-time]\n");
+      printf("usage: bench_shadow [--reps N] [--size S] [--suns K] [--no-error] [--no-time] [--share]\n");
       return 0;
     } else {
       fprintf(stderr, "bench_shadow: unknown option '%s' (see --help)\n", argv[i]);
@@ -219,6 +238,7 @@ int main(int argc, char **argv) {
       return 1;
     }
   }
+  if (share) return bench_share(prt, L, nsun, reps, &cave);
   cv_renderer *R[NVAR];
   for (int v = 0; v < NVAR; v++) {
     cv_render_opts ro;
@@ -354,4 +374,77 @@ int main(int argc, char **argv) {
   for (int v = 0; v < NVAR; v++) cv_renderer_destroy(R[v]);
   cv_prt_destroy(prt);
   return 0;
+}
+
+/* --share (see the top). */
+static int bench_share(cv_prt *prt, const cv_lighting *L, int nsun, int reps, const cv_cave *cave) {
+  cv_err err;
+  cv_renderer *R[3]; /* computing, leader, importer */
+  for (int v = 0; v < 3; v++) {
+    cv_render_opts ro;
+    cv_render_default_opts(&ro);
+    ro.cull_back = -1; /* as cluster/walleye.c */
+    ro.timing = 1;     /* glFinish after the passes (as the wall-eyes): the work is done in the call */
+    if (cv_renderer_create(prt, &ro, &R[v], &err)) {
+      fprintf(stderr, "%s\n", err.msg);
+      return 1;
+    }
+  }
+  const size_t cap = cv_renderer_lighting_bytes(R[1]);
+  unsigned char *buf = calloc(cap, 1);
+  if (!buf) return 1;
+  const char *lp = getenv("LP_NUM_THREADS");
+  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[0]), lp ? lp : "(unset: all cores)");
+  printf("scene: %zu triangles, %zu vertices; export buffer %.1f MB\n\n", prt->nt, prt->nv, cap / 1048576.0);
+  static double C[3][MAXR * MAXSUN], W[3][MAXR * MAXSUN];
+  int n = 0;
+  for (int rep = 0; rep < reps; rep++)
+    for (int k = 0; k < nsun; k++, n++) {
+      const cv_lighting *lk = &L[(k + rep) % nsun];
+      for (int v = 0; v < 3; v++) {
+        const double c0 = cpu_ms(), w0 = bench_now_ms();
+        int st = v < 2 ? cv_renderer_set_lighting(R[v], lk, NULL, NULL, &err) : cv_renderer_lighting_import(R[2], buf, cap, NULL, &err);
+        if (!st && v == 1) st = cv_renderer_lighting_export(R[1], buf, cap, &err);
+        if (st) {
+          fprintf(stderr, "%s\n", err.msg);
+          return 1;
+        }
+        C[v][n] = cpu_ms() - c0, W[v][n] = bench_now_ms() - w0;
+      }
+    }
+  static const char *names[3] = {"computed (cv_renderer_set_lighting)", "leader (computed + export)",
+                                 "importer (cv_renderer_lighting_import)"};
+  double mc[3], mw[3];
+  printf("Per lighting change (%d changes, each sun new: every map redrawn; alternated; medians [min, max]):\n\n", n);
+  printf("| wall-eye | CPU ms | wall ms |\n|---|---|---|\n");
+  for (int v = 0; v < 3; v++) {
+    double lo = INFINITY, hi = 0;
+    for (int i = 0; i < n; i++) lo = fmin(lo, C[v][i]), hi = fmax(hi, C[v][i]);
+    mc[v] = bench_median(C[v], n), mw[v] = bench_median(W[v], n);
+    printf("| %s | %.1f [%.1f, %.1f] | %.1f |\n", names[v], mc[v], lo, hi, mw[v]);
+  }
+  printf("\nA host of 10 wall-eyes per lighting change: %.1f CPU ms computing each, %.1f CPU ms shared "
+         "(leader + 9 importers): %.2fx less; importer / computed %.3f\n\n", 10 * mc[0], mc[1] + 9 * mc[2],
+         10 * mc[0] / (mc[1] + 9 * mc[2]), mc[2] / mc[0]);
+  /* the importer's image against the computing renderer's: bit-equal */
+  double eyes[2][3];
+  cv_head_eyes(cave->head, cave->gaze, cave->eye_separation, eyes[0], eyes[1]);
+  cv_render_view v;
+  memset(&v, 0, sizeof v);
+  const cv_wall *w = &cave->walls[0];
+  if (cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[0], cave->near, cave->far, &v.proj)) return 1;
+  memcpy(v.scene_offset, cave->scene_offset, sizeof v.scene_offset);
+  v.w = v.h = 360, v.supersample = 1;
+  cv_image *a, *b;
+  if (cv_image_create(360, 360, 3, &a) || cv_image_create(360, 360, 3, &b)) return 1;
+  if (cv_renderer_shade(R[0], &v, NULL, 0, NULL, a, NULL, &err) || cv_renderer_shade(R[2], &v, NULL, 0, NULL, b, NULL, &err)) {
+    fprintf(stderr, "%s\n", err.msg);
+    return 1;
+  }
+  const int same = !memcmp(a->px, b->px, 3 * 360 * 360 * sizeof(float));
+  printf("importer's 360^2 HDR image of wall %s %s the computing renderer's\n", w->name, same ? "bit-equal to" : "DIFFERS from");
+  cv_image_destroy(a), cv_image_destroy(b);
+  free(buf);
+  for (int k = 0; k < 3; k++) cv_renderer_destroy(R[k]);
+  return same ? 0 : 1;
 }

@@ -9,6 +9,8 @@
 # own functions, MPI.  The window is from the first to the last shader
 # sample of the render ranks (start-up and the last frame's files excluded).
 # Usage: profile_cluster.sh BUILD_DIR SCENE.prt [FRAMES (30)] [SIZE (360)]
+#   EXTRA: more `cave run` options, e.g. EXTRA="--drive configs/drives/sky.json
+#   --dt 0.2 --share-lighting off" (the sky drive: a lighting change a frame).
 #   SCENE: e.g. the bench_render cache $TMPDIR/cave_bench_render_t8.prt.
 set -euo pipefail
 BUILD="${1:?usage: profile_cluster.sh BUILD_DIR SCENE.prt [FRAMES] [SIZE]}"
@@ -28,7 +30,7 @@ chmod +x "$WORK/wrap.sh"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1 LP_NUM_THREADS=1
 mpirun --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS -np 11 "$WORK/wrap.sh" \
   "$BUILD/cave" run "$ROOT/configs/caves/cave5.json" --scene "$SCENE" --frames "$FRAMES" \
-  --size "$SIZE" --write-every 0 --no-idle-lcd --quiet --gather-timeout 300 --timeout-ms 30000 \
+  --size "$SIZE" --write-every 0 --no-idle-lcd --quiet --gather-timeout 300 --timeout-ms 30000 ${EXTRA:-} \
   -o "$WORK/run" >/dev/null 2>"$WORK/stderr.log"
 python3 - "$WORK" "$FRAMES" <<'EOF'
 import collections, re, subprocess, sys

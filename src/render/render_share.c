@@ -1,0 +1,210 @@
+/* Shared lighting (renderer.h, "Shared lighting"): the products of
+ * cv_renderer_set_lighting copied out of one renderer into a byte buffer
+ * and into another renderer of the same scene on the same kind of GL, which
+ * then draws exactly what it would have drawn after computing them itself:
+ * the relit vertex colours (buf_rad), the sun's shadow map (depth texels,
+ * its matrices, bias and sun), the sun split (buf_idx_sun and its chunk
+ * counts) and the sun's irradiance.  Float bits are copied, never
+ * converted.
+ *
+ * Layout (native byte order, 8-byte aligned parts):
+ *   share_hdr                              the state below
+ *   rad     4 nv floats                    buf_rad
+ *   shadow  res^2 floats                   the depth texture (GL_DEPTH_COMPONENT32F)
+ *   idx     3 nt uint32 (+4 to 8 bytes)    buf_idx_sun
+ *   na, nf  nchunks uint32 each (+pad)     chunk_na, chunk_nf
+ * The shadow map and the split are written only when they changed since the
+ * buffer last got them (share_hdr.shadow_gen / split_gen against the
+ * renderer's counters), so a buffer one renderer keeps exporting into costs
+ * the relit colours per lighting change plus what was redrawn. */
+#include "render/renderer_internal.h"
+
+#include "core/hash.h"
+
+#define SHARE_MAGIC 0x4c485343u /* "CSHL" */
+#define SHARE_VERSION 1u
+
+typedef struct share_hdr {
+  uint32_t magic, version;
+  uint64_t scene;          /* cv_renderer_lighting_scene: the same mesh, vertices, chunks */
+  uint64_t nv, nt, nchunks;
+  int32_t shadow_res;      /* texels of the exported map (0: none) */
+  int32_t lit, has_sun, sun_split, shadow_valid, split_valid, shadow_detsign, pad0;
+  float sun_e[3], shadow_q[16], shadow_k[4], shadow_bias, pad1;
+  double shadow_s[3], shadow_texel, split_s[3];
+  uint64_t shadow_gen, split_gen; /* the exporter's counters of the parts held (0: none) */
+} share_hdr;
+_Static_assert(sizeof(share_hdr) % 8 == 0, "parts after the header must stay 8-byte aligned");
+
+static size_t pad8(size_t n) { return (n + 7) & ~(size_t)7; }
+
+/* Offsets of the parts for r's sizes and the map of res texels. */
+typedef struct share_layout {
+  size_t rad, shadow, idx, na, nf, total;
+} share_layout;
+
+static share_layout layout(const cv_renderer *r, int res) {
+  share_layout L;
+  L.rad = sizeof(share_hdr);
+  L.shadow = L.rad + pad8(4 * r->nv * sizeof(float));
+  L.idx = L.shadow + pad8((size_t)res * res * sizeof(float));
+  L.na = L.idx + pad8(3 * r->nt * sizeof(uint32_t));
+  L.nf = L.na + pad8(r->nchunks * sizeof(uint32_t));
+  L.total = L.nf + pad8(r->nchunks * sizeof(uint32_t));
+  return L;
+}
+
+size_t cv_renderer_lighting_bytes(const cv_renderer *r) {
+  return r ? layout(r, r->o.shadow_res).total : 0;
+}
+
+uint64_t cv_renderer_lighting_scene(cv_renderer *r) {
+  if (!r) return 0;
+  if (!r->share_scene) {
+    uint64_t h = cv_hash64_init();
+    h = cv_hash64_u64(h, r->nv);
+    h = cv_hash64_u64(h, r->nt);
+    h = cv_hash64_u64(h, r->nchunks);
+    h = cv_hash64_u64(h, (uint64_t)r->o.shadow_res);
+    h = cv_hash64_update(h, r->pos_cpu, 3 * r->nv_used * sizeof *r->pos_cpu);
+    h = cv_hash64_update(h, r->idx_cpu, 3 * r->nt * sizeof *r->idx_cpu);
+    r->share_scene = h | 1; /* never 0: "not computed" */
+  }
+  return r->share_scene;
+}
+
+int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *err) {
+  if (!r || !buf) return cv_err_set(err, CV_ERR_INVALID, "lighting export: NULL");
+  if (!r->lit) return cv_err_set(err, CV_ERR_INVALID, "lighting export: no lighting set yet");
+  const int res = r->shadow_valid ? r->shadow_res : 0;
+  const share_layout L = layout(r, r->o.shadow_res);
+  if (cap < L.total || res > r->o.shadow_res)
+    return cv_err_set(err, CV_ERR_RANGE, "lighting export: %zu bytes needed, buffer has %zu", L.total, cap);
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  uint8_t *b = buf;
+  share_hdr h;
+  memcpy(&h, b, sizeof h); /* what the buffer holds already */
+  const int fresh = h.magic != SHARE_MAGIC || h.version != SHARE_VERSION || h.scene != cv_renderer_lighting_scene(r);
+  glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
+  glGetBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), b + L.rad);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  if (res && (fresh || h.shadow_gen != r->shadow_gen || h.shadow_res != res)) {
+    /* glReadPixels of the depth attachment: Mesa copies Z32F rows as they
+     * are (glGetTexImage of a depth texture converts texel by texel) */
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, res, res, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  }
+  if (r->split_valid && (fresh || h.split_gen != r->split_gen)) {
+    glBindBuffer(GL_ARRAY_BUFFER, r->buf_idx_sun);
+    glGetBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t)), b + L.idx);
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    memcpy(b + L.na, r->chunk_na, r->nchunks * sizeof(uint32_t));
+    memcpy(b + L.nf, r->chunk_nf, r->nchunks * sizeof(uint32_t));
+  }
+  const int st = cvr_gl_check("lighting export", err);
+  if (st) return st;
+  memset(&h, 0, sizeof h);
+  h.magic = SHARE_MAGIC;
+  h.version = SHARE_VERSION;
+  h.scene = cv_renderer_lighting_scene(r);
+  h.nv = r->nv, h.nt = r->nt, h.nchunks = r->nchunks;
+  h.shadow_res = res;
+  h.lit = r->lit, h.has_sun = r->has_sun, h.sun_split = r->sun_split;
+  h.shadow_valid = r->shadow_valid, h.split_valid = r->split_valid;
+  h.shadow_detsign = r->shadow_detsign;
+  memcpy(h.sun_e, r->sun_e, sizeof h.sun_e);
+  memcpy(h.shadow_q, r->shadow_q, sizeof h.shadow_q);
+  memcpy(h.shadow_k, r->shadow_k, sizeof h.shadow_k);
+  h.shadow_bias = r->shadow_bias;
+  memcpy(h.shadow_s, r->shadow_s, sizeof h.shadow_s);
+  h.shadow_texel = r->shadow_texel;
+  memcpy(h.split_s, r->split_s, sizeof h.split_s);
+  h.shadow_gen = res ? r->shadow_gen : 0;
+  h.split_gen = r->split_valid ? r->split_gen : 0;
+  memcpy(b, &h, sizeof h);
+  return CV_OK;
+}
+
+int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_frame_timing *t,
+                                cv_err *err) {
+  if (!r || !buf) return cv_err_set(err, CV_ERR_INVALID, "lighting import: NULL");
+  share_hdr h;
+  if (len < sizeof h) return cv_err_set(err, CV_ERR_FORMAT, "lighting import: %zu bytes, not a lighting", len);
+  const uint8_t *b = buf;
+  memcpy(&h, b, sizeof h);
+  if (h.magic != SHARE_MAGIC || h.version != SHARE_VERSION)
+    return cv_err_set(err, CV_ERR_FORMAT, "lighting import: not an exported lighting (version %u)", h.version);
+  if (h.scene != cv_renderer_lighting_scene(r) || h.nv != r->nv || h.nt != r->nt || h.nchunks != r->nchunks)
+    return cv_err_set(err, CV_ERR_INVALID, "lighting import: exported for another scene or shadow size");
+  const share_layout L = layout(r, r->o.shadow_res);
+  if (len < L.total || h.shadow_res < 0 || h.shadow_res > r->o.shadow_res || !h.lit)
+    return cv_err_set(err, CV_ERR_FORMAT, "lighting import: truncated or inconsistent (%zu of %zu bytes)", len, L.total);
+  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  const double t0 = cvr_tick(r);
+  glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
+  glBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), b + L.rad);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  int st;
+  const double t1 = cvr_tick(r);
+  /* the split, unless this renderer holds that one already */
+  if (h.split_valid && !(r->split_valid && r->split_import == h.split_gen)) {
+    glBindVertexArray(0);
+    if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t) + 4), NULL, GL_STATIC_DRAW);
+    glBufferSubData(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t)), b + L.idx);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
+    memcpy(r->chunk_na, b + L.na, r->nchunks * sizeof(uint32_t));
+    memcpy(r->chunk_nf, b + L.nf, r->nchunks * sizeof(uint32_t));
+    memcpy(r->split_s, h.split_s, sizeof r->split_s);
+    r->split_valid = 1;
+    r->split_import = h.split_gen;
+    r->split_gen++; /* new contents here: a later export of it must write it */
+  } else if (!h.split_valid) {
+    r->split_valid = 0; /* as the exporter: the next sun makes its own */
+  }
+  const double t2 = cvr_tick(r);
+  /* the shadow map, likewise */
+  const int new_shadow = h.shadow_res > 0 && !(r->shadow_valid && r->shadow_import == h.shadow_gen);
+  if (new_shadow) {
+    if ((st = cvr_shadow_target(r, h.shadow_res, err))) return st;
+    glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, h.shadow_res, h.shadow_res, GL_DEPTH_COMPONENT, GL_FLOAT,
+                    b + L.shadow);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    memcpy(r->shadow_s, h.shadow_s, sizeof r->shadow_s);
+    r->shadow_texel = h.shadow_texel;
+    r->shadow_valid = h.shadow_valid;
+    r->shadow_import = h.shadow_gen;
+    r->shadow_gen++;
+  } else if (h.shadow_res <= 0) {
+    r->shadow_valid = 0;
+  }
+  memcpy(r->shadow_q, h.shadow_q, sizeof r->shadow_q);
+  memcpy(r->shadow_k, h.shadow_k, sizeof r->shadow_k);
+  r->shadow_bias = h.shadow_bias;
+  r->shadow_detsign = h.shadow_detsign;
+  memcpy(r->sun_e, h.sun_e, sizeof r->sun_e);
+  r->has_sun = h.has_sun;
+  r->sun_split = h.sun_split;
+  r->lit = 1;
+  if ((st = cvr_gl_check("lighting import", err))) return st;
+  const double t3 = cvr_tick(r);
+  if (t) {
+    t->relight_ms = t1 - t0;
+    t->split_ms = t2 - t1;
+    t->shadow_ms = t3 - t2;
+    t->shadow_reused = h.shadow_res > 0 && !new_shadow;
+  }
+  return CV_OK;
+}
+
+void cv_renderer_lighting_forget(cv_renderer *r) {
+  if (!r) return;
+  r->lit = 0;
+  r->shadow_valid = r->split_valid = 0;
+  r->shadow_import = r->split_import = 0;
+}

@@ -1,0 +1,114 @@
+#!/usr/bin/env bash
+# Shared lighting (`cave run --share-lighting`, docs/service.md "Shared
+# lighting"): 11 ranks on one host under the sky drive, the light changing
+# every frame (--dt 0.2).  With sharing (the default, host) one wall-eye
+# leads, computing each next lighting ahead (prefetch), and nine import;
+# host-now shares without the prefetch; with it off all ten compute.  Every written image
+# (EXR and PNG of every wall-eye, the montages) is byte-identical between the
+# two runs; the metrics count the changes per kind (no silent fallback); the
+# ready lines name each rank's part; a bad value is refused before starting.
+# The leader stopped (SIGSTOP) for 3 s: the importers stop waiting for it
+# after --timeout-ms / 4 and compute, counted as late_leader.
+# Usage: test_lighting_share.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
+set -uo pipefail
+CAVE="$1"; WORK="$2"; SRC="$3"; MPIEXEC="${4:-mpirun}"
+rm -rf "$WORK"; mkdir -p "$WORK"; cd "$WORK"
+pass=0; fail=0
+ok()  { echo "ok: $*"; pass=$((pass + 1)); }
+bad() { echo "FAIL: $*"; fail=$((fail + 1)); }
+export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+export OMPI_MCA_rmaps_base_oversubscribe=1
+export OMPI_MCA_mca_base_component_disable_dlclose=1
+MPI=("$MPIEXEC" --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS
+     -x OMPI_MCA_mca_base_component_disable_dlclose)
+[ -n "${ASAN_OPTIONS:-}" ] && export ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0"
+for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS; do [ -n "${!v:-}" ] && MPI+=(-x "$v"); done
+CFG="$SRC/configs/caves/cave5.json"
+
+"$CAVE" bake default -o scene.prt --tess 1 --bands 3 --rays 32 --bounces 1 --quiet >/dev/null \
+  || { echo "FAIL: bake"; exit 1; }
+COMMON=(--scene scene.prt --size 48 --drive "$SRC/configs/drives/sky.json" --dt 0.2 --frames 5
+        --write-every 1 --no-lcd --patches 8 --timeout-ms 60000 --quiet)
+
+"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --share-lighting 2 >out.txt 2>err.txt; rc=$?
+[ $rc -eq 2 ] && grep -q "share-lighting: expected host, host-now or off, got '2'" err.txt \
+  && ok "bad --share-lighting refused: $(head -1 err.txt)" || bad "bad value: rc $rc $(cat err.txt)"
+
+for mode in host host-now off; do
+  timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --share-lighting $mode -o $mode \
+    >out_$mode.txt 2>err_$mode.txt; rc=$?
+  [ $rc -eq 0 ] && ok "11 ranks, --share-lighting $mode" || bad "run $mode rc $rc: $(tail -5 err_$mode.txt)"
+done
+
+for mode in host host-now; do
+  n=0; differ=0
+  for f in $mode/*.exr $mode/*.png; do
+    [ -e "$f" ] || continue
+    n=$((n + 1))
+    cmp -s "$f" "off/${f#$mode/}" || { differ=$((differ + 1)); echo "  differs: ${f#$mode/}"; }
+  done
+  nb=$(ls off/*.exr off/*.png 2>/dev/null | wc -l)
+  [ $n -ge 100 ] && [ $n -eq "$nb" ] && [ $differ -eq 0 ] \
+    && ok "$n images byte-identical with --share-lighting $mode and off" || bad "$mode: $differ of $n images differ ($nb without sharing)"
+done
+
+python3 - host off host-now <<'PY' && ok "metrics: every change counted, the leader led, the others imported or said why not" || bad "metrics"
+import json, sys
+def load(d):
+    lines = [json.loads(l) for l in open(d + "/metrics.jsonl")]
+    return lines[0], [l for l in lines if l["type"] == "frame"], lines[-1]
+ready, frames, summ = load(sys.argv[1])
+assert ready["share_lighting"] == "host", ready
+roles = ready["ranks"]
+leaders = [r for r, t in roles.items() if "shared lighting: leader of 10" in t]
+importers = [r for r, t in roles.items() if "shared lighting: importer (leader rank 1" in t]
+assert leaders == ["1"] and len(importers) == 9, roles
+sl = summ["shared_lighting"]
+changes = sum(sl[k] for k in ("computed", "led", "imported", "late_leader", "dead_leader", "torn"))
+print("host:", sl)
+assert sl["mode"] == "host" and sl["computed"] == 0 and sl["led"] >= 5, sl
+assert sl["imported"] + sl["late_leader"] + sl["torn"] == 9 * sl["led"] and sl["dead_leader"] == 0, sl
+assert sl["imported"] >= 1, sl
+# sim clock: the leader's prediction of every next lighting comes true
+assert sl["prefetched"] >= sl["led"] - 2 and sl["prefetch_missed"] == 0, sl
+_, _, now = load(sys.argv[3])
+sn = now["shared_lighting"]
+print("host-now:", sn)
+assert sn["mode"] == "host-now" and sn["prefetched"] == 0 and sn["led"] == sl["led"], sn
+kinds = set()
+for f in frames:
+    for r, v in f["ranks"].items():
+        if "light" in v:
+            kinds.add(v["light"])
+            assert v["light_ms"] >= 0 and v["light_cpu_ms"] >= 0 and v["light_wait_ms"] >= 0, v
+assert "led" in kinds and "imported" in kinds, kinds
+_, _, off = load(sys.argv[2])
+so = off["shared_lighting"]
+print("off:", so)
+assert so["mode"] == "off" and so["computed"] == 10 * sl["led"] and so["imported"] == 0, so
+PY
+# --- a late leader: rank 1 (the leader) stopped for 3 s mid-run -------------
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" --scene scene.prt --size 48 \
+  --drive "$SRC/configs/drives/sky.json" --dt 0.2 --frames 40 --write-every 0 --no-lcd --patches 8 \
+  --timeout-ms 800 --gather-timeout 60 --quiet -o late >out_late.txt 2>err_late.txt &
+job=$!
+for i in $(seq 1 600); do
+  [ -s late/metrics.jsonl ] && [ "$(grep -c '"type":"frame"' late/metrics.jsonl)" -ge 3 ] && break
+  sleep 0.2
+done
+pid=$(cat late/pids/rank1.pid 2>/dev/null)
+if [ -n "$pid" ]; then kill -STOP "$pid"; sleep 3; kill -CONT "$pid"; fi
+wait $job; rc=$?
+[ $rc -eq 0 ] && ok "run with the leader stopped 3 s ends (rc 0)" || bad "late leader run rc $rc: $(tail -3 err_late.txt)"
+python3 - late <<'PY' && ok "late leader: the importers computed themselves, counted" || bad "late leader metrics"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
+sl = lines[-1]["shared_lighting"]
+print("late leader:", sl)
+late = [v["light"] for f in lines if f["type"] == "frame" for r, v in f["ranks"].items() if v.get("light") == "late_leader"]
+assert sl["late_leader"] >= 1 and sl["dead_leader"] == 0 and len(late) >= 1, sl
+PY
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
