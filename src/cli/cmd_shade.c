@@ -214,9 +214,9 @@ int cmd_shade(int argc, char **argv) {
     rc = cli_fail("shade", 1, "relighting failed");
     goto done;
   }
-  printf("relit %zu vertices (%u bands); %llu channels %s from negative (SH ringing), %llu non-finite\n",
+  printf("relit %zu vertices (%u bands); %llu channels %s (SH ringing), %llu non-finite\n",
          p->nv, p->bands, (unsigned long long)rs.clamped_negative,
-         ro.clamp ? "clamped" : "negative before the pixel lights, clamped per pixel",
+         ro.clamp ? "clamped from negative" : "negative (kept: clamped per pixel after the pixel lights)",
          (unsigned long long)rs.nonfinite);
   if (!is_view) {
     if (cv_prt_fold_texture_means(p, rad)) {
