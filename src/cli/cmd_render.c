@@ -43,7 +43,8 @@ static void help(FILE *f) {
           "usage: cave render <cave.json> --scene scene.prt LIGHT [--head x,y,z --gaze x,y,z]\n"
           "                   [--frames N] [--dt S] [--size N] [--supersample 1|2]\n"
           "                   [--lum-res N] [--bg-res N] [--half] [--cull-back] [--all-frames]\n"
-          "                   [--gpu auto|software|N] [--split K [--split-grid W]] -o DIR\n\n"
+          "                   [--gpu auto|software|N] [--split K [--split-grid W] [--split-samples N]]\n"
+          "                   -o DIR\n\n"
           "Renders every wall and eye of the CAVE configuration with the EGL/OpenGL PRT\n"
           "renderer: per frame the luminance passes of all wall-eyes, the foveal adaptation\n"
           "statistics, one Pattanaik adaptation step of --dt seconds, then the shading\n"
@@ -60,7 +61,10 @@ static void help(FILE *f) {
           "  --split K        cut the K brightest window-visible cells of a W x W/2 grid\n"
           "                   (--split-grid, default 64) out of the map as directional lights\n"
           "                   with ray-traced visibility, as `cave shade --split` (their direct\n"
-          "                   light per vertex on the CPU, 16 fan points; docs/reference.md)\n"
+          "                   light per vertex on the CPU, --split-samples fan points per\n"
+          "                   vertex, 1..4096, default 4; docs/reference.md).  The sun's\n"
+          "                   direct light is per pixel (shadow map), as `cave shade\n"
+          "                   --pixel-lights sun`\n"
           "  --frames N       frames to simulate (default 1)\n"
           "  --dt S           seconds per frame for the adaptation, 0.0333 or 1/30 (default 0.1)\n"
           "  --size N         render every wall at N pixels on its longer side (default: the\n"
@@ -118,9 +122,10 @@ static int write_png(const char *path, const cv_image *img, cv_err *err) {
 
 /* --split: the window light split out of the map (cv_scene_light_split, on
  * a tracer of the PRT's mesh) and handed to the renderer with its direct
- * light per vertex (16 fan points, as `cave shade`).  Returns 0 or the exit
+ * light per vertex (`samples` fan points, as `cave shade --split-samples`).  Returns 0 or the exit
  * status after printing the error. */
-static int render_split(const cv_prt *prt, cv_scene_light *sl, cv_renderer *r, int k, int grid) {
+static int render_split(const cv_prt *prt, cv_scene_light *sl, cv_renderer *r, int k, int grid,
+                        int samples) {
   cv_err err;
   cv_err_clear(&err);
   cv_mesh *m = NULL;
@@ -139,7 +144,7 @@ static int render_split(const cv_prt *prt, cv_scene_light *sl, cv_renderer *r, i
   }
   const int n = cv_scene_light_extra(sl, &ex);
   if (!(direct = calloc(3 * prt->nv + 1, sizeof *direct)) ||
-      cv_split_direct(prt, tr, ex, n, 16, direct)) {
+      cv_split_direct(prt, tr, ex, n, samples, direct)) {
     rc = cli_fail("render", 1, "--split: out of memory for the split lights' direct light");
     goto out;
   }
@@ -165,7 +170,8 @@ int cmd_render(int argc, char **argv) {
   cv_light_spec_default(&spec);
   double head[3], gaze[3], dt = 0.1;
   int have_head = 0, have_gaze = 0, frames = 1, size = 0, ss = 0, lum_res = 0, bg_res = 1024;
-  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO, split = 0, split_grid = 64;
+  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO, split = 0, split_grid = 64,
+      split_samples = CV_SPLIT_SAMPLES_DEFAULT;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -224,6 +230,9 @@ int cmd_render(int argc, char **argv) {
     } else if (!strcmp(a, "--split")) {
       if (cli_parse_int(argv[++i], 0, 4096, &split))
         return cli_fail("render", 2, "--split: expected 0..4096 lights, got '%s'", val);
+    } else if (!strcmp(a, "--split-samples")) {
+      if (cli_parse_int(argv[++i], 1, 4096, &split_samples))
+        return cli_fail("render", 2, "--split-samples: expected 1..4096, got '%s'", val);
     } else if (!strcmp(a, "--split-grid")) {
       if (cli_parse_int(argv[++i], 4, 1024, &split_grid) || split_grid % 2)
         return cli_fail("render", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
@@ -297,7 +306,7 @@ int cmd_render(int argc, char **argv) {
   if (ti.unread)
     printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
            ti.unread, ti.first_error);
-  if (split && (rc = render_split(prt, sl, r, split, split_grid)) != 0) goto done;
+  if (split && (rc = render_split(prt, sl, r, split, split_grid, split_samples)) != 0) goto done;
   rc = 1;
   cv_lighting light = cv_scene_light_sh(sl);
   cv_render_light_stats ls;

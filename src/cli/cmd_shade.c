@@ -8,20 +8,22 @@
 #include <string.h>
 
 #include "cli/cli.h"
-#include "core/pinhole.h"
 #include "io/exr.h"
 #include "io/ply.h"
 #include "io/texture.h"
 #include "io/tonemap_simple.h"
+#include "prt/shade_view.h"
 #include "prt/relight.h"
 #include "prt/scene_light.h"
 
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave shade <scene.prt> LIGHT [--yaw DEG] [--pitch DEG] [--roll DEG]\n"
-          "                  [--sun-samples N] [--split K [--split-grid W]] -o out.ply [--ascii]\n"
+          "                  [--sun-samples N] [--split K [--split-grid W] [--split-samples N]]\n"
+          "                  -o out.ply [--ascii]\n"
           "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
-          "                  [--fov DEG] [--size WxH] [--exposure E] -o view.exr|view.png\n\n"
+          "                  [--fov DEG] [--size WxH] [--exposure E] [--pixel-lights sun|all|none]\n"
+          "                  [same --sun-samples/--split options] -o view.exr|view.png\n\n"
           "LIGHT is one of\n"
           "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
           "                       [--no-sun]\n"
@@ -37,6 +39,14 @@ static void help(FILE *f) {
           "--split K cuts the K brightest window-visible cells of a W x W/2 grid (default\n"
           "W 64) out of the map as extra directional lights treated like the sun (an\n"
           "all-frequency answer to window light; docs/reference.md).\n"
+          "--sun-samples N      fan points per vertex for the sun's per-vertex shadow rays\n"
+          "                     (1..4096, default 16)\n"
+          "--split-samples N    the same for each split light (1..4096, default 4)\n"
+          "--pixel-lights M     a view only: whose direct light is evaluated per pixel, with\n"
+          "                     one shadow ray from the pixel's surface point, instead of\n"
+          "                     interpolated from the vertices: sun (default; as the GPU's\n"
+          "                     shadow-mapped sun), all (the sun and every split light) or\n"
+          "                     none (all per vertex, as the PLY).  Sharp shadow edges.\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
           "A view multiplies each pixel on a textured material by its texture (the PNG\n"
           "or JPEG named in the .prt, bilinear, sRGB decoded; one that cannot be read is\n"
@@ -51,52 +61,35 @@ typedef struct {
   int w, h;
 } view_opts;
 
-/* Renders the view: radiance interpolated from vertex colours, times the
- * material's texture (tex[material], NULL for none) at the hit's UV. */
-static void render_view(const cv_prt *p, const cv_tracer *tr, const cv_scene_light *sl,
-                        const float *rad, cv_image *const *tex, const view_opts *v, cv_image *img,
-                        uint64_t *escaped) {
-  cv_pinhole cam;
-  cv_pinhole_init(&cam, v->eye, v->look, v->up, v->fov, v->w, v->h);
-  const cv_rt *rt = cv_tracer_rt(tr);
-  uint64_t esc = 0;
-#pragma omp parallel for schedule(dynamic, 4) reduction(+ : esc)
-  for (int y = 0; y < v->h; y++) {
-    cv_rt_thread_init();
-    for (int x = 0; x < v->w; x++) {
-      float d[3], o[3];
-      cv_pinhole_ray(&cam, x, y, o, d);
-      float *px = cv_image_at(img, x, y);
-      cv_hit h;
-      if (cv_rt_intersect(rt, o, d, 0, INFINITY, &h)) {
-        const uint32_t *t = p->tri + 3 * h.tri;
-        float w0 = 1 - h.u - h.v;
-        for (int c = 0; c < 3; c++)
-          px[c] = w0 * rad[3 * t[0] + c] + h.u * rad[3 * t[1] + c] + h.v * rad[3 * t[2] + c];
-        const cv_image *tx = tex ? tex[p->tri_mat[h.tri]] : NULL;
-        if (tx) {
-          const float *q = p->tri_uv + 6 * (size_t)h.tri;
-          float a[3];
-          cv_texture_sample(tx, w0 * q[0] + h.u * q[2] + h.v * q[4],
-                            w0 * q[1] + h.u * q[3] + h.v * q[5], a);
-          for (int c = 0; c < 3; c++) px[c] *= a[c];
-        }
-      } else if (cv_rt_reaches_env(rt, o, d, 0)) {
-        cv_scene_light_background(sl, d, px);
-      } else {
-        px[0] = px[1] = px[2] = 0;
-        esc++;
-      }
+enum { PIXEL_NONE, PIXEL_SUN, PIXEL_ALL };
+
+static void background(const void *ctx, const float d[3], float rgb[3]) {
+  cv_scene_light_background(ctx, d, rgb);
+}
+
+/* The pixel lights of --pixel-lights: the sun (when there is one), and with
+ * `all` the split lights after it, in lights[] (room for 1 + n_extra). */
+static int pixel_lights(int mode, const cv_lighting *l, const cv_dir_light *extra, int n_extra,
+                        cv_dir_light *lights) {
+  int n = 0;
+  if (mode != PIXEL_NONE && l->has_sun) {
+    for (int k = 0; k < 3; k++) {
+      lights[n].dir[k] = l->sun_dir[k];
+      lights[n].E[k] = l->sun_E[k];
     }
+    n++;
   }
-  *escaped = esc;
+  for (int k = 0; mode == PIXEL_ALL && k < n_extra; k++) lights[n++] = extra[k];
+  return n;
 }
 
 int cmd_shade(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   cv_light_spec spec;
   cv_light_spec_default(&spec);
-  int ascii = 0, sun_samples = 16, have_view = 0, have_look = 0, split = 0, split_grid = 64;
+  int ascii = 0, have_view = 0, have_look = 0, split = 0, split_grid = 64, pixel_mode = PIXEL_SUN;
+  cv_relight_opts ro;
+  cv_relight_opts_default(&ro);
   double exposure = 0;
   view_opts v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480};
   const char *weights = NULL;
@@ -123,8 +116,17 @@ int cmd_shade(int argc, char **argv) {
     } else if ((st = cli_parse_light("shade", argc, argv, &i, &spec, &weights)) != 0) {
       if (st < 0) return -st;
     } else if (!strcmp(a, "--sun-samples")) {
-      if (cli_parse_int(argv[++i], 1, 4096, &sun_samples))
+      if (cli_parse_int(argv[++i], 1, 4096, &ro.sun_samples))
         return cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
+    } else if (!strcmp(a, "--split-samples")) {
+      if (cli_parse_int(argv[++i], 1, 4096, &ro.split_samples))
+        return cli_fail("shade", 2, "--split-samples: expected 1..4096, got '%s'", val);
+    } else if (!strcmp(a, "--pixel-lights")) {
+      ++i;
+      if (!strcmp(val, "sun")) pixel_mode = PIXEL_SUN;
+      else if (!strcmp(val, "all")) pixel_mode = PIXEL_ALL;
+      else if (!strcmp(val, "none")) pixel_mode = PIXEL_NONE;
+      else return cli_fail("shade", 2, "--pixel-lights: expected sun, all or none, got '%s'", val);
     } else if (!strcmp(a, "--split")) {
       if (cli_parse_int(argv[++i], 0, 4096, &split))
         return cli_fail("shade", 2, "--split: expected 0..4096 lights, got '%s'", val);
@@ -178,6 +180,7 @@ int cmd_shade(int argc, char **argv) {
   cv_tracer *tr = NULL;
   cv_scene_light *sl = NULL;
   float *rad = NULL;
+  cv_dir_light *lights = NULL;
   cv_image *img = NULL;
   cv_image **tex = NULL; /* per material, NULL where untextured */
   if (cv_prt_read(in, &p, &err)) {
@@ -200,14 +203,21 @@ int cmd_shade(int argc, char **argv) {
   cv_lighting l = cv_scene_light_sh(sl);
   const cv_dir_light *extra = NULL;
   int n_extra = cv_scene_light_extra(sl, &extra);
+  if (!is_view) pixel_mode = PIXEL_NONE; /* per-vertex output: all direct light per vertex */
+  ro.sun_direct = pixel_mode == PIXEL_NONE;
+  ro.extra_direct = pixel_mode != PIXEL_ALL;
+  ro.clamp = pixel_mode == PIXEL_NONE; /* else clamped per pixel, after the pixel lights */
   rad = malloc(3 * p->nv * sizeof(float) + 1);
+  lights = malloc((1 + (size_t)n_extra) * sizeof *lights);
   cv_relight_stats rs;
-  if (!rad || cv_prt_relight_ex(p, &l, extra, n_extra, tr, sun_samples, rad, &rs)) {
+  if (!rad || !lights || cv_prt_relight_opt(p, &l, extra, n_extra, tr, &ro, rad, &rs)) {
     rc = cli_fail("shade", 1, "relighting failed");
     goto done;
   }
-  printf("relit %zu vertices (%u bands); %llu channels clamped from negative (SH ringing), %llu non-finite\n",
-         p->nv, p->bands, (unsigned long long)rs.clamped_negative, (unsigned long long)rs.nonfinite);
+  printf("relit %zu vertices (%u bands); %llu channels %s (SH ringing), %llu non-finite\n",
+         p->nv, p->bands, (unsigned long long)rs.clamped_negative,
+         ro.clamp ? "clamped from negative" : "negative (kept: clamped per pixel after the pixel lights)",
+         (unsigned long long)rs.nonfinite);
   if (!is_view) {
     if (cv_prt_fold_texture_means(p, rad)) {
       rc = cli_fail("shade", 1, "out of memory");
@@ -222,7 +232,6 @@ int cmd_shade(int argc, char **argv) {
       rc = cli_fail("shade", 1, "cannot allocate a %dx%d image", v.w, v.h);
       goto done;
     }
-    uint64_t escaped;
     if (p->flags & CV_PRT_TEXTURED) {
       if (!(tex = calloc(p->nm + 1, sizeof *tex))) {
         rc = cli_fail("shade", 1, "out of memory");
@@ -249,9 +258,19 @@ int cmd_shade(int argc, char **argv) {
       if (unread)
         printf("warning: %zu textures could not be read and show their mean albedo\n", unread);
     }
-    render_view(p, tr, sl, rad, tex, &v, img, &escaped);
-    if (escaped)
-      printf("view: %llu pixels saw neither geometry nor a window (black)\n", (unsigned long long)escaped);
+    cv_shade_view_params vp = {.rad = rad, .lights = lights, .tex = tex,
+                               .background = background, .bg_ctx = sl};
+    vp.n_lights = pixel_lights(pixel_mode, &l, extra, n_extra, lights);
+    cv_pinhole_init(&vp.cam, v.eye, v.look, v.up, v.fov, v.w, v.h);
+    cv_shade_view_stats vs;
+    cv_shade_view(p, cv_tracer_rt(tr), &vp, img, &vs);
+    printf("view: %d lights per pixel (--pixel-lights %s); %llu pixel channels clamped from "
+           "negative, %llu non-finite\n", vp.n_lights,
+           pixel_mode == PIXEL_ALL ? "all" : pixel_mode == PIXEL_SUN ? "sun" : "none",
+           (unsigned long long)vs.clamped_negative, (unsigned long long)vs.nonfinite);
+    if (vs.escaped)
+      printf("view: %llu pixels saw neither geometry nor a window (black)\n",
+             (unsigned long long)vs.escaped);
     if (cli_has_ext(out, ".exr")) {
       if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
         rc = cli_fail("shade", 1, "%s", err.msg);
@@ -274,6 +293,7 @@ done:
   free(tex);
   cv_image_destroy(img);
   free(rad);
+  free(lights);
   cv_tracer_destroy(tr);
   cv_mesh_destroy(m);
   cv_scene_light_destroy(sl);

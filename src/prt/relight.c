@@ -22,9 +22,26 @@ int cv_split_direct(const cv_prt *p, const cv_tracer *tr, const cv_dir_light *ex
   return CV_OK;
 }
 
+void cv_relight_opts_default(cv_relight_opts *o) {
+  o->sun_samples = 16;
+  o->split_samples = CV_SPLIT_SAMPLES_DEFAULT;
+  o->sun_direct = 1;
+  o->extra_direct = 1;
+  o->clamp = 1;
+}
+
 int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
                       int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
                       cv_relight_stats *stats) {
+  cv_relight_opts o;
+  cv_relight_opts_default(&o);
+  o.sun_samples = o.split_samples = sun_samples;
+  return cv_prt_relight_opt(p, l, extra, n_extra, tr, &o, out_rgb, stats);
+}
+
+int cv_prt_relight_opt(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
+                       int n_extra, const cv_tracer *tr, const cv_relight_opts *o,
+                       float *out_rgb, cv_relight_stats *stats) {
   if ((uint32_t)l->bands < p->bands) return CV_ERR_RANGE;
   if (n_extra < 0 || (n_extra > 0 && (!extra || !tr))) return CV_ERR_INVALID;
   const int nc = (int)(p->bands * p->bands);
@@ -65,12 +82,12 @@ int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light 
       out_rgb[3 * v + c] = (float)(d + ind);
     }
   }
-  if (l->has_sun && tr) {
-    int st = cv_sun_direct(tr, l->sun_dir, l->sun_E, sun_samples, p->meta.seed, out_rgb);
+  if (l->has_sun && tr && o->sun_direct) {
+    int st = cv_sun_direct(tr, l->sun_dir, l->sun_E, o->sun_samples, p->meta.seed, out_rgb);
     if (st) return st;
   }
-  if (n_extra > 0) {
-    int st = cv_split_direct(p, tr, extra, n_extra, sun_samples, out_rgb);
+  if (n_extra > 0 && o->extra_direct) {
+    int st = cv_split_direct(p, tr, extra, n_extra, o->split_samples, out_rgb);
     if (st) return st;
   }
   cv_relight_stats s = {0, 0};
@@ -79,7 +96,7 @@ int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light 
       out_rgb[i] = 0;
       s.nonfinite++;
     } else if (out_rgb[i] < 0) {
-      out_rgb[i] = 0;
+      if (o->clamp) out_rgb[i] = 0;
       s.clamped_negative++;
     }
   }

@@ -19,7 +19,8 @@ typedef struct cv_lighting {
 } cv_lighting;
 
 typedef struct cv_relight_stats {
-  uint64_t clamped_negative; /* vertex channels below 0 (SH ringing) set to 0 */
+  uint64_t clamped_negative; /* vertex channels below 0 (SH ringing) set to 0 (with
+                                cv_relight_opts.clamp = 0: found below 0, kept) */
   uint64_t nonfinite;        /* vertex channels that were NaN/Inf, set to 0 */
 } cv_relight_stats;
 
@@ -37,9 +38,9 @@ typedef struct cv_dir_light {
 } cv_dir_light;
 
 /* cv_prt_relight plus n_extra more directional lights, each treated as the
- * sun is: direct light with ray-traced visibility (needs tr), indirect light
- * through the interreflected transfer.  Negative channels are clamped after
- * everything is summed. */
+ * sun is: direct light with ray-traced visibility (needs tr, sun_samples fan
+ * points for every light), indirect light through the interreflected
+ * transfer.  Negative channels are clamped after everything is summed. */
 int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
                       int n_extra, const cv_tracer *tr, int sun_samples, float *out_rgb,
                       cv_relight_stats *stats);
@@ -50,5 +51,28 @@ int cv_prt_relight_ex(const cv_prt *p, const cv_lighting *l, const cv_dir_light 
  * vertex (cv_renderer_set_split).  Needs tr when n_extra > 0. */
 int cv_split_direct(const cv_prt *p, const cv_tracer *tr, const cv_dir_light *extra,
                     int n_extra, int sun_samples, float *out_rgb);
+
+/* What cv_prt_relight_opt traces per vertex. */
+typedef struct cv_relight_opts {
+  int sun_samples;   /* fan points per vertex for the sun's direct light (1..4096) */
+  int split_samples; /* fan points per vertex for each extra light's direct light (1..4096) */
+  int sun_direct;    /* 0: the sun's direct light is left out (a view adds it per pixel,
+                        cv_shade_view); its indirect light stays */
+  int extra_direct;  /* 0: the same for the extra lights */
+  int clamp;         /* 1: negative channels are set to 0 (and counted); 0: only counted,
+                        for a caller that adds per-pixel light first and clamps after */
+} cv_relight_opts;
+
+/* Defaults: 16 sun samples, CV_SPLIT_SAMPLES_DEFAULT split samples, all direct
+ * light per vertex, clamped. */
+#define CV_SPLIT_SAMPLES_DEFAULT 4
+void cv_relight_opts_default(cv_relight_opts *o);
+
+/* cv_prt_relight_ex with the options o.  Errors: CV_ERR_RANGE (bands; a
+ * sample count < 1 for light traced per vertex), CV_ERR_INVALID (extra
+ * lights without tr). */
+int cv_prt_relight_opt(const cv_prt *p, const cv_lighting *l, const cv_dir_light *extra,
+                       int n_extra, const cv_tracer *tr, const cv_relight_opts *o,
+                       float *out_rgb, cv_relight_stats *stats);
 
 #endif

@@ -7,7 +7,10 @@
 # luminance error over pixels that hit geometry, the LCD region's mean ratio,
 # the reference's own noise floor (median relative standard error) and the
 # bake time.  BENCH_SPLIT="0 64" adds rows for `cave shade --split K` (window
-# light split out as K directional lights).  Bakes and references are kept in
+# light split out as K directional lights); BENCH_PIXEL="none sun all" rows
+# for `--pixel-lights M` (default sun); BENCH_MAPS picks the maps; BENCH_SPLIT_SAMPLES (default 4) is
+# passed as --split-samples.  The shade column is the wall time of one
+# `cave shade` (relight + view; a ratio between rows of one run only).  Bakes and references are kept in
 # BENCH_WORK and reused by a later run.  Prints a markdown table
 # (docs/benchmarks.md).
 # Usage: bench_reference.sh BUILD_DIR [SPP] [WxH] [BANDS...]
@@ -23,10 +26,12 @@ CMP="$BUILD/tests/bench/ref_compare"
 WORK="${BENCH_WORK:-/tmp/bench_reference}"
 RAYS="${BENCH_RAYS:-1024}"
 read -r -a SPLITS <<<"${BENCH_SPLIT:-0}"
+read -r -a PIXELS <<<"${BENCH_PIXEL:-sun}"
+SSAMP="${BENCH_SPLIT_SAMPLES:-4}"
 mkdir -p "$WORK"
 VIEWS=("driver|--view -0.37,1.02,0 --look -0.15,0.65,-1.0 --fov 60"
        "seats|--view 0.3,0.95,-0.8 --look -0.1,0.75,1.2 --fov 80")
-MAPS=(forest.exr sunset.exr city.exr constant)
+read -r -a MAPS <<<"${BENCH_MAPS:-forest.exr sunset.exr city.exr constant}"
 light() { if [ "$1" = constant ]; then echo "--env-constant 1,1,1"; else echo "--env $1"; fi; }
 
 declare -A BAKE_S
@@ -42,8 +47,8 @@ LCD_ID=$("$CAVE" reference "$WORK/b${BANDS[0]}.prt" --env-constant 1,1,1 --view 
          --size 2x2 --spp 1 --quiet --ids "$WORK/tmp_ids.exr" -o "$WORK/tmp.exr" |
          sed -n 's/^material \([0-9]*\): lcd_panel.*/\1/p')
 
-echo "| view | map | bands | split | bake s | mean ratio | median err | p90 err | LCD mean ratio | noise floor |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| view | map | bands | split | pixel lights | bake s | shade s | mean ratio | median err | p90 err | LCD mean ratio | noise floor |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
 for v in "${VIEWS[@]}"; do
   vn=${v%%|*} vo=${v#*|}
   for m in "${MAPS[@]}"; do
@@ -55,14 +60,20 @@ for v in "${VIEWS[@]}"; do
     fi
     for b in "${BANDS[@]}"; do
      for k in "${SPLITS[@]}"; do
-      s="$WORK/shade_${vn}_${m%.exr}_b${b}_s$k.exr"
+      for px in "${PIXELS[@]}"; do
+      s="$WORK/shade_${vn}_${m%.exr}_b${b}_s${k}_$px.exr"
+      t0=$(date +%s.%N)
       # shellcheck disable=SC2046,SC2086
-      "$CAVE" shade "$WORK/b$b.prt" $(light "$m") $vo --size "$SIZE" --split "$k" -o "$s" >/dev/null
+      "$CAVE" shade "$WORK/b$b.prt" $(light "$m") $vo --size "$SIZE" --split "$k" \
+        --split-samples "$SSAMP" --pixel-lights "$px" -o "$s" >/dev/null
+      ts=$(echo "$(date +%s.%N) - $t0" | bc)
       res=$("$CMP" "$s" "$r.exr" "$r.se.exr" "$r.ids.exr" "$LCD_ID")
       all=$(echo "$res" | awk '$1 == "all" {printf "%.3f | %.1f%% | %.1f%% |", $3, 100 * $4, 100 * $5}')
       lcd=$(echo "$res" | awk '$1 ~ /^ids:/ {print ($2 > 0 ? sprintf("%.3f", $3) : "-")}')
       noise=$(echo "$res" | awk '$1 == "all" {printf "%.1f%%", 100 * $6}')
-      echo "| $vn | ${m%.exr} | $b | $k | ${BAKE_S[$b]} | $all $lcd | $noise |"
+      printf '| %s | %s | %s | %s | %s | %s | %.2f | %s %s | %s |\n' "$vn" "${m%.exr}" "$b" "$k" "$px" \
+        "${BAKE_S[$b]}" "$ts" "$all" "$lcd" "$noise"
+      done
      done
     done
   done

@@ -228,6 +228,24 @@ expect_error "reference missing map" "nosuch.exr" $CAVE reference a.prt --env no
 expect_ok "shade --split" $CAVE shade a.prt --env good.exr --split 4 --split-grid 16 $RV -o split.exr
 grep -q "^split: [1-4] window-visible" out.txt && ok "shade --split reports its lights" || { bad "shade --split printed no split line"; cat out.txt; }
 expect_error "shade bad split grid" "--split-grid" $CAVE shade a.prt --env good.exr --split 4 --split-grid 7 $RV -o y.exr
+# --pixel-lights and --split-samples (issue 13): valid values run, bad ones are one-line usage errors (exit 2)
+for m in sun all none; do
+  expect_ok "shade --pixel-lights $m" $CAVE shade a.prt --env good.exr --split 4 --split-grid 16 --split-samples 2 --pixel-lights $m $RV -o pl_$m.exr
+  grep -q "^view: [0-9]* lights per pixel (--pixel-lights $m)" out.txt && ok "shade --pixel-lights $m reports it" || { bad "shade --pixel-lights $m printed no view line"; cat out.txt; }
+done
+exit2() { # exit2 NAME PATTERN CMD...: exit status 2 and exactly one stderr line naming PATTERN
+  local name=$1 pat=$2
+  shift 2
+  "$@" >out.txt 2>err.txt
+  local rc=$?
+  if [ $rc -eq 2 ] && [ "$(wc -l <err.txt)" -eq 1 ] && grep -q -- "$pat" err.txt; then ok "$name: $(cat err.txt)"
+  else bad "$name: exit $rc, stderr:"; cat err.txt; fi
+}
+exit2 "shade bad --pixel-lights" "--pixel-lights: expected sun, all or none" $CAVE shade a.prt --env good.exr --pixel-lights some $RV -o y.exr
+exit2 "shade bad --split-samples" "--split-samples: expected 1..4096" $CAVE shade a.prt --env good.exr --split 4 --split-samples 0 $RV -o y.exr
+exit2 "shade --split-samples not a number" "--split-samples" $CAVE shade a.prt --env good.exr --split-samples 4x $RV -o y.exr
+exit2 "render bad --split-samples" "--split-samples: expected 1..4096" $CAVE render none.json --scene a.prt --env good.exr --split 4 --split-samples 5000 -o yr
+[ ! -e y.exr ] && [ ! -e yr ] && ok "bad --pixel-lights/--split-samples leave no output" || bad "a bad option left output"
 
 # One default cabin: `cave bake default` and configs/scenes/default.json bake the same mesh.
 H1=$($CAVE bake default -o d1.prt --rays 1 --bands 2 --bounces 0 --quiet | sed -n 's/.*input hash \([0-9a-f]*\).*/\1/p')

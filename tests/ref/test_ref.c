@@ -10,7 +10,10 @@
  *  - the same seed gives the same image for 1 and 2 threads; bad input;
  *  - window-light splitting (prt/scene_light): the split lights carry the
  *    energy they remove, and on the open box under a map with a bright patch
- *    above the window the split brings the PRT closer to the reference. */
+ *    above the window the split brings the PRT closer to the reference;
+ *  - --pixel-lights: the sun per pixel (prt/shade_view) draws a floating
+ *    box's shadow as Embree visibility does (>= 99% of the floor pixels),
+ *    interpolated per vertex it does not. */
 #include <math.h>
 #include <omp.h>
 #include <setjmp.h>
@@ -28,6 +31,7 @@
 #include "prt/bake.h"
 #include "prt/relight.h"
 #include "prt/scene_light.h"
+#include "prt/shade_view.h"
 #include "ref/ref.h"
 
 /* n x n grid of quads over o + s e1 + t e2; normal e1 x e2. */
@@ -498,13 +502,104 @@ static void test_material_boundary_albedo(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* --pixel-lights (prt/shade_view): a 2 x 2 m floor of 4 x 4 quads under a
+ * sun, a 0.4 m cube floating above it, seen from above.  Per floor pixel the
+ * truth is one Embree shadow ray from the pixel's surface point; a pixel
+ * counts as lit when its radiance is above half the unshadowed a E cos / pi.
+ * With the sun per pixel >= 99% of the pixels agree; with the sun
+ * interpolated from the vertices (0.5 m apart) the shadow is smeared and
+ * fewer agree. */
+static double pixel_light_agreement(const cv_prt *prt, const cv_tracer *tr, int per_pixel,
+                                    double a, double E, double cosine) {
+  cv_lighting l = {.bands = (int)prt->bands, .has_sun = 1};
+  const double s[3] = {0.3, 1.0, 0.2}, sl = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+  for (int k = 0; k < 3; k++) {
+    l.sun_dir[k] = s[k] / sl;
+    l.sun_E[k] = E;
+  }
+  cv_relight_opts ro;
+  cv_relight_opts_default(&ro);
+  ro.sun_direct = !per_pixel;
+  ro.clamp = !per_pixel;
+  float *rad = malloc(3 * prt->nv * sizeof(float));
+  assert_int_equal(cv_prt_relight_opt(prt, &l, NULL, 0, tr, &ro, rad, NULL), CV_OK);
+  cv_dir_light sun;
+  memcpy(sun.dir, l.sun_dir, sizeof sun.dir);
+  memcpy(sun.E, l.sun_E, sizeof sun.E);
+  cv_shade_view_params vp = {.rad = rad, .lights = &sun, .n_lights = per_pixel};
+  const double eye[3] = {0, 3, 0}, look[3] = {0, 0, 0}, up[3] = {0, 0, -1};
+  cv_pinhole_init(&vp.cam, eye, look, up, 28, 96, 96);
+  cv_image *img;
+  assert_int_equal(cv_image_create(96, 96, 3, &img), CV_OK);
+  const cv_rt *rt = cv_tracer_rt(tr);
+  cv_shade_view_stats st;
+  cv_shade_view(prt, rt, &vp, img, &st);
+  assert_int_equal(st.nonfinite, 0);
+  const float sf[3] = {(float)l.sun_dir[0], (float)l.sun_dir[1], (float)l.sun_dir[2]};
+  const double lit_value = a * E * cosine / M_PI;
+  size_t floor_px = 0, agree = 0, lit = 0;
+  cv_rt_thread_init();
+  for (int y = 0; y < 96; y++)
+    for (int x = 0; x < 96; x++) {
+      float o[3], d[3], p[3], org[3];
+      cv_pinhole_ray(&vp.cam, x, y, o, d);
+      cv_hit h;
+      if (!cv_rt_intersect(rt, o, d, 0, INFINITY, &h) || prt->tri_mat[h.tri] != 0) continue;
+      for (int k = 0; k < 3; k++) p[k] = o[k] + h.t * d[k];
+      const float n[3] = {0, 1, 0};
+      cv_rt_offset_origin(p, n, org);
+      const int truth = cv_rt_reaches_env(rt, org, sf, 0.0f);
+      const int shown = cv_image_at(img, x, y)[0] > 0.5 * lit_value;
+      floor_px++;
+      agree += truth == shown;
+      lit += truth;
+    }
+  printf("pixel lights %s: %zu floor pixels (%zu lit), %.2f%% agree with Embree visibility\n",
+         per_pixel ? "sun" : "none", floor_px, lit, 100.0 * agree / floor_px);
+  assert_true(floor_px > 4000 && lit > floor_px / 2 && lit < floor_px);
+  cv_image_destroy(img);
+  free(rad);
+  return (double)agree / floor_px;
+}
+
+static void test_pixel_lights(void **state) {
+  (void)state;
+  const float a = 0.5f, alb[3] = {a, a, a};
+  cv_mesh *m = plane_mesh(alb); /* material 0: the floor, normal +y */
+  uint32_t boxm;
+  cv_mesh_add_material(m, "box", alb, 0, &boxm);
+  const float X[3] = {0.4f, 0, 0}, Y[3] = {0, 0.4f, 0}, Z[3] = {0, 0, 0.4f};
+  const float o0[3] = {-0.2f, 0.3f, -0.2f}, ox[3] = {0.2f, 0.3f, -0.2f},
+              oy[3] = {-0.2f, 0.7f, -0.2f}, oz[3] = {-0.2f, 0.3f, 0.2f};
+  grid(m, o0, X, Z, 1, boxm);
+  grid(m, oy, Z, X, 1, boxm);
+  grid(m, o0, Y, X, 1, boxm);
+  grid(m, oz, X, Y, 1, boxm);
+  grid(m, o0, Z, Y, 1, boxm);
+  grid(m, ox, Y, Z, 1, boxm);
+  cv_bake_params bp = {.bands = 2, .rays = 64, .bounces = 0, .seed = 5,
+                       .spread = CV_BAKE_DEFAULT_SPREAD, .quiet = 1};
+  cv_tracer *tr;
+  assert_int_equal(cv_tracer_create(m, &tr, NULL), CV_OK);
+  cv_prt *prt;
+  assert_int_equal(cv_prt_bake_tracer(tr, &bp, &prt, NULL, NULL), CV_OK);
+  const double E = 3.0, cosine = 1.0 / sqrt(0.09 + 1.0 + 0.04);
+  const double sun = pixel_light_agreement(prt, tr, 1, a, E, cosine);
+  const double none = pixel_light_agreement(prt, tr, 0, a, E, cosine);
+  assert_true(sun >= 0.99);
+  assert_true(none < sun - 0.02);
+  cv_prt_destroy(prt);
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_furnace),          cmocka_unit_test(test_plane_constant_sky),
       cmocka_unit_test(test_plane_hot_map),    cmocka_unit_test(test_plane_sun),
       cmocka_unit_test(test_open_box_vs_bake), cmocka_unit_test(test_determinism),
       cmocka_unit_test(test_bad_input),        cmocka_unit_test(test_split_lights),
-      cmocka_unit_test(test_material_boundary_albedo),
+      cmocka_unit_test(test_material_boundary_albedo), cmocka_unit_test(test_pixel_lights),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
