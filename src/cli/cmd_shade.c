@@ -54,9 +54,9 @@ static void help(FILE *f) {
           "a warning and shows its mean albedo); the PLY shows the mean albedo.\n"
           "\nexamples:\n"
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
-          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n"
-          "  cave shade scene.prt --env forest.exr --split 64 --view -0.37,1.02,0\n"
-          "             --look -0.15,0.65,-1.0 --fov 60 -o driver.exr   (issue-13 accuracy)\n");
+          "  cave shade scene.prt --env forest.exr --split 64 --view -0.37,1.02,0 \\\n"
+          "             --look -0.15,0.65,-1.0 --fov 60 -o driver.exr\n"
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
 }
 
 typedef struct {
