@@ -46,13 +46,16 @@ static void help(FILE *f) {
           "                     one shadow ray from the pixel's surface point, instead of\n"
           "                     interpolated from the vertices: sun (default; as the GPU's\n"
           "                     shadow-mapped sun), all (the sun and every split light) or\n"
-          "                     none (all per vertex, as the PLY).  Sharp shadow edges.\n"
+          "                     none (all per vertex, as the PLY).  Sharp shadow edges;\n"
+          "                     SH ringing below 0 is then clamped per pixel, after it.\n"
           "PNG views use a simple global tone map (log-average to 0.18, Reinhard, sRGB).\n"
           "A view multiplies each pixel on a textured material by its texture (the PNG\n"
           "or JPEG named in the .prt, bilinear, sRGB decoded; one that cannot be read is\n"
           "a warning and shows its mean albedo); the PLY shows the mean albedo.\n"
           "\nexamples:\n"
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
+          "  cave shade scene.prt --env forest.exr --split 64 --view -0.37,1.02,0 \\\n"
+          "             --look -0.15,0.65,-1.0 --fov 60 -o driver.exr\n"
           "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
 }
 
