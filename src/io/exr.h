@@ -21,7 +21,8 @@
  *
  * Before any pixel is decoded the header is walked once more: an attribute
  * whose declared size is more than the file holds after it is refused, and
- * so is a data window needing more pixel bytes than the file can hold under
+ * so are a channel list whose entries do not fill exactly its declared size
+ * and a data window needing more pixel bytes than the file can hold under
  * its compression.
  *
  * Pixels are validated: any NaN or Inf fails the read (CV_ERR_NONFINITE,
