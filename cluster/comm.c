@@ -459,21 +459,22 @@ void cv_comm_host(char *buf, size_t cap) {
   snprintf(buf, cap, "%s", name);
 }
 
-int cv_comm_host_share(int color, size_t bytes, cv_host_share *out) {
+int cv_comm_host_share(int color, int key, size_t bytes, cv_host_share *out) {
   memset(out, 0, sizeof *out);
   out->leader = -1;
   if (g_render == MPI_COMM_NULL || bytes > (size_t)INT64_MAX) return -1;
   MPI_Comm node = MPI_COMM_NULL, grp = MPI_COMM_NULL;
   if (MPI_Comm_split_type(g_render, MPI_COMM_TYPE_SHARED, g_rank, MPI_INFO_NULL, &node) != MPI_SUCCESS)
     return -1;
-  const int rc = MPI_Comm_split(node, color >= 0 ? color : MPI_UNDEFINED, g_rank, &grp);
+  /* ties of key keep the order in node (world rank order) */
+  const int rc = MPI_Comm_split(node, color >= 0 ? color : MPI_UNDEFINED, key, &grp);
   MPI_Comm_free(&node);
   if (rc != MPI_SUCCESS) return -1;
   if (grp == MPI_COMM_NULL) return 0; /* no part in it */
   int me = 0, n = 0;
   MPI_Comm_rank(grp, &me);
   MPI_Comm_size(grp, &n);
-  /* the leader's world rank, known to all: the smallest (key = world rank) */
+  /* the leader's world rank, known to all */
   int leader = g_rank;
   MPI_Bcast(&leader, 1, MPI_INT, 0, grp);
   void *mine = NULL;

@@ -130,7 +130,8 @@ int cv_comm_is_dead(int rank);
  * the same scene and GL).  Collective over the render ranks (every one
  * calls it, color -1 on a rank that takes no part):
  * MPI_Comm_split_type(MPI_COMM_TYPE_SHARED) of the render communicator,
- * MPI_Comm_split of that by color (key: world rank), and
+ * MPI_Comm_split of that by color (ordered by key, then world rank: the
+ * first is the leader), and
  * MPI_Win_allocate_shared of `bytes` by the group's first rank (the
  * leader), 0 by the others, who map the leader's segment
  * (MPI_Win_shared_query).  0 on success; then base (NULL when not a member),
@@ -141,7 +142,7 @@ typedef struct cv_host_share {
   size_t bytes;
   int members, index, leader;
 } cv_host_share;
-int cv_comm_host_share(int color, size_t bytes, cv_host_share *out);
+int cv_comm_host_share(int color, int key, size_t bytes, cv_host_share *out);
 
 /* Name of this rank's host (MPI_Get_processor_name). */
 void cv_comm_host(char *buf, size_t cap);

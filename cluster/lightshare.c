@@ -38,7 +38,7 @@ static slot *slot_at(const cv_lightshare *ls, int i) {
 static uint8_t *render_part(const cv_lightshare *ls, int i) { return (uint8_t *)slot_at(ls, i) + sizeof(slot); }
 static uint8_t *bg_part(const cv_lightshare *ls, int i) { return render_part(ls, i) + pad64(ls->render_bytes); }
 
-int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, int bg_w, int bg_h) {
+int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, size_t cost, int bg_w, int bg_h) {
   memset(ls, 0, sizeof *ls);
   ls->mode = s->o.share_lighting;
   ls->hs.leader = -1;
@@ -59,7 +59,7 @@ int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, 
     h = cv_hash64_u64(h, (uint64_t)bytes);
     color = (int)(h & 0x3fffffff);
   }
-  if (cv_comm_host_share(color, bytes, &ls->hs)) {
+  if (cv_comm_host_share(color, cost > INT32_MAX ? INT32_MAX : (int)cost, bytes, &ls->hs)) {
     memset(&ls->hs, 0, sizeof ls->hs);
     ls->hs.leader = -1;
     return -1;

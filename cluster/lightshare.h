@@ -78,9 +78,11 @@ typedef struct cv_lightshare {
 } cv_lightshare;
 
 /* Collective over the render ranks (mode != off): joins the host group of
- * the ranks with the same scene and GL.  r NULL (set-up failed): takes no
- * part.  Returns 0, or -1 when MPI failed (then not sharing). */
-int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, int bg_w, int bg_h);
+ * the ranks with the same scene and GL, whose leader is the rank of the
+ * smallest cost (the triangles its views draw at the config's head: its
+ * frame is the cheapest, so the lighting lengthens the shortest one; ties:
+ * the lowest rank).  r NULL (set-up failed): takes no part.  Returns 0, or -1 when MPI failed (then not sharing). */
+int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, size_t cost, int bg_w, int bg_h);
 
 /* "leader of 10 wall-eyes on this host", "importer (leader rank 1, 10 on this host)", "off", ... */
 void cv_lightshare_describe(const cv_lightshare *ls, char *buf, size_t cap);

@@ -319,6 +319,25 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
 
 static void idle_cb(void *we) { idle(we); }
 
+/* Triangles this output's views draw from the config's head: its frame's
+ * relative cost (the cheapest wall-eye of a host leads the shared lighting). */
+static size_t view_cost(const walleye *we) {
+  const cv_service *s = we->s;
+  const cv_wall *W = &s->cave.walls[we->wall];
+  double eyes[2][3];
+  cv_head_eyes(s->cave.head, s->cave.gaze, s->cave.eye_separation, eyes[0], eyes[1]);
+  size_t n = 0;
+  for (int k = 0; k < we->n_eyes; k++) {
+    cv_render_view rv;
+    memset(&rv, 0, sizeof rv);
+    if (cv_offaxis_compute(W->pa, W->pb, W->pc, eyes[we->ev[k].eye], s->cave.near, s->cave.far, &rv.proj)) continue;
+    memcpy(rv.scene_offset, s->cave.scene_offset, sizeof rv.scene_offset);
+    rv.w = we->w, rv.h = we->h, rv.supersample = 1;
+    n += cv_renderer_view_triangles(we->r, &rv);
+  }
+  return n;
+}
+
 /* A new light key: the lighting computed, or taken from the host's leader
  * (lightshare.h); what was done goes to the master (CV_TAG_LIGHT). */
 static void relight_if_needed(walleye *we, const cv_frame_state *fs, cv_frame_timing *tm) {
@@ -657,7 +676,7 @@ int cv_walleye_run(cv_service *s) {
   cv_err_clear(&err);
   int st = walleye_setup(we, &err);
   /* collective over the render ranks, also after a failed set-up (no part) */
-  if (cv_lightshare_setup(&we->ls, s, st == CV_OK ? we->r : NULL, 512, 256))
+  if (cv_lightshare_setup(&we->ls, s, st == CV_OK ? we->r : NULL, st == CV_OK ? view_cost(we) : 0, 512, 256))
     fprintf(stderr, "cave run: rank %d: shared lighting: MPI shared memory failed, computing the lighting\n", s->rank);
   {
     char msg[900];

@@ -202,6 +202,16 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
   return CV_OK;
 }
 
+size_t cv_renderer_view_triangles(const cv_renderer *r, const cv_render_view *v) {
+  float mvp[16], inv[16], eye[3], facing;
+  if (!r || !v || cvr_view_matrices(v, mvp, inv, eye, &facing)) return 0;
+  size_t n = 0;
+  for (size_t c = 0; c < r->nchunks; c++)
+    if (!r->o.cull_frustum || !cvr_box_outside(mvp, r->chunk_box + 6 * c, r->chunk_box + 6 * c + 3))
+      n += (c + 1) * CHUNK > r->nt ? r->nt - c * CHUNK : CHUNK;
+  return n;
+}
+
 void cv_renderer_lighting_forget(cv_renderer *r) {
   if (!r) return;
   r->lit = 0;

@@ -258,6 +258,11 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
 int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_frame_timing *t,
                                 cv_err *err);
 
+/* Triangles a frame of view v draws (those of the chunks inside its
+ * frustum; CPU only): what its passes cost, relatively.  `cave run` makes
+ * the cheapest wall-eye of a host its lighting leader.  0 for a bad view. */
+size_t cv_renderer_view_triangles(const cv_renderer *r, const cv_render_view *v);
+
 /* Forgets the lighting, its shadow map and split: the next
  * cv_renderer_set_lighting computes everything (after an import that may
  * have read a buffer while it was rewritten). */

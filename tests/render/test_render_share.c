@@ -108,6 +108,10 @@ static void test_export_import_identical(void **state) {
   OK(cv_renderer_create(g_prt, NULL, &leader, &err));
   OK(cv_renderer_create(g_prt, NULL, &importer, &err));
   OK(cv_renderer_create(g_prt, NULL, &own, &err));
+  const cv_render_view v0 = view();
+  const size_t nv0 = cv_renderer_view_triangles(leader, &v0);
+  printf("the driver's view draws %zu of %zu triangles\n", nv0, (size_t)g_prt->nt);
+  assert_true(nv0 > 0 && nv0 <= g_prt->nt);
   const size_t cap = cv_renderer_lighting_bytes(leader);
   assert_true(cap > 0 && cap == cv_renderer_lighting_bytes(importer));
   assert_true(cv_renderer_lighting_scene(leader) == cv_renderer_lighting_scene(importer));
