@@ -142,6 +142,44 @@ static void trace_view(const cv_prt *prt, const cv_rt *rt, const float *rad0, co
   }
 }
 
+
+/* Option 2 of issue 16 target 2 (a light frustum fitted to what is seen):
+ * the extents across the sun's beam (the axes of cvr_sun_matrices) of all
+ * vertices and of the vertices of the triangles hit by the views' rays,
+ * all of them or only those of counted pixels (the shadow that matters). */
+typedef struct beam_ext {
+  double lo[3][2], hi[3][2]; /* [all, seen, counted][x, y] */
+} beam_ext;
+
+static void sun_axes(const double s[3], double ax[2][3]) {
+  double up[3] = {0, 1, 0};
+  if (fabs(s[1]) > 0.99) up[0] = 1, up[1] = 0;
+  double x[3] = {up[1] * s[2] - up[2] * s[1], up[2] * s[0] - up[0] * s[2], up[0] * s[1] - up[1] * s[0]};
+  const double xl = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+  for (int j = 0; j < 3; j++) ax[0][j] = x[j] / xl;
+  ax[1][0] = s[1] * ax[0][2] - s[2] * ax[0][1];
+  ax[1][1] = s[2] * ax[0][0] - s[0] * ax[0][2];
+  ax[1][2] = s[0] * ax[0][1] - s[1] * ax[0][0];
+}
+
+static void beam_add(beam_ext *b, int set, const double ax[2][3], const float *p) {
+  for (int a = 0; a < 2; a++) {
+    const double d = ax[a][0] * p[0] + ax[a][1] * p[1] + ax[a][2] * p[2];
+    b->lo[set][a] = fmin(b->lo[set][a], d), b->hi[set][a] = fmax(b->hi[set][a], d);
+  }
+}
+
+static void beam_view(const cv_prt *prt, const ref_view *rv, int S, const double ax[2][3], beam_ext *b) {
+  for (size_t i = 0; i < (size_t)S * S; i++) {
+    if (rv->tri[i] < 0) continue;
+    const uint32_t *t = prt->tri + 3 * (size_t)rv->tri[i];
+    for (int k = 0; k < 3; k++) {
+      beam_add(b, 1, ax, prt->pos + 3 * t[k]);
+      if (rv->counted[i]) beam_add(b, 2, ax, prt->pos + 3 * t[k]);
+    }
+  }
+}
+
 typedef struct err_acc {
   long counted, silhouette, differ, leak, dark, near1, near3, far;
 } err_acc;
@@ -322,7 +360,15 @@ int main(int argc, char **argv) {
     return 1;
   err_acc acc[NVAR][MAXSUN];
   memset(acc, 0, sizeof acc);
+  beam_ext bx[MAXSUN];
   for (int k = 0; k < nsun; k++) {
+    double sn = 0, sk[3], ax[2][3];
+    for (int j = 0; j < 3; j++) sn += L[k].sun_dir[j] * L[k].sun_dir[j];
+    for (int j = 0; j < 3; j++) sk[j] = L[k].sun_dir[j] / sqrt(sn);
+    sun_axes(sk, ax);
+    for (int e = 0; e < 3; e++)
+      for (int a = 0; a < 2; a++) bx[k].lo[e][a] = INFINITY, bx[k].hi[e][a] = -INFINITY;
+    for (size_t v = 0; v < prt->nv; v++) beam_add(&bx[k], 0, ax, prt->pos + 3 * v);
     if (cv_prt_relight(prt, &L[k], NULL, 0, rad0, NULL)) return 1;
     for (int v = 0; v < NVAR; v++)
       if (cv_renderer_set_lighting(R[v], &L[k], NULL, NULL, &err)) {
@@ -332,6 +378,7 @@ int main(int argc, char **argv) {
     for (int i = 0; i < nviews; i++) {
       const cv_wall *w = &cave.walls[i / 2];
       trace_view(prt, rt, rad0, alb, w, eyes[i % 2], cave.scene_offset, S, L[k].sun_dir, L[k].sun_E, &rv);
+      beam_view(prt, &rv, S, ax, &bx[k]);
       cv_render_view view;
       memset(&view, 0, sizeof view);
       cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &view.proj);
@@ -366,6 +413,18 @@ int main(int argc, char **argv) {
     printf("| %s | %ld | %ld | %.3f%% | %.3f%% / %.3f%% | %.3f%% | %.3f%% | %.3f%% | %.3f%% |\n",
            VARIANTS[v].name, t.counted, t.silhouette, 100 * t.differ / c, 100 * t.leak / c,
            100 * t.dark / c, 100 * t.near1 / c, 100 * t.near3 / c, 100 * t.far / c, 100 * worst);
+  }
+  printf("\nAcross the sun's beam (metres, x by y; the map's texel is the larger over its resolution):"
+         " all vertices / vertices of the triangles seen / of the counted pixels' triangles; the "
+         "resolution that keeps the 2048^2 map's texel when fitted to the counted ones:\n\n");
+  printf("| sun | all | seen | counted | same texel at |\n|---|---|---|---|---|\n");
+  for (int k = 0; k < nsun; k++) {
+    double ex[3][2];
+    for (int e = 0; e < 3; e++)
+      for (int a = 0; a < 2; a++) ex[e][a] = bx[k].hi[e][a] - bx[k].lo[e][a];
+    const double full = fmax(ex[0][0], ex[0][1]), fit = fmax(ex[2][0], ex[2][1]);
+    printf("| %d | %.2f x %.2f | %.2f x %.2f | %.2f x %.2f | %.0f^2 |\n", k, ex[0][0], ex[0][1], ex[1][0],
+           ex[1][1], ex[2][0], ex[2][1], ceil(2048 * fit / full));
   }
   free(rv.tri), free(rv.sun_y), free(rv.base_y), free(rv.vis), free(rv.counted);
   free(rad0), free(alb);
