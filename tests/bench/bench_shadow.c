@@ -22,7 +22,12 @@
  * rasterisers picked different surfaces and are left out (counted).  A
  * pixel differs when (V_gpu > 0.5) != V_ref; "where": the distance in
  * pixels to the nearest counted pixel of the other reference state (an
- * edge of the reference shadow): <= 1, <= 3, farther.
+ * edge of the reference shadow): <= 1, <= 3, farther.  Then, per sun, the
+ * extents across the sun's beam (the shadow map's x, y axes) of all
+ * vertices, of the triangles the rays hit and of those of counted pixels,
+ * and the map resolution that keeps the 2048^2 map's texel when the map is
+ * fitted to the counted ones (what a frustum fitted to the seen receivers
+ * could save; nothing in the renderer does this).
  *
  * --share: shared lighting instead (render_share.c, `cave run
  * --share-lighting`): three renderers with the wall-eyes' options, timed
