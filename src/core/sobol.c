@@ -97,7 +97,7 @@ void cv_sobol_tab_init(cv_sobol_tab *tab) {
         uint32_t x = 0;
         for (int j = 0; j < 8; j++)
           if (vi & (1u << j)) x ^= dirnum[d][8 * (3 - b) + j];
-        tab->t[d][b][v] = reverse_bits(x); /* stored reversed: owen() starts there */
+        tab->t[b][v][d] = reverse_bits(x); /* stored reversed: owen() starts there */
       }
 }
 
@@ -117,7 +117,7 @@ void cv_sobol_owen_tab(const cv_sobol_tab *tab, uint32_t index, uint32_t seed,
    * their scrambles in a separate loop of independent lanes (the compiler
    * vectorises it: the reversal by shifts and masks, no byte swap) */
   for (int d = 0; d < n; d++)
-    xr[d] = tab->t[d][0][y0] ^ tab->t[d][1][y1] ^ tab->t[d][2][y2] ^ tab->t[d][3][y3];
+    xr[d] = tab->t[0][y0][d] ^ tab->t[1][y1][d] ^ tab->t[2][y2][d] ^ tab->t[3][y3][d];
   for (int d = 0; d < n; d++) z[d] = reverse_bits_sm(lk_permutation(xr[d], dim_seeds[d]));
   for (int d = 0; d < n; d++) u[d] = to_unit(z[d]);
 }
