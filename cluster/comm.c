@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 typedef struct pending_send {
   MPI_Request req;
@@ -92,14 +93,41 @@ static void take_notices(void) {
   }
 }
 
+/* 1 when every member of the host group reaches this point within limit_s.
+ * Freeing the shared window is collective: a member that missed a death
+ * notice (a loaded host: it may come after the quit state) would wait there
+ * for ever on the others that skipped it, or on the dead one.  A member
+ * that does not come in time is taken as gone; the request is left. */
+static int host_group_present(double limit_s) {
+  MPI_Request req;
+  if (MPI_Ibarrier(g_host, &req) != MPI_SUCCESS) return 0;
+  const double t0 = MPI_Wtime();
+  int done = 0;
+  while (!done && MPI_Wtime() - t0 < limit_s) {
+    if (MPI_Test(&req, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS) return 0;
+    if (!done) {
+      struct timespec ts = {0, 1000000};
+      nanosleep(&ts, NULL);
+    }
+  }
+  return done;
+}
+
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   take_notices();
   /* the shared-lighting window: freeing it is collective over its host
    * group, so not with a dead rank (left to the process's exit) */
-  if (cv_comm_dead_count() == 0 && !g_self_dead) {
-    if (g_host_win != MPI_WIN_NULL) MPI_Win_free(&g_host_win);
-    if (g_host != MPI_COMM_NULL) MPI_Comm_free(&g_host);
+  int host_gone = 0;
+  if (g_host != MPI_COMM_NULL && cv_comm_dead_count() == 0 && !g_self_dead) {
+    if (host_group_present(30.0)) {
+      if (g_host_win != MPI_WIN_NULL) MPI_Win_free(&g_host_win);
+      MPI_Comm_free(&g_host);
+    } else {
+      host_gone = 1;
+      fprintf(stderr, "rank %d: a member of the shared-lighting host group did not reach the end "
+              "within 30 s: taken as dead, the window left to the process's exit\n", g_rank);
+    }
   }
   if (g_render != MPI_COMM_NULL && !g_barrier_abandoned) MPI_Comm_free(&g_render);
   free(g_in_render);
@@ -113,7 +141,7 @@ void cv_comm_finalize(void) {
   free(g_sends);
   g_sends = NULL;
   g_nsends = g_capsends = 0;
-  const int dead = cv_comm_dead_count() > 0;
+  const int dead = cv_comm_dead_count() > 0 || host_gone;
   free(g_dead);
   g_dead = NULL;
   /* With a dead rank MPI_Finalize (a collective of the runtime) may never

@@ -26,9 +26,11 @@
  *
  * The child ends with _exit, not exit: atexit handlers of the parent
  * (libFuzzer's "fuzz target exited" among them) must not run in it.  Under
- * AddressSanitizer LeakSanitizer checks the child before it ends (not in
- * the libFuzzer build, -DCAVE_FUZZ=ON, where that check costs 75 ms a
- * child and sees false leaks). */
+ * AddressSanitizer LeakSanitizer checks the child before it ends when the
+ * parent had one thread at the fork (not in the libFuzzer build,
+ * -DCAVE_FUZZ=ON, where that check costs 75 ms a child and sees false
+ * leaks; not after OpenMP or Embree started threads, whose locks the check
+ * could wait for in the child). */
 #ifndef CV_IO_CHILD_GUARD_H
 #define CV_IO_CHILD_GUARD_H
 
