@@ -83,10 +83,7 @@ static void default_crash_signals(void) {
 #endif
 }
 
-#if defined(CV_ASAN) && !defined(CAVE_FUZZ)
-/* 1 when the process has one thread (/proc/self/status), 0 otherwise or
- * when it cannot tell. */
-static int single_threaded(void) {
+int cv_child_single_threaded(void) {
   FILE *f = fopen("/proc/self/status", "r");
   if (!f) return 0;
   char line[256];
@@ -96,7 +93,6 @@ static int single_threaded(void) {
   fclose(f);
   return n == 1;
 }
-#endif
 
 /* In the child: output redirected, limits set, fn run; never returns.
  * leak_check: run LeakSanitizer before the end (ASan builds). */
@@ -226,7 +222,7 @@ int cv_child_run(cv_child_fn fn, void *ctx, const cv_child_limits *lim, cv_child
   }
   fflush(NULL); /* nothing buffered is written twice */
 #if defined(CV_ASAN) && !defined(CAVE_FUZZ)
-  const int leak_check = single_threaded();
+  const int leak_check = cv_child_single_threaded();
 #else
   const int leak_check = 0;
 #endif

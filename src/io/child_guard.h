@@ -38,6 +38,12 @@
 
 #include "core/status.h"
 
+/* 1 when this process has a single thread (/proc/self/status; 0 when it
+ * cannot tell).  Only then is a forked child safe to run library code: a
+ * lock another thread held at the fork (malloc's, Mesa's, TBB's, Open
+ * MPI's) stays held in the child for ever. */
+int cv_child_single_threaded(void);
+
 typedef struct cv_child_limits {
   double seconds;   /* wall-clock seconds (0 = none) */
   double memory_mb; /* MB of address space the child may add to the process's (0 = none) */

@@ -91,6 +91,14 @@ int cv_exr_imf_decode(const char *path, const cv_exr_window *win, double raw_byt
     g = &def;
   }
   if (g->in_process) return decode_here(path, win, px, err);
+  if (!cv_child_single_threaded()) {
+    /* a fork of a threaded process (the service's LCD worker, OpenMP or
+     * Embree threads) may deadlock in the child on a lock held at the fork:
+     * decoded here, after the header walk's checks (docs/fuzzing.md) */
+    if (g->verbose)
+      fprintf(stderr, "%s: EXR decode in this process (it has threads: no guarded child)\n", path);
+    return decode_here(path, win, px, err);
+  }
   cv_child_limits lim = {g->seconds, g->memory_mb};
   if (lim.memory_mb < 0) lim.memory_mb = CV_EXR_BASE_MEMORY_MB + 2.0 * raw_bytes / 1048576.0;
   const cv_child_labels lab = {path, "EXR decode", "OpenEXR", "CAVE_EXR_TIMEOUT", "CAVE_EXR_MEMORY_MB"};
