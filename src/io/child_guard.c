@@ -83,6 +83,14 @@ static void default_crash_signals(void) {
 #endif
 }
 
+double cv_child_env_limit(const char *name, double fallback) {
+  const char *s = getenv(name);
+  if (!s || !*s) return fallback;
+  char *end;
+  double v = strtod(s, &end);
+  return (*end == '\0' && v >= 0) ? v : fallback;
+}
+
 int cv_child_single_threaded(void) {
   FILE *f = fopen("/proc/self/status", "r");
   if (!f) return 0;

@@ -44,6 +44,10 @@
  * MPI's) stays held in the child for ever. */
 int cv_child_single_threaded(void);
 
+/* A limit from the environment variable name: a non-negative number, else
+ * (unset, empty, unparsable or negative) fallback. */
+double cv_child_env_limit(const char *name, double fallback);
+
 typedef struct cv_child_limits {
   double seconds;   /* wall-clock seconds (0 = none) */
   double memory_mb; /* MB of address space the child may add to the process's (0 = none) */

@@ -12,18 +12,10 @@
 
 _Static_assert(sizeof(ImfRgba) == 4 * sizeof(uint16_t), "ImfRgba is 4 halves");
 
-static double env_limit(const char *name, double fallback) {
-  const char *s = getenv(name);
-  if (!s || !*s) return fallback;
-  char *end;
-  double v = strtod(s, &end);
-  return (*end == '\0' && v >= 0) ? v : fallback;
-}
-
 void cv_exr_guard_default(cv_exr_guard *g) {
   memset(g, 0, sizeof *g);
-  g->seconds = env_limit("CAVE_EXR_TIMEOUT", CV_EXR_DEFAULT_SECONDS);
-  g->memory_mb = env_limit("CAVE_EXR_MEMORY_MB", -1.0);
+  g->seconds = cv_child_env_limit("CAVE_EXR_TIMEOUT", CV_EXR_DEFAULT_SECONDS);
+  g->memory_mb = cv_child_env_limit("CAVE_EXR_MEMORY_MB", -1.0);
   const char *v = getenv("CAVE_EXR_VERBOSE");
   g->verbose = v && v[0] == '1';
 }

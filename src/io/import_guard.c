@@ -22,21 +22,13 @@ typedef struct reply {
   uint32_t has_uv, has_tex; /* corner UVs (6*nt floats) and texture paths (nm x CV_TEX_PATH_MAX) follow */
 } reply;
 
-static double env_number(const char *name, double fallback) {
-  const char *s = getenv(name);
-  if (!s || !*s) return fallback;
-  char *end;
-  double v = strtod(s, &end);
-  return (*end == '\0' && v >= 0) ? v : fallback;
-}
-
 void cv_import_limits_default(cv_import_opts *o) {
   long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
   double ram_mb = (pages > 0 && page > 0) ? (double)pages * (double)page / 1048576.0 : 0;
-  o->limit_seconds = env_number("CAVE_IMPORT_TIMEOUT", CV_IMPORT_DEFAULT_SECONDS);
+  o->limit_seconds = cv_child_env_limit("CAVE_IMPORT_TIMEOUT", CV_IMPORT_DEFAULT_SECONDS);
   double mb = ram_mb * 0.75;
   if (mb <= 0 || mb > CV_IMPORT_DEFAULT_MEMORY_MB) mb = CV_IMPORT_DEFAULT_MEMORY_MB;
-  o->limit_memory_mb = env_number("CAVE_IMPORT_MEMORY_MB", mb);
+  o->limit_memory_mb = cv_child_env_limit("CAVE_IMPORT_MEMORY_MB", mb);
 }
 
 typedef struct import_job {
