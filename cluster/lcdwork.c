@@ -18,6 +18,7 @@
 #include <time.h>
 
 #include "lcd/brdf.h"
+#include "light/envmap_cache.h"
 #include "lcd/gather.h"
 #include "lcd/panels.h"
 #include "lcdwork.h"
@@ -42,6 +43,7 @@ struct cv_lcd_worker {
   cv_lcd_veil_params vp;
   cv_lcd_figure veil[CV_LCD_MAX_PANELS]; /* of the current key (traced once per key) */
   int have_veil;
+  cv_envmap_cache *maps; /* the drive's env maps, decoded once (the worker thread's) */
   /* state shared with the owner (mutex) */
   pthread_mutex_t mu;
   pthread_cond_t cv;
@@ -95,7 +97,7 @@ static int snapshot_lighting(cv_lcd_worker *w, const cv_frame_state *fs, cv_lcd_
   cv_light_spec spec;
   cv_drive_to_light_spec(w->s->drive, &fs->drive, &spec);
   cv_lcd_light *nl = NULL;
-  int st = cv_scene_light_build(&spec, (int)w->prt->bands, &sl, err);
+  int st = cv_scene_light_build_cached(&spec, (int)w->prt->bands, w->maps, &sl, err);
   if (st == CV_OK)
     st = cv_lcd_light_from_scene(sl, &spec, w->prt, w->tr, w->s->lcd.sun_samples,
                                  w->s->lcd.env_width, &nl, err);
@@ -294,7 +296,7 @@ int cv_lcd_worker_create(const cv_service *s, const cv_prt *prt, int index, int 
   pthread_mutex_init(&w->mu, NULL);
   pthread_cond_init(&w->cv, NULL);
   w->taken = calloc((size_t)(s->o.lcd_budget > 0 ? s->o.lcd_budget : 1), 1);
-  int st = w->taken ? worker_init(w, err) : cv_err_set(err, CV_ERR_NOMEM, "LCD worker: out of memory");
+  int st = w->taken && cv_envmap_cache_create(&w->maps) == CV_OK ? worker_init(w, err) : cv_err_set(err, CV_ERR_NOMEM, "LCD worker: out of memory");
   if (st) {
     cv_lcd_worker_destroy(w);
     return st;
@@ -380,6 +382,7 @@ void cv_lcd_worker_destroy(cv_lcd_worker *w) {
   cv_lcd_panels_destroy(w->ps);
   cv_tracer_destroy(w->tr);
   cv_mesh_destroy(w->mesh);
+  cv_envmap_cache_destroy(w->maps);
   pthread_mutex_destroy(&w->mu);
   pthread_cond_destroy(&w->cv);
   free(w->taken);

@@ -7,7 +7,7 @@ set -euo pipefail
 CAVE_PACKAGES=(
   build-essential cmake pkg-config git
   libembree-dev libopenexr-dev zlib1g-dev libcglm-dev libcjson-dev libassimp-dev
-  libpng-dev libjpeg62-turbo-dev libcmocka-dev libopenmpi-dev openmpi-bin
+  libpng-dev libjpeg62-turbo-dev libmeshoptimizer-dev libcmocka-dev libopenmpi-dev openmpi-bin
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libx11-dev
   xvfb xauth xdotool x11-utils python3
   gnuplot-nox linux-perf

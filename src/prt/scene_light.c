@@ -7,6 +7,7 @@
 
 #include "light/calibrate.h"
 #include "light/envmap.h"
+#include "light/envmap_cache.h"
 #include "light/sky.h"
 #include "light/sun.h"
 #include "sh/latlong.h"
@@ -88,6 +89,11 @@ static void to_car(const double R[9], const double w[3], double c[3]) {
 }
 
 int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **out, cv_err *err) {
+  return cv_scene_light_build_cached(spec, bands, NULL, out, err);
+}
+
+int cv_scene_light_build_cached(const cv_light_spec *spec, int bands, cv_envmap_cache *cache,
+                                cv_scene_light **out, cv_err *err) {
   *out = NULL;
   if (bands < 2 || bands > 8) return cv_err_set(err, CV_ERR_RANGE, "lighting: bands %d, expected 2..8", bands);
   cv_scene_light *sl = calloc(1, sizeof *sl);
@@ -103,7 +109,7 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
     goto done;
   }
   if (spec->kind == CV_LIGHT_ENV) {
-    for (int i = 0; i < spec->n_env && !st; i++) st = cv_envmap_load(spec->env[i], &maps[i], err);
+    for (int i = 0; i < spec->n_env && !st; i++) st = cv_envmap_cache_load(cache, spec->env[i], &maps[i], err);
     if (st || (st = calibrate_maps(spec, maps, &sl->factor, err))) goto done;
     if (spec->illuminance == 0 && spec->n_env == 1)
       sl->map_lux = cv_envmap_horizontal_illuminance(maps[0]);

@@ -18,6 +18,11 @@ typedef struct cv_scene_light cv_scene_light;
 /* Builds the lighting with `bands` SH bands (2..8).  *out owned by the caller.
  * Errors name the map file or the field. */
 int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **out, cv_err *err);
+/* The same, with the env maps decoded once per path in `maps` (may be NULL:
+ * then as cv_scene_light_build): the same lighting, bit for bit. */
+struct cv_envmap_cache;
+int cv_scene_light_build_cached(const cv_light_spec *spec, int bands, struct cv_envmap_cache *maps,
+                                cv_scene_light **out, cv_err *err);
 void cv_scene_light_destroy(cv_scene_light *sl);
 /* SH lighting (sun excluded) and the sun, in the car frame. */
 cv_lighting cv_scene_light_sh(const cv_scene_light *sl);

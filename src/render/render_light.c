@@ -111,7 +111,11 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   cvr_set_cull(r, 0);
   glUseProgram(r->prog_depth);
   cvr_uni_mat(r->prog_depth, "u_mvp", clip);
-  cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
+  if (r->o.shadow_casters > 0) {
+    if ((st = cvr_draw_casters(r, s, err))) return st;
+  } else {
+    cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
+  }
   for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
   r->shadow_texel = texel;
   r->shadow_valid = 1;
@@ -249,6 +253,12 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
     }
     ul[4 * i + 3] = uls[4 * i + 3] = 0;
   }
+  uint64_t clamped = 0;
+  const float *m = NULL;
+  if (r->relight_on_cpu) {
+    clamped = cvr_relight_cpu(r, ul, uls);
+    m = r->rad_cpu;
+  } else {
   GLuint p = r->prog_relight;
   glUseProgram(p);
   glUniform4fv(glGetUniformLocation(p, "u_l"), r->nc, ul);
@@ -269,8 +279,6 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   /* Clamp count: sum of the captured w (exact in double), only when asked
    * for (mapping the buffer waits for the relight and reads 16 bytes a
    * vertex back). */
-  uint64_t clamped = 0;
-  const float *m = NULL;
   if (stats) {
     glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
     m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), GL_MAP_READ_BIT);
@@ -279,6 +287,7 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
       glUnmapBuffer(GL_ARRAY_BUFFER);
     }
     glBindBuffer(GL_ARRAY_BUFFER, 0);
+  }
   }
   int st = cvr_gl_check("relighting", err);
   if (st) return st;

@@ -66,6 +66,8 @@ uint64_t cv_renderer_lighting_scene(cv_renderer *r) {
     h = cv_hash64_u64(h, r->nt);
     h = cv_hash64_u64(h, r->nchunks);
     h = cv_hash64_u64(h, (uint64_t)r->o.shadow_res);
+    h = cv_hash64_update(h, &r->o.shadow_casters, sizeof r->o.shadow_casters);
+    h = cv_hash64_u64(h, (uint64_t)r->relight_on_cpu); /* the two relights differ in the last bits */
     h = cv_hash64_update(h, r->pos_cpu, 3 * r->nv_used * sizeof *r->pos_cpu);
     h = cv_hash64_update(h, r->idx_cpu, 3 * r->nt * sizeof *r->idx_cpu);
     r->share_scene = h | 1; /* never 0: "not computed" */

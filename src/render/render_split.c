@@ -55,7 +55,11 @@ int cv_renderer_set_split(cv_renderer *r, const cv_dir_light *lights, int n,
     free(rgba);
     return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   }
-  if (!r->tex_wl) {
+  if (r->relight_on_cpu) { /* render_relight.c reads it */
+    free(r->wl_cpu);
+    r->wl_cpu = rgba;
+    rgba = NULL;
+  } else if (!r->tex_wl) {
     r->tex_wl = cvr_make_tbo(&r->buf_wl, GL_RGBA32F, rgba, 4 * r->nv * sizeof *rgba);
   } else {
     glBindBuffer(GL_TEXTURE_BUFFER, r->buf_wl);

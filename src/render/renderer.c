@@ -26,6 +26,8 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->shadow_cull = -1;
   o->shadow_reuse = 0.5;
   o->split_margin = 0.05;
+  o->shadow_casters = 0.001;
+  o->relight_cpu = -1;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
@@ -489,8 +491,21 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   free(usc);
   if (th)
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
-  r->tex_transfer = th ? cvr_make_tbo(&r->buf_transfer, GL_RGBA16F, th, 4 * texels * sizeof *th)
-                       : cvr_make_tbo(&r->buf_transfer, GL_RGBA32F, tf, 4 * texels * sizeof *tf);
+  r->relight_on_cpu = r->o.relight_cpu < 0 ? r->egl.software : r->o.relight_cpu != 0;
+  if (r->relight_on_cpu) { /* the CPU reads what the texture buffer would hold */
+    if (th)
+      for (size_t i = 0; i < 4 * texels; i++) tf[i] = cv_half_to_float(th[i]);
+    r->rad_cpu = malloc(4 * p->nv * sizeof *r->rad_cpu + 4);
+    if (!r->rad_cpu) {
+      free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb);
+      return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
+    }
+    r->tf_cpu = tf;
+    tf = NULL; /* kept */
+  } else {
+    r->tex_transfer = th ? cvr_make_tbo(&r->buf_transfer, GL_RGBA16F, th, 4 * texels * sizeof *th)
+                         : cvr_make_tbo(&r->buf_transfer, GL_RGBA32F, tf, 4 * texels * sizeof *tf);
+  }
   glGenVertexArrays(1, &r->vao_empty);
   glGenVertexArrays(1, &r->vao_geom);
   glBindVertexArray(r->vao_geom);
@@ -636,6 +651,7 @@ void cv_renderer_destroy(cv_renderer *r) {
     glDeleteBuffers(1, &r->buf_tone);
     glDeleteTextures(1, &r->tex_tone);
     cvr_split_free(r);
+    cvr_casters_free(r);
   }
   cv_egl_close(&r->egl);
   cv_window_destroy(r->win);
@@ -653,6 +669,13 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->run);
   free(r->rgba8);
   free(r->tex_uvl);
+  free(r->cast_pos);
+  free(r->cast_n);
+  free(r->cast_idx);
+  free(r->cast_draw);
+  free(r->tf_cpu);
+  free(r->wl_cpu);
+  free(r->rad_cpu);
   free(r);
 }
 

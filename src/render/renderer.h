@@ -104,6 +104,16 @@ typedef struct cv_render_opts {
   double split_margin; /* |s - s0| up to which the sun split of direction s0 is reused: the
                         triangles within this of grazing are drawn with the sun's code and
                         into a culled shadow map, so reuse stays exact (default 0.05) */
+  double shadow_casters; /* metres: the shadow map draws a simplified copy of the opaque
+                        triangles (render_casters.c: meshoptimizer's edge collapses on the
+                        welded positions, window borders kept) whose surface stays within
+                        this of the mesh's, instead of the mesh (default 0.001, under the
+                        2048^2 map's ~1.5 mm texel on the cabin; 0: the mesh itself) */
+  int relight_cpu;    /* 1: relight on the CPU (render_relight.c: the same float sums as
+                        relight.vert, OpenMP threads, then one buffer upload) instead of by
+                        transform feedback; 0: transform feedback; -1 (default): the CPU
+                        when the GL is software (llvmpipe runs vertex shaders on one thread
+                        and fetches texel by texel: 2.5-4x the CPU loop), feedback on a GPU */
 } cv_render_opts;
 
 /* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
@@ -201,6 +211,22 @@ void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
  * out) are closed and consistently wound: each directed edge once, its
  * reverse once (checked at create; opts.shadow_cull -1 follows it). */
 int cv_renderer_mesh_closed(const cv_renderer *r);
+
+/* The sun's shadow casters (opts.shadow_casters), built with the first
+ * shadow map: built 0 before that (or with shadow_casters 0). */
+typedef struct cv_shadow_casters {
+  double tolerance_m;    /* opts.shadow_casters */
+  size_t mesh_triangles; /* opaque triangles of the mesh */
+  int built;             /* 1 once built */
+  size_t triangles;      /* caster triangles */
+  double error_m;        /* the simplifier's largest error (m), <= tolerance_m */
+  int culled;            /* 1: the map holds only the casters facing away from the sun
+                            (shadow_cull, and closure defects within 2% of the triangles) */
+  size_t defects;        /* directed edges used twice + border edges not the mesh's */
+  size_t drawn;          /* triangles drawn into the last map */
+  double build_ms;       /* wall ms of the build */
+} cv_shadow_casters;
+int cv_renderer_shadow_casters(const cv_renderer *r, cv_shadow_casters *out);
 
 /* "renderer | version" of the GL context, e.g. "llvmpipe (LLVM 15...) | 4.5 (Core Profile) Mesa". */
 const char *cv_renderer_gl_name(const cv_renderer *r);

@@ -7,6 +7,8 @@
  *   render_present.c  window presentation and swap
  *   render_texture.c  albedo textures: vertex split at UV seams, texture array
  *   render_share.c    shared lighting: the set_lighting products exported / imported
+ *   render_casters.c  the sun's shadow casters: a simplified copy of the opaque mesh
+ *   render_relight.c  the relight on the CPU (software GL)
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -151,6 +153,22 @@ struct cv_renderer {
   size_t tex_split;
   char tex_msg[320];
   float *tex_uvl;
+  /* the sun's shadow casters (render_casters.c, opts.shadow_casters): built
+   * on the first map; positions, triangles, their unit normals, the culled
+   * list of the last map (cast_drawn triangles), whether culling applies,
+   * the simplifier's error (m) and the build's wall ms */
+  GLuint vao_cast, buf_cast_pos, buf_cast_idx;
+  float *cast_pos, *cast_n;
+  uint32_t *cast_idx, *cast_draw;
+  size_t cast_nt, cast_drawn, cast_defects;
+  int cast_built, cast_culled;
+  double cast_err, cast_ms;
+  /* the CPU relight (render_relight.c, opts.relight_cpu): 1 when used; the
+   * transfer as the GL's texture buffer would hold it (nc + 1 RGBA texels a
+   * vertex, not uploaded then), the split lights' direct light (RGBA a
+   * vertex, NULL without), the relit radiance before its upload */
+  int relight_on_cpu;
+  float *tf_cpu, *wl_cpu, *rad_cpu;
 };
 
 enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
@@ -181,6 +199,9 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
 int cvr_shadow_culled(const cv_renderer *r);
 int cvr_shadow_target(cv_renderer *r, int n, cv_err *err);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
+int cvr_draw_casters(cv_renderer *r, const double s[3], cv_err *err);
+uint64_t cvr_relight_cpu(cv_renderer *r, const float *ul, const float *uls);
+void cvr_casters_free(cv_renderer *r);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);
 void cvr_split_free(cv_renderer *r);

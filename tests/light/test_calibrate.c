@@ -15,6 +15,7 @@
 
 #include "io/exr.h"
 #include "light/calibrate.h"
+#include "light/envmap_cache.h"
 #include "prt/lightmix.h"
 #include "prt/scene_light.h"
 
@@ -93,6 +94,57 @@ static void test_scene_light_calibrated(void **state) {
   assert_non_null(strstr(err.msg, "give one"));
 }
 
+/* The LCD worker's map cache (light/envmap_cache.h): a blend of two maps
+ * built through the cache twice equals the uncached build bit for bit
+ * (SH, background), each file decoded once; a missing file is an error
+ * every time (not cached); NULL cache = uncached. */
+static void test_scene_light_cached(void **state) {
+  (void)state;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_ENV;
+  spec.n_env = 2;
+  spec.weight[0] = 0.3, spec.weight[1] = 0.7;
+  snprintf(spec.env[0], sizeof spec.env[0], "%s/forest.exr", CAVE_BLENDER_WORLD_DIR);
+  snprintf(spec.env[1], sizeof spec.env[1], "%s/city.exr", CAVE_BLENDER_WORLD_DIR);
+  cv_err err;
+  cv_scene_light *ref, *sl;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &ref, &err), CV_OK);
+  const cv_lighting lr = cv_scene_light_sh(ref);
+  cv_envmap_cache *c;
+  assert_int_equal(cv_envmap_cache_create(&c), CV_OK);
+  for (int k = 0; k < 3; k++) {
+    spec.yaw_deg = k == 2 ? 40 : 0; /* a turned car: same maps, other SH */
+    assert_int_equal(cv_scene_light_build_cached(&spec, 5, c, &sl, &err), CV_OK);
+    if (k < 2) {
+      const cv_lighting l = cv_scene_light_sh(sl);
+      assert_memory_equal(l.sh, lr.sh, sizeof l.sh);
+      assert_memory_equal(l.sun_E, lr.sun_E, sizeof l.sun_E);
+      const float d[3] = {0.3f, 0.5f, -0.8f};
+      float a[3], b[3];
+      cv_scene_light_background(sl, d, a);
+      cv_scene_light_background(ref, d, b);
+      assert_memory_equal(a, b, sizeof a);
+    }
+    cv_scene_light_destroy(sl);
+  }
+  uint64_t dec, hits;
+  cv_envmap_cache_counts(c, &dec, &hits);
+  printf("3 builds of a 2-map blend: %llu decodes, %llu from the cache\n", (unsigned long long)dec,
+         (unsigned long long)hits);
+  assert_true(dec == 2 && hits == 4);
+  snprintf(spec.env[1], sizeof spec.env[1], "/nonexistent/map.exr");
+  for (int k = 0; k < 2; k++) {
+    assert_int_not_equal(cv_scene_light_build_cached(&spec, 5, c, &sl, &err), CV_OK);
+    assert_non_null(strstr(err.msg, "/nonexistent/map.exr"));
+  }
+  cv_envmap_cache_counts(c, &dec, &hits);
+  assert_true(dec == 2 && hits == 6); /* forest twice more; the missing file never counted */
+  cv_envmap_cache_destroy(c);
+  cv_envmap_cache_destroy(NULL);
+  cv_scene_light_destroy(ref);
+}
+
 /* The service's map drives (prt/lightmix): each map calibrated alike, so
  * a blend keeps the level. */
 static void test_lightmix_calibrated(void **state) {
@@ -137,6 +189,7 @@ int main(void) {
       cmocka_unit_test(test_blender_defaults),
       cmocka_unit_test(test_scene_light_calibrated),
       cmocka_unit_test(test_lightmix_calibrated),
+      cmocka_unit_test(test_scene_light_cached),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,6 +18,8 @@
  *  - the luminance pass equals Rec.709 Y of the HDR output at the same size,
  *    and the log-average of a 4x downsampled full-size frame.
  *  - 2x supersampling equals a 2x render box-filtered on the CPU.
+ *  - the CPU relight against transform feedback, the simplified shadow
+ *    casters against the mesh in the map.
  *  - argument errors. */
 #include <math.h>
 #include <setjmp.h>
@@ -482,6 +484,107 @@ static void test_gl_sun_cull_reuse(void **state) {
   assert_int_equal(t.shadow_reused, 1);
   cv_renderer_destroy(rc);
   for (int k = 0; k < 2; k++) cv_image_destroy(a[k]), cv_image_destroy(b[k]);
+  cv_image_destroy(bg);
+  cv_scene_light_destroy(sl);
+}
+
+/* Max over a view's channels of |a - b| / (|b| + floor), and the number of
+ * pixels beyond tol. */
+static double max_rel(const cv_image *a, const cv_image *b, double tol, double floor, size_t *beyond) {
+  double worst = 0;
+  size_t n = (size_t)a->w * a->h;
+  *beyond = 0;
+  for (size_t i = 0; i < n; i++) {
+    double d = 0;
+    for (int c = 0; c < 3; c++)
+      d = fmax(d, fabs(a->px[3 * i + c] - b->px[3 * i + c]) / (fabs(b->px[3 * i + c]) + floor));
+    worst = fmax(worst, d);
+    *beyond += d > tol;
+  }
+  return worst;
+}
+
+/* The lighting change's two cheap paths (opts.relight_cpu, opts.shadow_casters)
+ * against the reference paths (transform feedback, the mesh in the map):
+ *  - the CPU relight equals the feedback relight within 1e-4 relative per
+ *    channel (the same float sums in another order: a sky's SH sums cancel,
+ *    so float rounding of terms ~10x the result shows at 1e-5) with the
+ *    same clamp count, also under a lighting that rings below zero;
+ *  - the casters: fewer triangles, within their tolerance, culled on the
+ *    closed cabin; the image differs from the mesh's map only at shadow
+ *    edges (at most 0.5% of the pixels beyond 1e-3);
+ *  - shadow_casters 0 builds none. */
+static void test_cpu_relight_and_casters(void **state) {
+  (void)state;
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl;
+  cv_err err;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_lighting lsun = cv_scene_light_sh(sl), lring;
+  test_lighting(&lring);
+  lring.sh[3 * 12] = lring.sh[3 * 12 + 1] = lring.sh[3 * 12 + 2] = -2.5; /* rings below 0 */
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1;
+  cv_renderer *ref, *cpu, *dflt; /* feedback + mesh map; CPU + mesh map; the defaults */
+  o.relight_cpu = 0, o.shadow_casters = 0;
+  OK(cv_renderer_create(F.prt, &o, &ref, &err));
+  o.relight_cpu = 1;
+  OK(cv_renderer_create(F.prt, &o, &cpu, &err));
+  cv_render_default_opts(&o);
+  o.display_float = 1;
+  OK(cv_renderer_create(F.prt, &o, &dflt, &err));
+  printf("GL: %s (software %d): default relight on the CPU: %s\n", cv_renderer_gl_name(dflt),
+         cv_renderer_is_software(dflt), o.relight_cpu < 0 ? "when software" : "set");
+  cv_image *bg = const_bg();
+  cv_renderer *R[3] = {ref, cpu, dflt};
+  for (int i = 0; i < 3; i++) OK(cv_renderer_set_background(R[i], bg, &err));
+  for (int li = 0; li < 2; li++) {
+    const cv_lighting *l = li ? &lring : &lsun;
+    cv_render_light_stats st[3];
+    for (int i = 0; i < 3; i++) OK(cv_renderer_set_lighting(R[i], l, &st[i], NULL, &err));
+    printf("%s: clamped channels feedback %llu, CPU %llu, default %llu\n", li ? "ringing SH" : "sky",
+           (unsigned long long)st[0].clamped, (unsigned long long)st[1].clamped,
+           (unsigned long long)st[2].clamped);
+    assert_true(st[0].clamped == st[1].clamped && st[1].clamped == st[2].clamped);
+    if (li) assert_true(st[0].clamped > 0); /* the case is one */
+    for (int k = 0; k < 2; k++) {
+      pose p = make_pose(k);
+      cv_render_view v = make_view(&p, 1);
+      cv_image *img[3];
+      for (int i = 0; i < 3; i++) {
+        assert_int_equal(cv_image_create(p.w, p.h, 3, &img[i]), CV_OK);
+        OK(cv_renderer_shade(R[i], &v, NULL, 0, NULL, img[i], NULL, &err));
+      }
+      size_t b1, b2, np = (size_t)p.w * p.h;
+      /* ringing: pixels near 0 by cancellation of terms ~1: an absolute floor of 1e-2 */
+      const double w1 = max_rel(img[1], img[0], 1e-4, li ? 1e-2 : 1e-3, &b1),
+                   w2 = max_rel(img[2], img[0], 1e-3, 1e-3, &b2);
+      printf("  pose %d: CPU relight vs feedback max %.2e; casters vs mesh map: %zu of %zu pixels "
+             "beyond 1e-3\n", k, w1, b2, np);
+      assert_true(w1 < 1e-4);
+      assert_true(b2 <= np / 200);
+      (void)w2;
+      for (int i = 0; i < 3; i++) cv_image_destroy(img[i]);
+    }
+  }
+  cv_shadow_casters sc;
+  assert_int_equal(cv_renderer_shadow_casters(dflt, &sc), CV_OK);
+  printf("casters within %.1f mm: %zu of %zu triangles, error %.3f mm, defects %zu, culled %d, "
+         "%zu in the last map, built in %.0f ms\n", 1e3 * sc.tolerance_m, sc.triangles,
+         sc.mesh_triangles, 1e3 * sc.error_m, sc.defects, sc.culled, sc.drawn, sc.build_ms);
+  assert_int_equal(sc.built, 1);
+  assert_true(sc.triangles > 0 && sc.triangles < sc.mesh_triangles / 2);
+  assert_true(sc.error_m <= sc.tolerance_m * (1 + 1e-6));
+  assert_int_equal(sc.culled, 1);
+  assert_true(sc.drawn < sc.triangles);
+  assert_int_equal(cv_renderer_shadow_casters(ref, &sc), CV_OK);
+  assert_int_equal(sc.built, 0);
+  assert_int_equal(cv_renderer_shadow_casters(NULL, &sc), CV_ERR_INVALID);
+  for (int i = 0; i < 3; i++) cv_renderer_destroy(R[i]);
   cv_image_destroy(bg);
   cv_scene_light_destroy(sl);
 }
@@ -1049,7 +1152,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),

@@ -1,0 +1,262 @@
+/* The sun's shadow casters (opts.shadow_casters): a simplified copy of the
+ * opaque triangles that the shadow map draws instead of the mesh itself.
+ *
+ * On llvmpipe the map costs about 17 ms of vertex and triangle set-up for
+ * the 285K culled triangles of the 571K cabin whatever its size
+ * (docs/benchmarks.md), so a lighting change cannot reach 30 ms with the
+ * mesh itself.  The shadow needs only the surface, not the PRT vertices:
+ * meshoptimizer's edge-collapse simplifier (meshopt_simplify, quadric error
+ * metric, Garland and Heckbert 1997) on the positions welded exactly, with
+ * every border edge locked (the window openings: where the sun comes in
+ * stays exact), keeps every point of the surface within
+ * opts.shadow_casters metres of the original.  Flat panels, most of a
+ * tessellated CAD interior, collapse to a few triangles; curved parts keep
+ * what the bound needs.
+ *
+ * Culling (opts.shadow_cull) needs a closed, consistently wound surface:
+ * from a point in the air, the first surface towards the sun then faces
+ * away from it.  Edge collapses keep that almost everywhere, but meshopt
+ * 0.18 leaves a few folds (on the 571K cabin at 1 mm: 9 directed edges
+ * used twice and 1 window-border edge lost, of 3,268 triangles), so it is
+ * counted, not assumed: the casters' edges are compared with the original
+ * opaque triangles' (every directed edge once; those without a reverse,
+ * the window borders, the same set).  A fold can only misplace the shadow
+ * of its own few triangles (millimetres); culling stays on while the
+ * defects are at most CASTER_DEFECTS_MAX (2%) of the caster triangles, else
+ * every caster is drawn.  The shadow error against Embree
+ * (bench_shadow) is the check that this costs nothing measurable; the
+ * defects are reported (cv_renderer_shadow_casters).
+ *
+ * Built on the first shadow map (an importer of shared lighting never draws
+ * one, so never pays the ~0.3-0.5 s for the 571K cabin). */
+#include "render/renderer_internal.h"
+
+#include <meshoptimizer.h>
+#include <stdint.h>
+
+/* Culling stays on while the casters' closure defects are at most this
+ * fraction of their triangles (see the file's comment). */
+#define CASTER_DEFECTS_MAX 0.02
+
+/* Directed edges (a << 32 | b) of the triangles, sorted. */
+static uint64_t *sorted_edges(const uint32_t *tri, size_t nt) {
+  uint64_t *e = malloc(3 * nt * sizeof *e + 8);
+  if (!e) return NULL;
+  for (size_t t = 0; t < nt; t++)
+    for (int k = 0; k < 3; k++)
+      e[3 * t + k] = (uint64_t)tri[3 * t + k] << 32 | tri[3 * t + (k + 1) % 3];
+  qsort(e, 3 * nt, sizeof *e, cvr_cmp_u64);
+  return e;
+}
+
+static int has_edge(const uint64_t *e, size_t n, uint64_t k) {
+  size_t lo = 0, hi = n;
+  while (lo < hi) {
+    const size_t mid = lo + (hi - lo) / 2;
+    if (e[mid] < k) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo < n && e[lo] == k;
+}
+
+/* The border edges (directed edges whose reverse is missing), sorted, into
+ * *out (*n of them), and in *dup the directed edges that occur more than
+ * once (folds: not consistently wound there).  CV_ERR_NOMEM or CV_OK. */
+static int border_edges(const uint32_t *tri, size_t nt, uint64_t **out, size_t *n, size_t *dup) {
+  *out = NULL, *n = 0, *dup = 0;
+  uint64_t *e = sorted_edges(tri, nt);
+  const size_t ne = 3 * nt;
+  uint64_t *b = e ? malloc(ne * sizeof *b + 8) : NULL;
+  if (!b) {
+    free(e);
+    return CV_ERR_NOMEM;
+  }
+  size_t nb = 0;
+  for (size_t i = 0; i < ne; i++) {
+    if (i && e[i] == e[i - 1]) {
+      (*dup)++;
+      continue;
+    }
+    const uint64_t rev = (e[i] & 0xffffffffu) << 32 | e[i] >> 32;
+    if (!has_edge(e, ne, rev)) b[nb++] = e[i];
+  }
+  free(e);
+  *out = b, *n = nb;
+  return CV_OK;
+}
+
+/* How far the casters are from pairing their edges as the original does
+ * (the closedness that culling relies on; welded indices): directed edges
+ * that occur twice plus border edges in one set and not the other.
+ * SIZE_MAX out of memory. */
+static size_t closure_defects(const uint32_t *orig, size_t nt0, const uint32_t *cast, size_t nt1) {
+  uint64_t *b0 = NULL, *b1 = NULL;
+  size_t n0, n1, d0, d1;
+  if (border_edges(orig, nt0, &b0, &n0, &d0) || border_edges(cast, nt1, &b1, &n1, &d1)) {
+    free(b0);
+    return SIZE_MAX;
+  }
+  size_t defects = d0 + d1, i = 0, j = 0;
+  while (i < n0 || j < n1) { /* symmetric difference of two sorted sets */
+    if (j == n1 || (i < n0 && b0[i] < b1[j])) defects++, i++;
+    else if (i == n0 || b1[j] < b0[i]) defects++, j++;
+    else i++, j++;
+  }
+  free(b0), free(b1);
+  return defects;
+}
+
+/* Unit winding normals of the casters. */
+static void caster_normals(cv_renderer *r) {
+  for (size_t t = 0; t < r->cast_nt; t++) {
+    const uint32_t *v = r->cast_idx + 3 * t;
+    const float *a = r->cast_pos + 3 * v[0], *b = r->cast_pos + 3 * v[1], *d = r->cast_pos + 3 * v[2];
+    double e1[3], e2[3];
+    for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                         e1[0] * e2[1] - e1[1] * e2[0]};
+    const double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int j = 0; j < 3; j++) r->cast_n[3 * t + j] = l > 0 ? (float)(n[j] / l) : 0.0f;
+  }
+}
+
+/* The opaque triangles on exactly welded positions (degenerate ones
+ * dropped): *pos (nu points) and *ib (nt triangles). */
+static int weld_opaque(const cv_renderer *r, float **pos, size_t *nu, uint32_t **ib, size_t *nt) {
+  *pos = NULL, *ib = NULL;
+  unsigned *remap = malloc(r->nv_used * sizeof *remap + 4);
+  if (!remap) return CV_ERR_NOMEM;
+  *nu = meshopt_generateVertexRemap(remap, NULL, r->nv_used, r->pos_cpu, r->nv_used,
+                                    3 * sizeof(float));
+  *pos = malloc(3 * *nu * sizeof **pos + 4);
+  *ib = malloc(3 * r->nt * sizeof **ib + 4);
+  if (!*pos || !*ib) {
+    free(remap), free(*pos), free(*ib);
+    *pos = NULL, *ib = NULL;
+    return CV_ERR_NOMEM;
+  }
+  meshopt_remapVertexBuffer(*pos, r->pos_cpu, r->nv_used, 3 * sizeof(float), remap);
+  size_t k = 0;
+  for (size_t t = 0; t < r->nt; t++) {
+    const uint32_t *v = r->idx_cpu + 3 * t;
+    const uint32_t a = remap[v[0]], b = remap[v[1]], c = remap[v[2]];
+    if (a == b || b == c || c == a) continue;
+    (*ib)[3 * k] = a, (*ib)[3 * k + 1] = b, (*ib)[3 * k + 2] = c;
+    k++;
+  }
+  free(remap);
+  *nt = k;
+  return CV_OK;
+}
+
+static int build_casters(cv_renderer *r, cv_err *err) {
+  const double t0 = cvr_now_ms();
+  float *pos;
+  uint32_t *ib;
+  size_t nu, nt;
+  if (weld_opaque(r, &pos, &nu, &ib, &nt))
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
+  uint32_t *out = malloc(3 * nt * sizeof *out + 4);
+  if (!out) {
+    free(pos), free(ib);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
+  }
+  const float scale = meshopt_simplifyScale(pos, nu, 3 * sizeof(float));
+  float rel = 0;
+  const size_t ni = scale > 0 ? meshopt_simplify(out, ib, 3 * nt, pos, nu, 3 * sizeof(float), 0,
+                                                 (float)(r->o.shadow_casters / scale),
+                                                 meshopt_SimplifyLockBorder, &rel)
+                              : 3 * nt;
+  if (!(scale > 0)) memcpy(out, ib, 3 * nt * sizeof *out);
+  r->cast_defects = closure_defects(ib, nt, out, ni / 3);
+  r->cast_culled = cvr_shadow_culled(r) && r->cast_defects <= CASTER_DEFECTS_MAX * (ni / 3) ? 1 : 0;
+  free(ib);
+  /* Compact: only the vertices the casters use, in order of first use. */
+  float *cpos = malloc(3 * nu * sizeof *cpos + 4);
+  if (!cpos) {
+    free(pos), free(out);
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
+  }
+  const size_t nv = meshopt_optimizeVertexFetch(cpos, out, ni, pos, nu, 3 * sizeof(float));
+  free(pos);
+  r->cast_nt = ni / 3;
+  r->cast_idx = out;
+  r->cast_pos = pos = cpos;
+  r->cast_n = malloc(3 * r->cast_nt * sizeof *r->cast_n + 4);
+  r->cast_draw = malloc(3 * r->cast_nt * sizeof *r->cast_draw + 4);
+  if (!r->cast_n || !r->cast_draw)
+    return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
+  caster_normals(r);
+  r->cast_err = (double)rel * scale;
+  glGenVertexArrays(1, &r->vao_cast);
+  glGenBuffers(1, &r->buf_cast_pos);
+  glGenBuffers(1, &r->buf_cast_idx);
+  glBindVertexArray(r->vao_cast);
+  glBindBuffer(GL_ARRAY_BUFFER, r->buf_cast_pos);
+  glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * nv * sizeof *pos + 4), pos, GL_STATIC_DRAW);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, 0);
+  glEnableVertexAttribArray(0);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_cast_idx);
+  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->cast_nt * sizeof *out + 4), out,
+               GL_STREAM_DRAW);
+  glBindVertexArray(0);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  r->cast_built = 1;
+  r->cast_ms = cvr_now_ms() - t0;
+  return cvr_gl_check("shadow casters", err);
+}
+
+/* The casters the map of sun s draws: with culling those facing away from
+ * it or within split_margin of grazing (as DRAW_SHADOW), else all. */
+static size_t cull_casters(cv_renderer *r, const double s[3]) {
+  if (!r->cast_culled) {
+    memcpy(r->cast_draw, r->cast_idx, 3 * r->cast_nt * sizeof *r->cast_draw);
+    return r->cast_nt;
+  }
+  const double m = r->o.split_margin > 0 ? r->o.split_margin : 0.0;
+  size_t k = 0;
+  for (size_t t = 0; t < r->cast_nt; t++) {
+    const float *n = r->cast_n + 3 * t;
+    if ((double)n[0] * s[0] + (double)n[1] * s[1] + (double)n[2] * s[2] > m) continue;
+    memcpy(r->cast_draw + 3 * k++, r->cast_idx + 3 * t, 3 * sizeof *r->cast_draw);
+  }
+  return k;
+}
+
+int cvr_draw_casters(cv_renderer *r, const double s[3], cv_err *err) {
+  if (!r->cast_built) {
+    int st = build_casters(r, err);
+    if (st) return st;
+  }
+  const size_t n = cull_casters(r, s);
+  glBindVertexArray(r->vao_cast);
+  glBufferSubData(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * n * sizeof *r->cast_draw),
+                  r->cast_draw);
+  if (n) glDrawElements(GL_TRIANGLES, (GLsizei)(3 * n), GL_UNSIGNED_INT, 0);
+  glBindVertexArray(0);
+  r->cast_drawn = n;
+  return CV_OK;
+}
+
+void cvr_casters_free(cv_renderer *r) {
+  if (r->vao_cast) glDeleteVertexArrays(1, &r->vao_cast);
+  if (r->buf_cast_pos) glDeleteBuffers(1, &r->buf_cast_pos);
+  if (r->buf_cast_idx) glDeleteBuffers(1, &r->buf_cast_idx);
+  r->vao_cast = r->buf_cast_pos = r->buf_cast_idx = 0;
+}
+
+int cv_renderer_shadow_casters(const cv_renderer *r, cv_shadow_casters *out) {
+  if (!r || !out) return CV_ERR_INVALID;
+  memset(out, 0, sizeof *out);
+  out->tolerance_m = r->o.shadow_casters;
+  out->mesh_triangles = r->nt;
+  if (!r->cast_built) return CV_OK;
+  out->built = 1;
+  out->triangles = r->cast_nt;
+  out->error_m = r->cast_err;
+  out->culled = r->cast_culled;
+  out->defects = r->cast_defects;
+  out->drawn = r->cast_drawn;
+  out->build_ms = r->cast_ms;
+  return CV_OK;
+}
