@@ -640,10 +640,16 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   else snprintf(where, sizeof where, "headless on the %s", cv_renderer_platform(we->r));
   char share[160];
   cv_lightshare_describe(&we->ls, share, sizeof share);
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
+  cv_shadow_casters sc;
+  cv_renderer_shadow_casters(we->r, &sc);
+  char casters[64];
+  if (sc.tolerance_m > 0) snprintf(casters, sizeof casters, "casters within %.2g mm", 1e3 * sc.tolerance_m);
+  else snprintf(casters, sizeof casters, "the mesh");
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
-           cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU", share);
+           cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU",
+           cv_renderer_relight_on_cpu(we->r) ? "on the CPU" : "by transform feedback", casters, share);
 }
 
 /* The master's adaptation priming (CV_FS_MEASURE): every eye rendered and

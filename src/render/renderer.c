@@ -32,6 +32,7 @@ void cv_render_default_opts(cv_render_opts *o) {
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
 int cv_renderer_mesh_closed(const cv_renderer *r) { return r->closed; }
+int cv_renderer_relight_on_cpu(const cv_renderer *r) { return r->relight_on_cpu; }
 int cv_renderer_is_software(const cv_renderer *r) { return r->egl.software; }
 int cv_renderer_hw_devices(const cv_renderer *r) { return r->egl.hw_devices; }
 const char *cv_renderer_platform(const cv_renderer *r) { return r->egl.platform; }

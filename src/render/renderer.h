@@ -211,6 +211,8 @@ void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
  * out) are closed and consistently wound: each directed edge once, its
  * reverse once (checked at create; opts.shadow_cull -1 follows it). */
 int cv_renderer_mesh_closed(const cv_renderer *r);
+/* 1 when the relight runs on the CPU (opts.relight_cpu), 0 by transform feedback. */
+int cv_renderer_relight_on_cpu(const cv_renderer *r);
 
 /* The sun's shadow casters (opts.shadow_casters), built with the first
  * shadow map: built 0 before that (or with shadow_casters 0). */
