@@ -106,6 +106,19 @@ static void test_lighting(cv_lighting *l) {
   }
 }
 
+/* A Preetham sky (turbidity 3) with its sun 35 degrees up, 30 degrees right
+ * of ahead: through the windscreen onto the dashboard. */
+static cv_scene_light *sky_35_30(void) {
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
+  cv_scene_light *sl = NULL;
+  cv_err err;
+  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  return sl;
+}
+
 static const float BG[3] = {0.5f, 0.7f, 1.2f};
 
 static cv_image *const_bg(void) {
@@ -406,13 +419,8 @@ static void test_gl_sun(void **state) {
  * the same sun is reused even with shadow_reuse 0. */
 static void test_gl_sun_cull_reuse(void **state) {
   (void)state;
-  cv_light_spec spec;
-  cv_light_spec_default(&spec);
-  spec.kind = CV_LIGHT_SKY;
-  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
-  cv_scene_light *sl;
   cv_err err;
-  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_scene_light *sl = sky_35_30();
   cv_lighting l = cv_scene_light_sh(sl);
   cv_render_opts o;
   cv_render_default_opts(&o);
@@ -516,13 +524,8 @@ static double max_rel(const cv_image *a, const cv_image *b, double tol, double f
  *  - shadow_casters 0 builds none. */
 static void test_cpu_relight_and_casters(void **state) {
   (void)state;
-  cv_light_spec spec;
-  cv_light_spec_default(&spec);
-  spec.kind = CV_LIGHT_SKY;
-  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
-  cv_scene_light *sl;
   cv_err err;
-  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_scene_light *sl = sky_35_30();
   cv_lighting lsun = cv_scene_light_sh(sl), lring;
   test_lighting(&lring);
   lring.sh[3 * 12] = lring.sh[3 * 12 + 1] = lring.sh[3 * 12 + 2] = -2.5; /* rings below 0 */
@@ -745,12 +748,7 @@ static void test_no_holes(void **state) {
   cv_renderer *rs[2] = {eq, less};
   /* the SH lighting, then a sky with a sun (the shading pass then draws
    * the sun-facing and the other triangles separately) */
-  cv_light_spec spec;
-  cv_light_spec_default(&spec);
-  spec.kind = CV_LIGHT_SKY;
-  spec.turbidity = 3, spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 30;
-  cv_scene_light *sl;
-  assert_int_equal(cv_scene_light_build(&spec, 5, &sl, &err), CV_OK);
+  cv_scene_light *sl = sky_35_30();
   for (int li = 0; li < 2; li++)
   for (int k = 0; k < 2; k++) {
     cv_lighting l;
