@@ -164,322 +164,392 @@ out:
 
 #define MAX_VIEWS (2 * CV_CAVE_MAX_WALLS)
 
-int cmd_render(int argc, char **argv) {
-  const char *cfg = NULL, *scene = NULL, *outdir = NULL, *weights = NULL;
+/* The command line. */
+typedef struct render_args {
+  const char *cfg, *scene, *outdir, *weights;
   cv_light_spec spec;
-  cv_light_spec_default(&spec);
-  double head[3], gaze[3], dt = 0.1;
-  int have_head = 0, have_gaze = 0, frames = 1, size = 0, ss = 0, lum_res = 0, bg_res = 1024;
-  int half = 0, all_frames = 0, cull_back = 0, gpu = CV_GPU_AUTO, split = 0, split_grid = 64,
-      split_samples = CV_SPLIT_SAMPLES_DEFAULT;
+  double head[3], gaze[3], dt;
+  int have_head, have_gaze, frames, size, ss, lum_res, bg_res;
+  int half, all_frames, cull_back, gpu, split, split_grid, split_samples;
+} render_args;
+
+#define PARSED (-1) /* parse_args: go on */
+
+/* Reads the options into *a: PARSED, or the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, render_args *a) {
+  memset(a, 0, sizeof *a);
+  cv_light_spec_default(&a->spec);
+  a->dt = 0.1, a->frames = 1, a->bg_res = 1024, a->gpu = CV_GPU_AUTO;
+  a->split_grid = 64, a->split_samples = CV_SPLIT_SAMPLES_DEFAULT;
   for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+    const char *o = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
       help(stdout);
       return 0;
     }
-    if (!strcmp(a, "--no-sun")) {
-      spec.extract_sun = 0;
+    if (!strcmp(o, "--no-sun")) {
+      a->spec.extract_sun = 0;
       continue;
     }
-    int st = cli_parse_light("render", argc, argv, &i, &spec, &weights);
+    int st = cli_parse_light("render", argc, argv, &i, &a->spec, &a->weights);
     if (st < 0) return -st;
     if (st) continue;
-    if (!strcmp(a, "--gpu")) {
-      if (!val || cv_gpu_parse(val, &gpu))
+    if (!strcmp(o, "--gpu")) {
+      if (!val || cv_gpu_parse(val, &a->gpu))
         return cli_fail("render", 2, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", val ? val : "(nothing)");
       i++;
-    } else if (!strcmp(a, "--half")) {
-      half = 1;
-    } else if (!strcmp(a, "--cull-back")) {
-      cull_back = 1;
-    } else if (!strcmp(a, "--all-frames")) {
-      all_frames = 1;
-    } else if (a[0] != '-') {
-      if (cfg) return cli_fail("render", 2, "more than one CAVE config ('%s' and '%s')", cfg, a);
-      cfg = a;
+    } else if (!strcmp(o, "--half")) {
+      a->half = 1;
+    } else if (!strcmp(o, "--cull-back")) {
+      a->cull_back = 1;
+    } else if (!strcmp(o, "--all-frames")) {
+      a->all_frames = 1;
+    } else if (o[0] != '-') {
+      if (a->cfg) return cli_fail("render", 2, "more than one CAVE config ('%s' and '%s')", a->cfg, o);
+      a->cfg = o;
     } else if (!val) {
       cli_print_usage(help);
-      return cli_fail("render", 2, "unknown or incomplete option '%s'", a);
-    } else if (!strcmp(a, "-o")) {
-      outdir = argv[++i];
-    } else if (!strcmp(a, "--scene")) {
-      scene = argv[++i];
-    } else if (!strcmp(a, "--head")) {
-      if (cli_parse_vec(argv[++i], 3, head)) return cli_fail("render", 2, "--head: expected x,y,z, got '%s'", val);
-      have_head = 1;
-    } else if (!strcmp(a, "--gaze")) {
-      if (cli_parse_vec(argv[++i], 3, gaze) || !(fabs(gaze[0]) + fabs(gaze[1]) + fabs(gaze[2]) > 0))
+      return cli_fail("render", 2, "unknown or incomplete option '%s'", o);
+    } else if (!strcmp(o, "-o")) {
+      a->outdir = argv[++i];
+    } else if (!strcmp(o, "--scene")) {
+      a->scene = argv[++i];
+    } else if (!strcmp(o, "--head")) {
+      if (cli_parse_vec(argv[++i], 3, a->head)) return cli_fail("render", 2, "--head: expected x,y,z, got '%s'", val);
+      a->have_head = 1;
+    } else if (!strcmp(o, "--gaze")) {
+      const double *g = a->gaze;
+      if (cli_parse_vec(argv[++i], 3, a->gaze) || !(fabs(g[0]) + fabs(g[1]) + fabs(g[2]) > 0))
         return cli_fail("render", 2, "--gaze: expected a non-zero x,y,z, got '%s'", val);
-      have_gaze = 1;
-    } else if (!strcmp(a, "--frames")) {
-      if (cli_parse_int(argv[++i], 1, 1000000, &frames))
+      a->have_gaze = 1;
+    } else if (!strcmp(o, "--frames")) {
+      if (cli_parse_int(argv[++i], 1, 1000000, &a->frames))
         return cli_fail("render", 2, "--frames: expected 1..1000000, got '%s'", val);
-    } else if (!strcmp(a, "--dt")) {
-      if (cv_parse_seconds(argv[++i], &dt) || dt < 0 || dt > 3600)
+    } else if (!strcmp(o, "--dt")) {
+      if (cv_parse_seconds(argv[++i], &a->dt) || a->dt < 0 || a->dt > 3600)
         return cli_fail("render", 2, "--dt: expected seconds in [0, 3600] (0.0333 or 1/30), got '%s'", val);
-    } else if (!strcmp(a, "--size")) {
-      if (cli_parse_int(argv[++i], 1, CV_CAVE_MAX_RES, &size))
+    } else if (!strcmp(o, "--size")) {
+      if (cli_parse_int(argv[++i], 1, CV_CAVE_MAX_RES, &a->size))
         return cli_fail("render", 2, "--size: expected 1..%d pixels, got '%s'", CV_CAVE_MAX_RES, val);
-    } else if (!strcmp(a, "--supersample")) {
-      if (cli_parse_int(argv[++i], 1, 2, &ss))
+    } else if (!strcmp(o, "--supersample")) {
+      if (cli_parse_int(argv[++i], 1, 2, &a->ss))
         return cli_fail("render", 2, "--supersample: expected 1 or 2, got '%s'", val);
-    } else if (!strcmp(a, "--lum-res")) {
-      if (cli_parse_int(argv[++i], 1, 4096, &lum_res))
+    } else if (!strcmp(o, "--lum-res")) {
+      if (cli_parse_int(argv[++i], 1, 4096, &a->lum_res))
         return cli_fail("render", 2, "--lum-res: expected 1..4096, got '%s'", val);
-    } else if (!strcmp(a, "--split")) {
-      if (cli_parse_int(argv[++i], 0, 4096, &split))
+    } else if (!strcmp(o, "--split")) {
+      if (cli_parse_int(argv[++i], 0, 4096, &a->split))
         return cli_fail("render", 2, "--split: expected 0..4096 lights, got '%s'", val);
-    } else if (!strcmp(a, "--split-samples")) {
-      if (cli_parse_int(argv[++i], 1, 4096, &split_samples))
+    } else if (!strcmp(o, "--split-samples")) {
+      if (cli_parse_int(argv[++i], 1, 4096, &a->split_samples))
         return cli_fail("render", 2, "--split-samples: expected 1..4096, got '%s'", val);
-    } else if (!strcmp(a, "--split-grid")) {
-      if (cli_parse_int(argv[++i], 4, 1024, &split_grid) || split_grid % 2)
+    } else if (!strcmp(o, "--split-grid")) {
+      if (cli_parse_int(argv[++i], 4, 1024, &a->split_grid) || a->split_grid % 2)
         return cli_fail("render", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
-    } else if (!strcmp(a, "--bg-res")) {
-      if (cli_parse_int(argv[++i], 2, 16384, &bg_res))
+    } else if (!strcmp(o, "--bg-res")) {
+      if (cli_parse_int(argv[++i], 2, 16384, &a->bg_res))
         return cli_fail("render", 2, "--bg-res: expected 2..16384, got '%s'", val);
     } else {
       cli_print_usage(help);
-      return cli_fail("render", 2, "unknown option '%s'", a);
+      return cli_fail("render", 2, "unknown option '%s'", o);
     }
   }
-  if (!cfg || !scene || !outdir) {
+  if (!a->cfg || !a->scene || !a->outdir) {
     cli_print_usage(help);
     return cli_fail("render", 2, "a CAVE config, --scene FILE.prt and -o DIR are required");
   }
-  if (spec.kind == CV_LIGHT_NONE)
+  if (a->spec.kind == CV_LIGHT_NONE)
     return cli_fail("render", 2, "no lighting: give --env, --env-constant or --sky");
-  int wst = cli_apply_weights("render", &spec, weights);
-  if (wst) return wst;
+  int wst = cli_apply_weights("render", &a->spec, a->weights);
+  return wst ? wst : PARSED;
+}
 
+static const char *const EYE_NAME[2] = {"L", "R"};
+
+/* The CAVE config with the command line's head, gaze, sizes applied, and
+ * the two eyes: 0 or the exit status (printed). */
+static int load_cave(const render_args *a, cv_cave *cave, double eyes[2][3]) {
   cv_err err;
   cv_err_clear(&err);
-  cv_cave cave;
-  if (cv_cave_load(cfg, &cave, &err)) return cli_fail("render", 1, "%s", err.msg);
-  if (have_head) memcpy(cave.head, head, sizeof head);
-  if (have_gaze) {
-    double n = sqrt(gaze[0] * gaze[0] + gaze[1] * gaze[1] + gaze[2] * gaze[2]);
-    for (int k = 0; k < 3; k++) cave.gaze[k] = gaze[k] / n;
+  if (cv_cave_load(a->cfg, cave, &err)) return cli_fail("render", 1, "%s", err.msg);
+  if (a->have_head) memcpy(cave->head, a->head, sizeof a->head);
+  if (a->have_gaze) {
+    const double *g = a->gaze, n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    for (int k = 0; k < 3; k++) cave->gaze[k] = g[k] / n;
   }
-  if (ss) cave.supersample = ss;
-  if (lum_res) cave.lum_res = lum_res;
-  cv_cave_fit_res(&cave, size);
-  double eyes[2][3];
-  cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
-  static const char *eye_name[2] = {"L", "R"};
+  if (a->ss) cave->supersample = a->ss;
+  if (a->lum_res) cave->lum_res = a->lum_res;
+  cv_cave_fit_res(cave, a->size);
+  cv_head_eyes(cave->head, cave->gaze, cave->eye_separation, eyes[0], eyes[1]);
   for (int e = 0; e < 2; e++)
-    if (cv_cave_check_eye(&cave, eyes[e], &err))
-      return cli_fail("render", 1, "%s: %s eye (%.3f, %.3f, %.3f): %s", cfg, e ? "right" : "left",
+    if (cv_cave_check_eye(cave, eyes[e], &err))
+      return cli_fail("render", 1, "%s: %s eye (%.3f, %.3f, %.3f): %s", a->cfg, e ? "right" : "left",
                       eyes[e][0], eyes[e][1], eyes[e][2], err.msg);
+  return 0;
+}
 
-  int rc = 1;
-  cv_prt *prt = NULL;
-  cv_scene_light *sl = NULL;
-  cv_renderer *r = NULL;
-  cv_image *bg = NULL, *lum[MAX_VIEWS] = {0}, *disp[MAX_VIEWS] = {0}, *hdr[MAX_VIEWS] = {0};
+/* What a render holds: the scene, its light and renderer, the views and
+ * their images, the shared adaptation state. */
+typedef struct render_job {
+  const render_args *a;
+  cv_cave cave;
+  double eyes[2][3];
+  cv_prt *prt;
+  cv_scene_light *sl;
+  cv_renderer *r;
+  cv_image *bg, *lum[MAX_VIEWS], *disp[MAX_VIEWS], *hdr[MAX_VIEWS];
   cv_render_view views[MAX_VIEWS];
-  const int nviews = 2 * cave.n_walls;
-  if (cv_prt_read(scene, &prt, &err)) {
-    rc = cli_fail("render", 1, "%s", err.msg);
-    goto done;
-  }
-  if (cv_scene_light_build(&spec, (int)prt->bands, &sl, &err)) {
-    rc = cli_fail("render", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_scene_light_print(stdout, sl);
+  int nviews;
+  cv_adapt_params ap;
+  cv_adapt_state as;
+} render_job;
+
+/* The renderer on the scene, its textures reported, the split lights
+ * (--split): 0 or the exit status (printed). */
+static int start_renderer(render_job *j) {
+  const render_args *a = j->a;
+  cv_err err;
+  cv_err_clear(&err);
+  if (cv_prt_read(a->scene, &j->prt, &err) ||
+      cv_scene_light_build(&a->spec, (int)j->prt->bands, &j->sl, &err))
+    return cli_fail("render", 1, "%s", err.msg);
+  cv_scene_light_print(stdout, j->sl);
   cv_render_opts ro;
   cv_render_default_opts(&ro);
-  ro.half_transfer = half;
-  ro.cull_back = cull_back;
-  ro.gpu = gpu;
-  if (cv_renderer_create(prt, &ro, &r, &err)) {
-    rc = cli_fail("render", 1, "%s", err.msg);
-    goto done;
-  }
-  printf("GL: %s\n", cv_renderer_gl_name(r));
+  ro.half_transfer = a->half;
+  ro.cull_back = a->cull_back;
+  ro.gpu = a->gpu;
+  if (cv_renderer_create(j->prt, &ro, &j->r, &err)) return cli_fail("render", 1, "%s", err.msg);
+  printf("GL: %s\n", cv_renderer_gl_name(j->r));
   cv_render_tex_info ti;
-  if (cv_renderer_textures(r, &ti))
+  if (cv_renderer_textures(j->r, &ti))
     printf("textures: %d materials, %d x %d texels per layer, %zu vertices added at UV seams\n",
            ti.layers, ti.w, ti.h, ti.split_vertices);
   if (ti.unread)
     printf("warning: %d textures could not be read and show their mean albedo; first: %s\n",
            ti.unread, ti.first_error);
-  if (split && (rc = render_split(prt, sl, r, split, split_grid, split_samples)) != 0) goto done;
-  rc = 1;
-  cv_lighting light = cv_scene_light_sh(sl);
+  if (a->split) return render_split(j->prt, j->sl, j->r, a->split, a->split_grid, a->split_samples);
+  return 0;
+}
+
+/* The lighting: background, relight, the sun's split and shadow map, and
+ * the line that says what they cost and what was used: 0 or the exit
+ * status (printed). */
+static int light_scene(render_job *j) {
+  cv_err err;
+  cv_err_clear(&err);
+  cv_lighting light = cv_scene_light_sh(j->sl);
   cv_render_light_stats ls;
   cv_frame_timing lt = {0};
-  if (cv_render_background_image(sl, bg_res, &bg) || cv_renderer_set_background(r, bg, &err) ||
-      cv_renderer_set_lighting(r, &light, &ls, &lt, &err)) {
-    rc = cli_fail("render", 1, "%s", err.msg[0] ? err.msg : "cannot build the background");
-    goto done;
-  }
-  printf("scene: %zu vertices, %zu triangles, %u bands; relit on the GPU in %.1f ms (%llu channels "
-         "clamped from negative), sun shadow map %.1f ms%s\n",
-         prt->nv, prt->nt, prt->bands, lt.relight_ms, (unsigned long long)ls.clamped, lt.shadow_ms,
-         light.has_sun ? "" : " (no sun)");
-  for (int i = 0; i < nviews; i++) {
-    const cv_wall *w = &cave.walls[i / 2];
-    cv_render_view *v = &views[i];
+  if (cv_render_background_image(j->sl, j->a->bg_res, &j->bg) ||
+      cv_renderer_set_background(j->r, j->bg, &err) ||
+      cv_renderer_set_lighting(j->r, &light, &ls, &lt, &err))
+    return cli_fail("render", 1, "%s", err.msg[0] ? err.msg : "cannot build the background");
+  cv_shadow_casters sc;
+  cv_renderer_shadow_casters(j->r, &sc);
+  char casters[224] = "";
+  if (sc.built)
+    snprintf(casters, sizeof casters, " of %zu shadow casters (the mesh's %zu opaque triangles "
+             "simplified within %.3f mm%s; built in %.0f ms, counted in the map's time)",
+             sc.triangles, sc.mesh_triangles, 1e3 * sc.error_m,
+             sc.culled ? ", those facing away from the sun" : "", sc.build_ms);
+  printf("scene: %zu vertices, %zu triangles, %u bands; relit %s in %.1f ms (%llu channels "
+         "clamped from negative), sun shadow map%s %.1f ms%s\n",
+         j->prt->nv, j->prt->nt, j->prt->bands,
+         cv_renderer_relight_on_cpu(j->r) ? "on the CPU" : "on the GPU", lt.relight_ms,
+         (unsigned long long)ls.clamped, casters, lt.shadow_ms, light.has_sun ? "" : " (no sun)");
+  return 0;
+}
+
+/* Every wall-eye's off-axis view and its images: 0 or the exit status. */
+static int make_views(render_job *j) {
+  const cv_cave *cave = &j->cave;
+  j->nviews = 2 * cave->n_walls;
+  for (int i = 0; i < j->nviews; i++) {
+    const cv_wall *w = &cave->walls[i / 2];
+    cv_render_view *v = &j->views[i];
     memset(v, 0, sizeof *v);
-    if (cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &v->proj)) {
-      rc = cli_fail("render", 1, "%s: walls '%s': no off-axis projection for the %s eye", cfg,
-                    w->name, i % 2 ? "right" : "left");
-      goto done;
-    }
-    memcpy(v->scene_offset, cave.scene_offset, sizeof v->scene_offset);
-    v->w = w->res[0], v->h = w->res[1], v->supersample = cave.supersample;
-    if (cv_image_create(cave.lum_res, cave.lum_res, 1, &lum[i]) ||
-        cv_image_create(v->w, v->h, 3, &disp[i]) || cv_image_create(v->w, v->h, 3, &hdr[i])) {
-      rc = cli_fail("render", 1, "out of memory for %dx%d images", v->w, v->h);
-      goto done;
-    }
+    if (cv_offaxis_compute(w->pa, w->pb, w->pc, j->eyes[i % 2], cave->near, cave->far, &v->proj))
+      return cli_fail("render", 1, "%s: walls '%s': no off-axis projection for the %s eye",
+                      j->a->cfg, w->name, i % 2 ? "right" : "left");
+    memcpy(v->scene_offset, cave->scene_offset, sizeof v->scene_offset);
+    v->w = w->res[0], v->h = w->res[1], v->supersample = cave->supersample;
+    if (cv_image_create(cave->lum_res, cave->lum_res, 1, &j->lum[i]) ||
+        cv_image_create(v->w, v->h, 3, &j->disp[i]) || cv_image_create(v->w, v->h, 3, &j->hdr[i]))
+      return cli_fail("render", 1, "out of memory for %dx%d images", v->w, v->h);
   }
   printf("CAVE %s: %d walls x 2 eyes, head (%.3f, %.3f, %.3f), gaze (%.3f, %.3f, %.3f), foveal cone "
          "%.1f deg, luminance pass %dx%d, supersample %d\n",
-         cfg, cave.n_walls, cave.head[0], cave.head[1], cave.head[2], cave.gaze[0], cave.gaze[1],
-         cave.gaze[2], cave.foveal_deg, cave.lum_res, cave.lum_res, cave.supersample);
+         j->a->cfg, cave->n_walls, cave->head[0], cave->head[1], cave->head[2], cave->gaze[0],
+         cave->gaze[1], cave->gaze[2], cave->foveal_deg, cave->lum_res, cave->lum_res,
+         cave->supersample);
+  return 0;
+}
 
-  if (mkdir(outdir, 0777) && errno != EEXIST) {
-    rc = cli_fail("render", 1, "-o %s: cannot create the folder (%s)", outdir, strerror(errno));
-    goto done;
-  }
-  cv_adapt_params ap;
-  cv_adapt_default_params(&ap);
-  ap.t0_cone = cave.t0_cone, ap.t0_rod = cave.t0_rod;
-  ap.tau_cone = cave.tau_cone, ap.tau_rod = cave.tau_rod;
-  cv_adapt_state as;
-  memset(&as, 0, sizeof as);
-  const double half_angle = 0.5 * cave.foveal_deg * M_PI / 180.0;
-  for (int f = 0; f < frames; f++) {
-    const int last = f == frames - 1, write = last || all_frames;
-    double t_lum = 0, t_shade = 0, t_write = 0;
-    /* 1. luminance passes */
-    for (int i = 0; i < nviews; i++) {
-      double t0 = now_ms();
-      if (cv_renderer_luminance(r, &views[i], lum[i], NULL, &err)) {
-        rc = cli_fail("render", 1, "wall '%s' %s eye: %s", cave.walls[i / 2].name, eye_name[i % 2],
-                      err.msg);
-        goto done;
+/* One frame's foveal statistics (step 2 of the file's comment). */
+typedef struct frame_stats {
+  cv_lumstats acc;   /* the foveal cone over the walls it touches, both eyes */
+  double lwmax, sum_log_all;
+  uint64_t n_all;    /* pixels of the log-average of all walls (first frame only) */
+  char touched[256]; /* the walls the cone touches */
+} frame_stats;
+
+static void foveal_stats(const render_job *j, frame_stats *fs) {
+  memset(fs, 0, sizeof *fs);
+  const cv_cave *cave = &j->cave;
+  const double half_angle = 0.5 * cave->foveal_deg * M_PI / 180.0;
+  for (int i = 0; i < j->nviews; i++) {
+    const cv_wall *w = &cave->walls[i / 2];
+    const cv_image *L = j->lum[i];
+    /* Lwmax over every pixel; the log-average of everything only when the
+     * adaptation has no state yet (first frame, empty cone). */
+    const int need_all = !j->as.initialised;
+    for (int k = 0; k < L->w * L->h; k++) {
+      float y = L->px[k];
+      if (!(y >= 0) || !isfinite(y)) continue;
+      if (y > fs->lwmax) fs->lwmax = y;
+      if (need_all) {
+        fs->sum_log_all += log(y + CV_LUM_EPS);
+        fs->n_all++;
       }
-      t_lum += now_ms() - t0;
     }
-    /* 2. foveal statistics (both eyes, the walls the cone touches) and Lwmax */
+    if (!cv_foveal_touches(w->pa, w->pb, w->pc, j->eyes[i % 2], cave->gaze, half_angle)) continue;
+    cv_lumstats s = {0};
+    cv_foveal_accumulate(L->px, L->w, L->h, w->pa, w->pb, w->pc, j->eyes[i % 2], cave->gaze,
+                         half_angle, &s);
+    cv_lumstats_merge(&fs->acc, &s);
+    if (i % 2 == 0 && strlen(fs->touched) + strlen(w->name) + 2 < sizeof fs->touched) {
+      if (fs->touched[0]) strcat(fs->touched, ",");
+      strcat(fs->touched, w->name);
+    }
+  }
+}
+
+/* Step 3: the adaptation towards the cone's log-average *g (set here):
+ * 0 or the exit status. */
+static int adapt(render_job *j, const frame_stats *fs, int f, double *g) {
+  int have = cv_lumstats_lwa(&fs->acc, g);
+  if (!have && !j->as.initialised && fs->n_all) {
+    *g = exp(fs->sum_log_all / (double)fs->n_all);
+    have = 1;
+    printf("frame %d: foveal cone empty; adaptation starts from the log-average of all walls\n", f);
+  }
+  if (!have) {
+    printf("frame %d: foveal cone empty, adaptation state kept\n", f);
+    return 0;
+  }
+  if (cv_adapt_step(&j->as, &j->ap, *g, f == 0 ? 0.0 : j->a->dt))
+    return cli_fail("render", 1, "adaptation step failed (target %g cd/m2, dt %g s)", *g, j->a->dt);
+  return 0;
+}
+
+/* View i's EXR and PNG of frame f: 0 or the exit status. */
+static int write_view(const render_job *j, int i, int f) {
+  cv_err err;
+  cv_err_clear(&err);
+  char path[4096], suffix[32] = "";
+  if (j->a->all_frames) snprintf(suffix, sizeof suffix, "_f%04d", f);
+  const char *wall = j->cave.walls[i / 2].name;
+  snprintf(path, sizeof path, "%s/%s_%s%s.exr", j->a->outdir, wall, EYE_NAME[i % 2], suffix);
+  if (cv_exr_write(path, j->hdr[i], 0, CV_EXR_ZIP, &err)) return cli_fail("render", 1, "%s", err.msg);
+  snprintf(path, sizeof path, "%s/%s_%s%s.png", j->a->outdir, wall, EYE_NAME[i % 2], suffix);
+  if (write_png(path, j->disp[i], &err)) return cli_fail("render", 1, "%s", err.msg);
+  return 0;
+}
+
+/* One frame in the phases of the file's comment: 0 or the exit status. */
+static int render_frame(render_job *j, int f) {
+  const render_args *a = j->a;
+  const int write = f == a->frames - 1 || a->all_frames;
+  double t_lum = 0, t_shade = 0, t_write = 0;
+  cv_err err;
+  cv_err_clear(&err);
+  /* 1. luminance passes */
+  for (int i = 0; i < j->nviews; i++) {
     double t0 = now_ms();
-    cv_lumstats acc = {0};
-    double lwmax = 0, sum_log_all = 0;
-    uint64_t n_all = 0;
-    char touched[256] = "";
-    for (int i = 0; i < nviews; i++) {
-      const cv_wall *w = &cave.walls[i / 2];
-      const cv_image *L = lum[i];
-      /* Lwmax over every pixel; the log-average of everything only when the
-       * adaptation has no state yet (first frame, empty cone). */
-      const int need_all = !as.initialised;
-      for (int k = 0; k < L->w * L->h; k++) {
-        float y = L->px[k];
-        if (!(y >= 0) || !isfinite(y)) continue;
-        if (y > lwmax) lwmax = y;
-        if (need_all) {
-          sum_log_all += log(y + CV_LUM_EPS);
-          n_all++;
-        }
-      }
-      if (!cv_foveal_touches(w->pa, w->pb, w->pc, eyes[i % 2], cave.gaze, half_angle)) continue;
-      cv_lumstats s = {0};
-      cv_foveal_accumulate(L->px, L->w, L->h, w->pa, w->pb, w->pc, eyes[i % 2], cave.gaze,
-                           half_angle, &s);
-      cv_lumstats_merge(&acc, &s);
-      if (i % 2 == 0 && strlen(touched) + strlen(w->name) + 2 < sizeof touched) {
-        if (touched[0]) strcat(touched, ",");
-        strcat(touched, w->name);
-      }
-    }
-    double t_stats = now_ms() - t0;
-    /* 3. adaptation */
-    double g;
-    int have = cv_lumstats_lwa(&acc, &g);
-    if (!have && !as.initialised && n_all) {
-      g = exp(sum_log_all / (double)n_all);
-      have = 1;
-      printf("frame %d: foveal cone empty; adaptation starts from the log-average of all walls\n", f);
-    }
-    if (have) {
-      if (cv_adapt_step(&as, &ap, g, f == 0 ? 0.0 : dt)) {
-        rc = cli_fail("render", 1, "adaptation step failed (target %g cd/m2, dt %g s)", g, dt);
-        goto done;
-      }
-    } else {
-      printf("frame %d: foveal cone empty, adaptation state kept\n", f);
-    }
-    cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = cv_adapt_lwa(&as),
-                  .lwmax = lwmax};
-    cv_drago_consts dc;
-    cv_drago_prepare(&d, &dc);
-    /* 4. depth + shading passes, outputs */
-    cv_frame_timing sum = {0};
-    for (int i = 0; i < nviews; i++) {
-      cv_frame_timing t = {0};
-      double s0 = now_ms();
-      if (cv_renderer_shade(r, &views[i], &dc, 1, disp[i], write ? hdr[i] : NULL, &t, &err)) {
-        rc = cli_fail("render", 1, "wall '%s' %s eye: %s", cave.walls[i / 2].name, eye_name[i % 2],
-                      err.msg);
-        goto done;
-      }
-      t_shade += now_ms() - s0;
-      sum.depth_ms += t.depth_ms, sum.shade_ms += t.shade_ms;
-      if (!write) continue;
-      s0 = now_ms();
-      char path[4096], suffix[32] = "";
-      if (all_frames) snprintf(suffix, sizeof suffix, "_f%04d", f);
-      snprintf(path, sizeof path, "%s/%s_%s%s.exr", outdir, cave.walls[i / 2].name, eye_name[i % 2],
-               suffix);
-      if (cv_exr_write(path, hdr[i], 0, CV_EXR_ZIP, &err)) {
-        rc = cli_fail("render", 1, "%s", err.msg);
-        goto done;
-      }
-      snprintf(path, sizeof path, "%s/%s_%s%s.png", outdir, cave.walls[i / 2].name, eye_name[i % 2],
-               suffix);
-      if (write_png(path, disp[i], &err)) {
-        rc = cli_fail("render", 1, "%s", err.msg);
-        goto done;
-      }
-      t_write += now_ms() - s0;
-    }
-    printf("frame %d (t = %.3f s): foveal %s on %s (%llu px, %.3g sr), Lwmax %.4g; adapted Lwa %.4g "
-           "cd/m2 (cones A %.4g B %.4f, rods A %.4g B %.4f); luminance passes %.1f ms, stats %.3f "
-           "ms, depth+shading %.1f ms (%.1f ms per wall-eye)\n",
-           f, f * dt, acc.weight > 0 ? "Lwa" : "cone empty",
-           touched[0] ? touched : "no wall", (unsigned long long)acc.n_pixels, acc.weight, lwmax,
-           cv_adapt_lwa(&as), as.a_cone, as.b_cone, as.a_rod, as.b_rod, t_lum, t_stats, t_shade,
-           t_shade / nviews);
-    if (acc.weight > 0) printf("          foveal log-average %.4g cd/m2, %llu invalid pixels\n", g,
-                               (unsigned long long)acc.n_invalid);
-    if (write) {
-      char path[4096], suffix[32] = "";
-      if (all_frames) snprintf(suffix, sizeof suffix, "_f%04d", f);
-      cv_image *left[CV_CAVE_MAX_WALLS];
-      for (int w = 0; w < cave.n_walls; w++) left[w] = disp[2 * w];
-      snprintf(path, sizeof path, "%s/montage_L%s.png", outdir, suffix);
-      if (cv_montage_write(path, &cave, left, &err)) {
-        rc = cli_fail("render", 1, "%s", err.msg);
-        goto done;
-      }
-      printf("          wrote %d EXR + %d PNG and %s (%.0f ms)\n", nviews, nviews, path, t_write);
-    }
+    if (cv_renderer_luminance(j->r, &j->views[i], j->lum[i], NULL, &err))
+      return cli_fail("render", 1, "wall '%s' %s eye: %s", j->cave.walls[i / 2].name,
+                      EYE_NAME[i % 2], err.msg);
+    t_lum += now_ms() - t0;
   }
-  rc = 0;
-done:
+  /* 2. foveal statistics (both eyes, the walls the cone touches) and Lwmax */
+  double t0 = now_ms();
+  frame_stats fs;
+  foveal_stats(j, &fs);
+  double t_stats = now_ms() - t0;
+  /* 3. adaptation */
+  double g = 0;
+  int st = adapt(j, &fs, f, &g);
+  if (st) return st;
+  cv_drago d = {.bias = j->cave.drago_bias, .ldmax = j->cave.drago_ldmax,
+                .lwa = cv_adapt_lwa(&j->as), .lwmax = fs.lwmax};
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  /* 4. depth + shading passes, outputs */
+  for (int i = 0; i < j->nviews; i++) {
+    double s0 = now_ms();
+    if (cv_renderer_shade(j->r, &j->views[i], &dc, 1, j->disp[i], write ? j->hdr[i] : NULL, NULL,
+                          &err))
+      return cli_fail("render", 1, "wall '%s' %s eye: %s", j->cave.walls[i / 2].name,
+                      EYE_NAME[i % 2], err.msg);
+    t_shade += now_ms() - s0;
+    if (!write) continue;
+    s0 = now_ms();
+    if ((st = write_view(j, i, f))) return st;
+    t_write += now_ms() - s0;
+  }
+  const cv_adapt_state *as = &j->as;
+  printf("frame %d (t = %.3f s): foveal %s on %s (%llu px, %.3g sr), Lwmax %.4g; adapted Lwa %.4g "
+         "cd/m2 (cones A %.4g B %.4f, rods A %.4g B %.4f); luminance passes %.1f ms, stats %.3f "
+         "ms, depth+shading %.1f ms (%.1f ms per wall-eye)\n",
+         f, f * a->dt, fs.acc.weight > 0 ? "Lwa" : "cone empty",
+         fs.touched[0] ? fs.touched : "no wall", (unsigned long long)fs.acc.n_pixels,
+         fs.acc.weight, fs.lwmax, cv_adapt_lwa(as), as->a_cone, as->b_cone, as->a_rod, as->b_rod,
+         t_lum, t_stats, t_shade, t_shade / j->nviews);
+  if (fs.acc.weight > 0) printf("          foveal log-average %.4g cd/m2, %llu invalid pixels\n", g,
+                                (unsigned long long)fs.acc.n_invalid);
+  if (!write) return 0;
+  char path[4096], suffix[32] = "";
+  if (a->all_frames) snprintf(suffix, sizeof suffix, "_f%04d", f);
+  cv_image *left[CV_CAVE_MAX_WALLS];
+  for (int w = 0; w < j->cave.n_walls; w++) left[w] = j->disp[2 * w];
+  snprintf(path, sizeof path, "%s/montage_L%s.png", a->outdir, suffix);
+  if (cv_montage_write(path, &j->cave, left, &err)) return cli_fail("render", 1, "%s", err.msg);
+  printf("          wrote %d EXR + %d PNG and %s (%.0f ms)\n", j->nviews, j->nviews, path, t_write);
+  return 0;
+}
+
+static void render_job_free(render_job *j) {
   for (int i = 0; i < MAX_VIEWS; i++) {
-    cv_image_destroy(lum[i]);
-    cv_image_destroy(disp[i]);
-    cv_image_destroy(hdr[i]);
+    cv_image_destroy(j->lum[i]);
+    cv_image_destroy(j->disp[i]);
+    cv_image_destroy(j->hdr[i]);
   }
-  cv_image_destroy(bg);
-  cv_renderer_destroy(r);
-  cv_scene_light_destroy(sl);
-  cv_prt_destroy(prt);
+  cv_image_destroy(j->bg);
+  cv_renderer_destroy(j->r);
+  cv_scene_light_destroy(j->sl);
+  cv_prt_destroy(j->prt);
+}
+
+int cmd_render(int argc, char **argv) {
+  render_args a;
+  int rc = parse_args(argc, argv, &a);
+  if (rc != PARSED) return rc;
+  render_job *j = calloc(1, sizeof *j);
+  if (!j) return cli_fail("render", 1, "out of memory");
+  j->a = &a;
+  if (!(rc = load_cave(&a, &j->cave, j->eyes)) && !(rc = start_renderer(j)) &&
+      !(rc = light_scene(j)) && !(rc = make_views(j))) {
+    if (mkdir(a.outdir, 0777) && errno != EEXIST) {
+      rc = cli_fail("render", 1, "-o %s: cannot create the folder (%s)", a.outdir, strerror(errno));
+    } else {
+      cv_adapt_default_params(&j->ap);
+      j->ap.t0_cone = j->cave.t0_cone, j->ap.t0_rod = j->cave.t0_rod;
+      j->ap.tau_cone = j->cave.tau_cone, j->ap.tau_rod = j->cave.tau_rod;
+      for (int f = 0; f < a.frames && !rc; f++) rc = render_frame(j, f);
+    }
+  }
+  render_job_free(j);
+  free(j);
   return rc;
 }
