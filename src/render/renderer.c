@@ -494,15 +494,13 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
   r->relight_on_cpu = r->o.relight_cpu < 0 ? r->egl.software : r->o.relight_cpu != 0;
   if (r->relight_on_cpu) { /* the CPU reads what the texture buffer would hold */
-    if (th)
-      for (size_t i = 0; i < 4 * texels; i++) tf[i] = cv_half_to_float(th[i]);
     r->rad_cpu = malloc(4 * p->nv * sizeof *r->rad_cpu + 4);
     if (!r->rad_cpu) {
       free(idx), free(tf), free(th), free(old_of), free(new_of), free(pos), free(alb);
       return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
     }
-    r->tf_cpu = tf;
-    tf = NULL; /* kept */
+    if (th) r->th_cpu = th, th = NULL; /* kept: half the bytes to read per relight */
+    else r->tf_cpu = tf, tf = NULL;
   } else {
     r->tex_transfer = th ? cvr_make_tbo(&r->buf_transfer, GL_RGBA16F, th, 4 * texels * sizeof *th)
                          : cvr_make_tbo(&r->buf_transfer, GL_RGBA32F, tf, 4 * texels * sizeof *tf);
@@ -675,6 +673,7 @@ void cv_renderer_destroy(cv_renderer *r) {
   free(r->cast_idx);
   free(r->cast_draw);
   free(r->tf_cpu);
+  free(r->th_cpu);
   free(r->wl_cpu);
   free(r->rad_cpu);
   free(r);

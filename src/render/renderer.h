@@ -62,7 +62,8 @@
 struct cv_window_spec;
 
 typedef struct cv_render_opts {
-  int half_transfer; /* 1: transfer stored as half floats (RGBA16F), half the bytes */
+  int half_transfer; /* 1: transfer stored as half floats (RGBA16F, or in memory for the CPU
+                        relight), half the bytes */
   int shadow_res;    /* sun shadow map size in texels (default 2048) */
   int timing;        /* 1: bracket passes with glFinish and fill cv_frame_timing with wall-clock
                         ms (default); 2: the same with the process's CPU ms (all threads: the

@@ -165,10 +165,12 @@ struct cv_renderer {
   double cast_err, cast_ms;
   /* the CPU relight (render_relight.c, opts.relight_cpu): 1 when used; the
    * transfer as the GL's texture buffer would hold it (nc + 1 RGBA texels a
-   * vertex, not uploaded then), the split lights' direct light (RGBA a
-   * vertex, NULL without), the relit radiance before its upload */
+   * vertex, not uploaded then: floats in tf_cpu, or with opts.half_transfer
+   * half floats in th_cpu), the split lights' direct light (RGBA a vertex,
+   * NULL without), the relit radiance before its upload */
   int relight_on_cpu;
   float *tf_cpu, *wl_cpu, *rad_cpu;
+  uint16_t *th_cpu;
 };
 
 enum { DRAW_ALL = 0, DRAW_SUNLIT = 1, DRAW_UNSUNLIT = 2, DRAW_SHADOW = 3 }; /* draw_mesh parts */
@@ -201,6 +203,10 @@ int cvr_shadow_target(cv_renderer *r, int n, cv_err *err);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_draw_casters(cv_renderer *r, const double s[3], cv_err *err);
 uint64_t cvr_relight_cpu(cv_renderer *r, const float *ul, const float *uls);
+/* n halves to floats: portably, or by F16C when the CPU has it (returns 1
+ * then); the same floats (render_relight.c). */
+void cvr_halves_soft(const uint16_t *h, float *f, size_t n);
+int cvr_halves_f16c(const uint16_t *h, float *f, size_t n);
 void cvr_casters_free(cv_renderer *r);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);

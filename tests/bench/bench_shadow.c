@@ -75,20 +75,22 @@ typedef struct variant {
   int res, cull, stats, same_sun;
   double casters; /* opts.shadow_casters (m; 0: the mesh itself) */
   int feedback;   /* 1: relight by transform feedback (opts.relight_cpu 0) */
+  int half;       /* 1: opts.half_transfer (its images compared with the default's) */
 } variant;
 
 static const variant VARIANTS[] = {
-    {"2048^2, all triangles of the mesh, clamp count read back, feedback relight (before issue 16)", 2048, 0, 1, 0, 0, 1},
-    {"2048^2, the mesh, facing away only, feedback relight (the default before this change)", 2048, 1, 0, 0, 0, 1},
-    {"2048^2, the mesh, facing away only", 2048, 1, 0, 0, 0, 0},
-    {"1024^2, the mesh, facing away only", 1024, 1, 0, 0, 0, 0},
-    {"2048^2, casters within 0.25 mm, facing away only", 2048, 1, 0, 0, 0.00025, 0},
-    {"2048^2, casters within 0.5 mm, facing away only", 2048, 1, 0, 0, 0.0005, 0},
-    {"2048^2, casters within 1 mm, facing away only (default)", 2048, 1, 0, 0, 0.001, 0},
-    {"2048^2, casters within 1 mm, all (not culled)", 2048, 0, 0, 0, 0.001, 0},
-    {"2048^2, casters within 2 mm, facing away only", 2048, 1, 0, 0, 0.002, 0},
-    {"1024^2, casters within 1 mm, facing away only", 1024, 1, 0, 0, 0.001, 0},
-    {"2048^2, casters within 1 mm, sun unchanged (map kept)", 2048, 1, 0, 1, 0.001, 0},
+    {"2048^2, all triangles of the mesh, clamp count read back, feedback relight (before issue 16)", 2048, 0, 1, 0, 0, 1, 0},
+    {"2048^2, the mesh, facing away only, feedback relight (the default before this change)", 2048, 1, 0, 0, 0, 1, 0},
+    {"2048^2, the mesh, facing away only", 2048, 1, 0, 0, 0, 0, 0},
+    {"1024^2, the mesh, facing away only", 1024, 1, 0, 0, 0, 0, 0},
+    {"2048^2, casters within 0.25 mm, facing away only", 2048, 1, 0, 0, 0.00025, 0, 0},
+    {"2048^2, casters within 0.5 mm, facing away only", 2048, 1, 0, 0, 0.0005, 0, 0},
+    {"2048^2, casters within 1 mm, facing away only (default)", 2048, 1, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, all (not culled)", 2048, 0, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, facing away only, half-float transfer", 2048, 1, 0, 0, 0.001, 0, 1},
+    {"2048^2, casters within 2 mm, facing away only", 2048, 1, 0, 0, 0.002, 0, 0},
+    {"1024^2, casters within 1 mm, facing away only", 1024, 1, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, sun unchanged (map kept)", 2048, 1, 0, 1, 0.001, 0, 0},
 };
 #define NVAR (int)(sizeof VARIANTS / sizeof VARIANTS[0])
 
@@ -300,6 +302,7 @@ int main(int argc, char **argv) {
     ro.shadow_reuse = VARIANTS[v].same_sun ? 0.5 : 0;
     ro.shadow_casters = VARIANTS[v].casters;
     ro.relight_cpu = VARIANTS[v].feedback ? 0 : -1;
+    ro.half_transfer = VARIANTS[v].half;
     if (cv_renderer_create(prt, &ro, &R[v], &err)) {
       fprintf(stderr, "%s\n", err.msg);
       return 1;
@@ -392,6 +395,17 @@ int main(int argc, char **argv) {
     return 1;
   err_acc acc[NVAR][MAXSUN];
   memset(acc, 0, sizeof acc);
+  /* the half-float variant's pixels against the default's (float transfer,
+   * otherwise the same): relative luminance differences */
+  int v_def = -1, v_half = -1;
+  for (int v = 0; v < NVAR; v++) {
+    if (strstr(VARIANTS[v].name, "(default)")) v_def = v;
+    if (VARIANTS[v].half) v_half = v;
+  }
+  cv_image *hdr_def;
+  double *hrel = malloc((size_t)nsun * nviews * np * sizeof *hrel);
+  size_t nhrel = 0;
+  if (!hrel || cv_image_create(S, S, 3, &hdr_def)) return 1;
   beam_ext bx[MAXSUN];
   for (int k = 0; k < nsun; k++) {
     double sn = 0, sk[3], ax[2][3];
@@ -423,6 +437,13 @@ int main(int argc, char **argv) {
           return 1;
         }
         compare_view(&rv, hdr, S, &acc[v][k]);
+        if (v == v_def) memcpy(hdr_def->px, hdr->px, 3 * np * sizeof *hdr->px);
+        if (v == v_half && v_def >= 0 && v_def < v_half)
+          for (size_t q = 0; q < np; q++) {
+            const float *a = hdr->px + 3 * q, *b = hdr_def->px + 3 * q;
+            const double ya = lum3(a), yb = lum3(b);
+            if (rv.tri[q] >= 0 && yb > 0) hrel[nhrel++] = fabs(ya - yb) / yb;
+          }
       }
     }
   }
@@ -446,6 +467,15 @@ int main(int argc, char **argv) {
            VARIANTS[v].name, t.counted, t.silhouette, 100 * t.differ / c, 100 * t.leak / c,
            100 * t.dark / c, 100 * t.near1 / c, 100 * t.near3 / c, 100 * t.far / c, 100 * worst);
   }
+  if (nhrel) {
+    qsort(hrel, nhrel, sizeof *hrel, bench_cmp_double);
+    printf("\nHalf-float transfer against float (the same renderer otherwise), relative luminance "
+           "difference over %zu pixels that see the cabin: median %.2e, p90 %.2e, p99 %.2e, "
+           "p99.9 %.2e, max %.2e\n", nhrel, hrel[nhrel / 2], hrel[(size_t)(0.9 * nhrel)],
+           hrel[(size_t)(0.99 * nhrel)], hrel[(size_t)(0.999 * nhrel)], hrel[nhrel - 1]);
+  }
+  free(hrel);
+  cv_image_destroy(hdr_def);
   printf("\nAcross the sun's beam (metres, x by y; the map's texel is the larger over its resolution):"
          " all vertices / vertices of the triangles seen / of the counted pixels' triangles; the "
          "resolution that keeps the 2048^2 map's texel when fitted to the counted ones:\n\n");

@@ -37,6 +37,7 @@
 #include "prt/relight.h"
 #include "prt/scene_light.h"
 #include "render/renderer.h"
+#include "render/renderer_internal.h"
 #include "tonemap/drago.h"
 #include "view/offaxis.h"
 
@@ -590,6 +591,28 @@ static void test_cpu_relight_and_casters(void **state) {
   for (int i = 0; i < 3; i++) cv_renderer_destroy(R[i]);
   cv_image_destroy(bg);
   cv_scene_light_destroy(sl);
+}
+
+/* The CPU relight's half-float conversions (opts.half_transfer): F16C and
+ * the portable one give the same float for each of the 65,536 halves (NaN
+ * for NaN). */
+static void test_half_conversions(void **state) {
+  (void)state;
+  uint16_t *h = malloc(65536 * sizeof *h);
+  float *a = malloc(65536 * sizeof *a), *b = malloc(65536 * sizeof *b);
+  assert_non_null(h), assert_non_null(a), assert_non_null(b);
+  for (uint32_t i = 0; i < 65536; i++) h[i] = (uint16_t)i;
+  cvr_halves_soft(h, a, 65536);
+  const int hw = cvr_halves_f16c(h, b, 65535); /* an odd count: the tail too */
+  b[65535] = a[65535];
+  size_t differ = 0;
+  for (uint32_t i = 0; i < 65536; i++)
+    differ += isnan(a[i]) ? !isnan(b[i]) : memcmp(&a[i], &b[i], sizeof a[i]) != 0;
+  printf("half -> float: F16C %s, %zu of 65536 differ from the portable conversion\n",
+         hw ? "used" : "not on this CPU (portable both times)", differ);
+  assert_int_equal(differ, 0);
+  assert_true(a[0x3c00] == 1.0f && a[0xc000] == -2.0f && a[0x0001] == ldexpf(1, -24));
+  free(h), free(a), free(b);
 }
 
 /* cv_renderer_mesh_closed: a unit box wound outwards is closed; without one
@@ -1150,7 +1173,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
