@@ -18,9 +18,9 @@
 #include <time.h>
 
 #include "lcd/brdf.h"
-#include "light/envmap_cache.h"
 #include "lcd/gather.h"
 #include "lcd/panels.h"
+#include "light/envmap_cache.h"
 #include "lcdwork.h"
 #include "prt/bake.h"
 #include "service/lcdshare.h"

@@ -28,7 +28,7 @@
  * defects are reported (cv_renderer_shadow_casters).
  *
  * Built on the first shadow map (an importer of shared lighting never draws
- * one, so never pays the ~0.3-0.5 s for the 571K cabin). */
+ * one, so never pays the build: build_ms in cv_renderer_shadow_casters). */
 #include "render/renderer_internal.h"
 
 #include <meshoptimizer.h>
@@ -38,86 +38,17 @@
  * fraction of their triangles (see the file's comment). */
 #define CASTER_DEFECTS_MAX 0.02
 
-/* Directed edges (a << 32 | b) of the triangles, sorted. */
-static uint64_t *sorted_edges(const uint32_t *tri, size_t nt) {
-  uint64_t *e = malloc(3 * nt * sizeof *e + 8);
-  if (!e) return NULL;
-  for (size_t t = 0; t < nt; t++)
-    for (int k = 0; k < 3; k++)
-      e[3 * t + k] = (uint64_t)tri[3 * t + k] << 32 | tri[3 * t + (k + 1) % 3];
-  qsort(e, 3 * nt, sizeof *e, cvr_cmp_u64);
-  return e;
-}
-
-static int has_edge(const uint64_t *e, size_t n, uint64_t k) {
-  size_t lo = 0, hi = n;
-  while (lo < hi) {
-    const size_t mid = lo + (hi - lo) / 2;
-    if (e[mid] < k) lo = mid + 1;
-    else hi = mid;
-  }
-  return lo < n && e[lo] == k;
-}
-
-/* The border edges (directed edges whose reverse is missing), sorted, into
- * *out (*n of them), and in *dup the directed edges that occur more than
- * once (folds: not consistently wound there).  CV_ERR_NOMEM or CV_OK. */
-static int border_edges(const uint32_t *tri, size_t nt, uint64_t **out, size_t *n, size_t *dup) {
-  *out = NULL, *n = 0, *dup = 0;
-  uint64_t *e = sorted_edges(tri, nt);
-  const size_t ne = 3 * nt;
-  uint64_t *b = e ? malloc(ne * sizeof *b + 8) : NULL;
-  if (!b) {
-    free(e);
-    return CV_ERR_NOMEM;
-  }
-  size_t nb = 0;
-  for (size_t i = 0; i < ne; i++) {
-    if (i && e[i] == e[i - 1]) {
-      (*dup)++;
-      continue;
-    }
-    const uint64_t rev = (e[i] & 0xffffffffu) << 32 | e[i] >> 32;
-    if (!has_edge(e, ne, rev)) b[nb++] = e[i];
-  }
-  free(e);
-  *out = b, *n = nb;
-  return CV_OK;
-}
-
 /* How far the casters are from pairing their edges as the original does
  * (the closedness that culling relies on; welded indices): directed edges
- * that occur twice plus border edges in one set and not the other.
- * SIZE_MAX out of memory. */
+ * that occur twice plus border edges of one that are not border edges of
+ * the other.  SIZE_MAX out of memory. */
 static size_t closure_defects(const uint32_t *orig, size_t nt0, const uint32_t *cast, size_t nt1) {
-  uint64_t *b0 = NULL, *b1 = NULL;
-  size_t n0, n1, d0, d1;
-  if (border_edges(orig, nt0, &b0, &n0, &d0) || border_edges(cast, nt1, &b1, &n1, &d1)) {
-    free(b0);
-    return SIZE_MAX;
-  }
-  size_t defects = d0 + d1, i = 0, j = 0;
-  while (i < n0 || j < n1) { /* symmetric difference of two sorted sets */
-    if (j == n1 || (i < n0 && b0[i] < b1[j])) defects++, i++;
-    else if (i == n0 || b1[j] < b0[i]) defects++, j++;
-    else i++, j++;
-  }
-  free(b0), free(b1);
+  cvr_edges a = {0}, b = {0};
+  size_t defects = SIZE_MAX;
+  if (cvr_edges_build(&a, orig, nt0) == CV_OK && cvr_edges_build(&b, cast, nt1) == CV_OK)
+    defects = a.dup + b.dup + cvr_edges_border_unmatched(&a, &b) + cvr_edges_border_unmatched(&b, &a);
+  cvr_edges_free(&a), cvr_edges_free(&b);
   return defects;
-}
-
-/* Unit winding normals of the casters. */
-static void caster_normals(cv_renderer *r) {
-  for (size_t t = 0; t < r->cast_nt; t++) {
-    const uint32_t *v = r->cast_idx + 3 * t;
-    const float *a = r->cast_pos + 3 * v[0], *b = r->cast_pos + 3 * v[1], *d = r->cast_pos + 3 * v[2];
-    double e1[3], e2[3];
-    for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
-    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                         e1[0] * e2[1] - e1[1] * e2[0]};
-    const double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int j = 0; j < 3; j++) r->cast_n[3 * t + j] = l > 0 ? (float)(n[j] / l) : 0.0f;
-  }
 }
 
 /* The opaque triangles on exactly welded positions (degenerate ones
@@ -186,7 +117,7 @@ static int build_casters(cv_renderer *r, cv_err *err) {
   r->cast_draw = malloc(3 * r->cast_nt * sizeof *r->cast_draw + 4);
   if (!r->cast_n || !r->cast_draw)
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
-  caster_normals(r);
+  cvr_unit_normals(r->cast_pos, r->cast_idx, r->cast_nt, r->cast_n);
   r->cast_err = (double)rel * scale;
   glGenVertexArrays(1, &r->vao_cast);
   glGenBuffers(1, &r->buf_cast_pos);

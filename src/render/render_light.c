@@ -153,16 +153,7 @@ static int tri_normals(cv_renderer *r) {
   if (r->tri_n) return CV_OK;
   r->tri_n = malloc(3 * r->nt * sizeof *r->tri_n + 4);
   if (!r->tri_n) return CV_ERR_NOMEM;
-  for (size_t t = 0; t < r->nt; t++) {
-    const uint32_t *v = r->idx_cpu + 3 * t;
-    const float *a = r->pos_cpu + 3 * v[0], *b = r->pos_cpu + 3 * v[1], *d = r->pos_cpu + 3 * v[2];
-    double e1[3], e2[3];
-    for (int j = 0; j < 3; j++) e1[j] = (double)b[j] - a[j], e2[j] = (double)d[j] - a[j];
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                   e1[0] * e2[1] - e1[1] * e2[0]};
-    const double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int j = 0; j < 3; j++) r->tri_n[3 * t + j] = l > 0 ? (float)(n[j] / l) : 0.0f;
-  }
+  cvr_unit_normals(r->pos_cpu, r->idx_cpu, r->nt, r->tri_n);
   return CV_OK;
 }
 

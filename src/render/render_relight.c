@@ -6,9 +6,11 @@
  * same sums as a plain loop over the texels in memory, four lanes at a
  * time, OpenMP threads over the vertices, then one glBufferSubData of the
  * radiance (16 bytes a vertex): docs/benchmarks.md has the figures.
- * With opts.half_transfer the transfer stays in half floats (half the bytes
- * read: the loop is bound by memory) and each texel is converted by F16C
- * (or a portable conversion: the same floats) as it is read.
+ * With opts.half_transfer the transfer stays in half floats (half the
+ * memory; not faster: reading the float transfer and summing it cost about
+ * the same, so halving the bytes alone gains nothing) and each vertex's
+ * texels are converted by F16C (or a portable conversion: the same floats)
+ * as they are read.
  *
  * The sums are relight.vert's, in float (the even and odd terms summed
  * apart, then added: the last bits differ from the shader's order), per vertex:

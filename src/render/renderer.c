@@ -299,16 +299,6 @@ int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err
   return cvr_gl_check("background upload", err);
 }
 
-/* Directed edge (a, b) as one key; 0 is free (a == b never stored). */
-static uint64_t edge_key(uint32_t a, uint32_t b) { return (uint64_t)a << 32 | b; }
-
-static uint64_t edge_hash(uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdull;
-  k ^= k >> 33;
-  return k;
-}
-
 /* Per vertex the first vertex at exactly the same position (vertices split
  * at material boundaries are one point of the surface); NULL when out of
  * memory. */
@@ -324,7 +314,7 @@ static uint32_t *weld_positions(const cv_prt *p) {
   for (size_t v = 0; v < p->nv; v++) {
     uint32_t b[3];
     memcpy(b, p->pos + 3 * v, sizeof b);
-    size_t h = edge_hash(edge_hash((uint64_t)b[0] << 32 | b[1]) ^ b[2]) & (cap - 1);
+    size_t h = cvr_hash64(cvr_hash64((uint64_t)b[0] << 32 | b[1]) ^ b[2]) & (cap - 1);
     while (slot[h] != UINT32_MAX && memcmp(p->pos + 3 * (size_t)slot[h], p->pos + 3 * v, sizeof b))
       h = (h + 1) & (cap - 1);
     if (slot[h] == UINT32_MAX) slot[h] = (uint32_t)v;
@@ -336,37 +326,18 @@ static uint32_t *weld_positions(const cv_prt *p) {
 
 /* 1 when every directed edge of p's non-degenerate triangles, vertices
  * welded by position, occurs once and its reverse once (closed, consistently
- * wound), by an open-addressing set of the edges; 0 otherwise or out of
- * memory. */
+ * wound); 0 otherwise or out of memory. */
 static int mesh_closed(const cv_prt *p) {
-  size_t cap = 1;
-  while (cap < 6 * p->nt + 2) cap <<= 1;
-  uint64_t *set = calloc(cap, sizeof *set);
-  uint32_t *id = weld_positions(p);
-  if (!set || !id) {
-    free(set), free(id);
-    return 0;
+  uint32_t *id = weld_positions(p), *tri = malloc(3 * p->nt * sizeof *tri + 4);
+  cvr_edges e = {0};
+  int closed = 0;
+  if (id && tri) {
+    for (size_t i = 0; i < 3 * p->nt; i++) tri[i] = id[p->tri[i]];
+    if (cvr_edges_build(&e, tri, p->nt) == CV_OK)
+      closed = e.dup == 0 && cvr_edges_border_unmatched(&e, NULL) == 0;
   }
-  int closed = 1;
-  for (size_t t = 0; t < p->nt && closed; t++) {
-    const uint32_t v[3] = {id[p->tri[3 * t]], id[p->tri[3 * t + 1]], id[p->tri[3 * t + 2]]};
-    if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0]) continue;
-    for (int e = 0; e < 3 && closed; e++) {
-      const uint64_t k = edge_key(v[e], v[(e + 1) % 3]);
-      size_t h = edge_hash(k) & (cap - 1);
-      while (set[h] && set[h] != k) h = (h + 1) & (cap - 1);
-      if (set[h] == k) closed = 0; /* the same directed edge twice */
-      set[h] = k;
-    }
-  }
-  for (size_t h = 0; h < cap && closed; h++) {
-    if (!set[h]) continue;
-    const uint64_t r = edge_key((uint32_t)set[h], (uint32_t)(set[h] >> 32));
-    size_t g = edge_hash(r) & (cap - 1);
-    while (set[g] && set[g] != r) g = (g + 1) & (cap - 1);
-    if (set[g] != r) closed = 0; /* a border edge, or neighbours wound apart */
-  }
-  free(set), free(id);
+  cvr_edges_free(&e);
+  free(id), free(tri);
   return closed;
 }
 

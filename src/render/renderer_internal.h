@@ -9,6 +9,7 @@
  *   render_share.c    shared lighting: the set_lighting products exported / imported
  *   render_casters.c  the sun's shadow casters: a simplified copy of the opaque mesh
  *   render_relight.c  the relight on the CPU (software GL)
+ *   render_edges.c    directed-edge sets (closedness), triangle normals
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -202,6 +203,20 @@ int cvr_shadow_culled(const cv_renderer *r);
 int cvr_shadow_target(cv_renderer *r, int n, cv_err *err);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
 int cvr_draw_casters(cv_renderer *r, const double s[3], cv_err *err);
+/* Directed edges of triangles on welded indices (render_edges.c):
+ * degenerate triangles skipped, dup = directed edges met again. */
+typedef struct cvr_edges {
+  uint64_t *set;
+  size_t cap, dup;
+} cvr_edges;
+uint64_t cvr_hash64(uint64_t k);
+int cvr_edges_build(cvr_edges *e, const uint32_t *tri, size_t nt);
+/* a's border edges (reverse not in a) that are not border edges of b (all
+ * of them when b is NULL). */
+size_t cvr_edges_border_unmatched(const cvr_edges *a, const cvr_edges *b);
+void cvr_edges_free(cvr_edges *e);
+/* Unit winding normals of nt triangles (0 for a degenerate one) into out[3 nt]. */
+void cvr_unit_normals(const float *pos, const uint32_t *idx, size_t nt, float *out);
 uint64_t cvr_relight_cpu(cv_renderer *r, const float *ul, const float *uls);
 /* n halves to floats: portably, or by F16C when the CPU has it (returns 1
  * then); the same floats (render_relight.c). */
