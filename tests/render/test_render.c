@@ -616,7 +616,8 @@ static void test_half_conversions(void **state) {
 }
 
 /* cv_renderer_mesh_closed: a unit box wound outwards is closed; without one
- * face, or with one face wound the other way, it is not. */
+ * face, or with one face wound the other way, it is not; each gets its shadow
+ * casters (nothing to simplify on 12 triangles), culled only when closed. */
 static void test_mesh_closed(void **state) {
   (void)state;
   static const float P[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
@@ -649,6 +650,21 @@ static void test_mesh_closed(void **state) {
     OK(cv_renderer_create(p, NULL, &r, &err));
     printf("box %d: closed %d\n", k, cv_renderer_mesh_closed(r));
     assert_int_equal(cv_renderer_mesh_closed(r), k == 0);
+    /* its shadow casters under a sun: nothing to simplify on 12 triangles;
+     * culled only on the closed box */
+    cv_scene_light *sl = sky_35_30();
+    const cv_lighting l = cv_scene_light_sh(sl);
+    OK(cv_renderer_set_lighting(r, &l, NULL, NULL, &err));
+    cv_shadow_casters sc;
+    assert_int_equal(cv_renderer_shadow_casters(r, &sc), CV_OK);
+    printf("  casters: %zu of %zu triangles, defects %zu, culled %d, %zu in the map\n", sc.triangles,
+           sc.mesh_triangles, sc.defects, sc.culled, sc.drawn);
+    assert_int_equal(sc.built, 1);
+    assert_int_equal(sc.triangles, sc.mesh_triangles);
+    assert_int_equal(sc.culled, k == 0);
+    assert_true(k == 0 ? sc.drawn < sc.triangles : sc.drawn == sc.triangles);
+    if (k == 0) assert_int_equal(sc.defects, 0);
+    cv_scene_light_destroy(sl);
     cv_renderer_destroy(r);
     cv_prt_destroy(p);
     cv_mesh_destroy(m);
