@@ -18,7 +18,7 @@
  *   write_frame_metrics, pace.
  *
  * Adaptation latency: the frame state carries the adaptation computed from
- * the previous frame's luminance passes, so a frame needs one round trip to
+ * the previous frame's luminance images, so a frame needs one round trip to
  * the master instead of two.  One frame (33 ms) is small against the
  * neural time constants (80 ms cones, 150 ms rods).  Frame 0 starts from the
  * CAVE's first luminance: before frame 0 a priming round (CV_FS_MEASURE,
@@ -869,7 +869,7 @@ int cv_master_run(cv_service *s) {
     }
     if (f == 0 && !m->have_adapt) {
       cv_frame_state pf = fs;
-      frame_adaptation(m, f, &pf); /* 1 cd/m2: only the luminance pass is used */
+      frame_adaptation(m, f, &pf); /* 1 cd/m2: only the HDR image (its luminance) is used */
       master_prime_adaptation(m, pf);
     }
     frame_adaptation(m, f, &fs);

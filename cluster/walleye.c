@@ -3,8 +3,9 @@
  * (side-by-side, top-bottom; quad-buffered is refused: EGL has no stereo
  * configs).  Per frame, as named phases:
  *   take the master's frame state; relight when the light key changed;
- *   render each eye (luminance pass for the foveal statistics, depth, PRT
- *     shading tone-mapped with the shared adaptation, display-linear);
+ *   render each eye (depth, PRT shading tone-mapped with the shared
+ *     adaptation, display-linear; the HDR image downsampled to the
+ *     luminance image of the foveal statistics: no luminance pass);
  *   report each eye (statistics, patch means, the previous frame's swap
  *     time) to the master; on desktop preview frames the left eye also
  *     sends its uncompensated tone-mapped image as 8-bit codes;
@@ -396,12 +397,21 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
   cv_drago_consts dc;
   cv_drago_prepare(&d, &dc);
   cv_err err;
-  if (vst || cv_renderer_frame(we->r, &rv, &dc, 0, v->disp_img, v->hdr, v->lum, tm, &err)) {
+  /* No luminance pass: the adaptation statistics of this frame (which the
+   * master uses for the next one) come from its own HDR image. */
+  if (vst || cv_renderer_frame(we->r, &rv, &dc, 0, v->disp_img, v->hdr, NULL, tm, &err)) {
     /* head behind this wall or a GL failure: black frame, no statistics */
     if (!vst) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
     memset(v->disp_img->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
     memset(v->hdr->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
   } else {
+    /* The luminance image (lum_res^2) from the HDR frame, and Drago's
+     * Lwmax: the largest luminance of all its pixels. */
+    const double t0 = 1e3 * cv_comm_time();
+    double mx = 0;
+    uint64_t bad = 0;
+    cv_lum_downsample(v->hdr, v->lum, &mx, &bad);
+    tm->lum_ms = 1e3 * cv_comm_time() - t0, tm->lum_read_ms = 0;
     /* Foveal statistics from the head position (the cone of the gaze). */
     const double half_angle = 0.5 * s->cave.foveal_deg * M_PI / 180.0;
     cv_lumstats ls;
@@ -413,10 +423,6 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
     rep->weight = ls.weight;
     rep->n_pixels = ls.n_pixels;
     rep->n_invalid = ls.n_invalid;
-    /* max_l: the largest luminance of the whole pass (Drago's Lwmax). */
-    double mx = 0;
-    for (size_t i = 0; i < (size_t)v->lum->w * v->lum->h; i++)
-      if (isfinite(v->lum->px[i]) && v->lum->px[i] > mx) mx = v->lum->px[i];
     rep->max_l = mx;
   }
   rep->ms_lum = tm->lum_ms + tm->lum_read_ms;

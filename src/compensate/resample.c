@@ -23,32 +23,73 @@ static int cell_of(const double *e, int n, double t) {
   return lo;
 }
 
+/* The cells that [t0, t1) overlaps and the overlaps (at most n): what
+ * cv_downsample_to_patches computed per pixel, once per column or row.
+ * first[i]..first[i + 1] index cell[] and len[] for pixel i. */
+typedef struct overlaps {
+  int *first, *cell;
+  double *len;
+} overlaps;
+
+static void overlaps_free(overlaps *o) {
+  free(o->first), free(o->cell), free(o->len);
+}
+
+/* Pixel i of n covers [t0(i), t0(i) + 1/n) with t0(i) = (flip ? n - 1 - i : i) / n. */
+static int overlaps_make(const double *E, int ne, int n, int flip, overlaps *o) {
+  size_t cap = (size_t)n + (size_t)ne + 1, k = 0;
+  o->first = malloc(((size_t)n + 1) * sizeof *o->first);
+  o->cell = malloc(cap * sizeof *o->cell);
+  o->len = malloc(cap * sizeof *o->len);
+  if (!o->first || !o->cell || !o->len) return -1;
+  for (int i = 0; i < n; i++) {
+    const double t0 = (double)(flip ? n - 1 - i : i) / n, t1 = t0 + 1.0 / n;
+    o->first[i] = (int)k;
+    for (int c = cell_of(E, ne, t0); c < ne && E[c] < t1; c++) {
+      const double ov = fmin(t1, E[c + 1]) - fmax(t0, E[c]);
+      if (ov <= 0) continue;
+      if (k == cap) {
+        cap *= 2;
+        int *nc = realloc(o->cell, cap * sizeof *nc);
+        if (nc) o->cell = nc;
+        double *nl = realloc(o->len, cap * sizeof *nl);
+        if (nl) o->len = nl;
+        if (!nc || !nl) return -1;
+      }
+      o->cell[k] = c, o->len[k] = ov, k++;
+    }
+  }
+  o->first[n] = (int)k;
+  return 0;
+}
+
 int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *eu,
                              const double *ev, double *out) {
-  /* Exact area weights: pixel x covers [x/w, (x+1)/w) of the surface. */
+  /* Exact area weights: pixel x covers [x/w, (x+1)/w) of the surface; the
+   * overlaps of each column and row with the cells computed once (the
+   * products and sums are those of a per-pixel computation, in its order). */
   double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
   double *wsum = calloc((size_t)nu * nv, sizeof(double));
-  if (!tu || !tv || !wsum) {
-    free(tu);
-    free(tv);
-    free(wsum);
+  overlaps ox = {0}, oy = {0};
+  int st = !tu || !tv || !wsum ? -1 : 0;
+  const double *U = st ? NULL : edges_or_uniform(eu, nu, tu), *V = st ? NULL : edges_or_uniform(ev, nv, tv);
+  if (!st) st = overlaps_make(U, nu, img->w, 0, &ox);
+  if (!st) st = overlaps_make(V, nv, img->h, 1, &oy); /* bottom-up */
+  if (st) {
+    free(tu), free(tv), free(wsum);
+    overlaps_free(&ox), overlaps_free(&oy);
     return -1;
   }
-  const double *U = edges_or_uniform(eu, nu, tu), *V = edges_or_uniform(ev, nv, tv);
   memset(out, 0, 3 * (size_t)nu * nv * sizeof(double));
   for (int y = 0; y < img->h; y++) {
-    double y0 = (double)(img->h - 1 - y) / img->h, y1 = y0 + 1.0 / img->h; /* bottom-up */
     for (int x = 0; x < img->w; x++) {
-      double x0 = (double)x / img->w, x1 = x0 + 1.0 / img->w;
       const float *p = cv_image_at(img, x, y);
-      for (int v = cell_of(V, nv, y0); v < nv && V[v] < y1; v++) {
-        double oy = fmin(y1, V[v + 1]) - fmax(y0, V[v]);
-        if (oy <= 0) continue;
-        for (int u = cell_of(U, nu, x0); u < nu && U[u] < x1; u++) {
-          double ox = fmin(x1, U[u + 1]) - fmax(x0, U[u]);
-          if (ox <= 0) continue;
-          double w = ox * oy;
-          size_t k = (size_t)v * nu + u;
+      for (int a = oy.first[y]; a < oy.first[y + 1]; a++) {
+        const double wy = oy.len[a];
+        const size_t row = (size_t)oy.cell[a] * nu;
+        for (int b = ox.first[x]; b < ox.first[x + 1]; b++) {
+          double w = ox.len[b] * wy;
+          size_t k = row + (size_t)ox.cell[b];
           for (int c = 0; c < 3; c++) out[3 * k + c] += w * p[c];
           wsum[k] += w;
         }
@@ -60,6 +101,7 @@ int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *
   free(tu);
   free(tv);
   free(wsum);
+  overlaps_free(&ox), overlaps_free(&oy);
   return 0;
 }
 
@@ -87,30 +129,32 @@ static void bracket(const double *e, int n, double t, int *i0, int *i1, double *
 int cv_upsample_from_patches(const double *patches, int nu, int nv, const double *eu,
                              const double *ev, cv_image *out) {
   double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
-  if (!tu || !tv) {
-    free(tu);
-    free(tv);
+  int *iu = malloc(2 * (size_t)out->w * sizeof *iu);
+  double *fu = malloc((size_t)out->w * sizeof *fu);
+  if (!tu || !tv || !iu || !fu) {
+    free(tu), free(tv), free(iu), free(fu);
     return -1;
   }
   const double *U = edges_or_uniform(eu, nu, tu), *V = edges_or_uniform(ev, nv, tv);
+  for (int x = 0; x < out->w; x++) /* the columns' brackets once */
+    bracket(U, nu, (x + 0.5) / out->w, &iu[2 * x], &iu[2 * x + 1], &fu[x]);
   for (int y = 0; y < out->h; y++) {
     int v0, v1;
     double fv;
     bracket(V, nv, ((out->h - 1 - y) + 0.5) / out->h, &v0, &v1, &fv);
+    const double *r0 = patches + 3 * (size_t)v0 * nu, *r1 = patches + 3 * (size_t)v1 * nu;
     for (int x = 0; x < out->w; x++) {
-      int u0, u1;
-      double fu;
-      bracket(U, nu, (x + 0.5) / out->w, &u0, &u1, &fu);
+      const int u0 = iu[2 * x], u1 = iu[2 * x + 1];
+      const double f = fu[x];
       float *p = cv_image_at(out, x, y);
       for (int c = 0; c < 3; c++) {
-        double a = patches[3 * ((size_t)v0 * nu + u0) + c], b = patches[3 * ((size_t)v0 * nu + u1) + c];
-        double d = patches[3 * ((size_t)v1 * nu + u0) + c], e = patches[3 * ((size_t)v1 * nu + u1) + c];
-        p[c] = (float)((1 - fv) * ((1 - fu) * a + fu * b) + fv * ((1 - fu) * d + fu * e));
+        double a = r0[3 * u0 + c], b = r0[3 * u1 + c];
+        double d = r1[3 * u0 + c], e = r1[3 * u1 + c];
+        p[c] = (float)((1 - fv) * ((1 - f) * a + f * b) + fv * ((1 - f) * d + f * e));
       }
     }
   }
-  free(tu);
-  free(tv);
+  free(tu), free(tv), free(iu), free(fu);
   return 0;
 }
 

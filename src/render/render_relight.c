@@ -7,10 +7,12 @@
  * time, OpenMP threads over the vertices, then one glBufferSubData of the
  * radiance (16 bytes a vertex): docs/benchmarks.md has the figures.
  * With opts.half_transfer the transfer stays in half floats (half the
- * memory; not faster: reading the float transfer and summing it cost about
- * the same, so halving the bytes alone gains nothing) and each vertex's
- * texels are converted by F16C (or a portable conversion: the same floats)
- * as they are read.
+ * memory).  Where the CPU has AVX2, FMA and F16C, two texels at a time are
+ * converted in registers and summed by 8-lane multiply-adds
+ * (range_f16_avx2): 12-13 ms against 23-24 ms for the float transfer in the
+ * same run (docs/benchmarks.md); elsewhere each vertex's texels are
+ * converted into a buffer first (F16C or a portable conversion: the same
+ * floats), which made the halves no faster than floats.
  *
  * The sums are relight.vert's, in float (the even and odd terms summed
  * apart, then added: the last bits differ from the shader's order), per vertex:
@@ -121,6 +123,88 @@ static uint64_t range_f16(cv_renderer *r, const v4 *l, const v4 *ls, long v0, lo
   return clamped;
 }
 
+#ifdef HAVE_F16C
+/* The clamp of relight_vertex on a relit RGB (lanes 1..3 of d and ind). */
+static inline float finish_vertex(const float *alb, const float *d, const float *ind,
+                                  const float *split, float out[4]) {
+  float n = 0;
+  for (int c = 0; c < 3; c++) {
+    float v = alb[c] * d[c + 1] + ind[c + 1];
+    if (split) v += split[c];
+    if (!(v >= 0) || isinf(v)) v = 0, n += 1;
+    out[c] = v;
+  }
+  out[3] = n;
+  return n;
+}
+
+/* range_f16 with the conversion in registers: two texels (8 halves) per
+ * F16C conversion and per fused multiply-add of 8 lanes, the direct
+ * transfer td broadcast within each texel by a permute; l8 / ls8: the
+ * lighting of texels 2p and 2p + 1 in lanes 1..3 and 5..7.  The texel
+ * left over when nc is odd and the albedo texel are read as 4 halves. */
+__attribute__((target("avx2,fma,f16c"))) static uint64_t range_f16_avx2(
+    cv_renderer *r, const v4 *l, const v4 *ls, long v0, long v1) {
+  const int nc = r->nc, np = nc / 2;
+  const size_t per = 4 * (size_t)(nc + 1);
+  const float *wl = r->n_split > 0 ? r->wl_cpu : NULL;
+  __m256 l8[32], ls8[32];
+  for (int p = 0; p < np; p++) {
+    l8[p] = _mm256_set_m128(_mm_loadu_ps((const float *)&l[2 * p + 1]), _mm_loadu_ps((const float *)&l[2 * p]));
+    ls8[p] = _mm256_set_m128(_mm_loadu_ps((const float *)&ls[2 * p + 1]), _mm_loadu_ps((const float *)&ls[2 * p]));
+  }
+  const __m128 l4 = _mm_loadu_ps((const float *)&l[nc - 1]), ls4 = _mm_loadu_ps((const float *)&ls[nc - 1]);
+  uint64_t clamped = 0;
+  for (long v = v0; v < v1; v++) {
+    const uint16_t *t = r->th_cpu + (size_t)v * per;
+    __m256 d = _mm256_setzero_ps(), ind = d, d2 = d, ind2 = d;
+    int p = 0;
+    for (; p + 1 < np; p += 2) { /* two chains against the FMA's latency */
+      const __m256 x = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(t + 8 * p)));
+      const __m256 y = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(t + 8 * p + 8)));
+      d = _mm256_fmadd_ps(l8[p], _mm256_permute_ps(x, 0), d);
+      ind = _mm256_fmadd_ps(ls8[p], x, ind);
+      d2 = _mm256_fmadd_ps(l8[p + 1], _mm256_permute_ps(y, 0), d2);
+      ind2 = _mm256_fmadd_ps(ls8[p + 1], y, ind2);
+    }
+    if (p < np) {
+      const __m256 x = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(t + 8 * p)));
+      d = _mm256_fmadd_ps(l8[p], _mm256_permute_ps(x, 0), d);
+      ind = _mm256_fmadd_ps(ls8[p], x, ind);
+    }
+    d = _mm256_add_ps(d, d2), ind = _mm256_add_ps(ind, ind2);
+    __m128 d4 = _mm_add_ps(_mm256_castps256_ps128(d), _mm256_extractf128_ps(d, 1));
+    __m128 i4 = _mm_add_ps(_mm256_castps256_ps128(ind), _mm256_extractf128_ps(ind, 1));
+    if (nc & 1) {
+      const __m128 x = _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(t + 4 * (nc - 1))));
+      d4 = _mm_fmadd_ps(l4, _mm_permute_ps(x, 0), d4);
+      i4 = _mm_fmadd_ps(ls4, x, i4);
+    }
+    float alb[4], dd[4], ii[4];
+    _mm_storeu_ps(alb, _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(t + 4 * nc))));
+    _mm_storeu_ps(dd, d4), _mm_storeu_ps(ii, i4);
+    clamped += (uint64_t)finish_vertex(alb, dd, ii, wl ? wl + 4 * v : NULL, r->rad_cpu + 4 * v);
+  }
+  return clamped;
+}
+
+static int have_avx2_f16c(void) {
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+         __builtin_cpu_supports("f16c");
+}
+#endif
+
+static int simd_allowed = 1;
+
+int cvr_relight_simd(int allow) {
+  simd_allowed = allow;
+#ifdef HAVE_F16C
+  return allow && have_avx2_f16c();
+#else
+  return 0;
+#endif
+}
+
 /* Relights every vertex into rad_cpu and uploads it into buf_rad; ul / uls:
  * the lighting without / with the sun's SH projection (RGB in xyz of each
  * vec4, as relight.vert's u_l, u_ls).  Returns the clamped channels. */
@@ -132,6 +216,9 @@ uint64_t cvr_relight_cpu(cv_renderer *r, const float *ul, const float *uls) {
   }
   uint64_t (*range)(cv_renderer *, const v4 *, const v4 *, long, long) =
       r->th_cpu ? range_f16 : range_f32;
+#ifdef HAVE_F16C
+  if (r->th_cpu && simd_allowed && have_avx2_f16c()) range = range_f16_avx2;
+#endif
   const long nv = (long)r->nv, step = 4096;
   uint64_t clamped = 0;
 #pragma omp parallel for schedule(static, 1) reduction(+ : clamped) if (nv > 16384)

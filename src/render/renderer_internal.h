@@ -222,6 +222,10 @@ uint64_t cvr_relight_cpu(cv_renderer *r, const float *ul, const float *uls);
  * then); the same floats (render_relight.c). */
 void cvr_halves_soft(const uint16_t *h, float *f, size_t n);
 int cvr_halves_f16c(const uint16_t *h, float *f, size_t n);
+/* Lets the CPU relight of a half-float transfer use its vector path (F16C +
+ * FMA) when the CPU has them (1, the default) or not (0: the portable
+ * conversion, for tests).  Returns 1 when the vector path will be used. */
+int cvr_relight_simd(int allow);
 void cvr_casters_free(cv_renderer *r);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);

@@ -48,6 +48,20 @@ void cv_foveal_accumulate(const float *lum, int w, int h, const double pa[3], co
  * into *acc (zero it first); c = 2 or NULL accumulates nothing. */
 void cv_lumstats_image(const cv_image *img, cv_lumstats *acc);
 
+/* The luminance image of a rendered frame (what `cave run`'s wall-eyes
+ * give cv_foveal_accumulate instead of a luminance pass of their own):
+ * each pixel of lum (c = 1, any size; row 0 at the top as src) is the
+ * area-weighted mean Rec.709 Y (0.2126 R + 0.7152 G + 0.0722 B) of the
+ * pixels of src (c >= 3, linear radiance) under its footprint, the
+ * footprints of lum tiling src exactly (fractional pixels weighted by the
+ * area they cover).  src pixels with a NaN/Inf/negative channel are left
+ * out of the means and counted in *n_invalid; a lum pixel covered by no
+ * valid one is NaN (cv_foveal_accumulate then counts it as invalid).
+ * *max_y: the largest Y of the valid src pixels (0 when none): Drago's
+ * Lwmax from every shaded pixel, not from the coarser image.
+ * Sums in double.  Errors: CV_ERR_INVALID (NULL, lum->c != 1, src->c < 3). */
+int cv_lum_downsample(const cv_image *src, cv_image *lum, double *max_y, uint64_t *n_invalid);
+
 /* into += from (sums add, max of max, counts add). */
 void cv_lumstats_merge(cv_lumstats *into, const cv_lumstats *from);
 

@@ -90,7 +90,7 @@ typedef struct cv_cave {
   double eye_separation;   /* metres, default 0.064, in [0, 0.2] */
   int supersample;         /* 1 or 2, default 1 */
   double foveal_deg;       /* full cone angle, degrees, default 10, in (0, 180) */
-  int lum_res;             /* luminance pass size, default 128, 1..4096 */
+  int lum_res;             /* luminance image size (adaptation statistics), default 128, 1..4096 */
   double drago_bias;       /* default 0.85, in (0, 1) */
   double drago_ldmax;      /* cd/m2, default 100, > 0 */
   double t0_cone, t0_rod;  /* Pattanaik neural time constants, s: 0.080, 0.150 */

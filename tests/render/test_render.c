@@ -593,6 +593,63 @@ static void test_cpu_relight_and_casters(void **state) {
   cv_scene_light_destroy(sl);
 }
 
+/* The CPU relight of a half-float transfer (opts.half_transfer) against the
+ * transform feedback of the same halves, with its vector path (F16C + FMA,
+ * when the CPU has them) and with the portable one: within 1e-4 relative
+ * (the float test's bound), the same clamp counts, under the sky and under
+ * a lighting that rings below zero. */
+static void test_cpu_relight_half(void **state) {
+  (void)state;
+  cv_err err;
+  cv_scene_light *sl = sky_35_30();
+  cv_lighting lsun = cv_scene_light_sh(sl), lring;
+  test_lighting(&lring);
+  lring.sh[3 * 12] = lring.sh[3 * 12 + 1] = lring.sh[3 * 12 + 2] = -2.5;
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.display_float = 1, o.half_transfer = 1, o.shadow_casters = 0;
+  cv_renderer *ref, *cpu;
+  o.relight_cpu = 0;
+  OK(cv_renderer_create(F.prt, &o, &ref, &err));
+  o.relight_cpu = 1;
+  OK(cv_renderer_create(F.prt, &o, &cpu, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(ref, bg, &err));
+  OK(cv_renderer_set_background(cpu, bg, &err));
+  pose p = make_pose(0);
+  cv_render_view v = make_view(&p, 1);
+  cv_image *a, *b, *c;
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &a), CV_OK);
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &b), CV_OK);
+  assert_int_equal(cv_image_create(p.w, p.h, 3, &c), CV_OK);
+  for (int li = 0; li < 2; li++) {
+    const cv_lighting *l = li ? &lring : &lsun;
+    cv_render_light_stats s0, s1, s2;
+    OK(cv_renderer_set_lighting(ref, l, &s0, NULL, &err));
+    const int simd = cvr_relight_simd(1);
+    OK(cv_renderer_set_lighting(cpu, l, &s1, NULL, &err));
+    OK(cv_renderer_shade(ref, &v, NULL, 0, NULL, a, NULL, &err));
+    OK(cv_renderer_shade(cpu, &v, NULL, 0, NULL, b, NULL, &err));
+    cvr_relight_simd(0);
+    OK(cv_renderer_set_lighting(cpu, l, &s2, NULL, &err));
+    OK(cv_renderer_shade(cpu, &v, NULL, 0, NULL, c, NULL, &err));
+    cvr_relight_simd(1);
+    size_t n1, n2;
+    const double w1 = max_rel(b, a, 1e-4, li ? 1e-2 : 1e-3, &n1), w2 = max_rel(c, a, 1e-4, li ? 1e-2 : 1e-3, &n2);
+    printf("%s, half transfer: CPU relight (%s) vs feedback max %.2e, portable path %.2e; clamped "
+           "%llu / %llu / %llu\n", li ? "ringing SH" : "sky", simd ? "F16C + FMA" : "portable, no F16C",
+           w1, w2, (unsigned long long)s0.clamped, (unsigned long long)s1.clamped,
+           (unsigned long long)s2.clamped);
+    assert_true(w1 < 1e-4 && w2 < 1e-4);
+    assert_true(s0.clamped == s1.clamped && s1.clamped == s2.clamped);
+    if (li) assert_true(s0.clamped > 0);
+  }
+  cv_image_destroy(a), cv_image_destroy(b), cv_image_destroy(c);
+  cv_renderer_destroy(ref), cv_renderer_destroy(cpu);
+  cv_image_destroy(bg);
+  cv_scene_light_destroy(sl);
+}
+
 /* The CPU relight's half-float conversions (opts.half_transfer): F16C and
  * the portable one give the same float for each of the 65,536 halves (NaN
  * for NaN). */
@@ -1189,7 +1246,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_cpu_relight_half), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),

@@ -639,6 +639,54 @@ static double time_stats(const float *lum, int n, double half, int reps, double 
   return ((t1.tv_sec - t0.tv_sec) * 1e3 + (t1.tv_nsec - t0.tv_nsec) * 1e-6) / reps;
 }
 
+/* cv_lum_downsample: Rec.709 Y, exact area weights at a non-integer ratio,
+ * invalid pixels left out and counted, an all-invalid footprint NaN, the
+ * max from the full image, bad arguments refused. */
+static void test_lum_downsample(void **state) {
+  (void)state;
+  cv_image *src, *lum, *bad;
+  assert_int_equal(cv_image_create(3, 3, 3, &src), CV_OK);
+  assert_int_equal(cv_image_create(2, 2, 1, &lum), CV_OK);
+  /* a constant colour: every pixel its Y */
+  for (int i = 0; i < 9; i++) src->px[3 * i] = 2, src->px[3 * i + 1] = 1, src->px[3 * i + 2] = 4;
+  double mx = -1;
+  uint64_t nb = 99;
+  assert_int_equal(cv_lum_downsample(src, lum, &mx, &nb), CV_OK);
+  const double Y = 0.2126 * 2 + 0.7152 * 1 + 0.0722 * 4;
+  for (int i = 0; i < 4; i++) assert_float_equal(lum->px[i], Y, 1e-6);
+  assert_float_equal(mx, Y, 1e-6);
+  assert_int_equal(nb, 0);
+  /* grey levels 1..9 in row order; lum (0,0) covers x, y in [0, 1.5):
+   * weights 1, .5 / .5, .25 on pixels 1, 2 / 4, 5 */
+  for (int i = 0; i < 9; i++)
+    for (int c = 0; c < 3; c++) src->px[3 * i + c] = (float)(i + 1);
+  assert_int_equal(cv_lum_downsample(src, lum, &mx, &nb), CV_OK);
+  const double e00 = (1 * 1 + 2 * 0.5 + 4 * 0.5 + 5 * 0.25) / 2.25;
+  const double e11 = (5 * 0.25 + 6 * 0.5 + 8 * 0.5 + 9 * 1) / 2.25;
+  assert_float_equal(lum->px[0], e00 * (0.2126 + 0.7152 + 0.0722), 1e-5);
+  assert_float_equal(lum->px[3], e11 * (0.2126 + 0.7152 + 0.0722), 1e-5);
+  assert_float_equal(mx, 9 * (0.2126 + 0.7152 + 0.0722), 1e-5);
+  /* pixel 1 NaN, pixel 3 negative: left out, counted; the rest reweighted */
+  src->px[0] = NAN;
+  src->px[3 * 2 + 1] = -1;
+  assert_int_equal(cv_lum_downsample(src, lum, &mx, &nb), CV_OK);
+  assert_int_equal(nb, 2);
+  const double e00b = (2 * 0.5 + 4 * 0.5 + 5 * 0.25) / 1.25;
+  assert_float_equal(lum->px[0], e00b * (0.2126 + 0.7152 + 0.0722), 1e-5);
+  /* a footprint with no valid pixel: NaN, which the foveal sum counts */
+  assert_int_equal(cv_image_create(1, 1, 3, &bad), CV_OK);
+  bad->px[0] = INFINITY;
+  assert_int_equal(cv_lum_downsample(bad, lum, &mx, &nb), CV_OK);
+  for (int i = 0; i < 4; i++) assert_true(isnan(lum->px[i]));
+  assert_float_equal(mx, 0, 0);
+  assert_int_equal(nb, 1);
+  /* wrong arguments */
+  assert_int_equal(cv_lum_downsample(NULL, lum, NULL, NULL), CV_ERR_INVALID);
+  assert_int_equal(cv_lum_downsample(src, src, NULL, NULL), CV_ERR_INVALID); /* lum must be c = 1 */
+  assert_int_equal(cv_lum_downsample(lum, lum, NULL, NULL), CV_ERR_INVALID); /* src c < 3 */
+  cv_image_destroy(src), cv_image_destroy(lum), cv_image_destroy(bad);
+}
+
 static void test_foveal_timing(void **state) {
   (void)state;
   const int n = 128, reps = 200;
@@ -705,6 +753,7 @@ int main(void) {
       cmocka_unit_test(test_foveal_edge_corner),
       cmocka_unit_test(test_foveal_merge_order),
       cmocka_unit_test(test_empty_region_keeps_state),
+      cmocka_unit_test(test_lum_downsample),
       cmocka_unit_test(test_foveal_timing),
       cmocka_unit_test(test_rec709_code_table),
   };
