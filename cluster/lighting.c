@@ -156,7 +156,7 @@ int cv_service_lighting(const cv_service *s, const cv_lightmix *mix, const cv_dr
                         int bands, cv_lighting *l, int bg_width, cv_image **bg, cv_err *err) {
   if (bg) *bg = NULL;
   if (mix) {
-    int st = cv_lightmix_lighting(mix, q->weights, q->yaw_deg, q->pitch_deg, q->roll_deg, l);
+    int st = l ? cv_lightmix_lighting(mix, q->weights, q->yaw_deg, q->pitch_deg, q->roll_deg, l) : CV_OK;
     if (st) return cv_err_set(err, st, "lighting: bad blend weights");
     if (bg && (st = cv_lightmix_background(mix, q->weights, q->yaw_deg, q->pitch_deg, q->roll_deg,
                                            bg_width, bg)))
@@ -164,9 +164,9 @@ int cv_service_lighting(const cv_service *s, const cv_lightmix *mix, const cv_dr
     return CV_OK;
   }
   cv_scene_light *sl;
-  int st = cv_service_build_lighting(s, q, bands, &sl, err);
+  int st = cv_service_build_lighting(s, q, l ? bands : 0, &sl, err);
   if (st) return st;
-  *l = cv_scene_light_sh(sl);
+  if (l) *l = cv_scene_light_sh(sl);
   if (bg && (st = cv_render_background_image(sl, bg_width, bg)))
     st = cv_err_set(err, st, "lighting: background table");
   cv_scene_light_destroy(sl);

@@ -79,10 +79,10 @@ void cv_lightshare_describe(const cv_lightshare *ls, char *buf, size_t cap) {
  * (*bg, owned by the caller; NULL on error). */
 static int compute(const cv_service *s, cv_renderer *r, const struct cv_lightmix *mix, const cv_lighting *l,
                    const cv_drive_state *drive, cv_frame_timing *tm, cv_image **bg, cv_err *err) {
-  cv_lighting unused;
   *bg = NULL;
   int st = cv_renderer_set_lighting(r, l, NULL, tm, err);
-  if (!st) st = cv_service_lighting(s, mix, drive, l->bands, &unused, 512, bg, err);
+  /* the background alone: the SH came with the frame state */
+  if (!st) st = cv_service_lighting(s, mix, drive, l->bands, NULL, 512, bg, err);
   if (!st) st = cv_renderer_set_background(r, *bg, err);
   return st;
 }

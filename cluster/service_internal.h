@@ -25,7 +25,8 @@ int cv_service_build_lighting(const cv_service *s, const cv_drive_state *q, int 
 int cv_service_lightmix(const cv_service *s, int bands, struct cv_lightmix **out, cv_err *err);
 /* Lighting and background table (width w) for a quantised drive state,
  * through mix when non-NULL, else cv_service_build_lighting.  bg may be
- * NULL (not wanted). */
+ * NULL (not wanted); l may be NULL (not wanted: the background alone,
+ * without the SH projection). */
 int cv_service_lighting(const cv_service *s, const struct cv_lightmix *mix, const cv_drive_state *q,
                         int bands, cv_lighting *l, int bg_width, cv_image **bg, cv_err *err);
 

@@ -300,16 +300,24 @@ int cv_sky_to_latlong(const cv_sky *sky, int w, int h, cv_image **out, long *n_c
   cv_image *img = NULL;
   const int st = cv_image_create(w, h, 3, &img);
   if (st != CV_OK) return st;
+  double *trig = malloc(2 * ((size_t)w + (size_t)h) * sizeof *trig);
+  if (!trig) {
+    cv_image_destroy(img);
+    return CV_ERR_NOMEM;
+  }
+  cv_latlong_trig(w, h, trig, trig + w, trig + 2 * w, trig + 2 * w + h);
+  const double *sa = trig, *ca = trig + w, *stt = trig + 2 * w, *ctt = trig + 2 * w + h;
   long clamped = 0;
 #pragma omp parallel for schedule(static) reduction(+ : clamped)
   for (int y = 0; y < h; y++)
     for (int x = 0; x < w; x++) {
       double d[3], rgb[3];
-      cv_latlong_pixel_dir(x, y, w, h, d);
+      cv_latlong_trig_dir(sa[x], ca[x], stt[y], ctt[y], d); /* = cv_latlong_pixel_dir */
       clamped += cv_sky_radiance(sky, d, rgb);
       float *p = cv_image_at(img, x, y);
       for (int c = 0; c < 3; c++) p[c] = (float)rgb[c];
     }
+  free(trig);
   if (n_clamped) *n_clamped = clamped;
   *out = img;
   return CV_OK;

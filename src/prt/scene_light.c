@@ -70,6 +70,7 @@ void cv_scene_light_destroy(cv_scene_light *sl) {
 /* Projects a world-frame map and rotates the coefficients into the car frame:
  * f_car(d) = f_world(R d), i.e. f_world rotated by R^T. */
 static int project_to_car(const cv_envmap *env, int bands, const double R[9], cv_lighting *l) {
+  if (bands == 0) return CV_OK; /* background and sun only */
   double world[3 * 64];
   int st = cv_envmap_project_sh(env, bands, world);
   if (st) return st;
@@ -95,7 +96,8 @@ int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **
 int cv_scene_light_build_cached(const cv_light_spec *spec, int bands, cv_envmap_cache *cache,
                                 cv_scene_light **out, cv_err *err) {
   *out = NULL;
-  if (bands < 2 || bands > 8) return cv_err_set(err, CV_ERR_RANGE, "lighting: bands %d, expected 2..8", bands);
+  if (bands != 0 && (bands < 2 || bands > 8))
+    return cv_err_set(err, CV_ERR_RANGE, "lighting: bands %d, expected 2..8 (or 0: no SH)", bands);
   cv_scene_light *sl = calloc(1, sizeof *sl);
   if (!sl) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
   sl->spec = *spec;
@@ -188,7 +190,8 @@ int cv_scene_light_build_cached(const cv_light_spec *spec, int bands, cv_envmap_
     }
   } else if (spec->kind == CV_LIGHT_CONSTANT) {
     sl->l.bands = bands;
-    for (int c = 0; c < 3; c++) sl->l.sh[c] = spec->constant[c] * sqrt(4 * M_PI);
+    if (bands > 0)
+      for (int c = 0; c < 3; c++) sl->l.sh[c] = spec->constant[c] * sqrt(4 * M_PI);
   } else {
     st = cv_err_set(err, CV_ERR_CONFIG, "no lighting given (--env, --env-constant or --sky)");
     goto done;
@@ -257,6 +260,7 @@ int cv_scene_light_split(cv_scene_light *sl, const cv_tracer *tr, int k, int gri
   sl->n_extra = 0;
   sl->extra_fraction = 0;
   if (k == 0 || !sl->residual) return CV_OK;
+  if (sl->bands == 0) return cv_err_set(err, CV_ERR_INVALID, "split: the lighting was built without SH");
   const int gw = grid_w, gh = grid_w / 2, ncell = gw * gh;
   split_cell *cells = malloc((size_t)ncell * sizeof *cells);
   float *probes = malloc(3 * 256 * sizeof *probes);

@@ -15,8 +15,10 @@
 
 typedef struct cv_scene_light cv_scene_light;
 
-/* Builds the lighting with `bands` SH bands (2..8).  *out owned by the caller.
- * Errors name the map file or the field. */
+/* Builds the lighting with `bands` SH bands (2..8), or with bands 0 only
+ * its background and sun (no SH projection: the lighting's SH stay 0, for
+ * a caller that takes them from elsewhere; cv_scene_light_split refuses
+ * it).  *out owned by the caller.  Errors name the map file or the field. */
 int cv_scene_light_build(const cv_light_spec *spec, int bands, cv_scene_light **out, cv_err *err);
 /* The same, with the env maps decoded once per path in `maps` (may be NULL:
  * then as cv_scene_light_build): the same lighting, bit for bit. */

@@ -37,6 +37,17 @@ void cv_latlong_pixel_dir(int x, int y, int w, int h, double d[3]) {
   cv_latlong_dir((x + 0.5) / w, (y + 0.5) / h, d);
 }
 
+void cv_latlong_trig(int w, int h, double *sin_a, double *cos_a, double *sin_t, double *cos_t) {
+  for (int x = 0; x < w; x++) { /* cv_latlong_dir's expressions */
+    const double alpha = 2.0 * M_PI * ((x + 0.5) / w - 0.5);
+    sin_a[x] = sin(alpha), cos_a[x] = cos(alpha);
+  }
+  for (int y = 0; y < h; y++) {
+    const double theta = M_PI * ((y + 0.5) / h);
+    sin_t[y] = sin(theta), cos_t[y] = cos(theta);
+  }
+}
+
 double cv_latlong_pixel_solid_angle(int y, int w, int h) {
   return (2.0 * M_PI / w) * (cos(M_PI * y / h) - cos(M_PI * (y + 1) / h));
 }

@@ -23,6 +23,19 @@ void cv_latlong_uv(const double d[3], double *u, double *v);
 /* Direction through the centre of pixel (x, y) of a w x h map. */
 void cv_latlong_pixel_dir(int x, int y, int w, int h, double d[3]);
 
+/* The sines and cosines that cv_latlong_pixel_dir computes for each pixel,
+ * once per column (azimuth: sin_a, cos_a, w values) and per row (polar
+ * angle: sin_t, cos_t, h values), so that a loop over a whole map makes
+ * the same directions without two sincos per pixel:
+ * cv_latlong_trig_dir gives bit for bit cv_latlong_pixel_dir's d. */
+void cv_latlong_trig(int w, int h, double *sin_a, double *cos_a, double *sin_t, double *cos_t);
+static inline void cv_latlong_trig_dir(double sin_a, double cos_a, double sin_t, double cos_t,
+                                       double d[3]) {
+  d[0] = sin_t * sin_a;
+  d[1] = cos_t;
+  d[2] = -sin_t * cos_a;
+}
+
 /* Exact solid angle (sr) of any pixel of row y of a w x h map. */
 double cv_latlong_pixel_solid_angle(int y, int w, int h);
 

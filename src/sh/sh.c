@@ -150,7 +150,13 @@ int cv_sh_project_latlong(const cv_image *env, int n, double *coeffs) {
   /* One partial sum per row, merged in row order below: deterministic for
    * any thread count and schedule. */
   double *rows = calloc((size_t)h * (size_t)stride, sizeof(double));
-  if (!rows) return CV_ERR_NOMEM;
+  double *trig = malloc(2 * ((size_t)w + (size_t)h) * sizeof *trig);
+  if (!rows || !trig) {
+    free(rows), free(trig);
+    return CV_ERR_NOMEM;
+  }
+  const double *sa = trig, *ca = trig + w, *stt = trig + 2 * w, *ctt = trig + 2 * w + h;
+  cv_latlong_trig(w, h, trig, trig + w, trig + 2 * w, trig + 2 * w + h);
   int nonfinite = 0;
 #pragma omp parallel for schedule(dynamic, 4) reduction(| : nonfinite)
   for (int yy = 0; yy < h; yy++) {
@@ -172,7 +178,7 @@ int cv_sh_project_latlong(const cv_image *env, int n, double *coeffs) {
         continue;
       }
       double d[3];
-      cv_latlong_pixel_dir(xx, yy, w, h, d);
+      cv_latlong_trig_dir(sa[xx], ca[xx], stt[yy], ctt[yy], d); /* = cv_latlong_pixel_dir */
       cv_sh_eval_d(n, d, basis);
       for (int i = 0; i < nc; i++) {
         const double b = basis[i];
@@ -189,7 +195,7 @@ int cv_sh_project_latlong(const cv_image *env, int n, double *coeffs) {
       for (int k = 0; k < stride; k++) coeffs[k] += acc[k];
     }
   }
-  free(rows);
+  free(rows), free(trig);
   return nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
 

@@ -98,6 +98,55 @@ static void test_scene_light_calibrated(void **state) {
  * built through the cache twice equals the uncached build bit for bit
  * (SH, background), each file decoded once; a missing file is an error
  * every time (not cached); NULL cache = uncached. */
+/* Built with bands 0 (the background alone, as a lighting leader needs it):
+ * the same background and sun as with SH, bit for bit, no SH, no split;
+ * for a sky and for an env map. */
+static void test_scene_light_no_sh(void **state) {
+  (void)state;
+  for (int kind = 0; kind < 2; kind++) {
+    cv_light_spec spec;
+    cv_light_spec_default(&spec);
+    if (kind == 0) {
+      spec.kind = CV_LIGHT_SKY;
+      spec.sun_elevation_deg = 35, spec.sun_azimuth_deg = 120;
+    } else {
+      spec.kind = CV_LIGHT_ENV;
+      spec.n_env = 1, spec.weight[0] = 1;
+      snprintf(spec.env[0], sizeof spec.env[0], "%s/forest.exr", CAVE_BLENDER_WORLD_DIR);
+    }
+    spec.yaw_deg = 25;
+    cv_err err;
+    cv_scene_light *ref, *bg;
+    assert_int_equal(cv_scene_light_build(&spec, 5, &ref, &err), CV_OK);
+    assert_int_equal(cv_scene_light_build(&spec, 0, &bg, &err), CV_OK);
+    const cv_lighting lr = cv_scene_light_sh(ref), lb = cv_scene_light_sh(bg);
+    assert_int_equal(lb.bands, 0);
+    for (int i = 0; i < 3 * 64; i++) assert_true(lb.sh[i] == 0);
+    printf("kind %d: SH[0..2] %g %g %g, bands %d\n", kind, lr.sh[0], lr.sh[1], lr.sh[2], lr.bands);
+    assert_true(lr.sh[0] > 0);
+    assert_int_equal(lb.has_sun, lr.has_sun);
+    assert_memory_equal(lb.sun_E, lr.sun_E, sizeof lb.sun_E);
+    assert_memory_equal(lb.sun_dir, lr.sun_dir, sizeof lb.sun_dir);
+    for (int k = 0; k < 64; k++) {
+      const float d[3] = {(float)cos(0.7 * k), 0.9f - 0.03f * (float)k, (float)sin(0.7 * k)};
+      float a[3], b[3];
+      cv_scene_light_background(bg, d, a);
+      cv_scene_light_background(ref, d, b);
+      assert_memory_equal(a, b, sizeof a);
+    }
+    assert_int_equal(cv_scene_light_split(bg, NULL, 4, 16, &err), CV_ERR_INVALID);
+    assert_non_null(strstr(err.msg, "without SH"));
+    cv_scene_light_destroy(ref), cv_scene_light_destroy(bg);
+  }
+  cv_light_spec spec;
+  cv_light_spec_default(&spec);
+  spec.kind = CV_LIGHT_SKY;
+  cv_err err;
+  cv_scene_light *sl;
+  assert_int_equal(cv_scene_light_build(&spec, 1, &sl, &err), CV_ERR_RANGE);
+  assert_int_equal(cv_scene_light_build(&spec, 9, &sl, &err), CV_ERR_RANGE);
+}
+
 static void test_scene_light_cached(void **state) {
   (void)state;
   cv_light_spec spec;
@@ -189,7 +238,7 @@ int main(void) {
       cmocka_unit_test(test_blender_defaults),
       cmocka_unit_test(test_scene_light_calibrated),
       cmocka_unit_test(test_lightmix_calibrated),
-      cmocka_unit_test(test_scene_light_cached),
+      cmocka_unit_test(test_scene_light_no_sh), cmocka_unit_test(test_scene_light_cached),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

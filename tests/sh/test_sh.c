@@ -604,6 +604,30 @@ static void test_latlong_mapping(void **state) {
   assert_true(fabs(s - 4 * M_PI) < 1e-12);
 }
 
+
+/* cv_latlong_trig + cv_latlong_trig_dir give cv_latlong_pixel_dir's
+ * directions bit for bit (the projections use them to skip two sincos a
+ * pixel). */
+static void test_latlong_trig_exact(void **state) {
+  (void)state;
+  const int sizes[][2] = {{512, 256}, {64, 32}, {7, 3}, {1, 2}};
+  for (int k = 0; k < 4; k++) {
+    const int w = sizes[k][0], h = sizes[k][1];
+    double *t = malloc(2 * (size_t)(w + h) * sizeof *t);
+    cv_latlong_trig(w, h, t, t + w, t + 2 * w, t + 2 * w + h);
+    long differ = 0;
+    for (int y = 0; y < h; y++)
+      for (int x = 0; x < w; x++) {
+        double a[3], b[3];
+        cv_latlong_pixel_dir(x, y, w, h, a);
+        cv_latlong_trig_dir(t[x], t[w + x], t[2 * w + y], t[2 * w + h + y], b);
+        differ += memcmp(a, b, sizeof a) != 0;
+      }
+    assert_int_equal(differ, 0);
+    free(t);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_latlong_mapping),
@@ -615,6 +639,7 @@ int main(void) {
       cmocka_unit_test(test_rotation_vs_projection),
       cmocka_unit_test(test_rotation_algebra),
       cmocka_unit_test(test_window),
+      cmocka_unit_test(test_latlong_trig_exact),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
