@@ -69,7 +69,7 @@ int cvr_shadow_culled(const cv_renderer *r) {
 }
 
 int cvr_shadow_target(cv_renderer *r, int n, cv_err *err) {
-  if (!r->fbo_shadow || r->shadow_res != n) {
+  if (!r->fbo_shadow || r->shadow_depth_res != n) {
     if (!r->fbo_shadow) glGenFramebuffers(1, &r->fbo_shadow);
     if (!r->tex_shadow) glGenTextures(1, &r->tex_shadow);
     glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
@@ -87,8 +87,9 @@ int cvr_shadow_target(cv_renderer *r, int n, cv_err *err) {
     glReadBuffer(GL_NONE);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       return cv_err_set(err, CV_ERR_BACKEND, "shadow map framebuffer incomplete (%d texels)", n);
-    r->shadow_res = n;
+    r->shadow_depth_res = n;
   }
+  r->shadow_res = n; /* the current map's (an imported one may differ) */
   return CV_OK;
 }
 
@@ -119,6 +120,7 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
   r->shadow_texel = texel;
   r->shadow_valid = 1;
+  r->shadow_from_import = 0;
   r->shadow_gen++, r->shadow_import = 0; /* drawn here (render_share.c) */
   return cvr_gl_check("shadow map", err);
 }

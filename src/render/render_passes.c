@@ -188,7 +188,7 @@ void cvr_bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const
     glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_albedo);
   }
   glActiveTexture(GL_TEXTURE0 + U_SHADOW);
-  glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+  glBindTexture(GL_TEXTURE_2D, r->shadow_from_import ? r->tex_shadow_imp : r->tex_shadow);
   glActiveTexture(GL_TEXTURE0 + U_BG);
   glBindTexture(GL_TEXTURE_2D, r->tex_bg);
 }

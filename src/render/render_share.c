@@ -91,12 +91,18 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
   glGetBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), b + L.rad);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
   if (res && (fresh || h.shadow_gen != r->shadow_gen || h.shadow_res != res)) {
-    /* glReadPixels of the depth attachment: Mesa copies Z32F rows as they
-     * are (glGetTexImage of a depth texture converts texel by texel) */
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadPixels(0, 0, res, res, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    if (r->shadow_from_import) { /* an imported map, in its R32F texture */
+      glBindTexture(GL_TEXTURE_2D, r->tex_shadow_imp);
+      glGetTexImage(GL_TEXTURE_2D, 0, GL_RED, GL_FLOAT, b + L.shadow);
+      glBindTexture(GL_TEXTURE_2D, 0);
+    } else {
+      /* glReadPixels of the depth attachment: Mesa copies Z32F rows as they
+       * are (glGetTexImage of a depth texture converts texel by texel) */
+      glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow);
+      glReadPixels(0, 0, res, res, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
+      glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    }
   }
   if (r->split_valid && (fresh || h.split_gen != r->split_gen)) {
     glBindBuffer(GL_ARRAY_BUFFER, r->buf_idx_sun);
@@ -171,12 +177,22 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
   /* the shadow map, likewise */
   const int new_shadow = h.shadow_res > 0 && !(r->shadow_valid && r->shadow_import == h.shadow_gen);
   if (new_shadow) {
-    if ((st = cvr_shadow_target(r, h.shadow_res, err))) return st;
-    glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+    /* into an R32F texture (tex_shadow_imp): the shader reads .r of either */
+    if (!r->tex_shadow_imp) glGenTextures(1, &r->tex_shadow_imp);
+    glBindTexture(GL_TEXTURE_2D, r->tex_shadow_imp);
+    if (r->shadow_imp_res != h.shadow_res) {
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, h.shadow_res, h.shadow_res, 0, GL_RED, GL_FLOAT, NULL);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      r->shadow_imp_res = h.shadow_res;
+    }
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, h.shadow_res, h.shadow_res, GL_DEPTH_COMPONENT, GL_FLOAT,
-                    b + L.shadow);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, h.shadow_res, h.shadow_res, GL_RED, GL_FLOAT, b + L.shadow);
     glBindTexture(GL_TEXTURE_2D, 0);
+    r->shadow_res = h.shadow_res;
+    r->shadow_from_import = 1;
     memcpy(r->shadow_s, h.shadow_s, sizeof r->shadow_s);
     r->shadow_texel = h.shadow_texel;
     r->shadow_valid = h.shadow_valid;

@@ -601,8 +601,8 @@ void cv_renderer_destroy(cv_renderer *r) {
                      r->buf_idx_sun, r->buf_uvl};
     glDeleteBuffers(7, bufs);
     GLuint tex[] = {r->tex_transfer, r->tex_bg, r->tex_shadow, r->tex_disp, r->tex_hdr,
-                    r->tex_panel, r->tex_albedo};
-    glDeleteTextures(7, tex);
+                    r->tex_panel, r->tex_albedo, r->tex_shadow_imp};
+    glDeleteTextures(8, tex);
     GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
                     r->rb_tiny};
     glDeleteRenderbuffers(6, rbs);

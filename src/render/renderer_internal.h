@@ -86,6 +86,13 @@ struct cv_renderer {
   float sun_e[3], shadow_q[16], shadow_k[4], shadow_bias;
   int shadow_detsign;
   GLuint fbo_shadow, tex_shadow;
+  /* an imported shadow map (render_share.c) lives in tex_shadow_imp, an R32F
+   * texture of shadow_imp_res texels (a colour upload is a copy; llvmpipe
+   * converts a depth upload texel by texel, 16 ms for 2048^2);
+   * shadow_from_import: the current map is that one */
+  GLuint tex_shadow_imp;
+  int shadow_imp_res, shadow_from_import;
+  int shadow_depth_res; /* tex_shadow's size (0: none yet) */
   int shadow_res;
   /* targets */
   GLuint fbo_lum, rb_lum, rb_lum_depth;

@@ -517,14 +517,17 @@ static int bench_share(cv_prt *prt, const cv_lighting *L, int nsun, int reps, co
   const char *lp = getenv("LP_NUM_THREADS");
   printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[0]), lp ? lp : "(unset: all cores)");
   printf("scene: %zu triangles, %zu vertices; export buffer %.1f MB\n\n", prt->nt, prt->nv, cap / 1048576.0);
-  static double C[3][MAXR * MAXSUN], W[3][MAXR * MAXSUN];
+  static double C[3][MAXR * MAXSUN], W[3][MAXR * MAXSUN], P[3][MAXR * MAXSUN];
   int n = 0;
   for (int rep = 0; rep < reps; rep++)
     for (int k = 0; k < nsun; k++, n++) {
       const cv_lighting *lk = &L[(k + rep) % nsun];
       for (int v = 0; v < 3; v++) {
         const double c0 = cpu_ms(), w0 = bench_now_ms();
-        int st = v < 2 ? cv_renderer_set_lighting(R[v], lk, NULL, NULL, &err) : cv_renderer_lighting_import(R[2], buf, cap, NULL, &err);
+        cv_frame_timing tm;
+        memset(&tm, 0, sizeof tm);
+        int st = v < 2 ? cv_renderer_set_lighting(R[v], lk, NULL, NULL, &err) : cv_renderer_lighting_import(R[2], buf, cap, &tm, &err);
+        if (v == 2) P[0][n] = tm.relight_ms, P[1][n] = tm.split_ms, P[2][n] = tm.shadow_ms;
         if (!st && v == 1) st = cv_renderer_lighting_export(R[1], buf, cap, &err);
         if (st) {
           fprintf(stderr, "%s\n", err.msg);
@@ -544,6 +547,8 @@ static int bench_share(cv_prt *prt, const cv_lighting *L, int nsun, int reps, co
     mc[v] = bench_median(C[v], n), mw[v] = bench_median(W[v], n);
     printf("| %s | %.1f [%.1f, %.1f] | %.1f |\n", names[v], mc[v], lo, hi, mw[v]);
   }
+  printf("\nThe importer's parts (wall ms between glFinish calls, medians): relight buffer %.1f, sun split %.1f, "
+         "shadow map %.1f\n", bench_median(P[0], n), bench_median(P[1], n), bench_median(P[2], n));
   printf("\nA host of 10 wall-eyes per lighting change: %.1f CPU ms computing each, %.1f CPU ms shared "
          "(leader + 9 importers): %.2fx less; importer / computed %.3f\n\n", 10 * mc[0], mc[1] + 9 * mc[2],
          10 * mc[0] / (mc[1] + 9 * mc[2]), mc[2] / mc[0]);

@@ -7,7 +7,8 @@
  * byte (linear HDR and 8-bit display), also after the importer computed one
  * change itself in between (a late leader in `cave run`), and the leader
  * after a prefetch that did not come true (its own export taken back, then
- * the real change).  Errors: export
+ * the real change), and a renderer importing what an importer exported.
+ * Errors: export
  * before any lighting, a truncated or foreign buffer, another shadow size. */
 #include <math.h>
 #include <setjmp.h>
@@ -154,6 +155,23 @@ static void test_export_import_identical(void **state) {
     if (step == 1) assert_int_equal(tl.shadow_reused, 1);
     if (step == 1) assert_int_equal(ti.shadow_reused, 1);
     if (step == 2) assert_int_equal(ti.shadow_reused, 0);
+  }
+  /* An importer's export (its map is the imported one, in its R32F
+   * texture) imported by a fourth renderer: the same images. */
+  {
+    cv_renderer *second;
+    OK(cv_renderer_create(g_prt, NULL, &second, &err));
+    uint8_t *buf2 = calloc(cap, 1);
+    assert_non_null(buf2);
+    OK(cv_renderer_lighting_export(importer, buf2, cap, &err));
+    OK(cv_renderer_lighting_import(second, buf2, cap, NULL, &err));
+    shade(second, hi, di);
+    printf("an importer's export, imported again: %zu HDR, %zu display values differ\n", differing(hi, ho),
+           differing(di, dn));
+    assert_int_equal(differing(hi, ho), 0);
+    assert_int_equal(differing(di, dn), 0);
+    free(buf2);
+    cv_renderer_destroy(second);
   }
   /* The leader's prefetch that does not come true (cluster/lightshare.c):
    * it draws another sun, then takes its own export back (restore) and
