@@ -77,11 +77,16 @@ void cv_rec709_lut_init(cv_rec709_lut *t) {
     }
     memcpy(&t->step[k], &hi, sizeof hi);
   }
+  t->step[255] = INFINITY;
+  t->adv = 0;
   for (uint32_t b = 0; b < CV_REC709_BUCKETS; b++) {
-    const uint32_t bits = b << 18;
-    float e;
+    const uint32_t bits = b << 18, last = bits | 0x3ffffu; /* the bucket's ends */
+    float e, e1;
     memcpy(&e, &bits, sizeof e);
+    memcpy(&e1, &last, sizeof e1);
     t->first[b] = rec709_bisect(t, e);
+    const int a = (e1 >= 1.0f ? 255 : rec709_bisect(t, e1)) - t->first[b];
+    if (a > t->adv) t->adv = (uint8_t)a;
   }
 }
 
@@ -102,7 +107,11 @@ uint8_t cv_rec709_code(const cv_rec709_lut *t, float e) {
   uint32_t bits;
   memcpy(&bits, &e, sizeof bits);
   unsigned k = t->first[bits >> 18]; /* steps <= the bucket's lower end */
-  while (k < 255 && t->step[k] <= e) k++;
+  k += t->step[k] <= e; /* step[255] = +Inf: k stays <= 255 */
+  k += t->step[k] <= e;
+  k += t->step[k] <= e;
+  if (t->adv > 3) /* not for this curve (init measures it); kept exact for any */
+    while (t->step[k] <= e) k++;
   return (uint8_t)k;
 }
 
