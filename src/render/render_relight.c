@@ -38,6 +38,22 @@ static inline v4 load4(const float *p) {
   return v;
 }
 
+/* A vertex's radiance from its sums (lanes 1..3 of d, the direct transfer
+ * against the lighting, and ind, the interreflected one) and albedo: rad =
+ * albedo d + ind (+ the split lights'), each channel that is negative or
+ * not finite set to 0; into out[4] with the clamp count. */
+static inline float finish_vertex(const float *alb, v4 d, v4 ind, const float *split, float out[4]) {
+  float n = 0;
+  for (int c = 0; c < 3; c++) {
+    float v = alb[c] * d[c + 1] + ind[c + 1];
+    if (split) v += split[c];
+    if (!(v >= 0) || isinf(v)) v = 0, n += 1;
+    out[c] = v;
+  }
+  out[3] = n;
+  return n;
+}
+
 /* One vertex: the relit RGB and its clamp count into out[4]; t: its nc + 1
  * texels. */
 static inline float relight_vertex(const float *t, const v4 *l, const v4 *ls, int nc,
@@ -56,17 +72,7 @@ static inline float relight_vertex(const float *t, const v4 *l, const v4 *ls, in
     d += l[i] * (v4){x[0], x[0], x[0], x[0]};
     ind += ls[i] * x;
   }
-  d += d2, ind += ind2;
-  const float *alb = t + 4 * nc;
-  float n = 0;
-  for (int c = 0; c < 3; c++) {
-    float v = alb[c] * d[c + 1] + ind[c + 1];
-    if (split) v += split[c];
-    if (!(v >= 0) || isinf(v)) v = 0, n += 1;
-    out[c] = v;
-  }
-  out[3] = n;
-  return n;
+  return finish_vertex(t + 4 * nc, d + d2, ind + ind2, split, out);
 }
 
 /* Vertices [v0, v1) from float texels. */
@@ -124,19 +130,6 @@ static uint64_t range_f16(cv_renderer *r, const v4 *l, const v4 *ls, long v0, lo
 }
 
 #ifdef HAVE_F16C
-/* The clamp of relight_vertex on a relit RGB (lanes 1..3 of d and ind). */
-static inline float finish_vertex(const float *alb, const float *d, const float *ind,
-                                  const float *split, float out[4]) {
-  float n = 0;
-  for (int c = 0; c < 3; c++) {
-    float v = alb[c] * d[c + 1] + ind[c + 1];
-    if (split) v += split[c];
-    if (!(v >= 0) || isinf(v)) v = 0, n += 1;
-    out[c] = v;
-  }
-  out[3] = n;
-  return n;
-}
 
 /* range_f16 with the conversion in registers: two texels (8 halves) per
  * F16C conversion and per fused multiply-add of 8 lanes, the direct
@@ -183,7 +176,7 @@ __attribute__((target("avx2,fma,f16c"))) static uint64_t range_f16_avx2(
     float alb[4], dd[4], ii[4];
     _mm_storeu_ps(alb, _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(t + 4 * nc))));
     _mm_storeu_ps(dd, d4), _mm_storeu_ps(ii, i4);
-    clamped += (uint64_t)finish_vertex(alb, dd, ii, wl ? wl + 4 * v : NULL, r->rad_cpu + 4 * v);
+    clamped += (uint64_t)finish_vertex(alb, load4(dd), load4(ii), wl ? wl + 4 * v : NULL, r->rad_cpu + 4 * v);
   }
   return clamped;
 }
