@@ -39,6 +39,7 @@
 #include "render/renderer.h"
 #include "render/renderer_internal.h"
 #include "tonemap/drago.h"
+#include "tonemap/foveal.h"
 #include "view/offaxis.h"
 
 typedef struct fixture {
@@ -1109,7 +1110,9 @@ static void test_panel(void **state) {
 /* The luminance pass: (1) at the HDR frame's size it equals Y of the HDR
  * output within 1e-6 relative per pixel; (2) at 128x128 its log-average
  * (eps 1e-4) and mean are within 1% of a 512x512 HDR frame box-filtered
- * 4x4, and its maximum does not exceed the full frame's. */
+ * 4x4, and its maximum does not exceed the full frame's; (3) the HDR frame
+ * downsampled by cv_lum_downsample (`cave run`'s luminance image) is that
+ * box filter, close to the pass, with the frame's maximum. */
 static void test_luminance_pass(void **state) {
   (void)state;
   cv_lighting l;
@@ -1158,6 +1161,32 @@ static void test_luminance_pass(void **state) {
   assert_true(fabs(ga / gb - 1) < 0.01);
   assert_true(fabs(ma / mb - 1) < 0.01);
   assert_true(maxa <= maxb * (1 + 1e-6));
+  /* (3) what `cave run` uses instead of the pass: cv_lum_downsample of the
+   * HDR frame is that 4x4 box filter (1e-5 relative per pixel), its log-
+   * average within 1% of the pass's, its max the frame's largest Y */
+  cv_image *dl;
+  assert_int_equal(cv_image_create(128, 128, 1, &dl), CV_OK);
+  double my = -1, worst_box = 0, ld = 0;
+  uint64_t nbad = 99;
+  assert_int_equal(cv_lum_downsample(big, dl, &my, &nbad), CV_OK);
+  for (int y = 0; y < 128; y++)
+    for (int x = 0; x < 128; x++) {
+      double s = 0;
+      for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) s += lum(cv_image_at(big, 4 * x + i, 4 * y + j)) / 16;
+      const double d = dl->px[y * 128 + x];
+      worst_box = fmax(worst_box, fabs(d - s) / (s + 1e-6));
+      ld += log(d + 1e-4);
+    }
+  const double gd = exp(ld / n);
+  printf("cv_lum_downsample of the 512x512 frame: box filter max relative difference %.2e, "
+         "log-average %.5g vs the pass's %.5g (%.3f%%), max %.5g (frame %.5g), %llu invalid\n",
+         worst_box, gd, ga, 100 * (gd / ga - 1), my, maxb, (unsigned long long)nbad);
+  assert_true(worst_box < 1e-5);
+  assert_true(fabs(gd / ga - 1) < 0.01);
+  assert_true(fabs(my - maxb) <= 1e-6 * maxb);
+  assert_int_equal(nbad, 0);
+  cv_image_destroy(dl);
   cv_image_destroy(lm);
   cv_image_destroy(hdr);
   cv_image_destroy(big);
