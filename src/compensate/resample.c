@@ -5,62 +5,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/overlaps.h"
+
 /* Boundaries of n cells: the given ones, or uniform ones in tmp. */
 static const double *edges_or_uniform(const double *e, int n, double *tmp) {
   if (e) return e;
   for (int i = 0; i <= n; i++) tmp[i] = (double)i / n;
   return tmp;
-}
-
-/* Index of the cell containing t (edges ascending, e[0] = 0, e[n] = 1). */
-static int cell_of(const double *e, int n, double t) {
-  int lo = 0, hi = n - 1;
-  while (lo < hi) {
-    int mid = (lo + hi + 1) / 2;
-    if (e[mid] <= t) lo = mid;
-    else hi = mid - 1;
-  }
-  return lo;
-}
-
-/* The cells that [t0, t1) overlaps and the overlaps (at most n): what
- * cv_downsample_to_patches computed per pixel, once per column or row.
- * first[i]..first[i + 1] index cell[] and len[] for pixel i. */
-typedef struct overlaps {
-  int *first, *cell;
-  double *len;
-} overlaps;
-
-static void overlaps_free(overlaps *o) {
-  free(o->first), free(o->cell), free(o->len);
-}
-
-/* Pixel i of n covers [t0(i), t0(i) + 1/n) with t0(i) = (flip ? n - 1 - i : i) / n. */
-static int overlaps_make(const double *E, int ne, int n, int flip, overlaps *o) {
-  size_t cap = (size_t)n + (size_t)ne + 1, k = 0;
-  o->first = malloc(((size_t)n + 1) * sizeof *o->first);
-  o->cell = malloc(cap * sizeof *o->cell);
-  o->len = malloc(cap * sizeof *o->len);
-  if (!o->first || !o->cell || !o->len) return -1;
-  for (int i = 0; i < n; i++) {
-    const double t0 = (double)(flip ? n - 1 - i : i) / n, t1 = t0 + 1.0 / n;
-    o->first[i] = (int)k;
-    for (int c = cell_of(E, ne, t0); c < ne && E[c] < t1; c++) {
-      const double ov = fmin(t1, E[c + 1]) - fmax(t0, E[c]);
-      if (ov <= 0) continue;
-      if (k == cap) {
-        cap *= 2;
-        int *nc = realloc(o->cell, cap * sizeof *nc);
-        if (nc) o->cell = nc;
-        double *nl = realloc(o->len, cap * sizeof *nl);
-        if (nl) o->len = nl;
-        if (!nc || !nl) return -1;
-      }
-      o->cell[k] = c, o->len[k] = ov, k++;
-    }
-  }
-  o->first[n] = (int)k;
-  return 0;
 }
 
 int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *eu,
@@ -70,14 +21,14 @@ int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *
    * products and sums are those of a per-pixel computation, in its order). */
   double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
   double *wsum = calloc((size_t)nu * nv, sizeof(double));
-  overlaps ox = {0}, oy = {0};
+  cv_overlaps ox = {0}, oy = {0};
   int st = !tu || !tv || !wsum ? -1 : 0;
   const double *U = st ? NULL : edges_or_uniform(eu, nu, tu), *V = st ? NULL : edges_or_uniform(ev, nv, tv);
-  if (!st) st = overlaps_make(U, nu, img->w, 0, &ox);
-  if (!st) st = overlaps_make(V, nv, img->h, 1, &oy); /* bottom-up */
+  if (!st) st = cv_overlaps_make(U, nu, img->w, 1.0, 0, &ox);
+  if (!st) st = cv_overlaps_make(V, nv, img->h, 1.0, 1, &oy); /* bottom-up */
   if (st) {
     free(tu), free(tv), free(wsum);
-    overlaps_free(&ox), overlaps_free(&oy);
+    cv_overlaps_free(&ox), cv_overlaps_free(&oy);
     return -1;
   }
   memset(out, 0, 3 * (size_t)nu * nv * sizeof(double));
@@ -101,7 +52,7 @@ int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *
   free(tu);
   free(tv);
   free(wsum);
-  overlaps_free(&ox), overlaps_free(&oy);
+  cv_overlaps_free(&ox), cv_overlaps_free(&oy);
   return 0;
 }
 
@@ -118,7 +69,7 @@ static void bracket(const double *e, int n, double t, int *i0, int *i1, double *
     *f = 0;
     return;
   }
-  int k = cell_of(e, n, t); /* centre k or k-1 is below t */
+  int k = cv_cell_of(e, n, t); /* centre k or k-1 is below t */
   int a = 0.5 * (e[k] + e[k + 1]) <= t ? k : k - 1;
   double ca = 0.5 * (e[a] + e[a + 1]), cb = 0.5 * (e[a + 1] + e[a + 2]);
   *i0 = a;

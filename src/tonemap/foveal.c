@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdlib.h>
 
+#include "core/overlaps.h"
 #include "core/status.h"
 
 #include "core/vec3d.h"
@@ -122,45 +123,25 @@ void cv_lumstats_image(const cv_image *img, cv_lumstats *acc) {
   acc->n_invalid += bad;
 }
 
-/* The footprints of n cells over N pixels (scale N / n): cell i covers
- * pixels first[i] .. first[i] + cnt[i] - 1 with weights w[i * k ...], k
- * the stride (at most N / n + 2 pixels a cell). */
-typedef struct footprints {
-  int *first, *cnt, k;
-  double *w;
-} footprints;
-
-static int footprints_make(int N, int n, footprints *f) {
-  const double sc = (double)N / n;
-  f->k = (int)ceil(sc) + 2;
-  f->first = malloc((size_t)n * sizeof *f->first);
-  f->cnt = malloc((size_t)n * sizeof *f->cnt);
-  f->w = malloc((size_t)n * f->k * sizeof *f->w);
-  if (!f->first || !f->cnt || !f->w) return CV_ERR_NOMEM;
-  for (int i = 0; i < n; i++) {
-    const double a = i * sc, b = (i + 1) * sc;
-    int p0 = (int)floor(a), p1 = (int)ceil(b);
-    if (p1 > N) p1 = N;
-    f->first[i] = p0, f->cnt[i] = 0;
-    for (int p = p0; p < p1 && f->cnt[i] < f->k; p++) {
-      const double lo = a > p ? a : p, hi = b < p + 1 ? b : p + 1;
-      f->w[(size_t)i * f->k + f->cnt[i]++] = hi > lo ? hi - lo : 0.0;
-    }
-  }
-  return CV_OK;
-}
-
-static void footprints_free(footprints *f) { free(f->first), free(f->cnt), free(f->w); }
-
 int cv_lum_downsample(const cv_image *src, cv_image *lum, double *max_y, uint64_t *n_invalid) {
   if (!src || !lum || !src->px || !lum->px || src->c < 3 || lum->c != 1 || src->w < 1 ||
       src->h < 1 || lum->w < 1 || lum->h < 1)
     return CV_ERR_INVALID;
   const int W = src->w, H = src->h, c = src->c;
-  footprints fx = {0}, fy = {0};
+  /* each luminance pixel's footprint: the source pixels (cells of edges
+   * 0, 1, .., W in pixel units) under its 1/lum->w of the width, and so on */
+  cv_overlaps fx = {0}, fy = {0};
   float *y = malloc((size_t)W * H * sizeof *y);
-  if (!y || footprints_make(W, lum->w, &fx) || footprints_make(H, lum->h, &fy)) {
-    free(y), footprints_free(&fx), footprints_free(&fy);
+  double *ex = malloc(((size_t)(W > H ? W : H) + 1) * sizeof *ex);
+  int st = !y || !ex ? -1 : 0;
+  if (!st) {
+    for (int k = 0; k <= (W > H ? W : H); k++) ex[k] = k;
+    st = cv_overlaps_make(ex, W, lum->w, W, 0, &fx);
+  }
+  if (!st) st = cv_overlaps_make(ex, H, lum->h, H, 0, &fy);
+  free(ex);
+  if (st) {
+    free(y), cv_overlaps_free(&fx), cv_overlaps_free(&fy);
     return CV_ERR_NOMEM;
   }
   /* Y of every source pixel once (NaN for an invalid one), and the max */
@@ -178,23 +159,21 @@ int cv_lum_downsample(const cv_image *src, cv_image *lum, double *max_y, uint64_
     y[i] = (float)v;
     if (v > mx) mx = v;
   }
-  for (int j = 0; j < lum->h; j++) {
-    const double *wy = fy.w + (size_t)j * fy.k;
+  for (int j = 0; j < lum->h; j++)
     for (int i = 0; i < lum->w; i++) {
-      const double *wx = fx.w + (size_t)i * fx.k;
       double sw = 0, s = 0;
-      for (int r = 0; r < fy.cnt[j]; r++) {
-        const float *row = y + (size_t)(fy.first[j] + r) * W + fx.first[i];
-        for (int q = 0; q < fx.cnt[i]; q++) {
-          if (isnan(row[q])) continue;
-          const double w = wy[r] * wx[q];
-          sw += w, s += w * row[q];
+      for (int a = fy.first[j]; a < fy.first[j + 1]; a++) {
+        const float *row = y + (size_t)fy.cell[a] * W;
+        for (int b = fx.first[i]; b < fx.first[i + 1]; b++) {
+          const float v = row[fx.cell[b]];
+          if (isnan(v)) continue;
+          const double w = fy.len[a] * fx.len[b];
+          sw += w, s += w * v;
         }
       }
       lum->px[(size_t)j * lum->w + i] = sw > 0 ? (float)(s / sw) : NAN;
     }
-  }
-  free(y), footprints_free(&fx), footprints_free(&fy);
+  free(y), cv_overlaps_free(&fx), cv_overlaps_free(&fy);
   if (max_y) *max_y = mx;
   if (n_invalid) *n_invalid = bad;
   return CV_OK;
