@@ -422,7 +422,9 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
     rep->sum_log = ls.sum_log;
     rep->weight = ls.weight;
     rep->n_pixels = ls.n_pixels;
-    rep->n_invalid = ls.n_invalid;
+    /* the HDR pixels left out of the luminance image and Lwmax (a luminance
+     * pixel the foveal sum skips, ls.n_invalid, is made of such pixels only) */
+    rep->n_invalid = bad;
     rep->max_l = mx;
   }
   rep->ms_lum = tm->lum_ms + tm->lum_read_ms;
