@@ -413,12 +413,86 @@ void cvr_shading_depth_state(const cv_renderer *r) {
   glDepthMask(r->o.depth_less ? GL_TRUE : GL_FALSE);
 }
 
+/* The luminance statistics of the HDR target just drawn (W x H pixels of
+ * ss x ss texels; r->tex_hdr) into lum (lum_reduce.frag), read back and
+ * finished in double: the mean, the max, the invalid count. */
+int cvr_reduce_luminance(cv_renderer *r, int W, int H, int ss, cv_image *lum, double *max_y,
+                         uint64_t *n_invalid, cv_err *err) {
+  const int w = lum->w, h = lum->h;
+  if (!r->fbo_red || r->red_w != w || r->red_h != h) {
+    float *buf = realloc(r->red_cpu, 4 * (size_t)w * h * sizeof *buf);
+    if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    r->red_cpu = buf;
+    glDeleteRenderbuffers(1, &r->rb_red);
+    if (!r->fbo_red) glGenFramebuffers(1, &r->fbo_red);
+    r->rb_red = cvr_make_rb(GL_RGBA32F, w, h);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_red);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->rb_red);
+    r->red_w = w, r->red_h = h;
+    int st = cvr_fbo_complete("luminance statistics", w, h, err);
+    if (st) return st;
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_red);
+  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glViewport(0, 0, w, h);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_CULL_FACE);
+  const GLuint p = r->prog_lumred;
+  glUseProgram(p);
+  glUniform2i(glGetUniformLocation(p, "u_size"), W, H);
+  glUniform2i(glGetUniformLocation(p, "u_out"), w, h);
+  glUniform1i(glGetUniformLocation(p, "u_ss"), ss);
+  glActiveTexture(GL_TEXTURE0 + U_SRC);
+  glBindTexture(GL_TEXTURE_2D, r->tex_hdr);
+  cvr_draw_fullscreen(r);
+  glEnable(GL_DEPTH_TEST);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, r->red_cpu);
+  double mx = 0, bad = 0;
+  for (int j = 0; j < h; j++) {
+    const float *row = r->red_cpu + 4 * (size_t)(h - 1 - j) * w; /* GL rows bottom-up */
+    for (int i = 0; i < w; i++) {
+      const float *q = row + 4 * i;
+      lum->px[(size_t)j * w + i] = q[1] > 0 ? (float)((double)q[0] / q[1]) : NAN;
+      if (q[2] > mx) mx = q[2];
+      bad += q[3];
+    }
+  }
+  if (max_y) *max_y = mx;
+  if (n_invalid) *n_invalid = (uint64_t)bad;
+  return cvr_gl_check("luminance statistics", err);
+}
+
 int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
                       int transfer, cv_image *out_display, cv_image *out_hdr, cv_frame_timing *t,
                       cv_err *err) {
+  return cv_renderer_shade_stats(r, v, dc, transfer, out_display, out_hdr, NULL, NULL, NULL, t, err);
+}
+
+int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                            int transfer, cv_image *out_display, cv_image *out_hdr,
+                            cv_image *out_lum, double *max_y, uint64_t *n_invalid,
+                            cv_frame_timing *t, cv_err *err) {
   int st = cvr_check_view(r, v, err);
   if (st) return st;
-  if (!out_display && !out_hdr) return cv_err_set(err, CV_ERR_INVALID, "shade: no output image");
+  const int gpu_stats = out_lum && cv_renderer_lum_stats_on_gpu(r);
+  if (out_lum && !gpu_stats && !out_hdr) {
+    /* statistics on the CPU: the HDR image is read back into scratch */
+    if (!r->hdr_scratch || r->hdr_scratch->w != v->w || r->hdr_scratch->h != v->h) {
+      cv_image_destroy(r->hdr_scratch);
+      r->hdr_scratch = NULL;
+      if (cv_image_create(v->w, v->h, 3, &r->hdr_scratch))
+        return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+    }
+    out_hdr = r->hdr_scratch;
+  }
+  if (!out_display && !out_hdr && !out_lum)
+    return cv_err_set(err, CV_ERR_INVALID, "shade: no output image");
+  if (out_lum && (out_lum->c != 1 || out_lum->w < 1 || out_lum->h < 1 || !out_lum->px ||
+                  out_lum->w > r->max_rb || out_lum->h > r->max_rb))
+    return cv_err_set(err, CV_ERR_INVALID, "shade: the luminance image must be 1 channel, 1..%d pixels a side",
+                      (int)r->max_rb);
   if (out_display && !dc) return cv_err_set(err, CV_ERR_INVALID, "shade: display output needs Drago constants");
   cv_image *outs[2] = {out_display, out_hdr};
   for (int k = 0; k < 2; k++)
@@ -432,7 +506,8 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
   cvr_gl_check("(before shade)", NULL);
   cvr_set_cull(r, 1);
   const int ss = v->supersample, W = v->w * ss, H = v->h * ss;
-  int flags = (out_display ? F_DISP : 0) | (out_hdr ? F_HDR : 0) |
+  const int draw_hdr = out_hdr || out_lum;
+  int flags = (out_display ? F_DISP : 0) | (draw_hdr ? F_HDR : 0) |
               (out_display && transfer ? F_TRANSFER : 0);
   if (out_display) {
     cvr_tone_table(r, dc);
@@ -450,12 +525,12 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
   cvr_depth_pass(r, mvp, W, H);
   double t1 = cvr_tick(r);
   const GLenum bufs[2] = {out_display ? GL_COLOR_ATTACHMENT0 : GL_NONE,
-                          out_hdr ? GL_COLOR_ATTACHMENT1 : GL_NONE};
+                          draw_hdr ? GL_COLOR_ATTACHMENT1 : GL_NONE};
   glDrawBuffers(2, bufs);
   if (r->o.debug_clear) {
     const float sentinel[4] = {-1, -1, -1, -1};
     for (int k = 0; k < 2; k++)
-      if (outs[k]) glClearBufferfv(GL_COLOR, k, sentinel);
+      if (bufs[k] != GL_NONE) glClearBufferfv(GL_COLOR, k, sentinel);
   }
   cvr_shading_depth_state(r);
   cvr_bind_shading(r, pg, mvp, inv, facing, dc);
@@ -495,12 +570,26 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
       return cv_err_set(err, CV_ERR_NOMEM, "out of memory reading back");
   double t5 = cvr_tick(r);
   if ((st = cvr_gl_check("shading pass", err))) return st;
+  double t6 = t5;
+  if (gpu_stats) {
+    if ((st = cvr_reduce_luminance(r, v->w, v->h, ss, out_lum, max_y, n_invalid, err))) return st;
+    t6 = cvr_tick(r);
+  } else if (out_lum) {
+    const double c0 = cvr_now_ms();
+    double mx = 0;
+    uint64_t bad = 0;
+    cv_lum_downsample(out_hdr, out_lum, &mx, &bad);
+    if (max_y) *max_y = mx;
+    if (n_invalid) *n_invalid = bad;
+    t6 = t5 + (r->o.timing ? cvr_now_ms() - c0 : 0); /* wall ms of the CPU's work */
+  }
   if (t) {
     t->depth_ms = t1 - t0;
     t->shade_ms = t2 - t1;
     t->background_ms = t3 - t2;
     t->resolve_ms = t4 - t3;
     t->read_ms = t5 - t4;
+    if (out_lum) t->lum_ms = t6 - t5, t->lum_read_ms = 0;
   }
   return CV_OK;
 }

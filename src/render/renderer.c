@@ -28,11 +28,15 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->split_margin = 0.05;
   o->shadow_casters = 0.001;
   o->relight_cpu = -1;
+  o->lum_stats_gpu = -1;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
 int cv_renderer_mesh_closed(const cv_renderer *r) { return r->closed; }
 int cv_renderer_relight_on_cpu(const cv_renderer *r) { return r->relight_on_cpu; }
+int cv_renderer_lum_stats_on_gpu(const cv_renderer *r) {
+  return r->o.lum_stats_gpu < 0 ? !r->egl.software : r->o.lum_stats_gpu != 0;
+}
 int cv_renderer_is_software(const cv_renderer *r) { return r->egl.software; }
 int cv_renderer_hw_devices(const cv_renderer *r) { return r->egl.hw_devices; }
 const char *cv_renderer_platform(const cv_renderer *r) { return r->egl.platform; }
@@ -577,6 +581,7 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
       (st = cvr_build("geom.vert", "depth.frag", "#define DEPTH_ONLY\n", NULL, &r->prog_depth, err)) ||
       (st = cvr_build("geom.vert", "unlit.frag", "", NULL, &r->prog_unlit, err)) ||
       (st = cvr_build("fullscreen.vert", "downsample.frag", "", NULL, &r->prog_down, err)) ||
+      (st = cvr_build("fullscreen.vert", "lum_reduce.frag", "", NULL, &r->prog_lumred, err)) ||
       (r->win && (st = cvr_build("present.vert", "present.frag", "", NULL, &r->prog_present, err))) ||
       (st = cvr_upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err))) {
     cv_renderer_destroy(r);
@@ -604,16 +609,17 @@ void cv_renderer_destroy(cv_renderer *r) {
                     r->tex_panel, r->tex_albedo, r->tex_shadow_imp};
     glDeleteTextures(8, tex);
     GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
-                    r->rb_tiny};
-    glDeleteRenderbuffers(6, rbs);
-    GLuint fbos[] = {r->fbo_shadow, r->fbo_lum, r->fbo_main, r->fbo_res, r->fbo_tiny};
-    glDeleteFramebuffers(5, fbos);
+                    r->rb_tiny, r->rb_red};
+    glDeleteRenderbuffers(7, rbs);
+    GLuint fbos[] = {r->fbo_shadow, r->fbo_lum, r->fbo_main, r->fbo_res, r->fbo_tiny, r->fbo_red};
+    glDeleteFramebuffers(6, fbos);
     GLuint vaos[] = {r->vao_geom, r->vao_empty};
     glDeleteVertexArrays(2, vaos);
     glDeleteProgram(r->prog_relight);
     glDeleteProgram(r->prog_depth);
     glDeleteProgram(r->prog_unlit);
     glDeleteProgram(r->prog_down);
+    glDeleteProgram(r->prog_lumred);
     glDeleteProgram(r->prog_present);
     glDeleteTextures(1, &r->tex_present);
     for (int k = 0; k < 2; k++)
@@ -626,6 +632,8 @@ void cv_renderer_destroy(cv_renderer *r) {
   cv_egl_close(&r->egl);
   cv_window_destroy(r->win);
   free(r->chunk_box);
+  free(r->red_cpu);
+  cv_image_destroy(r->hdr_scratch);
   free(r->idx_cpu);
   free(r->pos_cpu);
   free(r->wl_src);

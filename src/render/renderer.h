@@ -115,6 +115,13 @@ typedef struct cv_render_opts {
                         transform feedback; 0: transform feedback; -1 (default): the CPU
                         when the GL is software (llvmpipe runs vertex shaders on one thread
                         and fetches texel by texel: 2.5-4x the CPU loop), feedback on a GPU */
+  int lum_stats_gpu;  /* cv_renderer_shade_stats: 1: reduce the HDR target in a shader
+                        (lum_reduce.frag) and read back only the luminance image; 0: read the
+                        HDR image back and reduce it with cv_lum_downsample on the CPU; -1
+                        (default): the shader on a hardware device (on an H200 it saves the
+                        1440^2 HDR read-back, 6.4 ms a frame), the CPU with a software GL
+                        (llvmpipe fetches texel by texel: 6.0 ms for 360^2 -> 128^2 against
+                        1.1 ms on the CPU) */
 } cv_render_opts;
 
 /* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
@@ -214,6 +221,8 @@ void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
 int cv_renderer_mesh_closed(const cv_renderer *r);
 /* 1 when the relight runs on the CPU (opts.relight_cpu), 0 by transform feedback. */
 int cv_renderer_relight_on_cpu(const cv_renderer *r);
+/* 1 when cv_renderer_shade_stats reduces on the GPU (opts.lum_stats_gpu). */
+int cv_renderer_lum_stats_on_gpu(const cv_renderer *r);
 
 /* The sun's shadow casters (opts.shadow_casters), built with the first
  * shadow map: built 0 before that (or with shadow_casters 0). */
@@ -346,6 +355,24 @@ int cv_renderer_luminance(cv_renderer *r, const cv_render_view *v, cv_image *out
 int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
                       int transfer, cv_image *out_display, cv_image *out_hdr,
                       cv_frame_timing *t, cv_err *err);
+
+/* cv_renderer_shade plus the luminance statistics of the frame's linear
+ * radiance, reduced on the GPU from the HDR target (no HDR read-back: pass
+ * out_hdr NULL unless the image itself is wanted) or on the CPU from the
+ * read-back HDR image (opts.lum_stats_gpu, cv_renderer_lum_stats_on_gpu): out_lum (c = 1, any size
+ * up to the GL limit, row 0 at the top) gets what cv_lum_downsample (tonemap/foveal.h)
+ * gives of the HDR image: the area-weighted mean Rec.709 Y of the pixels
+ * under each footprint, NaN/Inf/negative pixels left out and counted in
+ * *n_invalid (a footprint of such pixels only: NaN), *max_y the largest
+ * valid Y (0 when none).  The GPU sums in float (exact weights), the
+ * final divisions are in double: within 1e-5 of cv_lum_downsample
+ * (tests/render).  t->lum_ms: the reduction and its read-back (w x h x 16
+ * bytes), or the CPU's reduction (the HDR read-back is then in read_ms).  out_display, out_hdr may be NULL; max_y, n_invalid may be NULL.
+ * Errors: those of cv_renderer_shade, CV_ERR_INVALID (out_lum's shape). */
+int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                            int transfer, cv_image *out_display, cv_image *out_hdr,
+                            cv_image *out_lum, double *max_y, uint64_t *n_invalid,
+                            cv_frame_timing *t, cv_err *err);
 
 /* The three passes in order: luminance into out_lum (may be NULL: skipped),
  * then cv_renderer_shade.  For a single wall-eye; a CAVE computes dc from

@@ -26,6 +26,7 @@
 
 #include "io/exr.h"
 #include "render/egl_context.h"
+#include "tonemap/foveal.h"
 #include "render/shaders.h"
 #include "render/window.h"
 #include "view/cave.h"
@@ -70,7 +71,7 @@ struct cv_renderer {
   int panel_on;
   uint64_t panel_bad;
   float panel_c[3], panel_u[3], panel_v[3], panel_n[3], panel_half[2];
-  GLuint prog_relight, prog_depth, prog_unlit, prog_down;
+  GLuint prog_relight, prog_depth, prog_unlit, prog_down, prog_lumred;
   GLuint prog_var[2][NVARIANT];
   /* the Drago table (LUT_*): texture buffer, the constants it was built
    * for, whether it passed LUT_TOL, its measured error, its uniforms */
@@ -104,6 +105,11 @@ struct cv_renderer {
   size_t rgba8_cap;
   GLuint fbo_res, rb_res_disp, rb_res_hdr;
   int res_w, res_h;
+  /* the luminance statistics of the HDR target (lum_reduce.frag) */
+  GLuint fbo_red, rb_red;
+  int red_w, red_h;
+  float *red_cpu;     /* its read-back, 4 floats a pixel */
+  cv_image *hdr_scratch; /* the HDR read-back for statistics on the CPU */
   GLuint fbo_tiny, rb_tiny; /* 1x1: a complete framebuffer for the relight draw (a
                                surfaceless context has no default framebuffer) */
   GLint max_rb;
@@ -239,6 +245,10 @@ void cvr_split_bind(const cv_renderer *r, GLuint prog);
 void cvr_split_free(cv_renderer *r);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);
 GLuint cvr_make_tex(GLenum fmt, int w, int h);
+/* The luminance statistics (cv_renderer_shade_stats) of r->tex_hdr, which
+ * holds W x H pixels of ss x ss texels, into lum (c = 1). */
+int cvr_reduce_luminance(cv_renderer *r, int W, int H, int ss, cv_image *lum, double *max_y,
+                         uint64_t *n_invalid, cv_err *err);
 int cvr_fbo_complete(const char *what, int w, int h, cv_err *err);
 int cvr_ensure_lum(cv_renderer *r, int w, int h, cv_err *err);
 GLenum cvr_disp_fmt(const cv_renderer *r, int resolve_target, int ss);

@@ -1193,6 +1193,162 @@ static void test_luminance_pass(void **state) {
   cv_image_destroy(bg);
 }
 
+/* cv_renderer_shade_stats: the luminance image, max and invalid count
+ * reduced on the GPU (opts.lum_stats_gpu = 1) equal cv_lum_downsample of
+ * the HDR frame (1e-5 relative; exactly for the count), at non-integer
+ * ratios, with 2x supersampling, and on an HDR target holding NaN, Inf,
+ * negative and -0 pixels; the display image is unchanged by the reduction
+ * (bit-equal); on the CPU (lum_stats_gpu = 0, llvmpipe's default) they are
+ * cv_lum_downsample's, bit for bit. */
+static void lum_stats_compare(const cv_image *hdr, const cv_image *gpu, double gmax, uint64_t gbad,
+                              const char *what) {
+  cv_image *cpu;
+  assert_int_equal(cv_image_create(gpu->w, gpu->h, 1, &cpu), CV_OK);
+  double cmax = -1, worst = 0;
+  uint64_t cbad = 99;
+  assert_int_equal(cv_lum_downsample(hdr, cpu, &cmax, &cbad), CV_OK);
+  size_t nan_both = 0;
+  for (int i = 0; i < gpu->w * gpu->h; i++) {
+    const double a = gpu->px[i], b = cpu->px[i];
+    if (isnan(a) || isnan(b)) {
+      assert_true(isnan(a) && isnan(b));
+      nan_both++;
+      continue;
+    }
+    worst = fmax(worst, fabs(a - b) / (fabs(b) + 1e-30));
+  }
+  printf("%s: GPU luminance statistics %dx%d of %dx%d vs cv_lum_downsample: max relative difference "
+         "%.2e, max %.6g vs %.6g, invalid %llu vs %llu, NaN pixels %zu\n",
+         what, gpu->w, gpu->h, hdr->w, hdr->h, worst, gmax, cmax, (unsigned long long)gbad,
+         (unsigned long long)cbad, nan_both);
+  assert_true(worst < 1e-5);
+  assert_true(fabs(gmax - cmax) <= 1e-6 * cmax);
+  assert_int_equal(gbad, cbad);
+  cv_image_destroy(cpu);
+}
+
+static void test_lum_stats_gpu(void **state) {
+  (void)state;
+  cv_lighting l;
+  test_lighting(&l);
+  cv_err err;
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(F.r, bg, &err));
+  cv_drago d;
+  cv_drago_default(&d);
+  cv_drago_consts dc;
+  cv_drago_prepare(&d, &dc);
+  F.r->o.lum_stats_gpu = 1;
+  assert_true(cv_renderer_lum_stats_on_gpu(F.r));
+  /* (1) 250 x 190 into 64 x 48, 37 x 29 and 300 x 201 (non-integer ratios) */
+  pose p = make_pose(1);
+  p.w = 250, p.h = 190;
+  cv_render_view v = make_view(&p, 1);
+  cv_image *hdr, *disp, *disp2, *lum;
+  assert_int_equal(cv_image_create(250, 190, 3, &hdr), CV_OK);
+  assert_int_equal(cv_image_create(250, 190, 3, &disp), CV_OK);
+  assert_int_equal(cv_image_create(250, 190, 3, &disp2), CV_OK);
+  const int sizes[3][2] = {{64, 48}, {37, 29}, {300, 201}}; /* the last larger than the frame */
+  for (int k = 0; k < 3; k++) {
+    assert_int_equal(cv_image_create(sizes[k][0], sizes[k][1], 1, &lum), CV_OK);
+    double mx = -1;
+    uint64_t bad = 99;
+    cv_frame_timing t = {0};
+    OK(cv_renderer_shade_stats(F.r, &v, &dc, 0, disp, hdr, lum, &mx, &bad, &t, &err));
+    lum_stats_compare(hdr, lum, mx, bad, "250x190");
+    OK(cv_renderer_shade(F.r, &v, &dc, 0, disp2, NULL, NULL, &err));
+    assert_memory_equal(disp->px, disp2->px, 3 * 250 * 190 * sizeof(float));
+    /* without the HDR read-back: the same statistics */
+    cv_image *lum2;
+    assert_int_equal(cv_image_create(sizes[k][0], sizes[k][1], 1, &lum2), CV_OK);
+    double mx2 = -1;
+    uint64_t bad2 = 99;
+    OK(cv_renderer_shade_stats(F.r, &v, &dc, 0, disp2, NULL, lum2, &mx2, &bad2, NULL, &err));
+    assert_memory_equal(lum->px, lum2->px, (size_t)lum->w * lum->h * sizeof(float));
+    assert_true(mx == mx2 && bad == bad2);
+    assert_memory_equal(disp->px, disp2->px, 3 * 250 * 190 * sizeof(float));
+    cv_image_destroy(lum2);
+    cv_image_destroy(lum);
+  }
+  /* (2) 2x supersampling: the statistics of the resolved HDR image */
+  p.w = 96, p.h = 72;
+  v = make_view(&p, 2);
+  cv_image *h2;
+  assert_int_equal(cv_image_create(96, 72, 3, &h2), CV_OK);
+  assert_int_equal(cv_image_create(40, 30, 1, &lum), CV_OK);
+  double mx = -1;
+  uint64_t bad = 99;
+  OK(cv_renderer_shade_stats(F.r, &v, NULL, 0, NULL, h2, lum, &mx, &bad, NULL, &err));
+  lum_stats_compare(h2, lum, mx, bad, "96x72, 2x supersampled");
+  cv_image_destroy(lum);
+  /* (3) invalid pixels, written into the HDR target: NaN, +Inf, -1, -0 and
+   * a footprint of invalid pixels only */
+  p.w = 50, p.h = 40;
+  v = make_view(&p, 1);
+  cv_image *h3;
+  assert_int_equal(cv_image_create(50, 40, 3, &h3), CV_OK);
+  assert_int_equal(cv_image_create(7, 6, 1, &lum), CV_OK);
+  OK(cv_renderer_shade_stats(F.r, &v, NULL, 0, NULL, h3, lum, NULL, NULL, NULL, &err));
+  for (int y = 0; y < 40; y++)
+    for (int x = 0; x < 50; x++) {
+      float *q = h3->px + 3 * (size_t)(y * 50 + x);
+      if ((x * 7 + y * 3) % 11 == 0) q[1] = NAN;
+      if ((x + 5 * y) % 13 == 0) q[0] = INFINITY;
+      if ((3 * x + y) % 17 == 0) q[2] = -1.0f;
+      if ((x + y) % 19 == 0) q[0] = -0.0f;
+      if (x < 7 && y < 6) q[2] = NAN; /* the first footprint (x 0..7.1, y 0..6.7): all invalid */
+      if (x == 7 && y < 7) q[2] = NAN;
+      if (y == 6 && x < 8) q[2] = NAN;
+    }
+  float *rgba = malloc(4 * 50 * 40 * sizeof *rgba);
+  for (int y = 0; y < 40; y++)
+    for (int x = 0; x < 50; x++)
+      for (int c = 0; c < 4; c++)
+        rgba[4 * ((39 - y) * 50 + x) + c] = c < 3 ? h3->px[3 * (y * 50 + x) + c] : 1.0f;
+  glBindTexture(GL_TEXTURE_2D, F.r->tex_hdr);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 50, 40, GL_RGBA, GL_FLOAT, rgba);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  free(rgba);
+  mx = -1, bad = 0;
+  OK(cvr_reduce_luminance(F.r, 50, 40, 1, lum, &mx, &bad, &err));
+  assert_true(isnan(lum->px[0]));
+  assert_true(bad > 100);
+  lum_stats_compare(h3, lum, mx, bad, "50x40 with invalid pixels");
+  /* (4) on the CPU: cv_lum_downsample of the read-back HDR image */
+  F.r->o.lum_stats_gpu = 0;
+  assert_false(cv_renderer_lum_stats_on_gpu(F.r));
+  p.w = 250, p.h = 190;
+  v = make_view(&p, 1);
+  cv_image *lc, *lw;
+  assert_int_equal(cv_image_create(64, 48, 1, &lc), CV_OK);
+  assert_int_equal(cv_image_create(64, 48, 1, &lw), CV_OK);
+  double mc = -1, mw = -2;
+  uint64_t bc = 99, bw = 98;
+  OK(cv_renderer_shade_stats(F.r, &v, &dc, 0, disp2, NULL, lc, &mc, &bc, NULL, &err));
+  OK(cv_renderer_shade(F.r, &v, &dc, 0, NULL, hdr, NULL, &err));
+  assert_int_equal(cv_lum_downsample(hdr, lw, &mw, &bw), CV_OK);
+  assert_memory_equal(lc->px, lw->px, 64 * 48 * sizeof(float));
+  assert_true(mc == mw && bc == bw);
+  cv_image_destroy(lc);
+  cv_image_destroy(lw);
+  F.r->o.lum_stats_gpu = -1;
+  assert_int_equal(cv_renderer_lum_stats_on_gpu(F.r), !cv_renderer_is_software(F.r));
+  /* bad shapes */
+  cv_image *three;
+  assert_int_equal(cv_image_create(7, 6, 3, &three), CV_OK);
+  assert_int_equal(cv_renderer_shade_stats(F.r, &v, NULL, 0, NULL, NULL, three, NULL, NULL, NULL, &err),
+                   CV_ERR_INVALID);
+  cv_image_destroy(three);
+  cv_image_destroy(lum);
+  cv_image_destroy(h3);
+  cv_image_destroy(h2);
+  cv_image_destroy(hdr);
+  cv_image_destroy(disp);
+  cv_image_destroy(disp2);
+  cv_image_destroy(bg);
+}
+
 /* 2x supersampling equals a 2x-size render box-filtered on the CPU (1e-6),
  * for the HDR and the tone-mapped outputs. */
 static void test_supersample(void **state) {
@@ -1277,7 +1433,7 @@ int main(void) {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
       cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_cpu_relight_half), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
-      cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass),
+      cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass), cmocka_unit_test(test_lum_stats_gpu),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
