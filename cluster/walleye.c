@@ -398,20 +398,19 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
   cv_drago_prepare(&d, &dc);
   cv_err err;
   /* No luminance pass: the adaptation statistics of this frame (which the
-   * master uses for the next one) come from its own HDR image. */
-  if (vst || cv_renderer_frame(we->r, &rv, &dc, 0, v->disp_img, v->hdr, NULL, tm, &err)) {
+   * master uses for the next one) come from its own HDR image, reduced on
+   * the GPU to the luminance image (lum_res^2) and Drago's Lwmax (the
+   * largest luminance of all its pixels).  The HDR image itself is read
+   * back only on the frames that write it. */
+  double mx = 0;
+  uint64_t bad = 0;
+  cv_image *hdr = (fs->flags & CV_FS_WRITE) ? v->hdr : NULL;
+  if (vst || cv_renderer_shade_stats(we->r, &rv, &dc, 0, v->disp_img, hdr, v->lum, &mx, &bad, tm, &err)) {
     /* head behind this wall or a GL failure: black frame, no statistics */
     if (!vst) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
     memset(v->disp_img->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
     memset(v->hdr->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
   } else {
-    /* The luminance image (lum_res^2) from the HDR frame, and Drago's
-     * Lwmax: the largest luminance of all its pixels. */
-    const double t0 = 1e3 * cv_comm_time();
-    double mx = 0;
-    uint64_t bad = 0;
-    cv_lum_downsample(v->hdr, v->lum, &mx, &bad);
-    tm->lum_ms = 1e3 * cv_comm_time() - t0, tm->lum_read_ms = 0;
     /* Foveal statistics from the head position (the cone of the gaze). */
     const double half_angle = 0.5 * s->cave.foveal_deg * M_PI / 180.0;
     cv_lumstats ls;
@@ -653,11 +652,12 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   char casters[64];
   if (sc.tolerance_m > 0) snprintf(casters, sizeof casters, "casters within %.2g mm", 1e3 * sc.tolerance_m);
   else snprintf(casters, sizeof casters, "the mesh");
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s; luminance statistics %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
            cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU",
-           cv_renderer_relight_on_cpu(we->r) ? "on the CPU" : "by transform feedback", casters, share);
+           cv_renderer_relight_on_cpu(we->r) ? "on the CPU" : "by transform feedback",
+           cv_renderer_lum_stats_on_gpu(we->r) ? "on the GPU" : "on the CPU", casters, share);
 }
 
 /* The master's adaptation priming (CV_FS_MEASURE): every eye rendered and
