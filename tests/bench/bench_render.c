@@ -18,7 +18,21 @@
  *
  * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
  *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440|N] [--cpu]
- *   [--tone-exact] [--no-sun-split] [--no-transfer] [--depth-less]
+ *   [--tone-exact] [--no-sun-split] [--no-transfer] [--depth-less] [--gpu auto|software|N]
+ *   [--loop N]
+ * --gpu: the EGL device, as `cave render --gpu` (a device asked for and
+ * missing is an error);
+ * --loop N: instead of the per-pass table, N back-to-back frames (after 3
+ * warm-up frames) per case, timed by the wall clock around each whole frame
+ * with no glFinish between passes (opts.timing = 0), as `cave run` renders
+ * them: (a) one wall-eye (front L) with the display and HDR images read back
+ * (cave run's frame until the luminance statistics moved to the GPU), (b)
+ * the display image only, (e) the display image and the luminance
+ * statistics (cv_renderer_shade_stats: cave run's frame; reduced on a GPU,
+ * or on the CPU from the read-back HDR image with llvmpipe),
+ * (c) (e) after a lighting change every frame (the sun turns 0.5 deg:
+ * relight + shadow map), (d) all 10 wall-eyes as (e) per CAVE frame, one
+ * context (one GPU serving the whole CAVE).  Sizes: 1440 unless --only N;
  * --cpu: every pass timed in CPU ms of the whole process (all llvmpipe
  * threads: the work done, steady on a machine others load) instead of wall
  * ms; --tone-exact / --no-sun-split: the renderer options of those names
@@ -48,11 +62,85 @@
 
 #define MAXF 64
 #define NV 16
+#define MAXLOOP 10000
+
+typedef struct {
+  cv_renderer *r;
+  cv_cave *cave;
+  double eyes[2][3];
+  cv_drago_consts dc;
+  int bands;
+} loop_ctx;
+
+/* View i (wall i / 2, eye i % 2) of the CAVE at S x S. */
+static int loop_view(const loop_ctx *c, int i, int S, cv_render_view *v) {
+  const cv_wall *w = &c->cave->walls[i / 2];
+  memset(v, 0, sizeof *v);
+  memcpy(v->scene_offset, c->cave->scene_offset, sizeof v->scene_offset);
+  v->w = v->h = S, v->supersample = 1;
+  return cv_offaxis_compute(w->pa, w->pb, w->pc, c->eyes[i % 2], c->cave->near, c->cave->far, &v->proj);
+}
+
+/* One timed case of --loop: n frames of `views` views (the first `views` of
+ * the CAVE), each frame optionally after a lighting change (sun azimuth +0.5
+ * deg per frame); prints one table row. */
+enum { OUT_DISP = 0, OUT_DISP_HDR = 1, OUT_DISP_STATS = 2 };
+
+static int loop_case(const loop_ctx *c, const char *name, int S, int n, int views, int outs,
+                     int light_change, const cv_light_spec *spec0) {
+  cv_image *disp, *hdr, *lum;
+  cv_image_create(S, S, 3, &disp);
+  cv_image_create(S, S, 3, &hdr);
+  cv_image_create(c->cave->lum_res, c->cave->lum_res, 1, &lum);
+  static double ms[MAXLOOP];
+  cv_light_spec spec = *spec0;
+  cv_err err;
+  int st = 0;
+  double t_all = 0;
+  for (int f = -3; f < n && !st; f++) {
+    /* The sky and its SH are the CPU's (the lighting leader's in cave run),
+     * built before the clock starts; the renderer's products are timed. */
+    cv_scene_light *sl = NULL;
+    if (light_change) {
+      spec.sun_azimuth_deg = spec0->sun_azimuth_deg + 0.5 * (f + 4);
+      if ((st = cv_scene_light_build(&spec, c->bands, &sl, &err))) break;
+    }
+    const double t0 = bench_now_ms();
+    if (sl) {
+      cv_lighting l = cv_scene_light_sh(sl);
+      st = cv_renderer_set_lighting(c->r, &l, NULL, NULL, &err);
+      cv_scene_light_destroy(sl);
+      if (st) break;
+    }
+    for (int i = 0; i < views && !st; i++) {
+      cv_render_view v;
+      if (loop_view(c, i, S, &v)) continue;
+      double mx;
+      uint64_t bad;
+      st = cv_renderer_shade_stats(c->r, &v, &c->dc, 0, disp, outs == OUT_DISP_HDR ? hdr : NULL,
+                                   outs == OUT_DISP_STATS ? lum : NULL, &mx, &bad, NULL, &err);
+    }
+    const double dt = bench_now_ms() - t0;
+    if (f >= 0) ms[f] = dt, t_all += dt;
+  }
+  cv_image_destroy(disp);
+  cv_image_destroy(hdr);
+  cv_image_destroy(lum);
+  if (st) {
+    fprintf(stderr, "loop %s: %s\n", name, err.msg);
+    return st;
+  }
+  const double mean = t_all / n;
+  qsort(ms, (size_t)n, sizeof *ms, bench_cmp_double);
+  printf("| %d | %s | %d | %.2f | %.2f | %.2f | **%.1f** |\n", S, name, n, mean, ms[n / 2],
+         ms[(size_t)(0.99 * (n - 1) + 0.5)], 1e3 / mean);
+  return CV_OK;
+}
 
 
 int main(int argc, char **argv) {
   int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
-  int transfer = 1, depth_less = 0;
+  int transfer = 1, depth_less = 0, gpu = CV_GPU_AUTO, loop = 0;
 #ifdef CV_SOURCE_DIR
   const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
 #else
@@ -70,6 +158,18 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--depth-less")) depth_less = 1;
     else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--cave") && i + 1 < argc) cave_path = argv[++i];
+    else if (!strcmp(argv[i], "--gpu") && i + 1 < argc) {
+      if (cv_gpu_parse(argv[++i], &gpu)) {
+        fprintf(stderr, "bench_render: --gpu: expected auto, software or a hardware device index 0..63, got '%s'\n", argv[i]);
+        return 2;
+      }
+    } else if (!strcmp(argv[i], "--loop") && i + 1 < argc) {
+      loop = atoi(argv[++i]);
+      if (loop < 1 || loop > MAXLOOP) {
+        fprintf(stderr, "bench_render: --loop: expected 1..%d frames, got '%s'\n", MAXLOOP, argv[i]);
+        return 2;
+      }
+    }
     else frames = atoi(argv[i]);
   }
   if (frames < 1 || frames > MAXF) frames = 5;
@@ -87,7 +187,8 @@ int main(int argc, char **argv) {
   ro.cull_back = cull_back;
   ro.cull_frustum = frustum;
   ro.display_float = dfloat;
-  ro.timing = cpu ? 2 : 1;
+  ro.timing = loop ? 0 : cpu ? 2 : 1;
+  ro.gpu = gpu;
   ro.tone_exact = exact;
   ro.sun_split = split;
   ro.shadow_reuse = 0; /* the same sun every change: time the map, do not keep it */
@@ -110,14 +211,44 @@ int main(int argc, char **argv) {
   }
   cv_lighting l = cv_scene_light_sh(sl);
   const char *lp = getenv("LP_NUM_THREADS");
-  printf("GL: %s; LP_NUM_THREADS=%s; times in %s ms; tone map %s%s; sun split %s\n",
-         cv_renderer_gl_name(r), lp ? lp : "(unset: all cores)", cpu ? "CPU (all threads)" : "wall",
+  printf("GL: %s (a %s device; %d hardware EGL device(s) here); LP_NUM_THREADS=%s; times in %s ms; tone map %s%s; sun split %s\n",
+         cv_renderer_gl_name(r), cv_renderer_is_software(r) ? "software" : "hardware",
+         cv_renderer_hw_devices(r), lp ? lp : "(unset: all cores)", cpu ? "CPU (all threads)" : "wall",
          exact ? "log/pow" : "table + polynomial", transfer ? "" : " (no transfer)", split ? "on" : "off");
   printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
          "back faces %s, frustum culling %s, display target %s\n",
          prt->nt, prt->nv, prt->bands, half ? "half" : "float",
          (size_t)(prt->bands * prt->bands + 1) * (half ? 8 : 16), cull_back ? "culled" : "drawn",
          frustum ? "on" : "off", dfloat ? "RGBA32F" : "RGBA8");
+
+  if (loop) {
+    loop_ctx c = {.r = r, .cave = &cave, .bands = (int)prt->bands};
+    cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, c.eyes[0], c.eyes[1]);
+    cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = 1000, .lwmax = 2e4};
+    cv_drago_prepare(&d, &c.dc);
+    const int S = only > 0 ? only : 1440, nv = 2 * cave.n_walls;
+    if (cv_renderer_set_lighting(r, &l, NULL, NULL, &err)) {
+      fprintf(stderr, "%s\n", err.msg);
+      return 1;
+    }
+    char all[64];
+    snprintf(all, sizeof all, "(d) all %d wall-eyes as (e)", nv);
+    printf("back-to-back frames, wall ms per frame (a CAVE frame in (d)); no glFinish between passes\n\n");
+    printf("| size | case | frames | mean ms | p50 ms | p99 ms | frames/s |\n|---|---|---|---|---|---|---|\n");
+    int st = loop_case(&c, "(a) front L, display + HDR read back", S, loop, 1, OUT_DISP_HDR, 0, &spec) ||
+             loop_case(&c, "(b) front L, display only", S, loop, 1, OUT_DISP, 0, &spec) ||
+             loop_case(&c, cv_renderer_lum_stats_on_gpu(r)
+                               ? "(e) front L, display + luminance statistics reduced on the GPU (cave run)"
+                               : "(e) front L, display + luminance statistics reduced on the CPU (cave run)",
+                       S, loop, 1, OUT_DISP_STATS, 0, &spec) ||
+             loop_case(&c, "(c) (e) + a lighting change every frame", S, loop, 1, OUT_DISP_STATS, 1, &spec) ||
+             loop_case(&c, all, S, loop < 10 ? loop : loop / 10 + 1, nv, OUT_DISP_STATS, 0, &spec);
+    cv_image_destroy(bg);
+    cv_scene_light_destroy(sl);
+    cv_renderer_destroy(r);
+    cv_prt_destroy(prt);
+    return st ? 1 : 0;
+  }
 
   double relight[MAXF], shadow[MAXF];
   for (int f = 0; f < frames; f++) {
