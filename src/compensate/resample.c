@@ -32,17 +32,23 @@ int cv_downsample_to_patches(const cv_image *img, int nu, int nv, const double *
     return -1;
   }
   memset(out, 0, 3 * (size_t)nu * nv * sizeof(double));
+  /* Rows, then the (one or two) patch rows a pixel row falls in, then the
+   * pixels: each patch's sums still receive the pixels in raster order, so
+   * the sums are bit for bit those of the per-pixel loop; most columns lie
+   * in one patch column and take the loop without the inner one. */
   for (int y = 0; y < img->h; y++) {
-    for (int x = 0; x < img->w; x++) {
-      const float *p = cv_image_at(img, x, y);
-      for (int a = oy.first[y]; a < oy.first[y + 1]; a++) {
-        const double wy = oy.len[a];
-        const size_t row = (size_t)oy.cell[a] * nu;
-        for (int b = ox.first[x]; b < ox.first[x + 1]; b++) {
-          double w = ox.len[b] * wy;
-          size_t k = row + (size_t)ox.cell[b];
-          for (int c = 0; c < 3; c++) out[3 * k + c] += w * p[c];
-          wsum[k] += w;
+    const float *p = cv_image_at(img, 0, y);
+    for (int a = oy.first[y]; a < oy.first[y + 1]; a++) {
+      const double wy = oy.len[a];
+      double *orow = out + 3 * (size_t)oy.cell[a] * nu, *wrow = wsum + (size_t)oy.cell[a] * nu;
+      for (int x = 0; x < img->w; x++) {
+        const float *q = p + (size_t)img->c * x;
+        const int b0 = ox.first[x], b1 = ox.first[x + 1];
+        for (int b = b0; b < b1; b++) {
+          const double w = ox.len[b] * wy;
+          double *o = orow + 3 * (size_t)ox.cell[b];
+          o[0] += w * q[0], o[1] += w * q[1], o[2] += w * q[2];
+          wrow[ox.cell[b]] += w;
         }
       }
     }
@@ -109,22 +115,57 @@ int cv_upsample_from_patches(const double *patches, int nu, int nv, const double
   return 0;
 }
 
+/* Equation 7 with a patch delta in one pass: out = clamp(I0 - up(delta)),
+ * up() exactly as cv_upsample_from_patches computes it (the same double
+ * expressions, rounded to float, so the result is bit-identical to
+ * upsampling and subtracting): the column interpolations of the two patch
+ * rows that bracket a pixel row, (1 - f) a + f b, depend on those rows only,
+ * so they are computed once per pair of patch rows (nv - 1 pairs, not one
+ * per pixel row) and each pixel blends two of them. */
 uint64_t cv_apply_patch_delta(const cv_image *I0, const double *delta, int nu, int nv,
                               const double *eu, const double *ev, cv_image *out) {
-  cv_upsample_from_patches(delta, nu, nv, eu, ev, out);
-  uint64_t clamped = 0;
-  size_t n = (size_t)I0->w * I0->h * 3;
-  for (size_t i = 0; i < n; i++) {
-    float v = I0->px[i] - out->px[i];
-    if (!(v >= 0.0f)) { /* also catches NaN */
-      v = 0.0f;
-      clamped++;
-    } else if (v > 1.0f) {
-      v = 1.0f;
-      clamped++;
-    }
-    out->px[i] = v;
+  const int w = out->w, h = out->h;
+  double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
+  int *iu = malloc(2 * (size_t)w * sizeof *iu);
+  double *fu = malloc((size_t)w * sizeof *fu), *top = malloc(6 * (size_t)w * sizeof *top);
+  if (!tu || !tv || !iu || !fu || !top) {
+    free(tu), free(tv), free(iu), free(fu), free(top);
+    return 0;
   }
+  double *bot = top + 3 * (size_t)w;
+  const double *U = edges_or_uniform(eu, nu, tu), *V = edges_or_uniform(ev, nv, tv);
+  for (int x = 0; x < w; x++)
+    bracket(U, nu, (x + 0.5) / w, &iu[2 * x], &iu[2 * x + 1], &fu[x]);
+  uint64_t clamped = 0;
+  int have0 = -1, have1 = -1;
+  for (int y = 0; y < h; y++) {
+    int v0, v1;
+    double fv;
+    bracket(V, nv, ((h - 1 - y) + 0.5) / h, &v0, &v1, &fv);
+    if (v0 != have0 || v1 != have1) {
+      const double *r0 = delta + 3 * (size_t)v0 * nu, *r1 = delta + 3 * (size_t)v1 * nu;
+      for (int x = 0; x < w; x++) {
+        const int u0 = iu[2 * x], u1 = iu[2 * x + 1];
+        const double f = fu[x];
+        for (int c = 0; c < 3; c++) {
+          top[3 * x + c] = (1 - f) * r0[3 * u0 + c] + f * r0[3 * u1 + c];
+          bot[3 * x + c] = (1 - f) * r1[3 * u0 + c] + f * r1[3 * u1 + c];
+        }
+      }
+      have0 = v0, have1 = v1;
+    }
+    const double gv = 1 - fv;
+    const float *src = cv_image_at(I0, 0, y);
+    float *dst = cv_image_at(out, 0, y);
+    for (int i = 0; i < 3 * w; i++) {
+      float v = src[i] - (float)(gv * top[i] + fv * bot[i]);
+      const int lo = !(v >= 0.0f), hi = v > 1.0f; /* !(v >= 0): also NaN */
+      clamped += (uint64_t)(lo | hi);
+      v = lo ? 0.0f : v;
+      dst[i] = hi ? 1.0f : v;
+    }
+  }
+  free(tu), free(tv), free(iu), free(fu), free(top);
   return clamped;
 }
 

@@ -5,10 +5,12 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include <cmocka.h>
 
 #include "compensate/resample.h"
+#include "core/overlaps.h"
 
 static cv_image *ramp(int w, int h) {
   cv_image *img;
@@ -98,11 +100,108 @@ static void test_equation7(void **state) {
   cv_image_destroy(out);
 }
 
+/* cv_apply_patch_delta (one pass, column interpolations per pair of patch
+ * rows) is bit for bit the upsampling of cv_upsample_from_patches
+ * subtracted and clamped per value, with the same clamp count: uneven
+ * patch edges, sizes that do not divide, values above 1, below 0 and NaN,
+ * in place too. */
+static void test_apply_delta_exact(void **state) {
+  (void)state;
+  const int sizes[3][4] = {{97, 61, 7, 5}, {64, 48, 1, 1}, {33, 130, 24, 24}};
+  for (int t = 0; t < 3; t++) {
+    const int w = sizes[t][0], h = sizes[t][1], nu = sizes[t][2], nv = sizes[t][3];
+    double eu[32], ev[32], *delta = malloc(3 * (size_t)nu * nv * sizeof *delta);
+    eu[0] = ev[0] = 0;
+    for (int k = 1; k <= nu; k++) eu[k] = eu[k - 1] + 1.0 + 0.37 * (k % 3);
+    for (int k = 1; k <= nv; k++) ev[k] = ev[k - 1] + 1.0 + 0.21 * (k % 4);
+    for (int k = 0; k <= nu; k++) eu[k] /= eu[nu];
+    for (int k = 0; k <= nv; k++) ev[k] /= ev[nv];
+    for (int k = 0; k < 3 * nu * nv; k++) delta[k] = 0.3 * sin(0.7 * k) - 0.05;
+    cv_image *I0, *up, *out, *inplace;
+    cv_image_create(w, h, 3, &I0);
+    cv_image_create(w, h, 3, &up);
+    cv_image_create(w, h, 3, &out);
+    cv_image_create(w, h, 3, &inplace);
+    for (size_t i = 0; i < 3 * (size_t)w * h; i++)
+      I0->px[i] = i % 97 == 0 ? NAN : (float)(1.3 * fabs(sin(0.013 * (double)i)) - 0.1);
+    assert_int_equal(cv_upsample_from_patches(delta, nu, nv, eu, ev, up), 0);
+    uint64_t want_clamped = 0;
+    for (size_t i = 0; i < 3 * (size_t)w * h; i++) {
+      float v = I0->px[i] - up->px[i];
+      if (!(v >= 0.0f)) v = 0.0f, want_clamped++;
+      else if (v > 1.0f) v = 1.0f, want_clamped++;
+      up->px[i] = v;
+    }
+    assert_int_equal(cv_apply_patch_delta(I0, delta, nu, nv, eu, ev, out), want_clamped);
+    assert_memory_equal(out->px, up->px, 3 * (size_t)w * h * sizeof(float));
+    memcpy(inplace->px, I0->px, 3 * (size_t)w * h * sizeof(float));
+    assert_int_equal(cv_apply_patch_delta(inplace, delta, nu, nv, eu, ev, inplace), want_clamped);
+    assert_memory_equal(inplace->px, up->px, 3 * (size_t)w * h * sizeof(float));
+    assert_true(want_clamped > 0);
+    cv_image_destroy(I0);
+    cv_image_destroy(up);
+    cv_image_destroy(out);
+    cv_image_destroy(inplace);
+    free(delta);
+  }
+}
+
+/* The per-pixel loop cv_downsample_to_patches had (each pixel's overlaps,
+ * in raster order): the reference its faster loop must equal bit for bit. */
+static void downsample_reference(const cv_image *img, int nu, int nv, const double *U,
+                                 const double *V, double *out) {
+  cv_overlaps ox = {0}, oy = {0};
+  assert_int_equal(cv_overlaps_make(U, nu, img->w, 1.0, 0, &ox), 0);
+  assert_int_equal(cv_overlaps_make(V, nv, img->h, 1.0, 1, &oy), 0);
+  double *wsum = calloc((size_t)nu * nv, sizeof *wsum);
+  memset(out, 0, 3 * (size_t)nu * nv * sizeof *out);
+  for (int y = 0; y < img->h; y++)
+    for (int x = 0; x < img->w; x++) {
+      const float *p = cv_image_at(img, x, y);
+      for (int a = oy.first[y]; a < oy.first[y + 1]; a++)
+        for (int b = ox.first[x]; b < ox.first[x + 1]; b++) {
+          const double w = ox.len[b] * oy.len[a];
+          const size_t k = (size_t)oy.cell[a] * nu + (size_t)ox.cell[b];
+          for (int c = 0; c < 3; c++) out[3 * k + c] += w * p[c];
+          wsum[k] += w;
+        }
+    }
+  for (size_t k = 0; k < (size_t)nu * nv; k++)
+    for (int c = 0; c < 3; c++) out[3 * k + c] = wsum[k] > 0 ? out[3 * k + c] / wsum[k] : 0.0;
+  free(wsum);
+  cv_overlaps_free(&ox), cv_overlaps_free(&oy);
+}
+
+static void test_downsample_exact(void **state) {
+  (void)state;
+  const int sizes[3][4] = {{97, 61, 7, 5}, {50, 40, 50, 40}, {33, 130, 24, 24}};
+  for (int t = 0; t < 3; t++) {
+    const int w = sizes[t][0], h = sizes[t][1], nu = sizes[t][2], nv = sizes[t][3];
+    double eu[64], ev[64];
+    eu[0] = ev[0] = 0;
+    for (int k = 1; k <= nu; k++) eu[k] = eu[k - 1] + 1.0 + 0.37 * (k % 3);
+    for (int k = 1; k <= nv; k++) ev[k] = ev[k - 1] + 1.0 + 0.21 * (k % 4);
+    for (int k = 0; k <= nu; k++) eu[k] /= eu[nu];
+    for (int k = 0; k <= nv; k++) ev[k] /= ev[nv];
+    cv_image *img;
+    cv_image_create(w, h, 3, &img);
+    for (size_t i = 0; i < 3 * (size_t)w * h; i++) img->px[i] = (float)fabs(sin(0.013 * (double)i));
+    double *got = malloc(3 * (size_t)nu * nv * sizeof *got), *want = malloc(3 * (size_t)nu * nv * sizeof *want);
+    assert_int_equal(cv_downsample_to_patches(img, nu, nv, eu, ev, got), 0);
+    downsample_reference(img, nu, nv, eu, ev, want);
+    assert_memory_equal(got, want, 3 * (size_t)nu * nv * sizeof *got);
+    free(got), free(want);
+    cv_image_destroy(img);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_downsample),
       cmocka_unit_test(test_upsample_linear),
       cmocka_unit_test(test_equation7),
+      cmocka_unit_test(test_apply_delta_exact),
+      cmocka_unit_test(test_downsample_exact),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
