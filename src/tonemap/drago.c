@@ -80,7 +80,7 @@ void cv_rec709_lut_init(cv_rec709_lut *t) {
   t->step[255] = INFINITY;
   t->adv = 0;
   for (uint32_t b = 0; b < CV_REC709_BUCKETS; b++) {
-    const uint32_t bits = b << 18, last = bits | 0x3ffffu; /* the bucket's ends */
+    const uint32_t bits = b << CV_REC709_SHIFT, last = bits | ((1u << CV_REC709_SHIFT) - 1); /* the bucket's ends */
     float e, e1;
     memcpy(&e, &bits, sizeof e);
     memcpy(&e1, &last, sizeof e1);
@@ -106,11 +106,9 @@ uint8_t cv_rec709_code(const cv_rec709_lut *t, float e) {
   if (e >= 1.0f) return 255;
   uint32_t bits;
   memcpy(&bits, &e, sizeof bits);
-  unsigned k = t->first[bits >> 18]; /* steps <= the bucket's lower end */
+  unsigned k = t->first[bits >> CV_REC709_SHIFT]; /* steps <= the bucket's lower end */
   k += t->step[k] <= e; /* step[255] = +Inf: k stays <= 255 */
-  k += t->step[k] <= e;
-  k += t->step[k] <= e;
-  if (t->adv > 3) /* not for this curve (init measures it); kept exact for any */
+  if (t->adv > 1) /* not for this curve (init measures it); kept exact for any */
     while (t->step[k] <= e) k++;
   return (uint8_t)k;
 }

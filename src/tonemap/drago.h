@@ -80,18 +80,22 @@ double cv_rec709_transfer(double e);
 /* The 8-bit code a display gets for display-linear e: lrintf((float)
  * cv_rec709_transfer(e) * 255), what the PNG previews store.  The table
  * holds the 255 smallest floats at which the code steps (found by bisection
- * on the exact curve, which is monotone), and per 1/32 octave of e (its
- * float bits >> 18) the code at the bucket's lower end, so a lookup starts
- * there and steps past the at most 3 thresholds inside the bucket (three
- * compare-and-adds, no branch) instead of bisecting (8 unpredictable branches: 12% of a wall-eye rank's CPU in
- * `cave run`, docs/benchmarks.md); it equals the direct formula for every
- * float (NaN and e <= 0 give 0).  Initialise once with cv_rec709_lut_init;
- * read-only afterwards. */
-#define CV_REC709_BUCKETS ((0x3f800000u >> 18) + 1) /* float bits >> 18 of (0, 1] */
+ * on the exact curve, which is monotone), and per 1/512 octave of e (its
+ * float bits >> 14: 65,025 buckets, 64 KB) the code at the bucket's lower
+ * end, so a lookup starts there and steps past the one threshold a bucket
+ * can hold on this curve (one compare-and-add; init measures `adv`, and a
+ * table with more steps a bucket walks them) instead of bisecting (8
+ * unpredictable branches: 12% of a wall-eye rank's CPU in `cave run`,
+ * docs/benchmarks.md).  Buckets of 1/32 octave (4 KB) needed three
+ * compare-and-adds: 22 ms against 11.7 ms for a 1440^2 RGB image.  It
+ * equals the direct formula for every float (NaN and e <= 0 give 0).
+ * Initialise once with cv_rec709_lut_init (1.3 ms); read-only afterwards. */
+#define CV_REC709_SHIFT 14
+#define CV_REC709_BUCKETS ((0x3f800000u >> CV_REC709_SHIFT) + 1) /* float bits >> SHIFT of (0, 1] */
 typedef struct cv_rec709_lut {
   float step[256]; /* step[k]: smallest e with code > k; step[255] = +Inf (a sentinel) */
-  uint8_t first[CV_REC709_BUCKETS]; /* first[b]: code of the float with bits b << 18 */
-  uint8_t adv; /* the most thresholds inside one bucket (3 for this curve) */
+  uint8_t first[CV_REC709_BUCKETS]; /* first[b]: code of the float with bits b << CV_REC709_SHIFT */
+  uint8_t adv; /* the most thresholds inside one bucket (1 for this curve) */
 } cv_rec709_lut;
 void cv_rec709_lut_init(cv_rec709_lut *t);
 uint8_t cv_rec709_code(const cv_rec709_lut *t, float e);
