@@ -11,7 +11,7 @@
 #   (front_L.exr of the default scene at 720^2, front_L_1440.png of the
 #   cabin, run1440_front_L.png: cave run's compensated frame), default.prt's
 #   md5 in the log, nvidia-smi's utilisation during the back-to-back frames
-#   (dmon.txt) and cave run's metrics (run<SIZE>_<share>_metrics.jsonl).
+#   (dmon.txt) and cave run's metrics (run<SIZE>_<share>_<drive>_metrics.jsonl).
 #   Compare the EXR with llvmpipe's render of the same command elsewhere
 #   with img_diff.  Env: GPU (0; software: a dry run on llvmpipe),
 #   TABLE_FRAMES (10), RUNS ("720:host 1440:host 1440:off 1440:host:none"),
@@ -27,6 +27,7 @@
 # mpirun is there (tests/bench/gpu_env.sh carries Open MPI to a GPU machine
 # that lacks it).
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set -uo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;; esac
 BUILD="${1:?usage: gpu_check.sh BUILD_DIR OUT_DIR [LOOP_FRAMES]}"
 OUT="${2:?usage: gpu_check.sh BUILD_DIR OUT_DIR [LOOP_FRAMES]}"
 LOOP="${3:-300}"

@@ -3,7 +3,7 @@
 # cave, bench_render and img_diff (tests/bench/gpu_check.sh) and
 # `mpirun -np 11 cave run ...`; tests/bench/gpu_env.sh unpacks it there.
 #
-# Usage: gpu_pack.sh BUILD_DIR [OUT_DIR (/work/main/.devpack)]
+# Usage: gpu_pack.sh BUILD_DIR [OUT_DIR (.devpack in the repository root)]
 # Writes into OUT_DIR:
 #   cave, bench_render, img_diff   the binaries, flat
 #   devlibs.tar.xz   devlibs/: every `ldd` library of the three binaries but
@@ -18,8 +18,9 @@
 #   forest.exr       the default scene's environment map (Blender's)
 #   xz, liblzma.so.5 an xz for targets without xz-utils (gpu_env.sh's fallback)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;; esac
 BUILD="$(realpath "${1:?usage: gpu_pack.sh BUILD_DIR [OUT_DIR]}")"
-OUT="${2:-/work/main/.devpack}"
+OUT="${2:-$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)/.devpack}"
 XZ="${XZ:-xz -9 -T0}"
 EXR=/usr/share/blender/datafiles/studiolights/world/forest.exr
 ML=/usr/lib/x86_64-linux-gnu
