@@ -83,26 +83,44 @@ static void bracket(const double *e, int n, double t, int *i0, int *i1, double *
   *f = (t - ca) / (cb - ca);
 }
 
-int cv_upsample_from_patches(const double *patches, int nu, int nv, const double *eu,
-                             const double *ev, cv_image *out) {
-  double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
-  int *iu = malloc(2 * (size_t)out->w * sizeof *iu);
-  double *fu = malloc((size_t)out->w * sizeof *fu);
-  if (!tu || !tv || !iu || !fu) {
-    free(tu), free(tv), free(iu), free(fu);
+/* What upsampling from patches to a w-pixel-wide image needs once per
+ * image: the patch edges (given or uniform) and each column's bracketing
+ * patch centres and weight. */
+typedef struct {
+  double *tu, *tv;       /* uniform edges, when none are given */
+  const double *U, *V;   /* the edges used */
+  int *iu;               /* 2 per column: the bracketing patch columns */
+  double *fu;            /* per column: the weight of the second */
+} columns;
+
+static void columns_free(columns *c) { free(c->tu), free(c->tv), free(c->iu), free(c->fu); }
+
+static int columns_make(columns *c, int nu, int nv, const double *eu, const double *ev, int w) {
+  c->tu = malloc((size_t)(nu + 1) * sizeof(double));
+  c->tv = malloc((size_t)(nv + 1) * sizeof(double));
+  c->iu = malloc(2 * (size_t)w * sizeof *c->iu);
+  c->fu = malloc((size_t)w * sizeof *c->fu);
+  if (!c->tu || !c->tv || !c->iu || !c->fu) {
+    columns_free(c);
     return -1;
   }
-  const double *U = edges_or_uniform(eu, nu, tu), *V = edges_or_uniform(ev, nv, tv);
-  for (int x = 0; x < out->w; x++) /* the columns' brackets once */
-    bracket(U, nu, (x + 0.5) / out->w, &iu[2 * x], &iu[2 * x + 1], &fu[x]);
+  c->U = edges_or_uniform(eu, nu, c->tu), c->V = edges_or_uniform(ev, nv, c->tv);
+  for (int x = 0; x < w; x++) bracket(c->U, nu, (x + 0.5) / w, &c->iu[2 * x], &c->iu[2 * x + 1], &c->fu[x]);
+  return 0;
+}
+
+int cv_upsample_from_patches(const double *patches, int nu, int nv, const double *eu,
+                             const double *ev, cv_image *out) {
+  columns cb;
+  if (columns_make(&cb, nu, nv, eu, ev, out->w)) return -1;
   for (int y = 0; y < out->h; y++) {
     int v0, v1;
     double fv;
-    bracket(V, nv, ((out->h - 1 - y) + 0.5) / out->h, &v0, &v1, &fv);
+    bracket(cb.V, nv, ((out->h - 1 - y) + 0.5) / out->h, &v0, &v1, &fv);
     const double *r0 = patches + 3 * (size_t)v0 * nu, *r1 = patches + 3 * (size_t)v1 * nu;
     for (int x = 0; x < out->w; x++) {
-      const int u0 = iu[2 * x], u1 = iu[2 * x + 1];
-      const double f = fu[x];
+      const int u0 = cb.iu[2 * x], u1 = cb.iu[2 * x + 1];
+      const double f = cb.fu[x];
       float *p = cv_image_at(out, x, y);
       for (int c = 0; c < 3; c++) {
         double a = r0[3 * u0 + c], b = r0[3 * u1 + c];
@@ -111,7 +129,7 @@ int cv_upsample_from_patches(const double *patches, int nu, int nv, const double
       }
     }
   }
-  free(tu), free(tv), free(iu), free(fu);
+  columns_free(&cb);
   return 0;
 }
 
@@ -125,23 +143,22 @@ int cv_upsample_from_patches(const double *patches, int nu, int nv, const double
 uint64_t cv_apply_patch_delta(const cv_image *I0, const double *delta, int nu, int nv,
                               const double *eu, const double *ev, cv_image *out) {
   const int w = out->w, h = out->h;
-  double *tu = malloc((size_t)(nu + 1) * sizeof(double)), *tv = malloc((size_t)(nv + 1) * sizeof(double));
-  int *iu = malloc(2 * (size_t)w * sizeof *iu);
-  double *fu = malloc((size_t)w * sizeof *fu), *top = malloc(6 * (size_t)w * sizeof *top);
-  if (!tu || !tv || !iu || !fu || !top) {
-    free(tu), free(tv), free(iu), free(fu), free(top);
+  columns cb;
+  if (columns_make(&cb, nu, nv, eu, ev, w)) return 0;
+  double *top = malloc(6 * (size_t)w * sizeof *top);
+  if (!top) {
+    columns_free(&cb);
     return 0;
   }
   double *bot = top + 3 * (size_t)w;
-  const double *U = edges_or_uniform(eu, nu, tu), *V = edges_or_uniform(ev, nv, tv);
-  for (int x = 0; x < w; x++)
-    bracket(U, nu, (x + 0.5) / w, &iu[2 * x], &iu[2 * x + 1], &fu[x]);
+  const int *iu = cb.iu;
+  const double *fu = cb.fu;
   uint64_t clamped = 0;
   int have0 = -1, have1 = -1;
   for (int y = 0; y < h; y++) {
     int v0, v1;
     double fv;
-    bracket(V, nv, ((h - 1 - y) + 0.5) / h, &v0, &v1, &fv);
+    bracket(cb.V, nv, ((h - 1 - y) + 0.5) / h, &v0, &v1, &fv);
     if (v0 != have0 || v1 != have1) {
       const double *r0 = delta + 3 * (size_t)v0 * nu, *r1 = delta + 3 * (size_t)v1 * nu;
       for (int x = 0; x < w; x++) {
@@ -165,7 +182,8 @@ uint64_t cv_apply_patch_delta(const cv_image *I0, const double *delta, int nu, i
       dst[i] = hi ? 1.0f : v;
     }
   }
-  free(tu), free(tv), free(iu), free(fu), free(top);
+  columns_free(&cb);
+  free(top);
   return clamped;
 }
 

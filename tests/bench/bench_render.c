@@ -266,6 +266,8 @@ int main(int argc, char **argv) {
 
   double eyes[2][3];
   cv_head_eyes(cave.head, cave.gaze, cave.eye_separation, eyes[0], eyes[1]);
+  loop_ctx views = {.r = r, .cave = &cave}; /* the table's views, as --loop's */
+  memcpy(views.eyes, eyes, sizeof eyes);
   const int nviews = 2 * cave.n_walls;
   cv_drago d = {.bias = cave.drago_bias, .ldmax = cave.drago_ldmax, .lwa = 1000, .lwmax = 2e4};
   cv_drago_consts dc;
@@ -287,12 +289,8 @@ int main(int argc, char **argv) {
     static double T[NV][9][MAXF];
     for (int f = 0; f < frames; f++) {
       for (int i = 0; i < nviews; i++) {
-        const cv_wall *w = &cave.walls[i / 2];
         cv_render_view v;
-        memset(&v, 0, sizeof v);
-        cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &v.proj);
-        memcpy(v.scene_offset, cave.scene_offset, sizeof v.scene_offset);
-        v.w = v.h = S, v.supersample = 1;
+        loop_view(&views, i, S, &v);
         cv_frame_timing t = {0}, tu = {0};
         if (cv_renderer_luminance(r, &v, lum[i], &t, &err) ||
             cv_renderer_shade(r, &v, &dc, transfer, disp, NULL, &t, &err) ||

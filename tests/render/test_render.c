@@ -1107,6 +1107,18 @@ static void test_panel(void **state) {
   cv_prt_destroy(p);
 }
 
+/* The fixture's renderer lit by test_lighting in front of const_bg();
+ * returns the background (the caller destroys it). */
+static cv_image *lit_with_background(void) {
+  cv_lighting l;
+  test_lighting(&l);
+  cv_err err;
+  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
+  cv_image *bg = const_bg();
+  OK(cv_renderer_set_background(F.r, bg, &err));
+  return bg;
+}
+
 /* The luminance pass: (1) at the HDR frame's size it equals Y of the HDR
  * output within 1e-6 relative per pixel; (2) at 128x128 its log-average
  * (eps 1e-4) and mean are within 1% of a 512x512 HDR frame box-filtered
@@ -1115,12 +1127,8 @@ static void test_panel(void **state) {
  * box filter, close to the pass, with the frame's maximum. */
 static void test_luminance_pass(void **state) {
   (void)state;
-  cv_lighting l;
-  test_lighting(&l);
   cv_err err;
-  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
-  cv_image *bg = const_bg();
-  OK(cv_renderer_set_background(F.r, bg, &err));
+  cv_image *bg = lit_with_background();
   pose p = make_pose(1);
   p.w = p.h = 128;
   cv_render_view v = make_view(&p, 1);
@@ -1229,12 +1237,8 @@ static void lum_stats_compare(const cv_image *hdr, const cv_image *gpu, double g
 
 static void test_lum_stats_gpu(void **state) {
   (void)state;
-  cv_lighting l;
-  test_lighting(&l);
   cv_err err;
-  OK(cv_renderer_set_lighting(F.r, &l, NULL, NULL, &err));
-  cv_image *bg = const_bg();
-  OK(cv_renderer_set_background(F.r, bg, &err));
+  cv_image *bg = lit_with_background();
   cv_drago d;
   cv_drago_default(&d);
   cv_drago_consts dc;
