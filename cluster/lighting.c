@@ -37,6 +37,7 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->lcd_luminance = -1;
   o->lcd_idle = 1;
   o->share_lighting = 1; /* CV_SHARE_HOST */
+  o->half_transfer = -1;
   o->seed = 1;
   o->present = CV_PRESENT_FILES;
   o->desktop_view = -1;

@@ -76,6 +76,9 @@ static void help(FILE *f) {
           "  --gpu G              auto, software or a hardware EGL device index N, for every\n"
           "                       output (default: each output's \"gpu\"); auto prefers hardware,\n"
           "                       and a hardware request never falls back to llvmpipe\n"
+          "  --transfer T         how each wall-eye stores the transfer vectors: auto (default:\n"
+          "                       half floats when it relights on the CPU, i.e. llvmpipe;\n"
+          "                       floats on a GPU), float or half (as `cave render`)\n"
           "  --clock C            wall (real time: paced to the config's rate, drive and sun\n"
           "                       follow the clock) or sim (fixed --dt per frame, reproducible);\n"
           "                       default wall with window or desktop, else sim\n"
@@ -213,6 +216,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--gpu")) {
       NEED();
       if (cv_gpu_parse(v, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
+    } else if (!strcmp(a, "--transfer")) {
+      NEED();
+      if (cv_render_transfer_parse(v, &o->half_transfer)) problem(pb, "--transfer: expected auto, float or half, got '%s'", v);
     } else if (!strcmp(a, "--clock")) {
       NEED();
       if (!strcmp(v, "wall")) o->clock = 1;

@@ -91,6 +91,7 @@ typedef struct cv_run_opts {
   int lcd_wait;                  /* 1: after the frames, wait until the LCD budget is summed */
   int share_lighting;            /* --share-lighting: CV_SHARE_HOST (default) or CV_SHARE_OFF
                                     (cluster/lightshare.h) */
+  int half_transfer;             /* --transfer: -1 auto (default), 0 float, 1 half (renderer.h) */
   uint32_t seed;
   int seed_set;                  /* --seed given: it also sets the LCD sequences' seed */
   int quiet;

@@ -173,6 +173,7 @@ static int walleye_setup(walleye *we, cv_err *err) {
    * (docs/benchmarks.md, "Where a CAVE frame's time goes"). */
   ro.depth_less = (long)we->w * we->h * s->cave.supersample * s->cave.supersample <= CV_WALLEYE_ONE_PASS_PIXELS;
   ro.gpu = s->o.gpu != CV_GPU_UNSET ? s->o.gpu : we->o->gpu;
+  ro.half_transfer = s->o.half_transfer;
   if (window) {
     window_spec(we);
     ro.window = &we->spec;
@@ -652,11 +653,12 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   char casters[64];
   if (sc.tolerance_m > 0) snprintf(casters, sizeof casters, "casters within %.2g mm", 1e3 * sc.tolerance_m);
   else snprintf(casters, sizeof casters, "the mesh");
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s; luminance statistics %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s from %s transfer; luminance statistics %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
            cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU",
            cv_renderer_relight_on_cpu(we->r) ? "on the CPU" : "by transform feedback",
+           cv_renderer_half_transfer(we->r) ? "half-float" : "float",
            cv_renderer_lum_stats_on_gpu(we->r) ? "on the GPU" : "on the CPU", casters, share);
 }
 

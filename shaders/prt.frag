@@ -13,7 +13,7 @@ in vec3 v_rad;
 in vec3 v_sq;                 // shadow-map texel space: texel centres at integers, z = depth
 in vec3 v_sun;                // E/pi * vertex albedo (the fan's hat-weighted mean)
 uniform sampler2D u_shadow;   // the sun's depth map, fetched (compared here)
-uniform int u_shadow_res;     // its size in texels
+uniform ivec2 u_shadow_size;  // the map's texels (the texture's lower-left part)
 uniform vec4 u_shadow_k;      // xyz: D^2, w: -D_z (D: the texel-space matrix's axis scales)
 uniform float u_shadow_bias;  // offset along the normal, metres
 uniform float u_sigma;        // +-1: orientation of this view and of the shadow map
@@ -39,7 +39,7 @@ vec3 cv_sun_direct() {
   // shadow sampler costs several times these four fetches.
   vec3 q = v_sq + (u_shadow_bias * inv) * m;
   vec2 fl = floor(q.xy), f = q.xy - fl;
-  ivec2 i = clamp(ivec2(fl), ivec2(0), ivec2(u_shadow_res - 2));
+  ivec2 i = clamp(ivec2(fl), ivec2(0), u_shadow_size - 2);
   vec4 d = vec4(texelFetch(u_shadow, i, 0).r, texelFetch(u_shadow, i + ivec2(1, 0), 0).r,
                 texelFetch(u_shadow, i + ivec2(0, 1), 0).r, texelFetch(u_shadow, i + ivec2(1, 1), 0).r);
   vec4 lit = step(vec4(q.z), d);  // q.z <= depth

@@ -42,7 +42,7 @@ static void help(FILE *f) {
   fprintf(f,
           "usage: cave render <cave.json> --scene scene.prt LIGHT [--head x,y,z --gaze x,y,z]\n"
           "                   [--frames N] [--dt S] [--size N] [--supersample 1|2]\n"
-          "                   [--lum-res N] [--bg-res N] [--half] [--cull-back] [--all-frames]\n"
+          "                   [--lum-res N] [--bg-res N] [--transfer T] [--cull-back] [--all-frames]\n"
           "                   [--gpu auto|software|N] [--split K [--split-grid W] [--split-samples N]]\n"
           "                   -o DIR\n\n"
           "Renders every wall and eye of the CAVE configuration with the EGL/OpenGL PRT\n"
@@ -72,7 +72,10 @@ static void help(FILE *f) {
           "  --supersample K  1 or 2 (default: the config's)\n"
           "  --lum-res N      luminance pass size (default: the config's, 128)\n"
           "  --bg-res N       width of the background lat-long texture (default 1024)\n"
-          "  --half           store transfer vectors as half floats on the GPU\n"
+          "  --transfer T     how the transfer vectors are stored: auto (default: half floats\n"
+          "                   when the relight runs on the CPU, i.e. llvmpipe; floats on a\n"
+          "                   GPU), float or half (relative pixel difference half/float:\n"
+          "                   median 1.5e-4, p99 1.4e-3); --half = --transfer half\n"
           "  --cull-back      cull back faces (faster; only for closed, consistently wound\n"
           "                   meshes such as the built-in cabin)\n"
           "  --all-frames     write the images of every frame (default: the last one)\n"
@@ -179,7 +182,7 @@ typedef struct render_args {
 static int parse_args(int argc, char **argv, render_args *a) {
   memset(a, 0, sizeof *a);
   cv_light_spec_default(&a->spec);
-  a->dt = 0.1, a->frames = 1, a->bg_res = 1024, a->gpu = CV_GPU_AUTO;
+  a->dt = 0.1, a->frames = 1, a->bg_res = 1024, a->gpu = CV_GPU_AUTO, a->half = -1;
   a->split_grid = 64, a->split_samples = CV_SPLIT_SAMPLES_DEFAULT;
   for (int i = 1; i < argc; i++) {
     const char *o = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
@@ -197,6 +200,10 @@ static int parse_args(int argc, char **argv, render_args *a) {
     if (!strcmp(o, "--gpu")) {
       if (!val || cv_gpu_parse(val, &a->gpu))
         return cli_fail("render", 2, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", val ? val : "(nothing)");
+      i++;
+    } else if (!strcmp(o, "--transfer")) {
+      if (!val || cv_render_transfer_parse(val, &a->half))
+        return cli_fail("render", 2, "--transfer: expected auto, float or half, got '%s'", val ? val : "(nothing)");
       i++;
     } else if (!strcmp(o, "--half")) {
       a->half = 1;
@@ -353,10 +360,11 @@ static int light_scene(render_job *j) {
              "simplified within %.3f mm%s; built in %.0f ms, counted in the map's time)",
              sc.triangles, sc.mesh_triangles, 1e3 * sc.error_m,
              sc.culled ? ", those facing away from the sun" : "", sc.build_ms);
-  printf("scene: %zu vertices, %zu triangles, %u bands; relit %s in %.1f ms (%llu channels "
+  printf("scene: %zu vertices, %zu triangles, %u bands; relit %s from %s transfer in %.1f ms (%llu channels "
          "clamped from negative), sun shadow map%s %.1f ms%s\n",
          j->prt->nv, j->prt->nt, j->prt->bands,
-         cv_renderer_relight_on_cpu(j->r) ? "on the CPU" : "on the GPU", lt.relight_ms,
+         cv_renderer_relight_on_cpu(j->r) ? "on the CPU" : "on the GPU",
+         cv_renderer_half_transfer(j->r) ? "half-float" : "float", lt.relight_ms,
          (unsigned long long)ls.clamped, casters, lt.shadow_ms, light.has_sun ? "" : " (no sun)");
   return 0;
 }

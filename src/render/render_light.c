@@ -4,10 +4,55 @@
 
 /* ---------------------------------------------------------------- lighting */
 
+/* a . p, for a vertex or a box corner (one expression: the same rounding) */
+static double along(const double a[3], const float p[3]) { return a[0] * p[0] + a[1] * p[1] + a[2] * p[2]; }
+
+/* The largest a . p over the vertices of chunk c's triangles. */
+static double chunk_max(const cv_renderer *r, size_t c, const double a[3]) {
+  const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
+  double m = -INFINITY;
+  for (size_t i = 3 * first; i < 3 * end; i++) m = fmax(m, along(a, r->pos_cpu + 3 * r->idx_cpu[i]));
+  return m;
+}
+
+/* The largest a . p over the vertices of the opaque triangles (the first
+ * nv_used), exactly, visiting only the chunks whose boxes could hold it:
+ * a chunk's box bounds its vertices' a . p from above (its corner on a's
+ * side), so after the chunk of the largest bound, only chunks whose bound
+ * reaches the maximum so far are read (a few of the 500 on the cabin). */
+static double extent_max(const cv_renderer *r, const double a[3]) {
+  double best_bound = -INFINITY, m = -INFINITY;
+  size_t best = 0;
+  for (size_t c = 0; c < r->nchunks; c++) {
+    const float *b = r->chunk_box + 6 * c;
+    const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
+    const double u = along(a, corner);
+    if (u > best_bound) best_bound = u, best = c;
+  }
+  if (r->nchunks) m = chunk_max(r, best, a);
+  for (size_t c = 0; c < r->nchunks; c++) {
+    if (c == best) continue;
+    const float *b = r->chunk_box + 6 * c;
+    const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
+    if (along(a, corner) >= m - 1e-9 * (1 + fabs(m))) m = fmax(m, chunk_max(r, c, a));
+  }
+  return m;
+}
+
+/* The range of a . p over the opaque triangles' vertices (extent_max). */
+static void vertex_extent(const cv_renderer *r, const double a[3], double *lo, double *hi) {
+  const double na[3] = {-a[0], -a[1], -a[2]};
+  *hi = extent_max(r, a);
+  *lo = -extent_max(r, na);
+}
+
 /* Orthographic sun view over the scene bounds: clip matrix for rendering
  * the shadow map, and for the lookup (prt.frag) the texel-space matrix
- * shadow_q, its axis scales shadow_k and the sign of its determinant. */
-void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel) {
+ * shadow_q, its axis scales shadow_k and the sign of its determinant.  The
+ * texels are square, the beam's longer side over opts.shadow_res; the map
+ * takes size[0] x size[1] of them (the shorter side fewer: on llvmpipe the
+ * clear and the fill cost by the texel). */
+void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel, int size[2]) {
   double up[3] = {0, 1, 0};
   if (fabs(s[1]) > 0.99) up[0] = 1, up[1] = 0;
   double x[3] = {up[1] * s[2] - up[2] * s[1], up[2] * s[0] - up[0] * s[2],
@@ -20,30 +65,34 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
   /* Fitted to the vertices of the opaque triangles, not to the corners of
    * their box: a box seen obliquely covers up to twice the area, so the
    * same texels then sample the cabin more finely (about 1 ms of CPU). */
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t v = 0; v < r->nv_used; v++) {
-    const float *p = r->pos_cpu + 3 * v;
-    for (int a = 0; a < 3; a++) {
-      double d = axis[a][0] * p[0] + axis[a][1] * p[1] + axis[a][2] * p[2];
-      if (d < lo[a]) lo[a] = d;
-      if (d > hi[a]) hi[a] = d;
-    }
-  }
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; a++) vertex_extent(r, axis[a], &lo[a], &hi[a]);
   for (int a = 0; a < 3; a++) {
     double pad = 0.01 * (hi[a] - lo[a]) + 1e-3;
     lo[a] -= pad, hi[a] += pad;
   }
+  /* Square texels: the longer side over res; the shorter side gets the
+   * texels it needs and its range grows to a whole number of them. */
+  const int res = r->o.shadow_res;
+  const double tx = fmax(hi[0] - lo[0], hi[1] - lo[1]) / res;
+  int n[2];
+  for (int a = 0; a < 2; a++) {
+    n[a] = (int)ceil((hi[a] - lo[a]) / tx - 1e-9);
+    if (n[a] < 2) n[a] = 2;
+    if (n[a] > res) n[a] = res;
+    hi[a] = lo[a] + n[a] * tx;
+    size[a] = n[a];
+  }
   /* clip_a = 2 (axis_a . p - lo_a)/(hi_a - lo_a) - 1; the lookup in texel
-   * space (prt.frag): x, y = [0,1] coordinate * res - 0.5 (texel centres at
+   * space (prt.frag): x, y = [0,1] coordinate * n_a - 0.5 (texel centres at
    * integers), z = the [0,1] depth.  Its linear part is A = D R, R the
-   * rotation with rows axis_a, D = diag(res sc_x/2, res sc_y/2, sc_z/2). */
-  const double res = r->o.shadow_res;
+   * rotation with rows axis_a, D = diag(n_x sc_x/2, n_y sc_y/2, sc_z/2). */
   float *q = r->shadow_q;
   memset(clip, 0, 16 * sizeof *clip);
   memset(q, 0, 16 * sizeof *q);
   double D[3];
   for (int a = 0; a < 3; a++) {
-    double sc = 2.0 / (hi[a] - lo[a]), ts = a < 2 ? res : 1.0;
+    double sc = 2.0 / (hi[a] - lo[a]), ts = a < 2 ? n[a] : 1.0;
     D[a] = 0.5 * sc * ts;
     for (int j = 0; j < 3; j++) {
       clip[4 * j + a] = (float)(sc * axis[a][j]);
@@ -59,8 +108,7 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
                      axis[0][1] * (axis[1][0] * axis[2][2] - axis[1][2] * axis[2][0]) +
                      axis[0][2] * (axis[1][0] * axis[2][1] - axis[1][1] * axis[2][0]);
   r->shadow_detsign = det < 0 ? -1 : 1;
-  double ext = fmax(hi[0] - lo[0], hi[1] - lo[1]);
-  *texel = (float)(ext / r->o.shadow_res);
+  *texel = (float)tx;
 }
 
 /* Whether the shadow map is culled (opts.shadow_cull; -1: the mesh is closed). */
@@ -98,16 +146,19 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   int st = cvr_shadow_target(r, n, err);
   if (st) return st;
   float clip[16], texel;
-  cvr_sun_matrices(r, s, clip, &texel);
+  int size[2];
+  cvr_sun_matrices(r, s, clip, &texel, size);
   /* Against self-shadowing acne the lookup point moves 1.5 texels along the
    * triangle's normal (a slope-scaled polygon offset on top changed neither
    * the sun test's figures nor the time). */
   r->shadow_bias = 1.5f * texel;
   glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
-  glViewport(0, 0, n, n);
+  glViewport(0, 0, size[0], size[1]);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
+  /* The whole texture: a scissored clear (only the map's texels) costs
+   * more on llvmpipe (Mesa draws it as a quad). */
   glClear(GL_DEPTH_BUFFER_BIT);
   cvr_set_cull(r, 0);
   glUseProgram(r->prog_depth);
@@ -118,6 +169,7 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
     cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
   }
   for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
+  r->shadow_w = size[0], r->shadow_h = size[1];
   r->shadow_texel = texel;
   r->shadow_valid = 1;
   r->shadow_from_import = 0;
@@ -159,6 +211,40 @@ static int tri_normals(cv_renderer *r) {
   return CV_OK;
 }
 
+/* One chunk of the sun split: its triangles into out (the chunk's own
+ * range of buf_idx_sun) in the three parts, their counts into chunk_na,
+ * chunk_nf. */
+static void split_chunk(cv_renderer *r, size_t c, const float sf[3], double m, uint32_t *out) {
+  unsigned char part[CHUNK];
+  const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
+  size_t k[3] = {0, 0, 0};
+  for (size_t t = first; t < end; t++) {
+    const float *n = r->tri_n + 3 * t;
+    const double ns = (double)(n[0] * sf[0] + n[1] * sf[1] + n[2] * sf[2]);
+    const int q = ns > m ? 0 : (ns >= -m && (m > 0 || ns >= 0) ? 1 : 2);
+    part[t - first] = (unsigned char)q;
+    k[q]++;
+  }
+  size_t at[3] = {first, first + k[0], first + k[0] + k[1]};
+  for (size_t t = first; t < end; t++)
+    memcpy(out + 3 * at[part[t - first]]++, r->idx_cpu + 3 * t, 3 * sizeof *out);
+  r->chunk_na[c] = (uint32_t)k[0];
+  r->chunk_nf[c] = (uint32_t)(k[0] + k[1]);
+}
+
+/* Binds buf_idx_sun to GL_ELEMENT_ARRAY_BUFFER (VAO 0 bound), giving it its
+ * storage (3 nt indices) the first time: a split or an imported one is then
+ * written into the same storage (no reallocation, no fresh pages). */
+void cvr_split_buffer_bind(cv_renderer *r) {
+  glBindVertexArray(0);
+  const int fresh = !r->buf_idx_sun;
+  if (fresh) glGenBuffers(1, &r->buf_idx_sun);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
+  if (fresh)
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t) + 4), NULL,
+                 GL_DYNAMIC_DRAW);
+}
+
 /* The sun split (see the struct): reorders each chunk of buf_idx into
  * buf_idx_sun in three parts by c = n_t . s, m = opts.split_margin:
  * c > m, then |c| <= m, then c < -m.  The first two (chunk_nf) are drawn
@@ -169,41 +255,31 @@ static int tri_normals(cv_renderer *r) {
  * sun stays within m of s (|s' - s| <= m) every triangle with n_t . s' > 0
  * is in the first two parts and every one with n_t . s' <= 0 in the last
  * two, so the split is reused exactly.  Same triangles, vertex order and
- * positions: same depths (depth EQUAL). */
+ * positions: same depths (depth EQUAL).  The chunks are split in parallel
+ * straight into the mapped buffer (no copy, no allocation per split). */
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
   const double m = r->o.split_margin > 0 ? r->o.split_margin : 0.0;
   if (r->split_valid && dist3(s, r->split_s) <= m) return CV_OK;
-  uint32_t *out = malloc(3 * r->nt * sizeof *out + 4);
-  unsigned char *part = malloc(CHUNK);
-  if (!out || !part || tri_normals(r)) {
-    free(out), free(part);
-    return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
-  }
+  if (tri_normals(r)) return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
   const float sf[3] = {(float)s[0], (float)s[1], (float)s[2]};
-  for (size_t c = 0; c < r->nchunks; c++) {
-    const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
-    size_t k[3] = {0, 0, 0};
-    for (size_t t = first; t < end; t++) {
-      const float *n = r->tri_n + 3 * t;
-      const double ns = (double)(n[0] * sf[0] + n[1] * sf[1] + n[2] * sf[2]);
-      const int q = ns > m ? 0 : (ns >= -m && (m > 0 || ns >= 0) ? 1 : 2);
-      part[t - first] = (unsigned char)q;
-      k[q]++;
-    }
-    size_t at[3] = {first, first + k[0], first + k[0] + k[1]};
-    for (size_t t = first; t < end; t++)
-      memcpy(out + 3 * at[part[t - first]]++, r->idx_cpu + 3 * t, 3 * sizeof *out);
-    r->chunk_na[c] = (uint32_t)k[0];
-    r->chunk_nf[c] = (uint32_t)(k[0] + k[1]);
+  cvr_split_buffer_bind(r);
+  uint32_t *out = glMapBufferRange(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * r->nt * sizeof *out),
+                                   GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
+  if (!out) {
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
+    r->split_valid = 0;
+    return cv_err_set(err, CV_ERR_BACKEND, "sun split: cannot map the index buffer (GL error 0x%04x)",
+                      glGetError());
   }
-  free(part);
-  glBindVertexArray(0);
-  if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
-  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
-  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof *out + 4), out,
-               GL_STATIC_DRAW);
+  const long nchunks = (long)r->nchunks;
+#pragma omp parallel for schedule(static)
+  for (long c = 0; c < nchunks; c++) split_chunk(r, (size_t)c, sf, m, out);
+  const GLboolean kept = glUnmapBuffer(GL_ELEMENT_ARRAY_BUFFER);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
-  free(out);
+  if (!kept) { /* the GL lost the contents (GL_FALSE): no split */
+    r->split_valid = 0;
+    return cv_err_set(err, CV_ERR_BACKEND, "sun split: the index buffer's contents were lost on unmap");
+  }
   for (int j = 0; j < 3; j++) r->split_s[j] = s[j];
   r->split_valid = 1;
   r->split_gen++, r->split_import = 0; /* made here (render_share.c) */

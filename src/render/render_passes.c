@@ -177,8 +177,8 @@ void cvr_bind_shading(const cv_renderer *r, GLuint p, const float mvp[16], const
     cvr_uni_mat(p, "u_shadow_q", r->shadow_q);
     GLint loc = glGetUniformLocation(p, "u_shadow_k");
     if (loc >= 0) glUniform4fv(loc, 1, r->shadow_k);
-    loc = glGetUniformLocation(p, "u_shadow_res");
-    if (loc >= 0) glUniform1i(loc, r->shadow_res);
+    loc = glGetUniformLocation(p, "u_shadow_size");
+    if (loc >= 0) glUniform2i(loc, r->shadow_w, r->shadow_h);
     cvr_uni_v3(p, "u_sun_e", r->sun_e);
     cvr_uni_f(p, "u_shadow_bias", r->shadow_bias);
     cvr_uni_f(p, "u_sigma", facing * (float)r->shadow_detsign);

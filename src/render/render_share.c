@@ -10,7 +10,8 @@
  * Layout (native byte order, 8-byte aligned parts):
  *   share_hdr                              the state below
  *   rad     4 nv floats                    buf_rad
- *   shadow  res^2 floats                   the depth texture (GL_DEPTH_COMPONENT32F)
+ *   shadow  w h floats (room for res^2)    the map's texels of the depth texture
+ *                                          (GL_DEPTH_COMPONENT32F), rows of w
  *   idx     3 nt uint32 (+4 to 8 bytes)    buf_idx_sun
  *   na, nf  nchunks uint32 each (+pad)     chunk_na, chunk_nf
  * The shadow map and the split are written only when they changed since the
@@ -22,14 +23,15 @@
 #include "core/hash.h"
 
 #define SHARE_MAGIC 0x4c485343u /* "CSHL" */
-#define SHARE_VERSION 1u
+#define SHARE_VERSION 2u
 
 typedef struct share_hdr {
   uint32_t magic, version;
   uint64_t scene;          /* cv_renderer_lighting_scene: the same mesh, vertices, chunks */
   uint64_t nv, nt, nchunks;
-  int32_t shadow_res;      /* texels of the exported map (0: none) */
-  int32_t lit, has_sun, sun_split, shadow_valid, split_valid, shadow_detsign, pad0;
+  int32_t shadow_res;      /* opts.shadow_res of the exported map (0: none) */
+  int32_t shadow_w, shadow_h; /* its texels (render_light.c: the beam's shorter side fewer) */
+  int32_t lit, has_sun, sun_split, shadow_valid, split_valid, shadow_detsign;
   float sun_e[3], shadow_q[16], shadow_k[4], shadow_bias, pad1;
   double shadow_s[3], shadow_texel, split_s[3];
   uint64_t shadow_gen, split_gen; /* the exporter's counters of the parts held (0: none) */
@@ -68,6 +70,7 @@ uint64_t cv_renderer_lighting_scene(cv_renderer *r) {
     h = cv_hash64_u64(h, (uint64_t)r->o.shadow_res);
     h = cv_hash64_update(h, &r->o.shadow_casters, sizeof r->o.shadow_casters);
     h = cv_hash64_u64(h, (uint64_t)r->relight_on_cpu); /* the two relights differ in the last bits */
+    h = cv_hash64_u64(h, (uint64_t)r->half_on);        /* so do half and float transfers */
     h = cv_hash64_update(h, r->pos_cpu, 3 * r->nv_used * sizeof *r->pos_cpu);
     h = cv_hash64_update(h, r->idx_cpu, 3 * r->nt * sizeof *r->idx_cpu);
     r->share_scene = h | 1; /* never 0: "not computed" */
@@ -90,17 +93,24 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
   glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
   glGetBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), b + L.rad);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
-  if (res && (fresh || h.shadow_gen != r->shadow_gen || h.shadow_res != res)) {
+  if (res && (fresh || h.shadow_gen != r->shadow_gen || h.shadow_res != res ||
+              h.shadow_w != r->shadow_w || h.shadow_h != r->shadow_h)) {
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    if (r->shadow_from_import) { /* an imported map, in its R32F texture */
-      glBindTexture(GL_TEXTURE_2D, r->tex_shadow_imp);
-      glGetTexImage(GL_TEXTURE_2D, 0, GL_RED, GL_FLOAT, b + L.shadow);
-      glBindTexture(GL_TEXTURE_2D, 0);
+    if (r->shadow_from_import) { /* an imported map, in its R32F texture: read through an FBO */
+      if (!r->fbo_shadow_imp) {
+        glGenFramebuffers(1, &r->fbo_shadow_imp);
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow_imp);
+        glFramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, r->tex_shadow_imp, 0);
+      }
+      glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow_imp);
+      glReadBuffer(GL_COLOR_ATTACHMENT0);
+      glReadPixels(0, 0, r->shadow_w, r->shadow_h, GL_RED, GL_FLOAT, b + L.shadow);
+      glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
     } else {
       /* glReadPixels of the depth attachment: Mesa copies Z32F rows as they
        * are (glGetTexImage of a depth texture converts texel by texel) */
       glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_shadow);
-      glReadPixels(0, 0, res, res, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
+      glReadPixels(0, 0, r->shadow_w, r->shadow_h, GL_DEPTH_COMPONENT, GL_FLOAT, b + L.shadow);
       glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
     }
   }
@@ -119,6 +129,7 @@ int cv_renderer_lighting_export(cv_renderer *r, void *buf, size_t cap, cv_err *e
   h.scene = cv_renderer_lighting_scene(r);
   h.nv = r->nv, h.nt = r->nt, h.nchunks = r->nchunks;
   h.shadow_res = res;
+  h.shadow_w = res ? r->shadow_w : 0, h.shadow_h = res ? r->shadow_h : 0;
   h.lit = r->lit, h.has_sun = r->has_sun, h.sun_split = r->sun_split;
   h.shadow_valid = r->shadow_valid, h.split_valid = r->split_valid;
   h.shadow_detsign = r->shadow_detsign;
@@ -147,7 +158,9 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
   if (h.scene != cv_renderer_lighting_scene(r) || h.nv != r->nv || h.nt != r->nt || h.nchunks != r->nchunks)
     return cv_err_set(err, CV_ERR_INVALID, "lighting import: exported for another scene or shadow size");
   const share_layout L = layout(r, r->o.shadow_res);
-  if (len < L.total || h.shadow_res < 0 || h.shadow_res > r->o.shadow_res || !h.lit)
+  if (len < L.total || h.shadow_res < 0 || h.shadow_res > r->o.shadow_res || !h.lit ||
+      (h.shadow_res > 0 && (h.shadow_w < 2 || h.shadow_h < 2 || h.shadow_w > h.shadow_res ||
+                            h.shadow_h > h.shadow_res)))
     return cv_err_set(err, CV_ERR_FORMAT, "lighting import: truncated or inconsistent (%zu of %zu bytes)", len, L.total);
   if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   const double t0 = cvr_tick(r);
@@ -158,10 +171,7 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
   const double t1 = cvr_tick(r);
   /* the split, unless this renderer holds that one already */
   if (h.split_valid && !(r->split_valid && r->split_import == h.split_gen)) {
-    glBindVertexArray(0);
-    if (!r->buf_idx_sun) glGenBuffers(1, &r->buf_idx_sun);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t) + 4), NULL, GL_STATIC_DRAW);
+    cvr_split_buffer_bind(r);
     glBufferSubData(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t)), b + L.idx);
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
     memcpy(r->chunk_na, b + L.na, r->nchunks * sizeof(uint32_t));
@@ -189,9 +199,10 @@ int cv_renderer_lighting_import(cv_renderer *r, const void *buf, size_t len, cv_
       r->shadow_imp_res = h.shadow_res;
     }
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, h.shadow_res, h.shadow_res, GL_RED, GL_FLOAT, b + L.shadow);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, h.shadow_w, h.shadow_h, GL_RED, GL_FLOAT, b + L.shadow);
     glBindTexture(GL_TEXTURE_2D, 0);
     r->shadow_res = h.shadow_res;
+    r->shadow_w = h.shadow_w, r->shadow_h = h.shadow_h;
     r->shadow_from_import = 1;
     memcpy(r->shadow_s, h.shadow_s, sizeof r->shadow_s);
     r->shadow_texel = h.shadow_texel;

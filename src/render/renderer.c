@@ -29,11 +29,22 @@ void cv_render_default_opts(cv_render_opts *o) {
   o->shadow_casters = 0.001;
   o->relight_cpu = -1;
   o->lum_stats_gpu = -1;
+  o->half_transfer = -1;
+}
+
+int cv_render_transfer_parse(const char *s, int *half_transfer) {
+  if (!s) return -1;
+  if (!strcmp(s, "auto")) *half_transfer = -1;
+  else if (!strcmp(s, "float")) *half_transfer = 0;
+  else if (!strcmp(s, "half")) *half_transfer = 1;
+  else return -1;
+  return 0;
 }
 
 const char *cv_renderer_gl_name(const cv_renderer *r) { return r->gl_name; }
 int cv_renderer_mesh_closed(const cv_renderer *r) { return r->closed; }
 int cv_renderer_relight_on_cpu(const cv_renderer *r) { return r->relight_on_cpu; }
+int cv_renderer_half_transfer(const cv_renderer *r) { return r->half_on; }
 int cv_renderer_lum_stats_on_gpu(const cv_renderer *r) {
   return r->o.lum_stats_gpu < 0 ? !r->egl.software : r->o.lum_stats_gpu != 0;
 }
@@ -362,8 +373,10 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   r->nt = nt;
   uint32_t *idx = malloc(3 * nt * sizeof *idx + 4);
   float *tf = malloc(4 * texels * sizeof *tf + 4);
-  uint16_t *th = r->o.half_transfer ? malloc(4 * texels * sizeof *th + 4) : NULL;
-  if (!idx || !tf || (r->o.half_transfer && !th)) {
+  r->relight_on_cpu = r->o.relight_cpu < 0 ? r->egl.software : r->o.relight_cpu != 0;
+  r->half_on = r->o.half_transfer < 0 ? r->relight_on_cpu : r->o.half_transfer != 0;
+  uint16_t *th = r->half_on ? malloc(4 * texels * sizeof *th + 4) : NULL;
+  if (!idx || !tf || (r->half_on && !th)) {
     free(idx), free(tf), free(th);
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory uploading the scene");
   }
@@ -467,7 +480,6 @@ int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err) {
   free(usc);
   if (th)
     for (size_t i = 0; i < 4 * texels; i++) th[i] = cv_float_to_half(tf[i]);
-  r->relight_on_cpu = r->o.relight_cpu < 0 ? r->egl.software : r->o.relight_cpu != 0;
   if (r->relight_on_cpu) { /* the CPU reads what the texture buffer would hold */
     r->rad_cpu = malloc(4 * p->nv * sizeof *r->rad_cpu + 4);
     if (!r->rad_cpu) {
@@ -611,8 +623,9 @@ void cv_renderer_destroy(cv_renderer *r) {
     GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
                     r->rb_tiny, r->rb_red};
     glDeleteRenderbuffers(7, rbs);
-    GLuint fbos[] = {r->fbo_shadow, r->fbo_lum, r->fbo_main, r->fbo_res, r->fbo_tiny, r->fbo_red};
-    glDeleteFramebuffers(6, fbos);
+    GLuint fbos[] = {r->fbo_shadow, r->fbo_lum, r->fbo_main, r->fbo_res, r->fbo_tiny, r->fbo_red,
+                     r->fbo_shadow_imp};
+    glDeleteFramebuffers(7, fbos);
     GLuint vaos[] = {r->vao_geom, r->vao_empty};
     glDeleteVertexArrays(2, vaos);
     glDeleteProgram(r->prog_relight);

@@ -17,7 +17,8 @@
  * transfer vectors live in a GL buffer object read as a texture buffer (25
  * coefficients x 4 channels do not fit in the 16 vertex attributes GL
  * guarantees).  A sun (cv_lighting.has_sun) adds its direct light per pixel
- * with a 2048^2 shadow map (bilinear PCF, in the shader); its indirect light
+ * with a shadow map of square texels, the beam's longer side over 2048 (bilinear PCF, in the
+ * shader); its indirect light
  * goes through the interreflected transfer as in relight.c.  Windows (CV_MAT_WINDOW) are
  * not drawn: the background (a lat-long HDR image,
  * cv_renderer_set_background) shows wherever no opaque triangle covers a
@@ -63,7 +64,11 @@ struct cv_window_spec;
 
 typedef struct cv_render_opts {
   int half_transfer; /* 1: transfer stored as half floats (RGBA16F, or in memory for the CPU
-                        relight), half the bytes */
+                        relight), half the bytes (relative pixel difference to float: median
+                        1.5e-4, p99 1.4e-3; docs/benchmarks.md); 0: floats; -1 (default): half
+                        when the relight runs on the CPU (opts.relight_cpu: the relight reads
+                        every transfer byte per lighting change, 61 MB instead of 122 MB for
+                        the 571K cabin, 40-48% less time), floats on a GPU */
   int shadow_res;    /* sun shadow map size in texels (default 2048) */
   int timing;        /* 1: bracket passes with glFinish and fill cv_frame_timing with wall-clock
                         ms (default); 2: the same with the process's CPU ms (all threads: the
@@ -124,7 +129,11 @@ typedef struct cv_render_opts {
                         1.1 ms on the CPU) */
 } cv_render_opts;
 
-/* Defaults: float transfer, 2048 shadow map, timing on, 8-bit display
+/* --transfer auto|float|half (`cave render`, `cave run`) into opts.half_transfer
+ * (-1, 0, 1); returns 0, or -1 for anything else. */
+int cv_render_transfer_parse(const char *s, int *half_transfer);
+
+/* Defaults: half-float transfer with the CPU relight (float on a GPU), 2048 shadow map, timing on, 8-bit display
  * target, frustum culling on, back-face culling off, no debug, sun split on,
  * tone-mapping table and transfer polynomial. */
 void cv_render_default_opts(cv_render_opts *o);
@@ -221,6 +230,8 @@ void cv_renderer_window_size(const cv_renderer *r, int *w, int *h);
 int cv_renderer_mesh_closed(const cv_renderer *r);
 /* 1 when the relight runs on the CPU (opts.relight_cpu), 0 by transform feedback. */
 int cv_renderer_relight_on_cpu(const cv_renderer *r);
+/* 1 when the transfer is stored as half floats (opts.half_transfer). */
+int cv_renderer_half_transfer(const cv_renderer *r);
 /* 1 when cv_renderer_shade_stats reduces on the GPU (opts.lum_stats_gpu). */
 int cv_renderer_lum_stats_on_gpu(const cv_renderer *r);
 

@@ -91,10 +91,14 @@ struct cv_renderer {
    * texture of shadow_imp_res texels (a colour upload is a copy; llvmpipe
    * converts a depth upload texel by texel, 16 ms for 2048^2);
    * shadow_from_import: the current map is that one */
-  GLuint tex_shadow_imp;
+  GLuint tex_shadow_imp, fbo_shadow_imp; /* fbo_shadow_imp: to read it back (re-export) */
   int shadow_imp_res, shadow_from_import;
   int shadow_depth_res; /* tex_shadow's size (0: none yet) */
-  int shadow_res;
+  /* the current map: drawn for opts.shadow_res (shadow_res; an imported one
+   * may differ) in its lower-left shadow_w x shadow_h texels (square texels
+   * of the beam's longer side over shadow_res: the shorter side takes fewer) */
+  int shadow_res, shadow_w, shadow_h;
+  int half_on; /* opts.half_transfer resolved */
   /* targets */
   GLuint fbo_lum, rb_lum, rb_lum_depth;
   int lum_w, lum_h;
@@ -211,7 +215,7 @@ uint64_t cvr_morton3(uint32_t x, uint32_t y, uint32_t z);
 int cvr_cmp_u64(const void *a, const void *b);
 int cvr_upload_background(cv_renderer *r, int w, int h, const float *rgb, cv_err *err);
 int cvr_upload_scene(cv_renderer *r, const cv_prt *p, cv_err *err);
-void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel);
+void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel, int size[2]);
 int cvr_shadow_culled(const cv_renderer *r);
 int cvr_shadow_target(cv_renderer *r, int n, cv_err *err);
 int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err);
@@ -241,6 +245,7 @@ int cvr_halves_f16c(const uint16_t *h, float *f, size_t n);
 int cvr_relight_simd(int allow);
 void cvr_casters_free(cv_renderer *r);
 int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err);
+void cvr_split_buffer_bind(cv_renderer *r);
 void cvr_split_bind(const cv_renderer *r, GLuint prog);
 void cvr_split_free(cv_renderer *r);
 GLuint cvr_make_rb(GLenum fmt, int w, int h);

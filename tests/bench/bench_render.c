@@ -16,7 +16,8 @@
  * wall-eyes (foveal cone + Lwmax over the 128x128 luminance images).
  * Medians over the frames; every pass is bracketed by glFinish.
  *
- * usage (from the repository root): bench_render [frames (default 5)] [--half] [--cave FILE]
+ * usage (from the repository root): bench_render [frames (default 5)] [--transfer auto|float|half]
+ *   [--half (= --transfer half)] [--cave FILE]
  *   [--no-cull-back] [--no-frustum] [--float-display] [--only 720|1440|N] [--cpu]
  *   [--tone-exact] [--no-sun-split] [--no-transfer] [--depth-less] [--gpu auto|software|N]
  *   [--loop N]
@@ -139,7 +140,7 @@ static int loop_case(const loop_ctx *c, const char *name, int S, int n, int view
 
 
 int main(int argc, char **argv) {
-  int frames = 5, half = 0, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
+  int frames = 5, half = -1, cull_back = 1, frustum = 1, dfloat = 0, only = 0, cpu = 0, exact = 0, split = 1;
   int transfer = 1, depth_less = 0, gpu = CV_GPU_AUTO, loop = 0;
 #ifdef CV_SOURCE_DIR
   const char *cave_path = CV_SOURCE_DIR "/configs/caves/cave5.json";
@@ -148,6 +149,12 @@ int main(int argc, char **argv) {
 #endif
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--half")) half = 1;
+    else if (!strcmp(argv[i], "--transfer") && i + 1 < argc) {
+      if (cv_render_transfer_parse(argv[++i], &half)) {
+        fprintf(stderr, "bench_render: --transfer: expected auto, float or half, got '%s'\n", argv[i]);
+        return 2;
+      }
+    }
     else if (!strcmp(argv[i], "--no-cull-back")) cull_back = 0;
     else if (!strcmp(argv[i], "--no-frustum")) frustum = 0;
     else if (!strcmp(argv[i], "--float-display")) dfloat = 1;
@@ -217,8 +224,8 @@ int main(int argc, char **argv) {
          exact ? "log/pow" : "table + polynomial", transfer ? "" : " (no transfer)", split ? "on" : "off");
   printf("scene: %zu triangles, %zu vertices, %u bands, transfer %s (%zu B/vertex on the GPU); "
          "back faces %s, frustum culling %s, display target %s\n",
-         prt->nt, prt->nv, prt->bands, half ? "half" : "float",
-         (size_t)(prt->bands * prt->bands + 1) * (half ? 8 : 16), cull_back ? "culled" : "drawn",
+         prt->nt, prt->nv, prt->bands, cv_renderer_half_transfer(r) ? "half" : "float",
+         (size_t)(prt->bands * prt->bands + 1) * (cv_renderer_half_transfer(r) ? 8 : 16), cull_back ? "culled" : "drawn",
          frustum ? "on" : "off", dfloat ? "RGBA32F" : "RGBA8");
 
   if (loop) {

@@ -75,7 +75,8 @@ typedef struct variant {
   int res, cull, stats, same_sun;
   double casters; /* opts.shadow_casters (m; 0: the mesh itself) */
   int feedback;   /* 1: relight by transform feedback (opts.relight_cpu 0) */
-  int half;       /* 1: opts.half_transfer (its images compared with the default's) */
+  int half;       /* opts.half_transfer (-1: the default's choice; a half-float variant's
+                     images are compared with the float transfer's) */
 } variant;
 
 static const variant VARIANTS[] = {
@@ -85,12 +86,12 @@ static const variant VARIANTS[] = {
     {"1024^2, the mesh, facing away only", 1024, 1, 0, 0, 0, 0, 0},
     {"2048^2, casters within 0.25 mm, facing away only", 2048, 1, 0, 0, 0.00025, 0, 0},
     {"2048^2, casters within 0.5 mm, facing away only", 2048, 1, 0, 0, 0.0005, 0, 0},
-    {"2048^2, casters within 1 mm, facing away only (default)", 2048, 1, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, facing away only, float transfer (the default before the fitted map)", 2048, 1, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, facing away only (default: half-float transfer with a software GL)", 2048, 1, 0, 0, 0.001, 0, -1},
     {"2048^2, casters within 1 mm, all (not culled)", 2048, 0, 0, 0, 0.001, 0, 0},
-    {"2048^2, casters within 1 mm, facing away only, half-float transfer", 2048, 1, 0, 0, 0.001, 0, 1},
     {"2048^2, casters within 2 mm, facing away only", 2048, 1, 0, 0, 0.002, 0, 0},
-    {"1024^2, casters within 1 mm, facing away only", 1024, 1, 0, 0, 0.001, 0, 0},
-    {"2048^2, casters within 1 mm, sun unchanged (map kept)", 2048, 1, 0, 1, 0.001, 0, 0},
+    {"1024^2, casters within 1 mm, facing away only, float transfer", 1024, 1, 0, 0, 0.001, 0, 0},
+    {"2048^2, casters within 1 mm, sun unchanged (map kept; the default transfer)", 2048, 1, 0, 1, 0.001, 0, -1},
 };
 #define NVAR (int)(sizeof VARIANTS / sizeof VARIANTS[0])
 
@@ -241,6 +242,7 @@ static int bench_share(cv_prt *prt, const cv_lighting *L, int nsun, int reps, co
 
 int main(int argc, char **argv) {
   int reps = 5, S = 360, nsun = 4, do_err = 1, do_time = 1, share = 0;
+  const char *only = NULL; /* --only TEXT: the variants whose name contains it */
   const char *cave_path = "configs/caves/cave5.json";
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
@@ -249,8 +251,10 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--no-error")) do_err = 0;
     else if (!strcmp(argv[i], "--no-time")) do_time = 0;
     else if (!strcmp(argv[i], "--share")) share = 1;
+    else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
     else if (!strcmp(argv[i], "--help")) {
-      printf("usage: bench_shadow [--reps N] [--size S] [--suns K] [--no-error] [--no-time] [--share]\n");
+      printf("usage: bench_shadow [--reps N] [--size S] [--suns K] [--no-error] [--no-time] [--share] [--only TEXT]\n"
+           "  --only TEXT: only the variants whose name contains TEXT\n");
       return 0;
     } else {
       fprintf(stderr, "bench_shadow: unknown option '%s' (see --help)\n", argv[i]);
@@ -293,6 +297,8 @@ int main(int argc, char **argv) {
   if (share) return bench_share(prt, L, nsun, reps, &cave);
   cv_renderer *R[NVAR];
   for (int v = 0; v < NVAR; v++) {
+    R[v] = NULL;
+    if (only && !strstr(VARIANTS[v].name, only)) continue;
     cv_render_opts ro;
     cv_render_default_opts(&ro);
     ro.cull_back = 1;
@@ -308,18 +314,24 @@ int main(int argc, char **argv) {
       return 1;
     }
   }
+  int v0 = 0;
+  while (v0 < NVAR && !R[v0]) v0++;
+  if (v0 == NVAR) {
+    fprintf(stderr, "bench_shadow: no variant's name contains '%s'\n", only);
+    return 2;
+  }
   /* The first lighting builds each renderer's shadow casters (once): out of the timing. */
-  for (int v = 0; v < NVAR; v++)
+  for (int v = 0; v < NVAR; v++) if (R[v])
     if (cv_renderer_set_lighting(R[v], &L[nsun - 1], NULL, NULL, &err)) {
       fprintf(stderr, "%s\n", err.msg);
       return 1;
     }
   const char *lp = getenv("LP_NUM_THREADS");
-  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[0]), lp ? lp : "(unset: all cores)");
+  printf("GL: %s; LP_NUM_THREADS=%s\n", cv_renderer_gl_name(R[v0]), lp ? lp : "(unset: all cores)");
   printf("Shadow casters (opts.shadow_casters; built once, on the first map):\n\n");
   printf("| variant | tolerance mm | caster triangles (of the mesh's) | simplifier's error mm | "
          "closure defects | culled | triangles in the last map | build wall ms |\n|---|---|---|---|---|---|---|---|\n");
-  for (int v = 0; v < NVAR; v++) {
+  for (int v = 0; v < NVAR; v++) if (R[v]) {
     cv_shadow_casters sc;
     cv_renderer_shadow_casters(R[v], &sc);
     if (!sc.built) continue;
@@ -330,13 +342,13 @@ int main(int argc, char **argv) {
   printf("\n");
   printf("scene: %zu triangles, %zu vertices, %u bands, closed and consistently wound: %s; %d suns "
          "of a Preetham sky\n\n", prt->nt, prt->nv, prt->bands,
-         cv_renderer_mesh_closed(R[0]) ? "yes" : "no", nsun);
+         cv_renderer_mesh_closed(R[v0]) ? "yes" : "no", nsun);
   if (do_time) {
     static double T[NVAR][4][MAXR * MAXSUN];
     int n = 0;
     for (int rep = 0; rep < reps; rep++)
       for (int k = 0; k < nsun; k++, n++)
-        for (int v = 0; v < NVAR; v++) {
+        for (int v = 0; v < NVAR; v++) if (R[v]) {
           cv_frame_timing t = {0};
           cv_render_light_stats ls;
           const cv_lighting *lk = &L[(k + rep) % nsun];
@@ -355,7 +367,7 @@ int main(int argc, char **argv) {
     printf("Per lighting change (%d changes per variant, alternated; medians, [min, max]):\n\n", n);
     printf("| shadow map | relight CPU ms | split CPU ms | shadow map CPU ms | lighting change CPU ms | wall ms |\n");
     printf("|---|---|---|---|---|---|\n");
-    for (int v = 0; v < NVAR; v++) {
+    for (int v = 0; v < NVAR; v++) if (R[v]) {
       double tot[MAXR * MAXSUN], lo = INFINITY, hi = 0;
       for (int i = 0; i < n; i++) {
         tot[i] = T[v][0][i] + T[v][1][i] + T[v][2][i];
@@ -395,12 +407,12 @@ int main(int argc, char **argv) {
     return 1;
   err_acc acc[NVAR][MAXSUN];
   memset(acc, 0, sizeof acc);
-  /* the half-float variant's pixels against the default's (float transfer,
-   * otherwise the same): relative luminance differences */
-  int v_def = -1, v_half = -1;
-  for (int v = 0; v < NVAR; v++) {
-    if (strstr(VARIANTS[v].name, "(default)")) v_def = v;
-    if (VARIANTS[v].half) v_half = v;
+  /* the half-float variant's pixels against the float transfer's (otherwise
+   * the same): relative luminance differences */
+  int v_def = -1, v_half = -1; /* the float-transfer row and the half-float one after it */
+  for (int v = 0; v < NVAR; v++) if (R[v]) {
+    if (strstr(VARIANTS[v].name, "float transfer (")) v_def = v;
+    if (cv_renderer_half_transfer(R[v]) && v_half < 0) v_half = v;
   }
   cv_image *hdr_def;
   double *hrel = malloc((size_t)nsun * nviews * np * sizeof *hrel);
@@ -416,7 +428,7 @@ int main(int argc, char **argv) {
       for (int a = 0; a < 2; a++) bx[k].lo[e][a] = INFINITY, bx[k].hi[e][a] = -INFINITY;
     for (size_t v = 0; v < prt->nv; v++) beam_add(&bx[k], 0, ax, prt->pos + 3 * v);
     if (cv_prt_relight(prt, &L[k], NULL, 0, rad0, NULL)) return 1;
-    for (int v = 0; v < NVAR; v++)
+    for (int v = 0; v < NVAR; v++) if (R[v])
       if (cv_renderer_set_lighting(R[v], &L[k], NULL, NULL, &err)) {
         fprintf(stderr, "%s\n", err.msg);
         return 1;
@@ -430,7 +442,7 @@ int main(int argc, char **argv) {
       cv_offaxis_compute(w->pa, w->pb, w->pc, eyes[i % 2], cave.near, cave.far, &view.proj);
       memcpy(view.scene_offset, cave.scene_offset, sizeof view.scene_offset);
       view.w = view.h = S, view.supersample = 1;
-      for (int v = 0; v < NVAR; v++) {
+      for (int v = 0; v < NVAR; v++) if (R[v]) {
         if (VARIANTS[v].same_sun) continue; /* the map of its row above */
         if (cv_renderer_shade(R[v], &view, NULL, 0, NULL, hdr, NULL, &err)) {
           fprintf(stderr, "%s\n", err.msg);
@@ -452,7 +464,7 @@ int main(int argc, char **argv) {
   printf("| shadow map | pixels counted | silhouette (left out) | differ | of which too lit / too dark | "
          "within 1 px of a shadow edge | 2-3 px | farther | worst sun |\n");
   printf("|---|---|---|---|---|---|---|---|---|\n");
-  for (int v = 0; v < NVAR; v++) {
+  for (int v = 0; v < NVAR; v++) if (R[v]) {
     if (VARIANTS[v].same_sun) continue;
     err_acc t = {0};
     double worst = 0;
@@ -492,7 +504,7 @@ int main(int argc, char **argv) {
   free(rad0), free(alb);
   cv_image_destroy(hdr);
   cv_tracer_destroy(tr);
-  for (int v = 0; v < NVAR; v++) cv_renderer_destroy(R[v]);
+  for (int v = 0; v < NVAR; v++) if (R[v]) cv_renderer_destroy(R[v]);
   cv_prt_destroy(prt);
   return 0;
 }

@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # Packs what a GPU machine without Debian's libraries or Open MPI needs to run
-# cave, bench_render and img_diff (tests/bench/gpu_check.sh) and
+# cave, bench_render and img_diff (tests/bench/gpu_check.sh), bench_shadow,
+# the renderer's tests (test_render, test_render_share, test_render_texture:
+# run there they test the hardware device's paths) and
 # `mpirun -np 11 cave run ...`; tests/bench/gpu_env.sh unpacks it there.
 #
 # Usage: gpu_pack.sh BUILD_DIR [OUT_DIR (.devpack in the repository root)]
 # Writes into OUT_DIR:
-#   cave, bench_render, img_diff   the binaries, flat
-#   devlibs.tar.xz   devlibs/: every `ldd` library of the three binaries but
+#   cave, bench_render, img_diff, bench_shadow, test_render,
+#   test_render_share, test_render_texture   the binaries, flat
+#   devlibs.tar.xz   devlibs/: every `ldd` library of the binaries but
 #                    libc, libm, libstdc++, libgcc_s, ld-linux, linux-vdso
 #   ompi.tar.xz      Debian 12's Open MPI 4.1 + PMIx runtime with ABSOLUTE
 #                    paths (their install paths are compiled in): orterun,
@@ -30,7 +33,9 @@ mkdir -p "$OUT"; OUT="$(realpath "$OUT")"
 W="$(mktemp -d)"; trap 'rm -rf "$W"' EXIT
 
 pick() { if [ -x "$BUILD/$1" ]; then echo "$BUILD/$1"; else echo "$BUILD/$(basename "$1")"; fi; }
-BINS=("$(pick cave)" "$(pick tests/bench/bench_render)" "$(pick tests/bench/img_diff)")
+BINS=("$(pick cave)" "$(pick tests/bench/bench_render)" "$(pick tests/bench/img_diff)"
+      "$(pick tests/bench/bench_shadow)" "$(pick tests/render/test_render)"
+      "$(pick tests/render/test_render_share)" "$(pick tests/render/test_render_texture)")
 for b in "${BINS[@]}"; do cp -f "$b" "$OUT/"; done
 cp -f "$EXR" "$OUT/forest.exr"
 cp -f "$(command -v xz)" "$OUT/xz"; cp -fL $ML/liblzma.so.5 "$OUT/liblzma.so.5"
@@ -82,5 +87,5 @@ tar -C / --no-recursion --numeric-owner -cf - -T "$W/list" | $XZ > "$OUT/ompi.ta
 echo "gpu_pack: ompi.tar.xz: $(wc -l < "$W/list") paths; left out: ${skipped[*]}"
 
 echo "gpu_pack: $OUT"
-( cd "$OUT" && ls -la cave bench_render img_diff devlibs.tar.xz ompi.tar.xz forest.exr xz liblzma.so.5 | awk '{printf "  %10d  %s\n", $5, $9}' )
+( cd "$OUT" && ls -la cave bench_render img_diff bench_shadow test_render test_render_share test_render_texture devlibs.tar.xz ompi.tar.xz forest.exr xz liblzma.so.5 | awk '{printf "  %10d  %s\n", $5, $9}' )
 echo "  total $(du -sh "$OUT" | cut -f1)"

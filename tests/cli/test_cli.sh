@@ -334,6 +334,9 @@ if $CAVE --help | grep -q "^  run "; then
   expect_ok "run --check --dt 1/30" $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/30
   $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --dt 1/0 >out.txt 2>err.txt
   grep -q "^--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '1/0'" err.txt && ok "run --dt 1/0 refused" || { bad "run --dt 1/0"; cat err.txt; }
+  $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --transfer double >out.txt 2>err.txt
+  grep -q "^--transfer: expected auto, float or half, got 'double'" err.txt && ok "run --transfer double refused" || { bad "run --transfer double"; cat err.txt; }
+  expect_ok "run --check --transfer half" $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --transfer half
 fi
 for c in cabin bake shade materials render lcd compensate tonemap tracker run; do
   $CAVE --help | grep -q "^  $c " || continue
@@ -386,6 +389,12 @@ expect_error "render: bad --gpu" "--gpu: expected auto, software" $CAVE render "
 expect_ok "render --gpu software" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --lum-res 8 --gpu software -o rndsw
 grep -q "^GL: .*llvmpipe" out.txt && ok "render --gpu software: says llvmpipe" || bad "render --gpu software: no llvmpipe in the GL line"
 expect_error "render --gpu 63: no such hardware device" "no hardware EGL device 63" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --gpu 63 -o rndhw
+# --transfer: the same words as cave run's; the storage used is printed
+expect_error "render: bad --transfer" "--transfer: expected auto, float or half, got 'double'" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --transfer double -o x
+expect_ok "render --gpu software (auto transfer)" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --lum-res 8 --gpu software -o rndtr
+grep -q "relit on the CPU from half-float transfer" out.txt && ok "render: llvmpipe relights from half floats by default, said so" || bad "render: the transfer storage is not said"
+expect_ok "render --transfer float" $CAVE render "$CAVE5" --scene a.prt --sky 3,35,30 --size 8 --lum-res 8 --gpu software --transfer float -o rndtr
+grep -q "relit on the CPU from float transfer" out.txt && ok "render --transfer float: used and said" || bad "render --transfer float: not said"
 [ ! -e x ] && ok "render: no output folder left by failures" || bad "render: a failure left output"
 
 # --- lcd ---------------------------------------------------------------------

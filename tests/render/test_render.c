@@ -78,6 +78,8 @@ static int setup(void **state) {
   cv_render_opts o;
   cv_render_default_opts(&o);
   o.display_float = 1; /* exact display values for the comparisons */
+  o.half_transfer = 0;  /* float transfer: the CPU references' precision (the half-float
+                           storage, the default with a software GL, has tests of its own) */
   if (cv_renderer_create(F.prt, &o, &F.r, &err)) {
     fprintf(stderr, "cannot start the renderer: %s\n", err.msg);
     return -1;
@@ -249,15 +251,14 @@ static cmp_stats compare(const cv_image *gpu, const cv_image *cpu, double tol, d
  * with half floats), at most 2% of pixels beyond it (silhouettes and
  * triangle edges where the two rasterisers pick different triangles). */
 static void gl_vs_cpu(int half, int cull) {
-  cv_renderer *r = F.r;
+  cv_renderer *r;
   cv_err err;
-  if (half || cull) {
-    cv_render_opts o;
-    cv_render_default_opts(&o);
-    o.half_transfer = half;
-    o.cull_back = cull;
-    OK(cv_renderer_create(F.prt, &o, &r, &err));
-  }
+  cv_render_opts o;
+  cv_render_default_opts(&o);
+  o.half_transfer = half; /* not the default's choice (half with a software GL) */
+  o.cull_back = cull;
+  OK(cv_renderer_create(F.prt, &o, &r, &err));
+  assert_int_equal(cv_renderer_half_transfer(r), half);
   cv_lighting l;
   test_lighting(&l);
   cv_render_light_stats ls;
@@ -294,7 +295,7 @@ static void gl_vs_cpu(int half, int cull) {
   }
   free(rad);
   cv_image_destroy(bg);
-  if (half || cull) cv_renderer_destroy(r);
+  cv_renderer_destroy(r);
 }
 
 static void test_gl_matches_cpu(void **state) {
@@ -375,6 +376,7 @@ static void test_gl_sun(void **state) {
   cv_render_opts o;
   cv_render_default_opts(&o);
   o.sun_split = 0;
+  o.half_transfer = 0; /* as the fixture's */
   cv_renderer *whole;
   OK(cv_renderer_create(F.prt, &o, &whole, &err));
   OK(cv_renderer_set_lighting(whole, &l, NULL, NULL, &err));
@@ -534,6 +536,7 @@ static void test_cpu_relight_and_casters(void **state) {
   cv_render_opts o;
   cv_render_default_opts(&o);
   o.display_float = 1;
+  o.half_transfer = 0; /* float everywhere here: test_cpu_relight_half has the halves */
   cv_renderer *ref, *cpu, *dflt; /* feedback + mesh map; CPU + mesh map; the defaults */
   o.relight_cpu = 0, o.shadow_casters = 0;
   OK(cv_renderer_create(F.prt, &o, &ref, &err));
@@ -541,6 +544,7 @@ static void test_cpu_relight_and_casters(void **state) {
   OK(cv_renderer_create(F.prt, &o, &cpu, &err));
   cv_render_default_opts(&o);
   o.display_float = 1;
+  o.half_transfer = 0;
   OK(cv_renderer_create(F.prt, &o, &dflt, &err));
   printf("GL: %s (software %d): default relight on the CPU: %s\n", cv_renderer_gl_name(dflt),
          cv_renderer_is_software(dflt), o.relight_cpu < 0 ? "when software" : "set");
@@ -647,6 +651,31 @@ static void test_cpu_relight_half(void **state) {
   }
   cv_image_destroy(a), cv_image_destroy(b), cv_image_destroy(c);
   cv_renderer_destroy(ref), cv_renderer_destroy(cpu);
+  /* The default (-1): half floats exactly when the relight runs on the CPU. */
+  cv_render_default_opts(&o);
+  assert_int_equal(o.half_transfer, -1);
+  cv_renderer *dflt, *fb;
+  OK(cv_renderer_create(F.prt, &o, &dflt, &err));
+  o.relight_cpu = 0;
+  OK(cv_renderer_create(F.prt, &o, &fb, &err));
+  printf("default transfer: %s (relight on the CPU: %d); with transform feedback: %s\n",
+         cv_renderer_half_transfer(dflt) ? "half" : "float", cv_renderer_relight_on_cpu(dflt),
+         cv_renderer_half_transfer(fb) ? "half" : "float");
+  assert_int_equal(cv_renderer_half_transfer(dflt), cv_renderer_relight_on_cpu(dflt));
+  assert_int_equal(cv_renderer_half_transfer(fb), 0);
+  cv_renderer_destroy(dflt), cv_renderer_destroy(fb);
+  /* --transfer's words */
+  int h = 7;
+  assert_int_equal(cv_render_transfer_parse("auto", &h), 0);
+  assert_int_equal(h, -1);
+  assert_int_equal(cv_render_transfer_parse("float", &h), 0);
+  assert_int_equal(h, 0);
+  assert_int_equal(cv_render_transfer_parse("half", &h), 0);
+  assert_int_equal(h, 1);
+  assert_int_equal(cv_render_transfer_parse("Half", &h), -1);
+  assert_int_equal(cv_render_transfer_parse("", &h), -1);
+  assert_int_equal(cv_render_transfer_parse(NULL, &h), -1);
+  assert_int_equal(h, 1);
   cv_image_destroy(bg);
   cv_scene_light_destroy(sl);
 }
@@ -920,6 +949,7 @@ static void drago_ramp(int exact) {
   cv_render_opts o;
   cv_render_default_opts(&o);
   o.tone_exact = exact;
+  o.half_transfer = 0; /* the ramp's values exactly (halves would round them) */
   OK(cv_renderer_create(p, &o, &r8, &err)); /* default 8-bit display target */
   o.display_float = 1;
   OK(cv_renderer_create(p, &o, &r, &err));

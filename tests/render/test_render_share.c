@@ -9,7 +9,8 @@
  * after a prefetch that did not come true (its own export taken back, then
  * the real change), and a renderer importing what an importer exported.
  * Errors: export
- * before any lighting, a truncated or foreign buffer, another shadow size. */
+ * before any lighting, a truncated or foreign buffer, another shadow size,
+ * another transfer storage (half/float). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -218,6 +219,15 @@ static void test_export_import_identical(void **state) {
   printf("other shadow size: %s\n", err.msg);
   assert_int_equal(cv_renderer_lighting_export(leader, buf, cap / 2, &err), CV_ERR_RANGE);
   cv_renderer_destroy(small);
+  /* the other transfer storage: its relit colours differ in the last bits, refused */
+  cv_render_default_opts(&o);
+  o.half_transfer = !cv_renderer_half_transfer(leader);
+  cv_renderer *other;
+  OK(cv_renderer_create(g_prt, &o, &other, &err));
+  assert_true(cv_renderer_lighting_scene(other) != cv_renderer_lighting_scene(leader));
+  assert_int_equal(cv_renderer_lighting_import(other, buf, cap, NULL, &err), CV_ERR_INVALID);
+  printf("other transfer storage (%s): %s\n", o.half_transfer ? "half" : "float", err.msg);
+  cv_renderer_destroy(other);
   cv_image_destroy(hi), cv_image_destroy(ho), cv_image_destroy(di), cv_image_destroy(dn);
   free(buf);
   cv_renderer_destroy(leader);

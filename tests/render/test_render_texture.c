@@ -206,6 +206,7 @@ static void test_textured_quad(void **state) {
   cv_render_default_opts(&o);
   o.display_float = 1;
   o.timing = 2;
+  o.half_transfer = 0; /* float: the CPU reference's precision (test_render has the halves) */
   cv_renderer *r;
   OK(cv_renderer_create(p, &o, &r, &err));
   printf("GL: %s\n", cv_renderer_gl_name(r));
