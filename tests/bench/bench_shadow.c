@@ -417,6 +417,8 @@ int main(int argc, char **argv) {
   cv_image *hdr_def;
   double *hrel = malloc((size_t)nsun * nviews * np * sizeof *hrel);
   size_t nhrel = 0;
+  double hmax_y = 0, hmax_rel = -1, hmax_ymean = 0; /* the largest difference's pixel: its
+                                                        float luminance, its view's mean */
   if (!hrel || cv_image_create(S, S, 3, &hdr_def)) return 1;
   beam_ext bx[MAXSUN];
   for (int k = 0; k < nsun; k++) {
@@ -454,7 +456,14 @@ int main(int argc, char **argv) {
           for (size_t q = 0; q < np; q++) {
             const float *a = hdr->px + 3 * q, *b = hdr_def->px + 3 * q;
             const double ya = lum3(a), yb = lum3(b);
-            if (rv.tri[q] >= 0 && yb > 0) hrel[nhrel++] = fabs(ya - yb) / yb;
+            if (rv.tri[q] >= 0 && yb > 0) {
+              hrel[nhrel++] = fabs(ya - yb) / yb;
+              if (hrel[nhrel - 1] > hmax_rel) {
+                double ym = 0;
+                for (size_t u = 0; u < np; u++) ym += lum3(hdr_def->px + 3 * u) / (double)np;
+                hmax_rel = hrel[nhrel - 1], hmax_y = yb, hmax_ymean = ym;
+              }
+            }
           }
       }
     }
@@ -483,8 +492,9 @@ int main(int argc, char **argv) {
     qsort(hrel, nhrel, sizeof *hrel, bench_cmp_double);
     printf("\nHalf-float transfer against float (the same renderer otherwise), relative luminance "
            "difference over %zu pixels that see the cabin: median %.2e, p90 %.2e, p99 %.2e, "
-           "p99.9 %.2e, max %.2e\n", nhrel, hrel[nhrel / 2], hrel[(size_t)(0.9 * nhrel)],
-           hrel[(size_t)(0.99 * nhrel)], hrel[(size_t)(0.999 * nhrel)], hrel[nhrel - 1]);
+           "p99.9 %.2e, max %.2e (at a pixel of float luminance %.3g, %.2g of its view's mean)\n",
+           nhrel, hrel[nhrel / 2], hrel[(size_t)(0.9 * nhrel)], hrel[(size_t)(0.99 * nhrel)],
+           hrel[(size_t)(0.999 * nhrel)], hrel[nhrel - 1], hmax_y, hmax_y / hmax_ymean);
   }
   free(hrel);
   cv_image_destroy(hdr_def);

@@ -88,6 +88,15 @@ static cv_mesh *quad_mesh(const char *png, const float mean[3]) {
 static const double PA[3] = {-0.6, -0.6, 1}, PB[3] = {0.6, -0.6, 1}, PC[3] = {-0.6, 0.6, 1};
 static const double EYE[3] = {0.05, -0.03, 2.1};
 
+/* 1: cpu_view's texture holds sRGB codes / 255, decoded after the bilinear
+ * filter (the order EXT_texture_sRGB also allows a GL; a diagnostic for a
+ * hardware GL that differs from the reference). */
+static int g_decode_after;
+
+static float srgb_decode(float c) {
+  return c <= 0.04045f ? c / 12.92f : (float)pow((c + 0.055) / 1.055, 2.4);
+}
+
 /* The CPU reference per pixel; geom[i] = 1 on the quad, 2 on its textured
  * half; border[i] = 1 within a cell of the textured/plain border, where the
  * vertex albedo mixes both materials (hat-weighted mean), so that
@@ -123,6 +132,8 @@ static void cpu_view(const cv_prt *p, const cv_tracer *tr, const float *rad, con
         const float *q = p->tri_uv + 6 * (size_t)h.tri;
         float a[3];
         cv_texture_sample(tex, w0 * q[0] + h.u * q[2] + h.v * q[4], w0 * q[1] + h.u * q[3] + h.v * q[5], a);
+        if (g_decode_after)
+          for (int c = 0; c < 3; c++) a[c] = srgb_decode(a[c]);
         for (int c = 0; c < 3; c++) px[c] *= a[c], ex[c] = (float)L * a[c];
         geom[y * W + x] = 2;
       } else {
@@ -255,7 +266,33 @@ static void test_textured_quad(void **state) {
   err_stats e = errors(g, ref, geom, 2, NULL, L);
   printf("textured half vs CPU reference (`cave shade --view`): %zu px, relative error median "
          "%.2e max %.2e; max absolute error %.2e x L\n", e.n, e.median_rel, e.max_rel, e.max_abs);
-  assert_true(e.n > 5000 && e.median_rel < 2e-3 && e.max_abs < 1.0 / 512);
+  /* A hardware GL filters with its own sub-texel precision (the GL sets no
+   * bound; NVIDIA's H200, 2026-11-28: median 3.8e-3, max 6.0e-3 L, and 9.7e-3
+   * on the tone-mapped display, whose slope in the dark amplifies it; it
+   * decodes sRGB before filtering, as the reference: against the codes
+   * filtered first, median 0.155): there the bounds are 4x looser (8x on
+   * the display), and the other order's errors are printed beside them. */
+  const int hw = !cv_renderer_is_software(r);
+  const double med_tol = hw ? 1e-2 : 2e-3, abs_tol = hw ? 4.0 / 512 : 1.0 / 512;
+  const double disp_tol = hw ? 8.0 / 512 : 1.0 / 512;
+  if (hw) {
+    cv_image *codes, *ref2;
+    uint8_t *g2 = malloc(W * W), *b2 = malloc(W * W);
+    assert_int_equal(cv_image_create(4, 4, 3, &codes), CV_OK);
+    assert_int_equal(cv_image_create(W, W, 3, &ref2), CV_OK);
+    for (int i = 0; i < 48; i++) codes->px[i] = px[i] / 255.0f;
+    g_decode_after = 1;
+    cpu_view(p, tr, rad, codes, ref2, ex, g2, b2);
+    g_decode_after = 0;
+    err_stats e2 = errors(g, ref2, geom, 2, NULL, L);
+    printf("hardware GL: against the sRGB codes filtered, then decoded: median %.2e max %.2e; "
+           "max absolute %.2e x L (bounds here: median %.0e, absolute %.4f x L)\n", e2.median_rel,
+           e2.max_rel, e2.max_abs, med_tol, abs_tol);
+    cpu_view(p, tr, rad, tex, ref, ex, geom, border); /* ex and the masks as before */
+    cv_image_destroy(codes), cv_image_destroy(ref2);
+    free(g2), free(b2);
+  }
+  assert_true(e.n > 5000 && e.median_rel < med_tol && e.max_abs < abs_tol);
   e = errors(g, ref, geom, 1, NULL, L);
   printf("plain half vs CPU reference: %zu px, relative error median %.2e max %.2e\n", e.n,
          e.median_rel, e.max_rel);
@@ -272,7 +309,7 @@ static void test_textured_quad(void **state) {
   e = errors(gd, refd, geom, 2, NULL, 1.0);
   printf("textured half, Drago display vs CPU: relative error median %.2e max %.2e; max absolute "
          "%.2e\n", e.median_rel, e.max_rel, e.max_abs);
-  assert_true(e.median_rel < 2e-3 && e.max_abs < 1.0 / 512);
+  assert_true(e.median_rel < med_tol && e.max_abs < disp_tol);
 
   /* speed: the same view at 1024^2 with and without the texture (a copy of
    * the PRT whose material has no texture file: the mean albedo instead) */
