@@ -35,13 +35,21 @@ vec3 cv_sun_direct() {
   float inv = inversesqrt(dot(nq, m)) * (gl_FrontFacing ? u_sigma : -u_sigma);
   float c = u_shadow_k.w * nq.z * inv;
   // Bilinear percentage-closer filtering (the 2x2 texels around the point,
-  // compared with GL's LEQUAL, then weighted), by texelFetch: llvmpipe's
-  // shadow sampler costs several times these four fetches.
+  // compared with GL's LEQUAL, then weighted), by a gather or texelFetch:
+  // llvmpipe's shadow sampler costs several times these four fetches.
   vec3 q = v_sq + (u_shadow_bias * inv) * m;
   vec2 fl = floor(q.xy), f = q.xy - fl;
   ivec2 i = clamp(ivec2(fl), ivec2(0), u_shadow_size - 2);
+#ifdef GL_ARB_texture_gather
+  // One gather instead of four fetches (llvmpipe: 5-8% of the shading pass
+  // at 1440^2): the 2x2 footprint whose lower-left texel is i, asked for at
+  // texel coordinate i + 1 (a bilinear footprint starts at floor(c - 0.5);
+  // the float rounding of (i + 1) / size moves c by far less than 0.5).
+  vec4 d = textureGather(u_shadow, (vec2(i) + 1.0) / vec2(textureSize(u_shadow, 0))).wzxy;
+#else
   vec4 d = vec4(texelFetch(u_shadow, i, 0).r, texelFetch(u_shadow, i + ivec2(1, 0), 0).r,
                 texelFetch(u_shadow, i + ivec2(0, 1), 0).r, texelFetch(u_shadow, i + ivec2(1, 1), 0).r);
+#endif
   vec4 lit = step(vec4(q.z), d);  // q.z <= depth
   float vis = mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
   return c > 0.0 ? v_sun * (c * vis) : vec3(0.0);  // c NaN (degenerate) -> 0

@@ -89,7 +89,7 @@ GLuint cvr_compile(GLenum type, const char *name, const char *defines, cv_err *e
     cv_err_set(err, CV_ERR_NOT_FOUND, "shader %s is not embedded in the binary", name);
     return 0;
   }
-  const char *src[5] = {"#version 330 core\n", defines, "", "#line 1\n", text};
+  const char *src[5] = {"#version 330 core\n#extension GL_ARB_texture_gather : enable\n", defines, "", "#line 1\n", text};
   if (type == GL_FRAGMENT_SHADER) src[2] = common;
   GLuint s = glCreateShader(type);
   glShaderSource(s, 5, src, NULL);
