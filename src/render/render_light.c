@@ -66,7 +66,10 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
    * their box: a box seen obliquely covers up to twice the area, so the
    * same texels then sample the cabin more finely (about 1 ms of CPU). */
   double lo[3], hi[3];
-  for (int a = 0; a < 3; a++) vertex_extent(r, axis[a], &lo[a], &hi[a]);
+  for (int a = 0; a < 3; a++) {
+    vertex_extent(r, axis[a], &lo[a], &hi[a]);
+    if (!(hi[a] >= lo[a])) lo[a] = hi[a] = 0; /* no opaque triangle: a 1 mm map of nothing */
+  }
   for (int a = 0; a < 3; a++) {
     double pad = 0.01 * (hi[a] - lo[a]) + 1e-3;
     lo[a] -= pad, hi[a] += pad;
