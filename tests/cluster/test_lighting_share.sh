@@ -6,7 +6,9 @@
 # host-now shares without the prefetch; with it off all ten compute.  Every written image
 # (EXR and PNG of every wall-eye, the montages) is byte-identical between the
 # two runs; the metrics count the changes per kind (no silent fallback); the
-# ready lines name each rank's part; a bad value is refused before starting.
+# ready lines name each rank's part (and the transfer storage: half floats by
+# default on llvmpipe, floats with --transfer float in the late-leader run);
+# a bad value is refused before starting.
 # The leader stopped (SIGSTOP) for 3 s: the importers stop waiting for it
 # after --timeout-ms / 4 and compute, counted as late_leader.
 # Usage: test_lighting_share.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
@@ -61,6 +63,8 @@ def load(d):
 ready, frames, summ = load(sys.argv[1])
 assert ready["share_lighting"] == "host", ready
 roles = ready["ranks"]
+# llvmpipe relights on the CPU, from half floats by default (--transfer auto)
+assert all("relight on the CPU from half-float transfer" in t for r, t in roles.items() if r != "0"), roles
 leaders = [r for r, t in roles.items() if "shared lighting: leader of 10" in t]
 assert len(leaders) == 1, roles
 importers = [r for r, t in roles.items() if f"shared lighting: importer (leader rank {leaders[0]}," in t]
@@ -91,9 +95,10 @@ print("off:", so)
 assert so["mode"] == "off" and so["computed"] == 10 * sl["led"] and so["imported"] == 0, so
 PY
 # --- a late leader: the leader (named in the ready line) stopped for 3 s ----
+# (with --transfer float: the option reaches every wall-eye, said in its ready line)
 timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" --scene scene.prt --size 48 \
   --drive "$SRC/configs/drives/sky.json" --dt 0.2 --frames 40 --write-every 0 --no-lcd --patches 8 \
-  --timeout-ms 800 --gather-timeout 60 --quiet -o late >out_late.txt 2>err_late.txt &
+  --timeout-ms 800 --gather-timeout 60 --transfer float --quiet -o late >out_late.txt 2>err_late.txt &
 job=$!
 for i in $(seq 1 600); do
   [ -s late/metrics.jsonl ] && [ "$(grep -c '"type":"frame"' late/metrics.jsonl)" -ge 3 ] && break
@@ -113,6 +118,8 @@ import json, sys
 lines = [json.loads(l) for l in open(sys.argv[1] + "/metrics.jsonl")]
 sl = lines[-1]["shared_lighting"]
 print("late leader:", sl)
+ranks = lines[0]["ranks"]
+assert all("relight on the CPU from float transfer" in t for r, t in ranks.items() if r != "0"), ranks
 # (the frame lines show a rank's newest lighting step when it is of their
 # frame: best effort; the summary's counts are the ranks' own)
 late = [v["light"] for f in lines if f["type"] == "frame" for r, v in f["ranks"].items() if v.get("light") == "late_leader"]
