@@ -15,6 +15,13 @@ static double chunk_max(const cv_renderer *r, size_t c, const double a[3]) {
   return m;
 }
 
+/* An upper bound of a . p over chunk c's vertices: its box's corner on a's side. */
+static double box_bound(const cv_renderer *r, size_t c, const double a[3]) {
+  const float *b = r->chunk_box + 6 * c;
+  const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
+  return along(a, corner);
+}
+
 /* The largest a . p over the vertices of the opaque triangles (the first
  * nv_used), exactly, visiting only the chunks whose boxes could hold it:
  * a chunk's box bounds its vertices' a . p from above (its corner on a's
@@ -24,18 +31,12 @@ static double extent_max(const cv_renderer *r, const double a[3]) {
   double best_bound = -INFINITY, m = -INFINITY;
   size_t best = 0;
   for (size_t c = 0; c < r->nchunks; c++) {
-    const float *b = r->chunk_box + 6 * c;
-    const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
-    const double u = along(a, corner);
+    const double u = box_bound(r, c, a);
     if (u > best_bound) best_bound = u, best = c;
   }
   if (r->nchunks) m = chunk_max(r, best, a);
-  for (size_t c = 0; c < r->nchunks; c++) {
-    if (c == best) continue;
-    const float *b = r->chunk_box + 6 * c;
-    const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
-    if (along(a, corner) >= m - 1e-9 * (1 + fabs(m))) m = fmax(m, chunk_max(r, c, a));
-  }
+  for (size_t c = 0; c < r->nchunks; c++)
+    if (c != best && box_bound(r, c, a) >= m - 1e-9 * (1 + fabs(m))) m = fmax(m, chunk_max(r, c, a));
   return m;
 }
 
