@@ -680,6 +680,53 @@ static void test_cpu_relight_half(void **state) {
   cv_scene_light_destroy(sl);
 }
 
+/* The sun's shadow map fitted to the beam (cvr_sun_matrices): for suns from
+ * straight above (the frame's up axis switches), from the horizon, from
+ * below and oblique ones, every opaque vertex of the scene lies inside the
+ * map in texel space (brute force over all vertices against the extent the
+ * renderer finds from the chunks' boxes), the texels are square, the longer
+ * side has opts.shadow_res texels and the vertices span it up to its 1%
+ * pads, the shorter side no more texels than its span needs. */
+static void test_sun_matrices_fit(void **state) {
+  (void)state;
+  cv_err err;
+  cv_renderer *r;
+  OK(cv_renderer_create(F.prt, NULL, &r, &err));
+  const double suns[6][3] = {{0, 1, 0}, {0.41, 0.57, -0.71}, {1, 0, 0}, {0, -1, 0}, {0.02, 0.999, 0.03},
+                             {-0.6, 0.2, 0.77}};
+  for (int k = 0; k < 6; k++) {
+    double s[3], l = 0;
+    for (int j = 0; j < 3; j++) l += suns[k][j] * suns[k][j];
+    for (int j = 0; j < 3; j++) s[j] = suns[k][j] / sqrt(l);
+    float clip[16], texel;
+    int size[2];
+    cvr_sun_matrices(r, s, clip, &texel, size);
+    const float *q = r->shadow_q;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < r->nv_used; v++) {
+      const float *p = r->pos_cpu + 3 * v;
+      for (int a = 0; a < 3; a++) {
+        const double x = (double)q[a] * p[0] + (double)q[4 + a] * p[1] + (double)q[8 + a] * p[2] + q[12 + a];
+        lo[a] = fmin(lo[a], x), hi[a] = fmax(hi[a], x);
+      }
+    }
+    const int res = r->o.shadow_res, lng = size[0] >= size[1] ? 0 : 1;
+    printf("sun (%.2f, %.2f, %.2f): map %d x %d texels of %.2f mm; vertices in x [%.1f, %.1f], "
+           "y [%.1f, %.1f], depth [%.4f, %.4f]\n", s[0], s[1], s[2], size[0], size[1], 1e3 * texel,
+           lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
+    assert_int_equal(size[lng], res);
+    assert_true(size[1 - lng] >= 2 && size[1 - lng] <= res);
+    assert_true(fabs(r->shadow_k[0] / r->shadow_k[1] - 1) < 1e-5); /* square texels */
+    for (int a = 0; a < 2; a++) /* inside: texel centres at integers, edges at -0.5, n - 0.5 */
+      assert_true(lo[a] >= -0.5 && hi[a] <= size[a] - 0.5);
+    assert_true(lo[2] >= 0 && hi[2] <= 1);
+    /* tight: the pads are 1% of the span and 1 mm on each side */
+    assert_true(hi[lng] - lo[lng] >= 0.97 * size[lng]);
+    assert_true(hi[1 - lng] - lo[1 - lng] >= 0.97 * (size[1 - lng] - 1) - 2.0 / 1e3 / texel);
+  }
+  cv_renderer_destroy(r);
+}
+
 /* The CPU relight's half-float conversions (opts.half_transfer): F16C and
  * the portable one give the same float for each of the 65,536 halves (NaN
  * for NaN). */
@@ -1467,7 +1514,7 @@ static void test_errors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_matches_cpu),  cmocka_unit_test(test_gl_matches_cpu_half),
-      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_cpu_relight_half), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
+      cmocka_unit_test(test_gl_matches_cpu_culled), cmocka_unit_test(test_gl_sun), cmocka_unit_test(test_gl_split), cmocka_unit_test(test_gl_sun_cull_reuse), cmocka_unit_test(test_cpu_relight_and_casters), cmocka_unit_test(test_cpu_relight_half), cmocka_unit_test(test_sun_matrices_fit), cmocka_unit_test(test_half_conversions), cmocka_unit_test(test_mesh_closed),          cmocka_unit_test(test_no_holes),
       cmocka_unit_test(test_drago_ramp),      cmocka_unit_test(test_drago_ramp_exact),
       cmocka_unit_test(test_panel),           cmocka_unit_test(test_luminance_pass), cmocka_unit_test(test_lum_stats_gpu),
       cmocka_unit_test(test_supersample),     cmocka_unit_test(test_errors),
