@@ -342,6 +342,42 @@ static void panel_point(const cv_lcd_panel *pn, float fx, float fy, float o[3]) 
   cv_rt_offset_origin(c, pn->normal, o);
 }
 
+/* Each region's visibility table made softer and wider (gather.h,
+ * cv_lcd_soften_visibility).  The probes see the sky from 4 points of the
+ * region; its other texels see it through the same gaps shifted by
+ * parallax (window frames, pillars, headrests at 0.3-1.5 m, the panel
+ * 0.2-0.3 m wide), often by a cell or more, and a table that is 0 where a
+ * texel does see the sky leaves those directions to the BRDF and cosine
+ * samples.  Measured against the probes' plain mean (docs/benchmarks.md,
+ * issue 12, "Softer visibility tables"): 1.2-2x fewer samples to the same
+ * error in sunlight; a 5 x 5 maximum, a 3 x 3 blur, the square root or a
+ * yes/no mask did no better. */
+int cv_lcd_soften_visibility(float *vis, int w, int h, int n) {
+  if (!vis || w < 1 || h < 1 || n < 0) return CV_ERR_INVALID;
+  const size_t nc = (size_t)w * (size_t)h;
+  float *tmp = malloc(nc * sizeof(float));
+  if (!tmp) return CV_ERR_NOMEM;
+  for (int r = 0; r < n; r++) {
+    float *v = vis + (size_t)r * nc;
+    for (int Y = 0; Y < h; Y++)
+      for (int X = 0; X < w; X++) {
+        float mx = 0;
+        for (int dy = -1; dy <= 1; dy++) {
+          const int yy = Y + dy;
+          if (yy < 0 || yy >= h) continue; /* the poles: no wrap */
+          for (int dx = -1; dx <= 1; dx++) {
+            const float t = v[(size_t)yy * w + (size_t)((X + dx + w) % w)]; /* azimuth wraps */
+            if (t > mx) mx = t;
+          }
+        }
+        tmp[(size_t)Y * w + X] = 0.5f * (v[(size_t)Y * w + X] + mx);
+      }
+    memcpy(v, tmp, nc * sizeof(float));
+  }
+  free(tmp);
+  return CV_OK;
+}
+
 /* envvis: from 4 points of each region (its quarters' centres), one ray
  * each into the centres of the 4 quarters of each cell in front of the
  * panel (16 probes a cell): the share that reaches the environment through
@@ -375,7 +411,7 @@ static int env_visibility(cv_lcd_gather *g) {
       }
     }
   }
-  return CV_OK;
+  return cv_lcd_soften_visibility(g->envvis, VIS_W, VIS_H, ENV_RX * ENV_RY);
 }
 
 /* One environment table per region: src (restricted to the panel's front)
@@ -385,7 +421,7 @@ static int env_visibility(cv_lcd_gather *g) {
  * L f cos V, the whole integrand but for the texel's own view and
  * visibility.  Any weights keep the estimate unbiased (BRDF and cosine
  * sampling cover every direction; the density is the table's own). */
-#define ENV_VIS_FLOOR 0.02f
+#define ENV_VIS_FLOOR 0.01f
 static int env_regions(const cv_lcd_gather *g, const cv_env_sampler *src, const float eye[3],
                        cv_env_sampler **out) {
   const cv_lcd_panel *pn = &g->panel;

@@ -33,9 +33,12 @@
  *      each cell, restricted to the cells in front of the panel, rebuilt
  *      from the light's tables in each call that uses it), n_e samples.
  *      With windows, each of 4 x 3 regions of the panel has its own table:
- *      every cell's probability times (the share of probe rays from the
- *      region that reach the sky through a window in that cell + 0.02)
- *      times the luminance of f cos for the view from the region's centre,
+ *      every cell's probability times (V + 0.01) times the luminance of
+ *      f cos for the view from the region's centre, V the share of probe
+ *      rays from the region that reach the sky through a window in that
+ *      cell, softened: half its own value plus half the largest of its
+ *      3 x 3 cells (the region's other texels see the sky through gaps
+ *      shifted by parallax),
  *      so that the strategy draws about the product L f cos V (12 tables
  *      of 256 x 128 cells a round; the probe rays, 16 per cell of 128 x 64
  *      from 4 points of the region, are traced once per gather by
@@ -62,9 +65,12 @@
  *     + f(s, w_o) cos(theta_s) L_sun Omega_sun V(s), s in the disc   (sun, every sample)
  * The sun is a delta light: only next-event estimation can reach it, so it
  * takes no MIS weight.
- * The window strategy puts samples where the sky is, which dominates the
- * error under BRDF sampling (the diffuse and haze lobes see it through the
- * windows); BRDF sampling alone is brdf_fraction 1, window_fraction 0.
+ * The window and environment strategies put samples where the sky is,
+ * which dominates the error under BRDF sampling (the diffuse and haze lobes
+ * see it through the windows); the default is e = 0.5 and no window
+ * samples (the environment tables already hold the windows' visibility:
+ * docs/benchmarks.md, issue 12); BRDF sampling alone is brdf_fraction 1,
+ * window_fraction = env_fraction = 0.
  *
  * Determinism: sample j of round r of texel (x, y) is sample j - (first
  * index of its strategy in the round) + r n_s of its strategy's sequence,
@@ -196,10 +202,20 @@ typedef struct cv_lcd_params {
   float *ray_log;
 } cv_lcd_params;
 
+/* The environment strategy's visibility tables made softer and wider, in
+ * place: n tables of w x h lat-long cells (row-major, rows from the zenith),
+ * each cell set to half its own value plus half the largest value of its
+ * 3 x 3 neighbourhood (azimuth wraps around, the rows at the poles do not).
+ * A cell keeps its value where it is its neighbourhood's largest, and a
+ * cell next to a visible one gets at least half of it.  Used by
+ * cv_lcd_gather_create on its probe tables; exposed for tests.
+ * Errors: CV_ERR_INVALID (NULL, w or h < 1, n < 0), CV_ERR_NOMEM. */
+int cv_lcd_soften_visibility(float *vis, int w, int h, int n);
+
 /* Default window_fraction (measured on the default cabin: docs/benchmarks.md). */
-#define CV_LCD_WINDOW_FRACTION 0.25
+#define CV_LCD_WINDOW_FRACTION 0.0
 /* Default env_fraction (measured on the default cabin: docs/benchmarks.md). */
-#define CV_LCD_ENV_FRACTION 0.25
+#define CV_LCD_ENV_FRACTION 0.5
 /* Default interior_fraction (measured on the default cabin: docs/benchmarks.md). */
 #define CV_LCD_INTERIOR_FRACTION 0.0
 /* Angular radius of the solar disc (degrees; the sun's mean apparent

@@ -487,9 +487,10 @@ static void env_disc(const double d[3], float rgb[3]) {
 /* Environment light sampling with MIS is unbiased: on the default cabin
  * with the anti-glare BRDF under a sky holding a bright disc, the panel's
  * mean reflected luminance from mixes with environment samples equals the
- * existing estimator's (BRDF + cosine + window) within 4 standard errors of
- * the difference (each estimate with its own seed; the i.i.d. error of
- * cv_lcd_accum_error, an upper bound for the scrambled Sobol points). */
+ * window mix's (BRDF + cosine + window, no environment samples) within 4
+ * standard errors of the difference (each estimate with its own seed; the
+ * i.i.d. error of cv_lcd_accum_error, an upper bound for the scrambled
+ * Sobol points). */
 static void test_env_mis_unbiased(void **state) {
   (void)state;
   cv_cabin_params cp;
@@ -507,10 +508,13 @@ static void test_env_mis_unbiased(void **state) {
   cv_envmap *env = env_from(256, env_disc);
   cv_lcd_light *l;
   assert_int_equal(cv_lcd_light_create(env, vrad, m->nv, 0, NULL, NULL, &l), CV_OK);
-  /* brdf, window, environment fractions; the first is the existing default */
-  const double mix[4][3] = {{0.9, 0.5, 0}, {0.9, 0.3, 0.3}, {1, 0, 0.5}, {0.9, 0, 0.25}};
-  double mean[4], se[4];
-  for (int c = 0; c < 4; c++) {
+  /* brdf, window, environment fractions: the first (windows, no
+   * environment samples) is the reference, the last the default */
+  enum { NMIX = 5 };
+  const double mix[NMIX][3] = {{0.9, 0.5, 0}, {0.9, 0.3, 0.3}, {1, 0, 0.5}, {0.9, 0, 0.25},
+                               {0.9, CV_LCD_WINDOW_FRACTION, CV_LCD_ENV_FRACTION}};
+  double mean[NMIX], se[NMIX];
+  for (int c = 0; c < NMIX; c++) {
     cv_lcd_params p;
     cv_lcd_params_default(&p);
     p.w = 16, p.h = 12, p.spp = 256;
@@ -549,9 +553,9 @@ static void test_env_mis_unbiased(void **state) {
     assert_true(acc->data[CV_LCD_ACC_SPP] == 0);
     cv_lcd_accum_destroy(acc);
   }
-  for (int c = 1; c < 4; c++) {
+  for (int c = 1; c < NMIX; c++) {
     const double z = fabs(mean[c] - mean[0]) / sqrt(se[c] * se[c] + se[0] * se[0]);
-    print_message("mix %d vs existing: %.2f standard errors\n", c, z);
+    print_message("mix %d vs the window mix: %.2f standard errors\n", c, z);
     assert_true(z < 4);
   }
   cv_lcd_light_destroy(l);
@@ -559,6 +563,37 @@ static void test_env_mis_unbiased(void **state) {
   free(vrad);
   scene_free(&s);
   cv_brdf_destroy(b);
+}
+
+/* The environment strategy's visibility tables, softened
+ * (cv_lcd_soften_visibility): a lone visible cell keeps its value and
+ * gives half of it to its 8 neighbours, across the azimuth seam but not
+ * across the poles; a uniform table is unchanged; each table on its own;
+ * bad arguments refused. */
+static void test_soften_visibility(void **state) {
+  (void)state;
+  enum { W = 6, H = 4, NC = W * H };
+  float v[3 * NC];
+  memset(v, 0, sizeof v);
+  v[1 * W + 2] = 1.0f;  /* table 0: a lone cell inside */
+  v[NC + 0 * W + 0] = 0.8f; /* table 1: a cell on the seam, in the top row */
+  for (int i = 0; i < NC; i++) v[2 * NC + i] = 0.25f; /* table 2: uniform */
+  assert_int_equal(cv_lcd_soften_visibility(v, W, H, 3), CV_OK);
+  for (int Y = 0; Y < H; Y++)
+    for (int X = 0; X < W; X++) {
+      const int near = abs(X - 2) <= 1 && abs(Y - 1) <= 1;
+      const float want = X == 2 && Y == 1 ? 1.0f : near ? 0.5f : 0.0f;
+      assert_float_equal(v[Y * W + X], want, 0);
+      /* table 1: the cell's neighbours are X in {W-1, 0, 1} and rows 0-1 only */
+      const int dx = X == W - 1 ? 1 : X; /* distance across the seam */
+      const float want1 = X == 0 && Y == 0 ? 0.8f : (dx <= 1 && Y <= 1) ? 0.4f : 0.0f;
+      assert_float_equal(v[NC + Y * W + X], want1, 0);
+      assert_float_equal(v[2 * NC + Y * W + X], 0.25f, 0);
+    }
+  assert_int_equal(cv_lcd_soften_visibility(NULL, W, H, 1), CV_ERR_INVALID);
+  assert_int_equal(cv_lcd_soften_visibility(v, 0, H, 1), CV_ERR_INVALID);
+  assert_int_equal(cv_lcd_soften_visibility(v, W, H, -1), CV_ERR_INVALID);
+  assert_int_equal(cv_lcd_soften_visibility(v, W, H, 0), CV_OK); /* no table: nothing to do */
 }
 
 /* Interior light sampling with MIS is unbiased: on the default cabin with
@@ -1042,7 +1077,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_lambert_constant), cmocka_unit_test(test_mirror_pattern),
       cmocka_unit_test(test_sampling_pdf_chi2), cmocka_unit_test(test_window_mis),
-      cmocka_unit_test(test_env_mis_unbiased), cmocka_unit_test(test_interior_mis_unbiased),
+      cmocka_unit_test(test_env_mis_unbiased), cmocka_unit_test(test_soften_visibility),
+      cmocka_unit_test(test_interior_mis_unbiased),
       cmocka_unit_test(test_determinism),
       cmocka_unit_test(test_keys_progress),     cmocka_unit_test(test_merl_roundtrip),
       cmocka_unit_test(test_bad_files),         cmocka_unit_test(test_antiglare),
