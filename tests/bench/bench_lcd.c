@@ -2,7 +2,7 @@
  * section 4.3) on the default cabin under blender-data's forest.exr.
  *
  *   bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] [--ref-spp N]
- *             [--max-spp N] [--reps N] [--dat FILE] [--speed]
+ *             [--max-spp N] [--reps N] [--dat FILE] [--speed] [--seed K]
  *
  * --sky: the Preetham sky (turbidity 3) with its sun at that elevation and
  * azimuth (degrees, clockwise from ahead) instead of the map.  Strategies:
@@ -33,9 +33,12 @@
  *    itself be about 1% off on this scene (the sky seen through the windows
  *    by the haze and diffuse lobes dominates the variance), too coarse to
  *    measure 1%.
+ * --seed K adds K to the seeds of the reference (777) and of the strategies'
+ * runs (1): another realisation of every estimate, to see the spread of
+ * the ratios.
  * Prints markdown tables; --dat writes gnuplot-ready blocks (one per
  * strategy: spp, seconds, rmse).  --speed: steps 1 and 2 only, for the
- * library's default and the two MIS mixes that were or are the default
+ * library's default and the two MIS mixes that were the default before
  * (window 0.5; window 0.25 + env 0.25), then exit (for before/after timing
  * of two builds, alternated). */
 #include <math.h>
@@ -63,7 +66,7 @@ typedef struct {
   double i;       /* interior_fraction */
 } strategy;
 
-#define NSTRAT 11
+#define NSTRAT 12
 #define COSINE_STRAT 1
 #define PLAIN_COSINE_STRAT 6
 static const strategy strategies[NSTRAT] = {
@@ -77,7 +80,8 @@ static const strategy strategies[NSTRAT] = {
     {"MIS BRDF + cosine + window + interior (c = 0.9, w = 0.25, i = 0.5)", 0.9, 0.25, 0.0, 1, 0.5},
     {"MIS BRDF + cosine + window + env + interior (c = 0.9, w = 0.2, e = 0.2, i = 0.4)", 0.9, 0.2, 0.2, 1, 0.4},
     {"MIS BRDF + cosine + env (c = 0.9, e = 0.5)", 0.9, 0.0, 0.5, 1, 0.0},
-    {"MIS BRDF + window + env (c = 1, w = 0.3, e = 0.4)", 1.0, 0.3, 0.4, 1, 0.0}};
+    {"MIS BRDF + window + env (c = 1, w = 0.3, e = 0.4)", 1.0, 0.3, 0.4, 1, 0.0},
+    {"MIS BRDF + cosine + env (c = 0.9, e = 0.6)", 0.9, 0.0, 0.6, 1, 0.0}};
 
 /* The row of the library's defaults (cv_lcd_params_default). */
 static int default_strategy(void) {
@@ -235,6 +239,7 @@ int main(int argc, char **argv) {
   int tess = 2, cw = 16, ch = 12, ref_spp = 262144, max_spp = 16384, reps = 3;
   const char *env = "forest.exr", *dat = NULL;
   int speed_only = 0; /* --speed: step 1-2 for the two MIS defaults only, then exit */
+  int seed_add = 0;   /* --seed K: added to the reference's and the runs' seeds */
   double sky_el = -1000, sky_az = 0; /* --sky: analytic sky instead of the map */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--tess") && i + 1 < argc) tess = atoi(argv[++i]);
@@ -249,14 +254,19 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--dat") && i + 1 < argc) dat = argv[++i];
     else if (!strcmp(argv[i], "--speed")) speed_only = 1;
+    else if (!strcmp(argv[i], "--seed") && i + 1 < argc) {
+      char *end;
+      const long v = strtol(argv[++i], &end, 10);
+      seed_add = *end || end == argv[i] || v < 0 || v > 1000000 ? -1 : (int)v;
+    }
     else {
       fprintf(stderr, "usage: bench_lcd [--tess N] [--env NAME | --sky ELEV,AZIMUTH] [--crop WxH] "
-                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE] [--speed]\n");
+                      "[--ref-spp N] [--max-spp N] [--reps N] [--dat FILE] [--speed] [--seed K]\n");
       return strcmp(argv[i], "--help") ? 2 : 0;
     }
   }
   if (cw < 1 || ch < 1 || cw > 400 || ch > 300 || reps < 1 || reps > 15 || max_spp < 8 ||
-      ref_spp < 256) {
+      ref_spp < 256 || seed_add < 0 || seed_add > 1000000) {
     fprintf(stderr, "bench_lcd: bad option value\n");
     return 2;
   }
@@ -547,7 +557,7 @@ int main(int argc, char **argv) {
   q.y0 = (H - ch) / 2;
   q.threads = 0;
   set_strategy(&q, DEFAULT_STRAT);
-  q.seed = 777;
+  q.seed = 777 + (uint32_t)seed_add;
   q.spp = 256;
   cv_lcd_accum *ra;
   cv_image *ref;
@@ -559,10 +569,10 @@ int main(int argc, char **argv) {
   cv_lcd_accum_error(ra, &rerr);
   if (cv_lcd_accum_to_image(ra, NULL, &ref)) return 1;
   printf("## Relative RMSE against a reference (crop %dx%d at texel %d,%d; %lld samples per "
-         "texel, the default strategy, seed 777: %.1f s on %d threads; its own estimated error "
-         "%.3f%%)\n\n",
-         cw, ch, q.x0, q.y0, (long long)ra->data[CV_LCD_ACC_SPP], t_ref, omp_get_max_threads(),
-         100 * rerr.rel_rms);
+         "texel, the default strategy, seed %u: %.1f s on %d threads; its own estimated error "
+         "%.3f%%; the strategies' runs seed %u)\n\n",
+         cw, ch, q.x0, q.y0, (long long)ra->data[CV_LCD_ACC_SPP], q.seed, t_ref, omp_get_max_threads(),
+         100 * rerr.rel_rms, 1 + (unsigned)seed_add);
   printf("RMSE = sqrt(mean over texels and RGB of (L - L_ref)^2) / mean(L_ref); mean reflected "
          "luminance of the crop %.4g; rounds of 16 samples per texel; seconds = samples x the "
          "one-core CPU time per sample of the whole 400x300 panel above.\n\n",
@@ -577,7 +587,7 @@ int main(int argc, char **argv) {
   const int round_spp = 16;
   for (int s = 0; s < NSTRAT; s++) {
     cv_lcd_params e = q;
-    e.seed = 1;
+    e.seed = 1 + (uint32_t)seed_add;
     e.spp = round_spp;
     set_strategy(&e, s);
     cv_lcd_accum *a;
