@@ -20,10 +20,10 @@ do for [k=1:3] {
   set title word(titles, k)
   plot f index 0 using 2:3 with linespoints lw 2 title "BRDF", \
        f index 1 using 2:3 with linespoints lw 2 title "cosine (sun NEE)", \
-       f index 3 using 2:3 with linespoints lw 2 title "BRDF+cos+window w=0.5 (old default)", \
-       f index 5 using 2:3 with linespoints lw 3 title "BRDF+cos+window+env w=e=0.25 (default)", \
-       f index 4 using 2:3 with linespoints lw 2 title "BRDF+cos+env e=0.25", \
-       f index 10 using 2:3 with linespoints lw 2 title "BRDF+window+env w=0.3 e=0.4", \
+       f index 3 using 2:3 with linespoints lw 2 title "BRDF+cos+window w=0.5 (default until 11-26)", \
+       f index 5 using 2:3 with linespoints lw 2 title "BRDF+cos+window+env w=e=0.25 (default until 11-28)", \
+       f index 9 using 2:3 with linespoints lw 3 title "BRDF+cos+env e=0.5 (default)", \
+       f index 11 using 2:3 with linespoints lw 2 title "BRDF+cos+env e=0.6", \
        f index 7 using 2:3 with linespoints lw 2 title "+interior i=0.5", \
        f index 6 using 2:3 with linespoints lw 2 dt 2 title "plain cosine (no light sampling)", \
        0.01 with lines lc rgb "black" dt 3 title "1%"
