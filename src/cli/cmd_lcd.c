@@ -342,159 +342,301 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
   return 0;
 }
 
-int cmd_lcd(int argc, char **argv) {
-  const char *in = NULL, *out = NULL, *weights = NULL, *prt_path = NULL, *cfg_path = NULL;
-  const char *brdf_s = NULL, *content_s = NULL, *sampling = NULL, *size_s = NULL;
-  int png = 0, have_light = 0, have_eye = 0, threads = 0, spp = -1, rounds = -1;
-  double lum = -1, eye[3] = {0, 0, 0}, black = -1, cr_min = -1, age = -1, pigment = -1;
-  const char *heat_s = NULL, *drive_s = NULL, *head_s = NULL, *cave_s = NULL;
-  double dt = 0.5, offset[3] = {-0.37, -0.18, 0}; /* configs/caves/cave5.json's scene_offset */
+/* cave lcd's command line, as given (before the configs are layered). */
+typedef struct lcd_opts {
+  const char *in, *out, *weights, *prt_path, *cfg_path;
+  const char *brdf_s, *content_s, *sampling, *size_s;
+  const char *heat_s, *drive_s, *head_s, *cave_s;
+  int png, have_light, have_eye, threads, spp, rounds;
+  double lum, eye[3], black, cr_min, age, pigment;
+  double dt, offset[3];
   cv_lcd_read_params rp;
-  cv_lcd_read_params_default(&rp);
   cv_lcd_veil_params vp;
-  cv_lcd_veil_params_default(&vp);
-  long long seed = -1;
+  long long seed;
   cv_light_spec spec;
-  cv_light_spec_default(&spec);
+} lcd_opts;
+
+/* Reads argv into o.  Returns -1 to go on, else the exit status (0 after
+ * --help; 2 with the message printed for a bad option). */
+static int parse_opts(int argc, char **argv, lcd_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->spp = o->rounds = -1;
+  o->lum = o->black = o->cr_min = o->age = o->pigment = -1;
+  o->dt = 0.5;
+  o->offset[0] = -0.37, o->offset[1] = -0.18, o->offset[2] = 0; /* configs/caves/cave5.json's scene_offset */
+  cv_lcd_read_params_default(&o->rp);
+  cv_lcd_veil_params_default(&o->vp);
+  o->seed = -1;
+  cv_light_spec_default(&o->spec);
   for (int i = 1, st; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
     } else if (!strcmp(a, "--png")) {
-      png = 1;
+      o->png = 1;
     } else if (!strcmp(a, "--no-sun")) {
-      spec.extract_sun = 0;
+      o->spec.extract_sun = 0;
     } else if (a[0] == '-' && !val) {
       cli_print_usage(help);
       return cli_fail("lcd", 2, "option '%s' needs a value", a);
-    } else if ((st = cli_parse_light("lcd", argc, argv, &i, &spec, &weights)) != 0) {
+    } else if ((st = cli_parse_light("lcd", argc, argv, &i, &o->spec, &o->weights)) != 0) {
       if (st < 0) return -st;
       /* the car's orientation alone is no lighting source */
-      if (strcmp(a, "--yaw") && strcmp(a, "--pitch") && strcmp(a, "--roll")) have_light = 1;
+      if (strcmp(a, "--yaw") && strcmp(a, "--pitch") && strcmp(a, "--roll")) o->have_light = 1;
     } else if (!strcmp(a, "-o")) {
-      out = argv[++i];
+      o->out = argv[++i];
     } else if (!strcmp(a, "--eye")) {
-      if (cli_parse_vec(argv[++i], 3, eye)) return cli_fail("lcd", 2, "--eye: expected x,y,z, got '%s'", val);
-      have_eye = 1;
+      if (cli_parse_vec(argv[++i], 3, o->eye)) return cli_fail("lcd", 2, "--eye: expected x,y,z, got '%s'", val);
+      o->have_eye = 1;
     } else if (!strcmp(a, "--spp")) {
-      if (cli_parse_int(argv[++i], 1, 65536, &spp)) return cli_fail("lcd", 2, "--spp: expected 1..65536, got '%s'", val);
+      if (cli_parse_int(argv[++i], 1, 65536, &o->spp)) return cli_fail("lcd", 2, "--spp: expected 1..65536, got '%s'", val);
     } else if (!strcmp(a, "--rounds")) {
-      if (cli_parse_int(argv[++i], 1, 100000, &rounds)) return cli_fail("lcd", 2, "--rounds: expected 1..100000, got '%s'", val);
+      if (cli_parse_int(argv[++i], 1, 100000, &o->rounds)) return cli_fail("lcd", 2, "--rounds: expected 1..100000, got '%s'", val);
     } else if (!strcmp(a, "--size")) {
-      size_s = argv[++i];
+      o->size_s = argv[++i];
     } else if (!strcmp(a, "--brdf")) {
-      brdf_s = argv[++i];
+      o->brdf_s = argv[++i];
     } else if (!strcmp(a, "--sampling")) {
-      sampling = argv[++i];
-      if (strcmp(sampling, "brdf") && strcmp(sampling, "cosine") && strcmp(sampling, "mis"))
-        return cli_fail("lcd", 2, "--sampling: expected brdf, cosine or mis, got '%s'", sampling);
+      o->sampling = argv[++i];
+      if (strcmp(o->sampling, "brdf") && strcmp(o->sampling, "cosine") && strcmp(o->sampling, "mis"))
+        return cli_fail("lcd", 2, "--sampling: expected brdf, cosine or mis, got '%s'", o->sampling);
     } else if (!strcmp(a, "--content")) {
-      content_s = argv[++i];
+      o->content_s = argv[++i];
     } else if (!strcmp(a, "--luminance")) {
-      if (cli_parse_double(argv[++i], &lum) || lum < 0) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 >= 0, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->lum) || o->lum < 0) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 >= 0, got '%s'", val);
     } else if (!strcmp(a, "--black")) {
-      if (cli_parse_double(argv[++i], &black) || black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->black) || o->black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
     } else if (!strcmp(a, "--cr-min")) {
-      if (cli_parse_double(argv[++i], &cr_min) || !(cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->cr_min) || !(o->cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
     } else if (!strcmp(a, "--age")) {
-      if (cli_parse_double(argv[++i], &age) || !(age >= 0) || age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->age) || !(o->age >= 0) || o->age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
     } else if (!strcmp(a, "--pigment")) {
-      if (cli_parse_double(argv[++i], &pigment) || !(pigment >= 0 && pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->pigment) || !(o->pigment >= 0 && o->pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
     } else if (!strcmp(a, "--adaptation")) {
-      if (cli_parse_double(argv[++i], &rp.adaptation) || !(rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->rp.adaptation) || !(o->rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
     } else if (!strcmp(a, "--drive")) {
-      drive_s = argv[++i];
+      o->drive_s = argv[++i];
     } else if (!strcmp(a, "--head-path")) {
-      head_s = argv[++i];
+      o->head_s = argv[++i];
     } else if (!strcmp(a, "--cave")) {
-      cave_s = argv[++i];
+      o->cave_s = argv[++i];
     } else if (!strcmp(a, "--scene-offset")) {
-      if (cli_parse_vec(argv[++i], 3, offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
+      if (cli_parse_vec(argv[++i], 3, o->offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
-      if (cv_parse_seconds(argv[++i], &dt) || !(dt >= 0.01 && dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s (0.5 or 1/2), got '%s'", val);
+      if (cv_parse_seconds(argv[++i], &o->dt) || !(o->dt >= 0.01 && o->dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s (0.5 or 1/2), got '%s'", val);
     } else if (!strcmp(a, "--glare-spc")) {
-      if (cli_parse_int(argv[++i], 2, 4096, &vp.spc) || vp.spc % 2) return cli_fail("lcd", 2, "--glare-spc: expected an even number 2..4096, got '%s'", val);
+      if (cli_parse_int(argv[++i], 2, 4096, &o->vp.spc) || o->vp.spc % 2) return cli_fail("lcd", 2, "--glare-spc: expected an even number 2..4096, got '%s'", val);
     } else if (!strcmp(a, "--heatmap")) {
-      heat_s = argv[++i];
+      o->heat_s = argv[++i];
     } else if (!strcmp(a, "--lcd-config")) {
-      cfg_path = argv[++i];
+      o->cfg_path = argv[++i];
     } else if (!strcmp(a, "--prt")) {
-      prt_path = argv[++i];
+      o->prt_path = argv[++i];
     } else if (!strcmp(a, "--seed")) {
       int s;
       if (cli_parse_int(argv[++i], 0, 2147483647, &s)) return cli_fail("lcd", 2, "--seed: expected 0..2147483647, got '%s'", val);
-      seed = s;
+      o->seed = s;
     } else if (!strcmp(a, "--threads")) {
-      if (cli_parse_int(argv[++i], 1, 1024, &threads)) return cli_fail("lcd", 2, "--threads: expected 1..1024, got '%s'", val);
+      if (cli_parse_int(argv[++i], 1, 1024, &o->threads)) return cli_fail("lcd", 2, "--threads: expected 1..1024, got '%s'", val);
     } else if (a[0] == '-') {
       cli_print_usage(help);
       return cli_fail("lcd", 2, "unknown option '%s'", a);
     } else {
-      if (in) return cli_fail("lcd", 2, "more than one input ('%s' and '%s')", in, a);
-      in = a;
+      if (o->in) return cli_fail("lcd", 2, "more than one input ('%s' and '%s')", o->in, a);
+      o->in = a;
     }
   }
-  if (!in || !out || (!have_eye && !(drive_s && head_s))) {
+  return -1;
+}
+
+/* Loads every panel's BRDF once and prints what it is (grid, albedo,
+ * MERL gaps, albedo above 1), so that a bad file fails before any long
+ * work.  Returns 0, or the exit status with the message printed. */
+static int check_brdfs(const cv_lcd_config *lc) {
+  const int multi = lc->n_panels > 1;
+  cv_err err;
+  cv_err_clear(&err);
+  for (int i = 0; i < lc->n_panels; i++) {
+    cv_brdf_report brep;
+    cv_brdf *brdf = NULL;
+    if (cv_brdf_load(lc->panels[i].brdf, &brdf, &brep, &err))
+      return cli_fail("lcd", 1, "%s%s%s", multi ? lc->panels[i].name : "", multi ? ": " : "", err.msg);
+    printf("brdf%s%s: %s, %dx%dx%d grid; directional albedo max %.4f at %.0f deg",
+           multi ? " " : "", multi ? lc->panels[i].name : "", brdf->source, brdf->n_theta,
+           brdf->n_theta, brdf->n_phi, brep.albedo_max, brep.albedo_max_deg);
+    if (brep.merl_missing)
+      printf("; MERL: %llu missing samples read as 0 (%llu grid points on them)",
+             (unsigned long long)brep.merl_missing, (unsigned long long)brep.merl_missing_used);
+    printf("\n");
+    if (brep.albedo_violations)
+      printf("warning: brdf: directional albedo above 1 at %d view angles (from %.0f deg): the "
+             "table reflects more light than it receives\n",
+             brep.albedo_violations, brep.first_violation_deg);
+    cv_brdf_destroy(brdf);
+  }
+  return 0;
+}
+
+/* Every panel's readability figures, printed, then its files (EXR, sidecar
+ * JSON, heat map, optional PNG): one panel: -o, -o.json, --heatmap (or
+ * <stem>.cr.png); several: <stem>.<name>.exr, .exr.json, .cr.png
+ * (--heatmap FILE: <FILE stem>.<name>.png).  Returns the exit status. */
+static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_layout *L,
+                         const cv_lcd_panels *ps, const cv_lcd_accum *all, const cv_image *content,
+                         const cv_lcd_key *key, double render_s, const double *sun_deg) {
+  const int multi = lc->n_panels > 1;
+  int rc = 1;
+  cv_err err;
+  cv_err_clear(&err);
+  /* Every panel's figures and files; the files are written only once all
+   * panels' figures are computed. */
+  cv_lcd_accum *crop[CV_LCD_MAX_PANELS] = {NULL};
+  cv_lcd_readability rd[CV_LCD_MAX_PANELS];
+  int ok = 1;
+  memset(rd, 0, sizeof rd);
+  for (int i = 0; i < L->n && ok; i++) {
+    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
+    if (panel_figures(ps, all, i, &q, &crop[i], &rd[i], &err))
+      ok = 0, rc = cli_fail("lcd", 1, "readability of %s: %s", lc->panels[i].name, err.msg);
+  }
+  for (int i = 0; i < L->n && ok; i++) {
+    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
+    const cv_lcd_accum *acc = crop[i];
+    const int64_t *d = acc->data;
+    int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
+    cv_lcd_error e;
+    cv_lcd_accum_error(acc, &e);
+    const char *nm = lc->panels[i].name;
+    printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
+           "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
+           "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
+           nm, (long long)d[CV_LCD_ACC_SPP], 100 * e.rel_rms,
+           rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0,
+           rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0, (long long)d[CV_LCD_ACC_SUNLIT],
+           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_CLAMPED],
+           (long long)d[CV_LCD_ACC_NONFINITE], (long long)d[CV_LCD_ACC_BEHIND]);
+    char sun_txt[64];
+    if (sun_deg[i] < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
+    else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg[i]);
+    printf("lcd %s: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil "
+           "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
+           nm, q.white, q.black, rd[i].L_r.value, rd[i].L_r.se, rd[i].L_v.value, rd[i].L_v.se,
+           o->vp.age, o->vp.pigment, sun_txt);
+    printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
+           "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+           nm, rd[i].cr_mean.value, rd[i].cr_mean.se, q.cr_min, 100 * rd[i].frac_ok.value,
+           100 * rd[i].frac_ok.se, rd[i].cr_worst, rd[i].vl.value, rd[i].vl.se, rd[i].L_a.value,
+           rd[i].dL_threshold);
+  }
+  /* files: one panel: -o, -o->json, --heatmap (or <stem>.cr.png); several:
+   * <stem>.<name>.exr, .exr.json, .cr.png (--heatmap FILE: <FILE stem>.<name>.png) */
+  for (int i = 0; i < L->n && ok; i++) {
+    const char *nm = lc->panels[i].name;
+    const int stem = (int)strlen(o->out) - 4;
+    char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
+    if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, o->out, nm);
+    else snprintf(exrp, sizeof exrp, "%s", o->out);
+    snprintf(side, sizeof side, "%s.json", exrp);
+    if (o->heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(o->heat_s) - 4, o->heat_s, nm);
+    else if (o->heat_s) snprintf(heatp, sizeof heatp, "%s", o->heat_s);
+    else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
+    cv_image *pc = NULL, *img = NULL;
+    cv_lcd_error e;
+    cv_lcd_accum_error(crop[i], &e);
+    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
+    int st = cv_image_create(L->w[i], L->h[i], 3, &pc);
+    if (st) {
+      ok = 0, rc = cli_fail("lcd", 1, "out of memory");
+      break;
+    }
+    for (int y = 0; y < L->h[i]; y++)
+      memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L->y0[i] + y), 3 * (size_t)L->w[i] * sizeof(float));
+    if (cv_lcd_accum_to_image(crop[i], pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
+        write_sidecar(side, crop[i], &e, key, render_s, ps->brdf[i]->source, &rd[i], &q, &o->vp, &err) ||
+        write_heatmap(heatp, &rd[i], &err)) {
+      ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
+    } else if (o->png) {
+      char pngp[CV_PATH_MAX + 40];
+      snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
+      cv_preview_stats pst;
+      if (cv_preview_write_png(pngp, img, 0, &pst, &err)) ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg);
+      else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
+    }
+    if (ok) printf("wrote %s, %s and %s\n", exrp, side, heatp);
+    cv_image_destroy(img);
+    cv_image_destroy(pc);
+  }
+  for (int i = 0; i < L->n; i++) {
+    cv_lcd_readability_free(&rd[i]);
+    cv_lcd_accum_destroy(crop[i]);
+  }
+  return ok ? 0 : rc;
+}
+
+int cmd_lcd(int argc, char **argv) {
+  lcd_opts o;
+  const int parsed = parse_opts(argc, argv, &o);
+  if (parsed >= 0) return parsed;
+  if (!o.in || !o.out || (!o.have_eye && !(o.drive_s && o.head_s))) {
     cli_print_usage(help);
     return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z (or --drive with --head-path) and -o FILE are required");
   }
-  if (head_s && !drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
-  if (drive_s && !cli_has_ext(out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", out);
-  if (!drive_s && !cli_has_ext(out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", out);
-  if (cave_s) {
+  if (o.head_s && !o.drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
+  if (o.drive_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", o.out);
+  if (!o.drive_s && !cli_has_ext(o.out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o.out);
+  if (o.cave_s) {
     cv_cave cave;
     cv_err cerr;
-    if (cv_cave_load(cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
-    memcpy(offset, cave.scene_offset, sizeof offset);
+    if (cv_cave_load(o.cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
+    memcpy(o.offset, cave.scene_offset, sizeof o.offset);
   }
   cv_err err;
   cv_err_clear(&err);
   cv_lcd_config lc;
   cv_lcd_config_default(&lc);
   /* the scene config's "lcd" block, then --lcd-config, then the options */
-  if (cli_has_ext(in, ".json") && cv_lcd_config_load_scene(in, &lc, &err))
+  if (cli_has_ext(o.in, ".json") && cv_lcd_config_load_scene(o.in, &lc, &err))
     return cli_fail("lcd", 1, "%s", err.msg);
-  if (cfg_path && cv_lcd_config_load(cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  if (spp > 0) lc.spp = spp;
-  if (rounds > 0) lc.rounds = rounds;
-  if (size_s && (sscanf(size_s, "%dx%d", &lc.width, &lc.height) != 2 || lc.width < 1 ||
+  if (o.cfg_path && cv_lcd_config_load(o.cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  if (o.spp > 0) lc.spp = o.spp;
+  if (o.rounds > 0) lc.rounds = o.rounds;
+  if (o.size_s && (sscanf(o.size_s, "%dx%d", &lc.width, &lc.height) != 2 || lc.width < 1 ||
                  lc.height < 1 || lc.width > 16384 || lc.height > 16384))
-    return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", size_s);
-  if (brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", brdf_s);
-  if (content_s) {
-    FILE *cf = fopen(content_s, "rb");
-    if (!cf) return cli_fail("lcd", 1, "--content: %s: cannot open", content_s);
+    return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", o.size_s);
+  if (o.brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", o.brdf_s);
+  if (o.content_s) {
+    FILE *cf = fopen(o.content_s, "rb");
+    if (!cf) return cli_fail("lcd", 1, "--content: %s: cannot open", o.content_s);
     fclose(cf);
-    snprintf(lc.content, sizeof lc.content, "%s", content_s);
+    snprintf(lc.content, sizeof lc.content, "%s", o.content_s);
   }
-  if (lum >= 0) lc.content_luminance = lum;
-  if (seed >= 0) lc.seed = (uint32_t)seed;
-  if (sampling) lc.brdf_fraction = !strcmp(sampling, "brdf") ? 1.0 : !strcmp(sampling, "cosine") ? 0.0 : 0.9;
-  if (threads > 0) omp_set_num_threads(threads);
-  if (black >= 0) lc.black_luminance = black;
-  if (cr_min >= 1) lc.cr_min = cr_min;
-  if (age >= 0) lc.age = age;
-  if (pigment >= 0) lc.pigment = pigment;
-  if (lum >= 0 || black >= 0) { /* the options set the white and black of every panel */
+  if (o.lum >= 0) lc.content_luminance = o.lum;
+  if (o.seed >= 0) lc.seed = (uint32_t)o.seed;
+  if (o.sampling) lc.brdf_fraction = !strcmp(o.sampling, "brdf") ? 1.0 : !strcmp(o.sampling, "cosine") ? 0.0 : 0.9;
+  if (o.threads > 0) omp_set_num_threads(o.threads);
+  if (o.black >= 0) lc.black_luminance = o.black;
+  if (o.cr_min >= 1) lc.cr_min = o.cr_min;
+  if (o.age >= 0) lc.age = o.age;
+  if (o.pigment >= 0) lc.pigment = o.pigment;
+  if (o.lum >= 0 || o.black >= 0) { /* the options set the white and black of every panel */
     for (int i = 0; i < lc.n_panels; i++) {
-      if (lum >= 0) lc.panels[i].content_luminance = lum;
-      if (black >= 0) lc.panels[i].black_luminance = black;
+      if (o.lum >= 0) lc.panels[i].content_luminance = o.lum;
+      if (o.black >= 0) lc.panels[i].black_luminance = o.black;
     }
   }
   if (cv_lcd_config_panels(&lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  rp.white = lc.panels[0].content_luminance;
-  rp.black = lc.panels[0].black_luminance;
-  rp.cr_min = lc.cr_min;
-  vp.age = lc.age;
-  vp.pigment = lc.pigment;
+  o.rp.white = lc.panels[0].content_luminance;
+  o.rp.black = lc.panels[0].black_luminance;
+  o.rp.cr_min = lc.cr_min;
+  o.vp.age = lc.age;
+  o.vp.pigment = lc.pigment;
   for (int i = 0; i < lc.n_panels; i++) {
-    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
+    const cv_lcd_read_params q = panel_rp(&o.rp, &lc, i);
     if (cv_lcd_read_params_check(&q, &err))
       return cli_fail("lcd", 2, "panel '%s': %s", lc.panels[i].name, err.msg);
   }
-  if (heat_s && !cli_has_ext(heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", heat_s);
-  const int multi = lc.n_panels > 1;
+  if (o.heat_s && !cli_has_ext(o.heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", o.heat_s);
 
   int rc = 1;
   cv_scene_config cfg;
@@ -509,42 +651,26 @@ int cmd_lcd(int argc, char **argv) {
   cv_lcd_progress prog;
   memset(&prog, 0, sizeof prog);
   cv_image *content = NULL;
-  int wst = cli_apply_weights("lcd", &spec, weights);
+  int wst = cli_apply_weights("lcd", &o.spec, o.weights);
   if (wst) return wst;
   /* The BRDFs first: a bad file fails before any long work. */
-  for (int i = 0; i < lc.n_panels; i++) {
-    cv_brdf_report brep;
-    cv_brdf *brdf = NULL;
-    if (cv_brdf_load(lc.panels[i].brdf, &brdf, &brep, &err))
-      return cli_fail("lcd", 1, "%s%s%s", multi ? lc.panels[i].name : "", multi ? ": " : "", err.msg);
-    printf("brdf%s%s: %s, %dx%dx%d grid; directional albedo max %.4f at %.0f deg",
-           multi ? " " : "", multi ? lc.panels[i].name : "", brdf->source, brdf->n_theta,
-           brdf->n_theta, brdf->n_phi, brep.albedo_max, brep.albedo_max_deg);
-    if (brep.merl_missing)
-      printf("; MERL: %llu missing samples read as 0 (%llu grid points on them)",
-             (unsigned long long)brep.merl_missing, (unsigned long long)brep.merl_missing_used);
-    printf("\n");
-    if (brep.albedo_violations)
-      printf("warning: brdf: directional albedo above 1 at %d view angles (from %.0f deg): the "
-             "table reflects more light than it receives\n",
-             brep.albedo_violations, brep.first_violation_deg);
-    cv_brdf_destroy(brdf);
-  }
-  if (cli_has_ext(in, ".json")) {
-    if (cv_scene_config_load(in, &cfg, &err)) {
+  const int bst = check_brdfs(&lc);
+  if (bst) return bst;
+  if (cli_has_ext(o.in, ".json")) {
+    if (cv_scene_config_load(o.in, &cfg, &err)) {
       rc = cli_fail("lcd", 1, "%s", err.msg);
       goto done;
     }
-    if (!have_light && cfg.light.kind != CV_LIGHT_NONE) {
-      double y = spec.yaw_deg, pi = spec.pitch_deg, r = spec.roll_deg;
-      spec = cfg.light;
-      if (y != 0) spec.yaw_deg = y;
-      if (pi != 0) spec.pitch_deg = pi;
-      if (r != 0) spec.roll_deg = r;
-      have_light = 1;
+    if (!o.have_light && cfg.light.kind != CV_LIGHT_NONE) {
+      double y = o.spec.yaw_deg, pi = o.spec.pitch_deg, r = o.spec.roll_deg;
+      o.spec = cfg.light;
+      if (y != 0) o.spec.yaw_deg = y;
+      if (pi != 0) o.spec.pitch_deg = pi;
+      if (r != 0) o.spec.roll_deg = r;
+      o.have_light = 1;
     }
-    if (prt_path) {
-      if (cv_prt_read(prt_path, &p, &err)) {
+    if (o.prt_path) {
+      if (cv_prt_read(o.prt_path, &p, &err)) {
         rc = cli_fail("lcd", 1, "%s", err.msg);
         goto done;
       }
@@ -577,17 +703,17 @@ int cmd_lcd(int argc, char **argv) {
       cv_mesh_destroy(m);
       m = NULL;
     }
-  } else if (cv_prt_read(in, &p, &err)) {
+  } else if (cv_prt_read(o.in, &p, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
-  if (!drive_s && (!have_light || spec.kind == CV_LIGHT_NONE)) {
+  if (!o.drive_s && (!o.have_light || o.spec.kind == CV_LIGHT_NONE)) {
     rc = cli_fail("lcd", 2, "no lighting: give --env, --env-constant or --sky");
     goto done;
   }
   double t0 = cv_now_seconds();
   if (cv_prt_to_mesh(p, &m) || cv_tracer_create(m, &tr, &err)) {
-    rc = cli_fail("lcd", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
+    rc = cli_fail("lcd", 1, "%s: %s", o.in, err.msg[0] ? err.msg : "out of memory");
     goto done;
   }
   cv_lcd_layout L;
@@ -608,16 +734,16 @@ int cmd_lcd(int argc, char **argv) {
   par.spp = lc.spp;
   par.brdf_fraction = lc.brdf_fraction;
   /* brdf / cosine alone: no window or environment samples (mis: the default shares) */
-  if (sampling && strcmp(sampling, "mis")) par.window_fraction = par.env_fraction = 0;
+  if (o.sampling && strcmp(o.sampling, "mis")) par.window_fraction = par.env_fraction = 0;
   par.seed = lc.seed;
-  if (drive_s) {
-    drive_job dj = {drive_s, head_s, out, {offset[0], offset[1], offset[2]},
-                    {eye[0], eye[1], eye[2]}, dt};
-    rc = lcd_drive(&dj, p, tr, ps, &lc, &par, &rp, &vp);
+  if (o.drive_s) {
+    drive_job dj = {o.drive_s, o.head_s, o.out, {o.offset[0], o.offset[1], o.offset[2]},
+                    {o.eye[0], o.eye[1], o.eye[2]}, o.dt};
+    rc = lcd_drive(&dj, p, tr, ps, &lc, &par, &o.rp, &o.vp);
     goto done;
   }
-  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
-      cv_lcd_light_from_scene(sl, &spec, p, tr, lc.sun_samples, lc.env_width, &light, &err)) {
+  if (cv_scene_light_build(&o.spec, (int)p->bands, &sl, &err) ||
+      cv_lcd_light_from_scene(sl, &o.spec, p, tr, lc.sun_samples, lc.env_width, &light, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }
@@ -631,12 +757,12 @@ int cmd_lcd(int argc, char **argv) {
            pn->center[2], pn->normal[0], pn->normal[1], pn->normal[2], L.w[i], L.h[i]);
   }
   double clamp = cv_lcd_panels_clamp(ps, light, lc.clamp);
-  const float ef[3] = {(float)eye[0], (float)eye[1], (float)eye[2]};
+  const float ef[3] = {(float)o.eye[0], (float)o.eye[1], (float)o.eye[2]};
   cv_lcd_key key;
   uint64_t setup = cv_lcd_panels_setup_hash(ps, &par, clamp, lc.eye_tolerance, p->meta.input_hash);
   if (cv_lcd_key_make(ef, lc.eye_tolerance, light->hash, setup, &key)) {
-    rc = cli_fail("lcd", 2, "--eye: %g,%g,%g is not representable with tolerance %g", eye[0],
-                  eye[1], eye[2], lc.eye_tolerance);
+    rc = cli_fail("lcd", 2, "--eye: %g,%g,%g is not representable with tolerance %g", o.eye[0],
+                  o.eye[1], o.eye[2], lc.eye_tolerance);
     goto done;
   }
   cv_lcd_key_eye(&key, lc.eye_tolerance, par.eye);
@@ -646,7 +772,7 @@ int cmd_lcd(int argc, char **argv) {
   }
   cv_lcd_figure lv[CV_LCD_MAX_PANELS];
   double sun_deg[CV_LCD_MAX_PANELS];
-  if (cv_lcd_panels_veils(ps, light, par.eye, &vp, lv, sun_deg)) {
+  if (cv_lcd_panels_veils(ps, light, par.eye, &o.vp, lv, sun_deg)) {
     rc = cli_fail("lcd", 1, "readability: the eye is at a panel's centre");
     goto done;
   }
@@ -671,89 +797,7 @@ int cmd_lcd(int argc, char **argv) {
            lc.rounds, par.spp, render_s, setup_s, omp_get_max_threads(),
            render_s > 0 ? rays / render_s / 1e6 : 0.0, par.eye[0], par.eye[1], par.eye[2]);
   }
-  /* Every panel's figures and files; the files are written only once all
-   * panels' figures are computed. */
-  cv_lcd_accum *crop[CV_LCD_MAX_PANELS] = {NULL};
-  cv_lcd_readability rd[CV_LCD_MAX_PANELS];
-  int ok = 1;
-  memset(rd, 0, sizeof rd);
-  for (int i = 0; i < L.n && ok; i++) {
-    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
-    if (panel_figures(ps, prog.acc, i, &q, &crop[i], &rd[i], &err))
-      ok = 0, rc = cli_fail("lcd", 1, "readability of %s: %s", lc.panels[i].name, err.msg);
-  }
-  for (int i = 0; i < L.n && ok; i++) {
-    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
-    const cv_lcd_accum *acc = crop[i];
-    const int64_t *d = acc->data;
-    int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
-    cv_lcd_error e;
-    cv_lcd_accum_error(acc, &e);
-    const char *nm = lc.panels[i].name;
-    printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
-           "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
-           "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
-           nm, (long long)d[CV_LCD_ACC_SPP], 100 * e.rel_rms,
-           rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0,
-           rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0, (long long)d[CV_LCD_ACC_SUNLIT],
-           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_CLAMPED],
-           (long long)d[CV_LCD_ACC_NONFINITE], (long long)d[CV_LCD_ACC_BEHIND]);
-    char sun_txt[64];
-    if (sun_deg[i] < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
-    else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg[i]);
-    printf("lcd %s: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil "
-           "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
-           nm, q.white, q.black, rd[i].L_r.value, rd[i].L_r.se, rd[i].L_v.value, rd[i].L_v.se,
-           vp.age, vp.pigment, sun_txt);
-    printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
-           "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
-           nm, rd[i].cr_mean.value, rd[i].cr_mean.se, q.cr_min, 100 * rd[i].frac_ok.value,
-           100 * rd[i].frac_ok.se, rd[i].cr_worst, rd[i].vl.value, rd[i].vl.se, rd[i].L_a.value,
-           rd[i].dL_threshold);
-  }
-  /* files: one panel: -o, -o.json, --heatmap (or <stem>.cr.png); several:
-   * <stem>.<name>.exr, .exr.json, .cr.png (--heatmap FILE: <FILE stem>.<name>.png) */
-  for (int i = 0; i < L.n && ok; i++) {
-    const char *nm = lc.panels[i].name;
-    const int stem = (int)strlen(out) - 4;
-    char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
-    if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, out, nm);
-    else snprintf(exrp, sizeof exrp, "%s", out);
-    snprintf(side, sizeof side, "%s.json", exrp);
-    if (heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(heat_s) - 4, heat_s, nm);
-    else if (heat_s) snprintf(heatp, sizeof heatp, "%s", heat_s);
-    else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
-    cv_image *pc = NULL, *img = NULL;
-    cv_lcd_error e;
-    cv_lcd_accum_error(crop[i], &e);
-    const cv_lcd_read_params q = panel_rp(&rp, &lc, i);
-    int st = cv_image_create(L.w[i], L.h[i], 3, &pc);
-    if (st) {
-      ok = 0, rc = cli_fail("lcd", 1, "out of memory");
-      break;
-    }
-    for (int y = 0; y < L.h[i]; y++)
-      memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L.y0[i] + y), 3 * (size_t)L.w[i] * sizeof(float));
-    if (cv_lcd_accum_to_image(crop[i], pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
-        write_sidecar(side, crop[i], &e, &key, render_s, ps->brdf[i]->source, &rd[i], &q, &vp, &err) ||
-        write_heatmap(heatp, &rd[i], &err)) {
-      ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
-    } else if (png) {
-      char pngp[CV_PATH_MAX + 40];
-      snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
-      cv_preview_stats pst;
-      if (cv_preview_write_png(pngp, img, 0, &pst, &err)) ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg);
-      else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
-    }
-    if (ok) printf("wrote %s, %s and %s\n", exrp, side, heatp);
-    cv_image_destroy(img);
-    cv_image_destroy(pc);
-  }
-  for (int i = 0; i < L.n; i++) {
-    cv_lcd_readability_free(&rd[i]);
-    cv_lcd_accum_destroy(crop[i]);
-  }
-  if (ok) rc = 0;
+  rc = report_panels(&o, &lc, &L, ps, prog.acc, content, &key, render_s, sun_deg);
 done:
   cv_image_destroy(content);
   cv_lcd_progress_free(&prog);
