@@ -60,88 +60,103 @@ static void help(FILE *f) {
           "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");
 }
 
-int cmd_bake(int argc, char **argv) {
-  const char *in = NULL, *out = NULL;
-  const char *bands_s = NULL, *rays_s = NULL, *bounces_s = NULL, *seed_s = NULL,
-             *budget_s = NULL, *tess_s = NULL;
-  int force = 0, quiet = 0, threads = 0, cosine_only = -1, tail = -1;
-  double view_budget = 0;
+/* cave bake's command line, as given. */
+typedef struct bake_opts {
+  const char *in, *out;
+  const char *bands_s, *rays_s, *bounces_s, *seed_s, *budget_s, *tess_s;
+  int force, quiet, threads, cosine_only, tail;
+  double view_budget, spread;
   cv_light_spec lspec;
-  cv_light_spec_default(&lspec);
-  const char *weights = NULL;
-  double spread = -1;
-  cli_place_opts place = {.given = 0};
-  cv_placement_default(&place.p);
+  const char *weights;
+  cli_place_opts place;
+} bake_opts;
+
+/* Reads argv into o.  Returns -1 to go on, else the exit status (0 after
+ * --help; 2 with the message printed for a bad option). */
+static int parse_opts(int argc, char **argv, bake_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->cosine_only = o->tail = -1;
+  o->spread = -1;
+  cv_light_spec_default(&o->lspec);
+  o->place.given = 0;
+  cv_placement_default(&o->place.p);
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     int pr, prc = 0;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
-    } else if ((pr = cli_place_option("bake", argv, argc, &i, &place, &prc)) != 0) {
+    } else if ((pr = cli_place_option("bake", argv, argc, &i, &o->place, &prc)) != 0) {
       if (pr < 0) return prc;
     } else if (!strcmp(a, "--force")) {
-      force = 1;
+      o->force = 1;
     } else if (!strcmp(a, "--quiet")) {
-      quiet = 1;
+      o->quiet = 1;
     } else if (!strcmp(a, "--cosine-only")) {
-      cosine_only = 1;
+      o->cosine_only = 1;
     } else if (!strcmp(a, "-o") && v) {
-      out = argv[++i];
+      o->out = argv[++i];
     } else if (!strcmp(a, "--bands") && v) {
-      bands_s = argv[++i];
+      o->bands_s = argv[++i];
     } else if (!strcmp(a, "--rays") && v) {
-      rays_s = argv[++i];
-    } else if ((pr = cli_parse_light("bake", argc, argv, &i, &lspec, &weights)) != 0) {
+      o->rays_s = argv[++i];
+    } else if ((pr = cli_parse_light("bake", argc, argv, &i, &o->lspec, &o->weights)) != 0) {
       if (pr < 0) return -pr;
     } else if (!strcmp(a, "--view-budget") && v) {
-      if (cli_parse_double(argv[++i], &view_budget) || !(view_budget > 0) || view_budget > 1)
+      if (cli_parse_double(argv[++i], &o->view_budget) || !(o->view_budget > 0) || o->view_budget > 1)
         return cli_fail("bake", 2, "--view-budget: expected a relative error in (0, 1], got '%s'", v);
     } else if (!strcmp(a, "--tail") && v) {
-      if (!strcmp(v, "on")) tail = 1;
-      else if (!strcmp(v, "off")) tail = 0;
+      if (!strcmp(v, "on")) o->tail = 1;
+      else if (!strcmp(v, "off")) o->tail = 0;
       else return cli_fail("bake", 2, "--tail: expected on or off, got '%s'", v);
       i++;
     } else if (!strcmp(a, "--bounces") && v) {
-      bounces_s = argv[++i];
+      o->bounces_s = argv[++i];
     } else if (!strcmp(a, "--spread") && v) {
-      if (cli_parse_double(argv[++i], &spread) || spread < 0 || spread > 1)
+      if (cli_parse_double(argv[++i], &o->spread) || o->spread < 0 || o->spread > 1)
         return cli_fail("bake", 2, "--spread: expected 0..1, got '%s'", v);
     } else if (!strcmp(a, "--seed") && v) {
-      seed_s = argv[++i];
+      o->seed_s = argv[++i];
     } else if (!strcmp(a, "--budget") && v) {
-      budget_s = argv[++i];
+      o->budget_s = argv[++i];
     } else if (!strcmp(a, "--tess") && v) {
-      tess_s = argv[++i];
+      o->tess_s = argv[++i];
     } else if (!strcmp(a, "--threads") && v) {
-      if (cli_parse_int(argv[++i], 1, 1024, &threads))
+      if (cli_parse_int(argv[++i], 1, 1024, &o->threads))
         return cli_fail("bake", 2, "--threads: expected 1..1024, got '%s'", v);
     } else if (a[0] == '-' && a[1]) {
       cli_print_usage(help);
       return cli_fail("bake", 2, "unknown or incomplete option '%s'", a);
-    } else if (!in) {
-      in = a;
+    } else if (!o->in) {
+      o->in = a;
     } else {
-      return cli_fail("bake", 2, "more than one input ('%s' and '%s')", in, a);
+      return cli_fail("bake", 2, "more than one input ('%s' and '%s')", o->in, a);
     }
   }
-  if (!in || !out) {
+  return -1;
+}
+
+int cmd_bake(int argc, char **argv) {
+  bake_opts o;
+  const int parsed = parse_opts(argc, argv, &o);
+  if (parsed >= 0) return parsed;
+  if (!o.in || !o.out) {
     cli_print_usage(help);
     return cli_fail("bake", 2, "an input and -o FILE.prt are required");
   }
-  if (cli_check_output("bake", "-o", out)) return 1;
+  if (cli_check_output("bake", "-o", o.out)) return 1;
   cv_scene_config cfg;
   cv_err err;
   cv_err_clear(&err);
-  if (!strcmp(in, "default")) {
+  if (!strcmp(o.in, "default")) {
     cv_scene_config_default(&cfg);
-  } else if (cli_has_ext(in, ".json")) {
-    if (cv_scene_config_load(in, &cfg, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  } else if (cli_has_ext(o.in, ".json")) {
+    if (cv_scene_config_load(o.in, &cfg, &err)) return cli_fail("bake", 1, "%s", err.msg);
   } else {
     cv_scene_config_default(&cfg);
     cfg.mesh_is_cabin = 0;
-    snprintf(cfg.mesh_path, sizeof cfg.mesh_path, "%s", in);
-    snprintf(cfg.source, sizeof cfg.source, "%s", in);
+    snprintf(cfg.mesh_path, sizeof cfg.mesh_path, "%s", o.in);
+    snprintf(cfg.source, sizeof cfg.source, "%s", o.in);
   }
   int rc = 1;
   cv_mesh *m = NULL;
@@ -149,54 +164,54 @@ int cmd_bake(int argc, char **argv) {
   cv_prt *prt = NULL;
   cv_scene_light *sl = NULL;
   /* Command-line overrides. */
-  if (bands_s) {
-    if (!strcmp(bands_s, "auto")) cfg.bands = 0;
-    else if (cli_parse_int(bands_s, 2, 8, &cfg.bands)) {
-      rc = cli_fail("bake", 2, "--bands: expected 2..8 or auto, got '%s'", bands_s);
+  if (o.bands_s) {
+    if (!strcmp(o.bands_s, "auto")) cfg.bands = 0;
+    else if (cli_parse_int(o.bands_s, 2, 8, &cfg.bands)) {
+      rc = cli_fail("bake", 2, "--bands: expected 2..8 or auto, got '%s'", o.bands_s);
       goto done;
     }
   }
-  if (rays_s) {
-    if (!strcmp(rays_s, "auto")) cfg.rays = 0;
-    else if (cli_parse_int(rays_s, 1, 1 << 24, &cfg.rays)) {
-      rc = cli_fail("bake", 2, "--rays: expected 1..16777216 or auto, got '%s'", rays_s);
+  if (o.rays_s) {
+    if (!strcmp(o.rays_s, "auto")) cfg.rays = 0;
+    else if (cli_parse_int(o.rays_s, 1, 1 << 24, &cfg.rays)) {
+      rc = cli_fail("bake", 2, "--rays: expected 1..16777216 or auto, got '%s'", o.rays_s);
       goto done;
     }
   }
-  if (bounces_s && cli_parse_int(bounces_s, 0, 16, &cfg.bounces)) {
-    rc = cli_fail("bake", 2, "--bounces: expected 0..16, got '%s'", bounces_s);
+  if (o.bounces_s && cli_parse_int(o.bounces_s, 0, 16, &cfg.bounces)) {
+    rc = cli_fail("bake", 2, "--bounces: expected 0..16, got '%s'", o.bounces_s);
     goto done;
   }
-  if (seed_s) {
+  if (o.seed_s) {
     int s;
-    if (cli_parse_int(seed_s, 0, 2147483647, &s)) {
-      rc = cli_fail("bake", 2, "--seed: expected 0..2147483647, got '%s'", seed_s);
+    if (cli_parse_int(o.seed_s, 0, 2147483647, &s)) {
+      rc = cli_fail("bake", 2, "--seed: expected 0..2147483647, got '%s'", o.seed_s);
       goto done;
     }
     cfg.seed = (uint32_t)s;
   }
-  if (budget_s && (cli_parse_double(budget_s, &cfg.error_budget) || cfg.error_budget <= 0 ||
+  if (o.budget_s && (cli_parse_double(o.budget_s, &cfg.error_budget) || cfg.error_budget <= 0 ||
                    cfg.error_budget > 1)) {
-    rc = cli_fail("bake", 2, "--budget: expected a relative error in (0, 1], got '%s'", budget_s);
+    rc = cli_fail("bake", 2, "--budget: expected a relative error in (0, 1], got '%s'", o.budget_s);
     goto done;
   }
-  if (tess_s && cli_parse_int(tess_s, 1, 64, &cfg.cabin_tess)) {
-    rc = cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", tess_s);
+  if (o.tess_s && cli_parse_int(o.tess_s, 1, 64, &cfg.cabin_tess)) {
+    rc = cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", o.tess_s);
     goto done;
   }
-  if ((rc = cli_place_apply("bake", &place, &cfg)) != 0) goto done;
+  if ((rc = cli_place_apply("bake", &o.place, &cfg)) != 0) goto done;
   rc = 1;
-  if (threads > 0) omp_set_num_threads(threads);
-  if (spread >= 0) cfg.spread = spread;
-  if (cosine_only >= 0) cfg.window_sampling = !cosine_only;
-  if (tail >= 0) cfg.tail = tail;
+  if (o.threads > 0) omp_set_num_threads(o.threads);
+  if (o.spread >= 0) cfg.spread = o.spread;
+  if (o.cosine_only >= 0) cfg.window_sampling = !o.cosine_only;
+  if (o.tail >= 0) cfg.tail = o.tail;
 
-  if (lspec.kind != CV_LIGHT_NONE) {
-    if ((rc = cli_apply_weights("bake", &lspec, weights)) != 0) goto done;
+  if (o.lspec.kind != CV_LIGHT_NONE) {
+    if ((rc = cli_apply_weights("bake", &o.lspec, o.weights)) != 0) goto done;
     rc = 1;
-    cfg.light = lspec;
+    cfg.light = o.lspec;
   }
-  if (view_budget > 0 && cfg.light.kind == CV_LIGHT_NONE) {
+  if (o.view_budget > 0 && cfg.light.kind == CV_LIGHT_NONE) {
     rc = cli_fail("bake", 2, "--view-budget: needs the lighting (--env, --env-constant or --sky, "
                   "or the config's lighting)");
     goto done;
@@ -207,7 +222,7 @@ int cmd_bake(int argc, char **argv) {
   }
   cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
                        .seed = cfg.seed, .spread = (float)cfg.spread,
-                       .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = quiet};
+                       .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = o.quiet};
   float est_error = -1.0f;
   if (cfg.light.kind != CV_LIGHT_NONE) {
     /* The scene's lighting (8 bands: the auto modes need them): reported here (sun found or not, its energy) and
@@ -218,7 +233,7 @@ int cmd_bake(int argc, char **argv) {
     }
     cv_scene_light_print(stdout, sl);
   }
-  if (view_budget > 0) {
+  if (o.view_budget > 0) {
     /* Image-space pick in the driver's view (prt/auto_view.h). */
     if (cv_tracer_create(m, &tr, &err)) {
       rc = cli_fail("bake", 1, "%s", err.msg);
@@ -229,7 +244,7 @@ int cmd_bake(int argc, char **argv) {
     cv_view_cam cam;
     cv_view_cam_driver(&cam);
     cv_view_auto va;
-    if (cv_auto_view_select(tr, sl, &cam, view_budget, 1024, cfg.seed, bands_s ? cfg.bands : 0, -1,
+    if (cv_auto_view_select(tr, sl, &cam, o.view_budget, 1024, cfg.seed, o.bands_s ? cfg.bands : 0, -1,
                             &va, &err)) {
       rc = cli_fail("bake", 1, "%s", err.msg);
       goto done;
@@ -242,7 +257,7 @@ int cmd_bake(int argc, char **argv) {
              va.cand[k].split, 100 * va.cand[k].median, 100 * va.cand[k].p90, va.cand[k].mean_ratio);
     printf("view auto: picked %d bands with --split %d: median %.1f%%, p90 %.1f%%, mean ratio %.3f "
            "(budget: median %.1f%%, p90 %.1f%%)%s\n", va.bands, va.split, 100 * va.median,
-           100 * va.p90, va.mean_ratio, 100 * view_budget, 300 * view_budget,
+           100 * va.p90, va.mean_ratio, 100 * o.view_budget, 300 * o.view_budget,
            va.met_budget ? "" : " -- budget NOT met, the lowest median used");
     if (va.split > 0)
       printf("view auto: relight with `cave shade --split %d` / `cave render --split %d` for this "
@@ -278,8 +293,8 @@ int cmd_bake(int argc, char **argv) {
     est_error = (float)ar.est_error;
   }
   uint64_t want = cv_prt_input_hash(m, &bp), have;
-  if (!force && cv_prt_read_input_hash(out, &have, NULL) == CV_OK && have == want) {
-    printf("%s is up to date (input hash %016llx); use --force to bake again\n", out,
+  if (!o.force && cv_prt_read_input_hash(o.out, &have, NULL) == CV_OK && have == want) {
+    printf("%s is up to date (input hash %016llx); use --force to bake again\n", o.out,
            (unsigned long long)want);
     rc = 0;
     goto done;
@@ -313,11 +328,11 @@ int cmd_bake(int argc, char **argv) {
          bs.total_seconds, (unsigned long long)bs.total_rays,
          bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,
          (unsigned long long)bs.empty_fans);
-  if (cv_prt_write(out, prt, &err)) {
+  if (cv_prt_write(o.out, prt, &err)) {
     rc = cli_fail("bake", 1, "%s", err.msg);
     goto done;
   }
-  printf("wrote %s (input hash %016llx)\n", out, (unsigned long long)prt->meta.input_hash);
+  printf("wrote %s (input hash %016llx)\n", o.out, (unsigned long long)prt->meta.input_hash);
   rc = 0;
 done:
   cv_prt_destroy(prt);
