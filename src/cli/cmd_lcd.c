@@ -478,100 +478,107 @@ static int check_brdfs(const cv_lcd_config *lc) {
   return 0;
 }
 
-/* Every panel's readability figures, printed, then its files (EXR, sidecar
- * JSON, heat map, optional PNG): one panel: -o, -o.json, --heatmap (or
+/* Prints a panel's figures: samples, the reflection's error, where the
+ * rays went, the reflection and veil, CR and VL. */
+static void print_panel(const char *nm, const cv_lcd_accum *acc, const cv_lcd_error *e,
+                        const cv_lcd_read_params *q, const cv_lcd_readability *rd,
+                        const cv_lcd_veil_params *vp, double sun_deg) {
+  const int64_t *d = acc->data;
+  int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
+  printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
+         "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
+         "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
+         nm, (long long)d[CV_LCD_ACC_SPP], 100 * e->rel_rms,
+         rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0,
+         rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0, (long long)d[CV_LCD_ACC_SUNLIT],
+         (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_CLAMPED],
+         (long long)d[CV_LCD_ACC_NONFINITE], (long long)d[CV_LCD_ACC_BEHIND]);
+  char sun_txt[64];
+  if (sun_deg < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
+  else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg);
+  printf("lcd %s: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil "
+         "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
+         nm, q->white, q->black, rd->L_r.value, rd->L_r.se, rd->L_v.value, rd->L_v.se, vp->age,
+         vp->pigment, sun_txt);
+  printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
+         "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+         nm, rd->cr_mean.value, rd->cr_mean.se, q->cr_min, 100 * rd->frac_ok.value,
+         100 * rd->frac_ok.se, rd->cr_worst, rd->vl.value, rd->vl.se, rd->L_a.value,
+         rd->dL_threshold);
+}
+
+/* Writes panel i's files: one panel: -o, -o.json, --heatmap (or
  * <stem>.cr.png); several: <stem>.<name>.exr, .exr.json, .cr.png
- * (--heatmap FILE: <FILE stem>.<name>.png).  Returns the exit status. */
+ * (--heatmap FILE: <FILE stem>.<name>.png); with --png the tone-mapped PNG
+ * too.  Returns 0, or the exit status with the message printed. */
+static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const cv_lcd_layout *L,
+                             int i, const cv_image *content, const cv_lcd_accum *crop,
+                             const cv_lcd_error *e, const cv_lcd_key *key, double render_s,
+                             const char *brdf_source, const cv_lcd_readability *rd,
+                             const cv_lcd_read_params *q) {
+  const int stem = (int)strlen(o->out) - 4;
+  char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
+  if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, o->out, nm);
+  else snprintf(exrp, sizeof exrp, "%s", o->out);
+  snprintf(side, sizeof side, "%s.json", exrp);
+  if (o->heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(o->heat_s) - 4, o->heat_s, nm);
+  else if (o->heat_s) snprintf(heatp, sizeof heatp, "%s", o->heat_s);
+  else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
+  cv_err err;
+  cv_err_clear(&err);
+  cv_image *pc = NULL, *img = NULL;
+  if (cv_image_create(L->w[i], L->h[i], 3, &pc)) return cli_fail("lcd", 1, "out of memory");
+  for (int y = 0; y < L->h[i]; y++)
+    memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L->y0[i] + y), 3 * (size_t)L->w[i] * sizeof(float));
+  int rc = 0;
+  if (cv_lcd_accum_to_image(crop, pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
+      write_sidecar(side, crop, e, key, render_s, brdf_source, rd, q, &o->vp, &err) ||
+      write_heatmap(heatp, rd, &err)) {
+    rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
+  } else if (o->png) {
+    char pngp[CV_PATH_MAX + 40];
+    snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
+    cv_preview_stats pst;
+    if (cv_preview_write_png(pngp, img, 0, &pst, &err)) rc = cli_fail("lcd", 1, "%s", err.msg);
+    else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
+  }
+  if (!rc) printf("wrote %s, %s and %s\n", exrp, side, heatp);
+  cv_image_destroy(img);
+  cv_image_destroy(pc);
+  return rc;
+}
+
+/* Every panel's readability figures, then (all of them computed and
+ * printed) its files.  Returns the exit status. */
 static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_layout *L,
                          const cv_lcd_panels *ps, const cv_lcd_accum *all, const cv_image *content,
                          const cv_lcd_key *key, double render_s, const double *sun_deg) {
   const int multi = lc->n_panels > 1;
-  int rc = 1;
+  int rc = 0;
   cv_err err;
   cv_err_clear(&err);
-  /* Every panel's figures and files; the files are written only once all
-   * panels' figures are computed. */
   cv_lcd_accum *crop[CV_LCD_MAX_PANELS] = {NULL};
   cv_lcd_readability rd[CV_LCD_MAX_PANELS];
-  int ok = 1;
+  cv_lcd_read_params q[CV_LCD_MAX_PANELS];
+  cv_lcd_error e[CV_LCD_MAX_PANELS];
   memset(rd, 0, sizeof rd);
-  for (int i = 0; i < L->n && ok; i++) {
-    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
-    if (panel_figures(ps, all, i, &q, &crop[i], &rd[i], &err))
-      ok = 0, rc = cli_fail("lcd", 1, "readability of %s: %s", lc->panels[i].name, err.msg);
+  for (int i = 0; i < L->n && !rc; i++) {
+    q[i] = panel_rp(&o->rp, lc, i);
+    if (panel_figures(ps, all, i, &q[i], &crop[i], &rd[i], &err))
+      rc = cli_fail("lcd", 1, "readability of %s: %s", lc->panels[i].name, err.msg);
+    else
+      cv_lcd_accum_error(crop[i], &e[i]);
   }
-  for (int i = 0; i < L->n && ok; i++) {
-    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
-    const cv_lcd_accum *acc = crop[i];
-    const int64_t *d = acc->data;
-    int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
-    cv_lcd_error e;
-    cv_lcd_accum_error(acc, &e);
-    const char *nm = lc->panels[i].name;
-    printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
-           "rays: %.1f%% interior, %.1f%% environment, %.2f%% lost; sun reached %lld of %lld texel "
-           "rounds; clamped %lld, non-finite %lld, behind the panel %lld\n",
-           nm, (long long)d[CV_LCD_ACC_SPP], 100 * e.rel_rms,
-           rays ? 100.0 * d[CV_LCD_ACC_HITS] / rays : 0.0, rays ? 100.0 * d[CV_LCD_ACC_ENV] / rays : 0.0,
-           rays ? 100.0 * d[CV_LCD_ACC_LOST] / rays : 0.0, (long long)d[CV_LCD_ACC_SUNLIT],
-           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_CLAMPED],
-           (long long)d[CV_LCD_ACC_NONFINITE], (long long)d[CV_LCD_ACC_BEHIND]);
-    char sun_txt[64];
-    if (sun_deg[i] < 0) snprintf(sun_txt, sizeof sun_txt, "sun not in sight");
-    else snprintf(sun_txt, sizeof sun_txt, "sun in sight at %.0f deg from the panel", sun_deg[i]);
-    printf("lcd %s: content white %.4g, black %.4g cd/m2; reflected L_r %.4g +- %.2g cd/m2; veil "
-           "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
-           nm, q.white, q.black, rd[i].L_r.value, rd[i].L_r.se, rd[i].L_v.value, rd[i].L_v.se,
-           o->vp.age, o->vp.pigment, sun_txt);
-    printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
-           "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
-           nm, rd[i].cr_mean.value, rd[i].cr_mean.se, q.cr_min, 100 * rd[i].frac_ok.value,
-           100 * rd[i].frac_ok.se, rd[i].cr_worst, rd[i].vl.value, rd[i].vl.se, rd[i].L_a.value,
-           rd[i].dL_threshold);
-  }
-  /* files: one panel: -o, -o->json, --heatmap (or <stem>.cr.png); several:
-   * <stem>.<name>.exr, .exr.json, .cr.png (--heatmap FILE: <FILE stem>.<name>.png) */
-  for (int i = 0; i < L->n && ok; i++) {
-    const char *nm = lc->panels[i].name;
-    const int stem = (int)strlen(o->out) - 4;
-    char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
-    if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, o->out, nm);
-    else snprintf(exrp, sizeof exrp, "%s", o->out);
-    snprintf(side, sizeof side, "%s.json", exrp);
-    if (o->heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(o->heat_s) - 4, o->heat_s, nm);
-    else if (o->heat_s) snprintf(heatp, sizeof heatp, "%s", o->heat_s);
-    else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
-    cv_image *pc = NULL, *img = NULL;
-    cv_lcd_error e;
-    cv_lcd_accum_error(crop[i], &e);
-    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
-    int st = cv_image_create(L->w[i], L->h[i], 3, &pc);
-    if (st) {
-      ok = 0, rc = cli_fail("lcd", 1, "out of memory");
-      break;
-    }
-    for (int y = 0; y < L->h[i]; y++)
-      memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L->y0[i] + y), 3 * (size_t)L->w[i] * sizeof(float));
-    if (cv_lcd_accum_to_image(crop[i], pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
-        write_sidecar(side, crop[i], &e, key, render_s, ps->brdf[i]->source, &rd[i], &q, &o->vp, &err) ||
-        write_heatmap(heatp, &rd[i], &err)) {
-      ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
-    } else if (o->png) {
-      char pngp[CV_PATH_MAX + 40];
-      snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
-      cv_preview_stats pst;
-      if (cv_preview_write_png(pngp, img, 0, &pst, &err)) ok = 0, rc = cli_fail("lcd", 1, "%s", err.msg);
-      else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
-    }
-    if (ok) printf("wrote %s, %s and %s\n", exrp, side, heatp);
-    cv_image_destroy(img);
-    cv_image_destroy(pc);
-  }
+  for (int i = 0; i < L->n && !rc; i++)
+    print_panel(lc->panels[i].name, crop[i], &e[i], &q[i], &rd[i], &o->vp, sun_deg[i]);
+  for (int i = 0; i < L->n && !rc; i++)
+    rc = write_panel_files(o, multi, lc->panels[i].name, L, i, content, crop[i], &e[i], key,
+                           render_s, ps->brdf[i]->source, &rd[i], &q[i]);
   for (int i = 0; i < L->n; i++) {
     cv_lcd_readability_free(&rd[i]);
     cv_lcd_accum_destroy(crop[i]);
   }
-  return ok ? 0 : rc;
+  return rc;
 }
 
 int cmd_lcd(int argc, char **argv) {
