@@ -5,6 +5,7 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "core/fast_trig.h"
 #include "core/hash.h"
@@ -964,54 +965,71 @@ static void sort_by_key(const uint16_t *key, size_t n, uint32_t *ord, uint32_t *
   }
 }
 
-/* Traces rays ord[0..n) in packets: opaque closest hits, then the window
- * crossings of the rays that escaped.  kind: 1 interior, 2 environment,
- * 3 lost (escaped without crossing a window). */
+/* This thread's CPU seconds (the phase_seconds hook). */
+static double thread_seconds(void) {
+  struct timespec t;
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t)) return 0;
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* The phase_seconds hook: with ph non-NULL, the thread time since the last
+ * mark (*tm) is added to ph[k] (k == CV_LCD_PHASES: a mark only). */
+static inline void phase_mark(double *ph, int k, double *tm) {
+  if (!ph) return;
+  const double t = thread_seconds();
+  if (k < CV_LCD_PHASES) ph[k] += t - *tm;
+  *tm = t;
+}
+
 /* Window crossings of the escaped rays esc[0..ne) (indices into the
- * sorted arrays): kind 2 (environment) or 3 (lost). */
-static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, int ne) {
+ * sorted arrays), in packets of up to CV_RT_PACKET_MAX: kind 2
+ * (environment) or 3 (lost). */
+static void trace_windows(const cv_rt *rt, block_buf *b, const uint32_t *esc, size_t ne) {
   float po[3 * CV_RT_PACKET_MAX] = {0}, pd[3 * CV_RT_PACKET_MAX] = {0};
   uint8_t pf[CV_RT_PACKET_MAX];
-  for (int l = 0; l < ne; l++) {
-    memcpy(po + 3 * l, b->sorg + 3 * (size_t)esc[l], 3 * sizeof(float));
-    memcpy(pd + 3 * l, b->sdir + 3 * (size_t)esc[l], 3 * sizeof(float));
+  for (size_t e0 = 0; e0 < ne; e0 += CV_RT_PACKET_MAX) {
+    const int m = ne - e0 < CV_RT_PACKET_MAX ? (int)(ne - e0) : CV_RT_PACKET_MAX;
+    for (int l = 0; l < m; l++) {
+      memcpy(po + 3 * l, b->sorg + 3 * (size_t)esc[e0 + l], 3 * sizeof(float));
+      memcpy(pd + 3 * l, b->sdir + 3 * (size_t)esc[e0 + l], 3 * sizeof(float));
+    }
+    cv_rt_window_any_packet(rt, m, po, pd, 0.0f, 1, pf); /* crossing or not: no hit record */
+    for (int l = 0; l < m; l++) b->kind[esc[e0 + l]] = pf[l] ? 2 : 3;
   }
-  cv_rt_window_any_packet(rt, ne, po, pd, 0.0f, 1, pf); /* crossing or not: no hit record */
-  for (int l = 0; l < ne; l++) b->kind[esc[l]] = pf[l] ? 2 : 3;
 }
 
 /* Traces the n sorted rays in consecutive packets: opaque closest hits,
  * then the window crossings of the rays that escaped (still in direction
- * order, in packets of their own).  kind: 1 interior, 2 environment, 3 lost
- * (escaped without crossing a window). */
-static void trace_sorted(const cv_rt *rt, int has_windows, block_buf *b, size_t n) {
-  cv_hit ph[CV_RT_PACKET_MAX];
+ * order, in packets of their own; their indices go to b->tmp, free once
+ * order_rays has permuted the rays).  kind: 1 interior, 2 environment,
+ * 3 lost (escaped without crossing a window).  The two passes are marked
+ * as phases of the phase_seconds hook (ph, tm: see phase_mark). */
+static void trace_sorted(const cv_rt *rt, int has_windows, block_buf *b, size_t n, double *ph,
+                         double *tm) {
+  cv_hit hit[CV_RT_PACKET_MAX];
   uint8_t pf[CV_RT_PACKET_MAX];
-  uint32_t esc[CV_RT_PACKET_MAX];
-  int ne = 0;
+  uint32_t *esc = b->tmp;
+  size_t ne = 0;
   for (size_t i0 = 0; i0 < n; i0 += CV_RT_PACKET_MAX) {
     const int m = n - i0 < CV_RT_PACKET_MAX ? (int)(n - i0) : CV_RT_PACKET_MAX;
-    cv_rt_intersect_packet(rt, m, b->sorg + 3 * i0, b->sdir + 3 * i0, NULL, 0.0f, INFINITY, 1, ph, pf);
+    cv_rt_intersect_packet(rt, m, b->sorg + 3 * i0, b->sdir + 3 * i0, NULL, 0.0f, INFINITY, 1, hit, pf);
     for (int l = 0; l < m; l++) {
       const size_t r = i0 + (size_t)l;
       if (pf[l]) {
-        b->htri[r] = ph[l].tri;
-        b->huv[2 * r] = ph[l].u;
-        b->huv[2 * r + 1] = ph[l].v;
-        b->ht[r] = ph[l].t;
+        b->htri[r] = hit[l].tri;
+        b->huv[2 * r] = hit[l].u;
+        b->huv[2 * r + 1] = hit[l].v;
+        b->ht[r] = hit[l].t;
         b->kind[r] = 1;
         continue;
       }
       b->kind[r] = 2;
-      if (!has_windows) continue;
-      esc[ne++] = (uint32_t)r;
-      if (ne == CV_RT_PACKET_MAX) {
-        trace_windows(rt, b, esc, ne);
-        ne = 0;
-      }
+      if (has_windows) esc[ne++] = (uint32_t)r;
     }
   }
-  if (ne > 0) trace_windows(rt, b, esc, ne);
+  phase_mark(ph, CV_LCD_PHASE_CLOSEST, tm);
+  trace_windows(rt, b, esc, ne);
+  phase_mark(ph, CV_LCD_PHASE_WINDOWS, tm);
 }
 
 /* Bilinear lookup of a lat-long table in float (the layout and filter of
@@ -1646,6 +1664,8 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
 #pragma omp parallel num_threads(nthreads) reduction(+ : cnt[:CV_LCD_ACC_HEADER])
   {
     cv_rt_thread_init();
+    double phase_local[CV_LCD_PHASES] = {0}, tm = 0;
+    double *ph = p->phase_seconds ? phase_local : NULL;
     block_buf bb;
     int ok = block_buf_alloc(&bb, (size_t)BLOCK * BLOCK * (size_t)chunk) == CV_OK;
     if (!ok) {
@@ -1661,18 +1681,28 @@ int cv_lcd_render_round(const cv_lcd_gather *g, const cv_lcd_light *l, const cv_
       const int erx = (int)((2 * tx0 + bw) * ENV_RX / (2 * w)), ery = (int)((2 * ty0 + bh) * ENV_RY / (2 * h));
       const cv_env_sampler *esm = R.ereg && R.ereg[0] ? R.ereg[ery * ENV_RX + erx] : R.esr;
       win_rects wr;
+      phase_mark(ph, CV_LCD_PHASES, &tm);
       block_setup(&R, &bb, tx0, ty0, bw, bh, &wr, cnt);
       sun_next_event(&R, &bb, tx0, ty0, bw, bh, cnt);
+      phase_mark(ph, CV_LCD_PHASE_SETUP, &tm);
       for (int j0 = 0; j0 < spp; j0 += chunk) {
         const int nj = spp - j0 < chunk ? spp - j0 : chunk;
         const size_t n = generate_rays(&R, &bb, tx0, ty0, bw, bh, &wr, esm, j0, nj, cnt);
+        phase_mark(ph, CV_LCD_PHASE_GENERATE, &tm);
         order_rays(&bb, n);
-        trace_sorted(g->rt, g->has_windows, &bb, n);
+        phase_mark(ph, CV_LCD_PHASE_ORDER, &tm);
+        trace_sorted(g->rt, g->has_windows, &bb, n, ph, &tm);
         shade_rays(&R, &bb, n, &wr, esm, cnt);
+        phase_mark(ph, CV_LCD_PHASE_SHADE, &tm);
       }
       accumulate_block(&R, &bb, bw * bh, data, aw, ah);
+      phase_mark(ph, CV_LCD_PHASE_SHADE, &tm);
     }
     block_buf_free(&bb);
+    if (ph) {
+#pragma omp critical(cv_lcd_phase_sum)
+      for (int k = 0; k < CV_LCD_PHASES; k++) p->phase_seconds[k] += ph[k];
+    }
   }
   round_free(&R);
   if (status != CV_OK) return status;

@@ -200,7 +200,23 @@ typedef struct cv_lcd_params {
    * buffer texel (x, y) is stored at ray_log[6*((y*acc->w + x)*spp + j)]
    * (origin, direction); holds 6*acc->w*acc->h*spp floats. */
   float *ray_log;
+  /* Benchmark hook: when non-NULL, the thread CPU seconds of each phase of
+   * the round (enum cv_lcd_phase, summed over threads) are ADDED to
+   * phase_seconds[0 .. CV_LCD_PHASES-1]; the values the round writes are the
+   * same with or without it. */
+  double *phase_seconds;
 } cv_lcd_params;
+
+/* The phases of a round, as cv_lcd_params.phase_seconds splits its time. */
+enum cv_lcd_phase {
+  CV_LCD_PHASE_SETUP,    /* per-texel state of each block and the sun's shadow rays */
+  CV_LCD_PHASE_GENERATE, /* sample points, directions, densities, sort keys */
+  CV_LCD_PHASE_ORDER,    /* the sort by direction and the permutation into that order */
+  CV_LCD_PHASE_CLOSEST,  /* closest-hit packets (and copying their hits out) */
+  CV_LCD_PHASE_WINDOWS,  /* window-crossing packets of the rays that escaped */
+  CV_LCD_PHASE_SHADE,    /* MIS weights, radiance reads, fixed-point sums */
+  CV_LCD_PHASES
+};
 
 /* The environment strategy's visibility tables made softer and wider, in
  * place: n tables of w x h lat-long cells (row-major, rows from the zenith),

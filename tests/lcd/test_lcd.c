@@ -763,6 +763,23 @@ static void test_determinism(void **state) {
     p2.threads = 2;
     for (uint32_t r = 3; r-- > 0;) assert_int_equal(cv_lcd_render_round(s.g, l, &p2, r, B2), CV_OK);
     assert_memory_equal(A2->data, B2->data, A2->n * sizeof(int64_t));
+    { /* the phase_seconds hook times the phases and changes no value */
+      double ph[CV_LCD_PHASES];
+      for (int k = 0; k < CV_LCD_PHASES; k++) ph[k] = 0;
+      cv_lcd_params pt = p2;
+      pt.phase_seconds = ph;
+      cv_lcd_accum *P2;
+      assert_int_equal(cv_lcd_accum_create(p.w, p.h, clamp, &P2), CV_OK);
+      for (uint32_t r = 0; r < 3; r++) assert_int_equal(cv_lcd_render_round(s.g, l, &pt, r, P2), CV_OK);
+      assert_memory_equal(A2->data, P2->data, A2->n * sizeof(int64_t));
+      print_message("phases of 3 rounds (s): setup %.4f generate %.4f order %.4f closest %.4f "
+                    "windows %.4f shade %.4f\n", ph[0], ph[1], ph[2], ph[3], ph[4], ph[5]);
+      for (int k = 0; k < CV_LCD_PHASES; k++) assert_true(isfinite(ph[k]) && ph[k] >= 0);
+      /* rays were generated, traced (some escaped through a window) and shaded */
+      assert_true(ph[CV_LCD_PHASE_GENERATE] > 0 && ph[CV_LCD_PHASE_CLOSEST] > 0);
+      assert_true(ph[CV_LCD_PHASE_WINDOWS] > 0 && ph[CV_LCD_PHASE_SHADE] > 0);
+      cv_lcd_accum_destroy(P2);
+    }
     cv_lcd_params q2 = p2;
     q2.x0 = p.w / 2;
     for (uint32_t r = 0; r < 3; r++) assert_int_equal(cv_lcd_render_round(s.g, l, &q2, r, H2), CV_OK);
