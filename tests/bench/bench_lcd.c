@@ -22,7 +22,11 @@
  *    hook), one thread: cv_rt_intersect one ray at a time in texel order,
  *    and cv_rt_intersect_packet over the same rays grouped and sorted as the
  *    gather does (16 x 16 texel blocks, by the same direction key, coherent
- *    packets of 16; the sort itself not timed).
+ *    packets of 16; the sort itself not timed).  Then the default round's
+ *    time by phase (gather.h, cv_lcd_params.phase_seconds, in rounds of
+ *    their own) and the bound the tracing alone puts on the ratio to the
+ *    bare packet loop: the gather's closest-hit and window-crossing packets
+ *    against the bare loop, as if everything else took no time.
  * 3. Error: relative RMSE against a reference of --ref-spp samples per
  *    texel (the default strategy, another seed) on a centred crop of the
  *    panel (texels of the full 400 x 300 panel, bit-identical to a full
@@ -93,6 +97,30 @@ static int default_strategy(void) {
         strategies[s].i == d.interior_fraction)
       return s;
   return -1;
+}
+
+/* Where the default round's time goes, and the bound that puts on the
+ * ratio to the bare packet loop: the gather traces its closest hits and
+ * its escaped rays' window crossings whatever its sampling costs. */
+static void print_phases(const double *ph, double sum, double t_round, double t_pack, int reps) {
+  static const char *names[CV_LCD_PHASES] = {
+      "setup (texel state, sun shadow rays)",
+      "generate (sample points, directions, densities, sort keys)",
+      "order (sort by direction, permutation)",
+      "closest-hit packets",
+      "window-crossing packets of the escaped rays",
+      "shade (MIS weights, radiance reads, fixed-point sums)"};
+  printf("### Where the default round's time goes (thread CPU seconds, median of %d rounds timed by "
+         "the phase_seconds hook)\n\n| phase | CPU seconds | share |\n|---|---|---|\n",
+         reps);
+  for (int k = 0; k < CV_LCD_PHASES; k++)
+    printf("| %s | %.3f | %.1f%% |\n", names[k], ph[k], 100 * ph[k] / sum);
+  printf("| sum of the phases (the round without the hook: %.3f) | %.3f | 100%% |\n\n", t_round, sum);
+  const double tr = ph[CV_LCD_PHASE_CLOSEST] + ph[CV_LCD_PHASE_WINDOWS];
+  printf("bound on the gather / bare packet loop ratio if setup, generation, ordering and shading "
+         "cost nothing: bare packet loop / (closest-hit + window-crossing packets) = %.3f / %.3f = "
+         "%.2f; with the window crossings free as well: %.2f\n\n",
+         t_pack, tr, t_pack / tr, t_pack / ph[CV_LCD_PHASE_CLOSEST]);
 }
 
 /* The strategies step 1 times: all, or with --speed the default and the
@@ -465,6 +493,19 @@ int main(int argc, char **argv) {
     t_all[r] = cv_now_seconds() - t0;
   }
   double tall = bench_median(t_all, reps);
+  /* the default round's phases, in rounds of their own (the hook's clock
+   * reads are not in the timed rounds above) */
+  double ph_run[CV_LCD_PHASES][15], ph_med[CV_LCD_PHASES], ph_sum = 0;
+  p.threads = 1;
+  for (int r = 0; r < reps; r++) {
+    double ph[CV_LCD_PHASES] = {0};
+    cv_lcd_accum_clear(acc);
+    p.phase_seconds = ph;
+    cv_lcd_render_round(g, light, &p, (uint32_t)r, acc);
+    p.phase_seconds = NULL;
+    for (int k = 0; k < CV_LCD_PHASES; k++) ph_run[k][r] = ph[k];
+  }
+  for (int k = 0; k < CV_LCD_PHASES; k++) ph_sum += ph_med[k] = bench_median(ph_run[k], reps);
   const double samples = (double)W * H * S;
   printf("## One %dx%d rough image, %d samples per texel (median [range] of %d; thread CPU "
          "seconds, wall in parentheses)\n\n",
@@ -490,6 +531,7 @@ int main(int argc, char **argv) {
          "them, coherent packets of %d) | 1 | %.3f [%.3f, %.3f] | | %zu | | %.2f | %.2f | 1.00 "
          "|\n\n",
          CV_RT_PACKET_MAX, tpk, tp_lo, tp_hi, npk, npk / tpk / 1e6, tb / tpk);
+  print_phases(ph_med, ph_sum, tg[DEFAULT_STRAT], tpk, reps);
   /* the buffers' FNV-1a digests: two builds that must agree bit for bit
    * print the same */
   printf("buffer digests (round: FNV-1a of the accumulation buffer):");
