@@ -11,6 +11,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli/cli.h"
 #include "core/parse.h"
@@ -49,7 +51,8 @@ static void help(FILE *f) {
           "--illuminance LUX|auto] [--no-sun],\n"
           "--env-constant R,G,B, --sky TURBIDITY,ELEVATION,AZIMUTH (as cave shade); a\n"
           "scene.json's own lighting is used when none is given.\n\n"
-          "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance)\n"
+          "  --eye x,y,z       driver's eye, car frame, metres (quantised by lcd.eye_tolerance);\n"
+          "                    inside the scene's bounding box (+ 5 cm) and in front of every panel\n"
           "  --spp N           samples per texel per round (default 40)\n"
           "  --rounds R        rounds (default 1)\n"
           "  --size WxH        panel texels (default 400 wide, height from the panel's aspect)\n"
@@ -60,18 +63,21 @@ static void help(FILE *f) {
           "                    the rest 90%% BRDF / 10%% cosine; the sun by next-event\n"
           "                    estimation in all three)\n"
           "  --content FILE    .png (sRGB) or .exr shown on the panel (default: a test pattern)\n"
-          "  --luminance CD    content white luminance in cd/m^2 (default 500)\n"
+          "  --luminance CD    content white luminance in cd/m^2, 0..1e6 (default 500)\n"
           "  --lcd-config FILE JSON {\"lcd\": {...}} with these settings (docs/scene-config.md);\n"
-          "                    a scene.json's own \"lcd\" block is read first\n"
+          "                    a scene.json's own \"lcd\" block is read first; --size, --brdf,\n"
+          "                    --content, --luminance and --black override the block and\n"
+          "                    every panel's own value\n"
+          "  --seed S          sample sequence seed, 0..4294967295 (default lcd.seed: 1)\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
           "Readability (docs/readability.md; each figure with its standard error):\n"
-          "  --black CD        panel black luminance in cd/m^2 (default 0.002 x white)\n"
-          "  --cr-min R        required contrast ratio (default 3, ISO 15008)\n"
+          "  --black CD        panel black luminance in cd/m^2, 0..1e6 (default 0.002 x white)\n"
+          "  --cr-min R        required contrast ratio, 1..1000 (default 3, ISO 15008)\n"
           "  --age YEARS       driver's age for the CIE 146 disability glare (default 40)\n"
           "  --pigment P       eye pigmentation 0 (dark) .. 1 (light blue) (default 0.5)\n"
           "  --glare-spc N     samples per cell of the 48 x 96 glare integral (even, default 4)\n"
-          "  --adaptation CD   adaptation luminance for the visibility level (default: the\n"
+          "  --adaptation CD   adaptation luminance for the visibility level, 0..1e6 (default: the\n"
           "                    panel background seen, black + reflection + veil)\n"
           "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
           "A whole drive, offline (no MPI):\n"
@@ -356,6 +362,38 @@ typedef struct lcd_opts {
   cv_light_spec spec;
 } lcd_opts;
 
+/* --seed: an integer 0..4294967295 (lcd.seed's range), digits only. */
+static int parse_seed(const char *s, long long *out) {
+  if (!s || !*s || strlen(s) > 10) return -1;
+  long long v = 0;
+  for (const char *c = s; *c; c++) {
+    if (*c < '0' || *c > '9') return -1;
+    v = 10 * v + (*c - '0');
+  }
+  if (v > 4294967295LL) return -1;
+  *out = v;
+  return 0;
+}
+
+/* --size WxH: the whole string, two integers 1..16384, digits only
+ * (no sign, no fraction, nothing after). */
+static int parse_wxh(const char *s, int *w, int *h) {
+  long v[2] = {0, 0};
+  const char *c = s;
+  for (int k = 0; k < 2; k++) {
+    if (*c < '0' || *c > '9') return -1;
+    for (; *c >= '0' && *c <= '9'; c++) {
+      v[k] = 10 * v[k] + (*c - '0');
+      if (v[k] > 16384) return -1;
+    }
+    if (k == 0 && *c++ != 'x') return -1;
+  }
+  if (*c || v[0] < 1 || v[1] < 1) return -1;
+  *w = (int)v[0];
+  *h = (int)v[1];
+  return 0;
+}
+
 /* Reads argv into o.  Returns -1 to go on, else the exit status (0 after
  * --help; 2 with the message printed for a bad option). */
 static int parse_opts(int argc, char **argv, lcd_opts *o) {
@@ -404,17 +442,17 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
     } else if (!strcmp(a, "--content")) {
       o->content_s = argv[++i];
     } else if (!strcmp(a, "--luminance")) {
-      if (cli_parse_double(argv[++i], &o->lum) || o->lum < 0) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 >= 0, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->lum) || !(o->lum >= 0 && o->lum <= CV_LCD_LUMINANCE_MAX)) return cli_fail("lcd", 2, "--luminance: expected cd/m^2 in 0..1e6, got '%s'", val);
     } else if (!strcmp(a, "--black")) {
-      if (cli_parse_double(argv[++i], &o->black) || o->black < 0) return cli_fail("lcd", 2, "--black: expected cd/m^2 >= 0, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->black) || !(o->black >= 0 && o->black <= CV_LCD_LUMINANCE_MAX)) return cli_fail("lcd", 2, "--black: expected cd/m^2 in 0..1e6, got '%s'", val);
     } else if (!strcmp(a, "--cr-min")) {
-      if (cli_parse_double(argv[++i], &o->cr_min) || !(o->cr_min >= 1)) return cli_fail("lcd", 2, "--cr-min: expected a ratio >= 1, got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->cr_min) || !(o->cr_min >= 1 && o->cr_min <= CV_LCD_CR_MAX)) return cli_fail("lcd", 2, "--cr-min: expected a ratio in 1..1000, got '%s'", val);
     } else if (!strcmp(a, "--age")) {
       if (cli_parse_double(argv[++i], &o->age) || !(o->age >= 0) || o->age > 150) return cli_fail("lcd", 2, "--age: expected years in 0..150, got '%s'", val);
     } else if (!strcmp(a, "--pigment")) {
       if (cli_parse_double(argv[++i], &o->pigment) || !(o->pigment >= 0 && o->pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
     } else if (!strcmp(a, "--adaptation")) {
-      if (cli_parse_double(argv[++i], &o->rp.adaptation) || !(o->rp.adaptation >= 0)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 >= 0 (0 = automatic), got '%s'", val);
+      if (cli_parse_double(argv[++i], &o->rp.adaptation) || !(o->rp.adaptation >= 0 && o->rp.adaptation <= CV_LCD_LUMINANCE_MAX)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 in 0..1e6 (0 = automatic), got '%s'", val);
     } else if (!strcmp(a, "--drive")) {
       o->drive_s = argv[++i];
     } else if (!strcmp(a, "--head-path")) {
@@ -422,7 +460,8 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
     } else if (!strcmp(a, "--cave")) {
       o->cave_s = argv[++i];
     } else if (!strcmp(a, "--scene-offset")) {
-      if (cli_parse_vec(argv[++i], 3, o->offset)) return cli_fail("lcd", 2, "--scene-offset: expected x,y,z, got '%s'", val);
+      if (cli_parse_vec(argv[++i], 3, o->offset) || fabs(o->offset[0]) > 1e4 || fabs(o->offset[1]) > 1e4 || fabs(o->offset[2]) > 1e4)
+        return cli_fail("lcd", 2, "--scene-offset: expected x,y,z in metres (each within +-1e4), got '%s'", val);
     } else if (!strcmp(a, "--dt")) {
       if (cv_parse_seconds(argv[++i], &o->dt) || !(o->dt >= 0.01 && o->dt <= 3600)) return cli_fail("lcd", 2, "--dt: expected 0.01..3600 s (0.5 or 1/2), got '%s'", val);
     } else if (!strcmp(a, "--glare-spc")) {
@@ -434,9 +473,7 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
     } else if (!strcmp(a, "--prt")) {
       o->prt_path = argv[++i];
     } else if (!strcmp(a, "--seed")) {
-      int s;
-      if (cli_parse_int(argv[++i], 0, 2147483647, &s)) return cli_fail("lcd", 2, "--seed: expected 0..2147483647, got '%s'", val);
-      o->seed = s;
+      if (parse_seed(argv[++i], &o->seed)) return cli_fail("lcd", 2, "--seed: expected 0..4294967295 (as lcd.seed), got '%s'", val);
     } else if (!strcmp(a, "--threads")) {
       if (cli_parse_int(argv[++i], 1, 1024, &o->threads)) return cli_fail("lcd", 2, "--threads: expected 1..1024, got '%s'", val);
     } else if (a[0] == '-') {
@@ -478,6 +515,38 @@ static int check_brdfs(const cv_lcd_config *lc) {
   return 0;
 }
 
+/* --eye against the scene, before any rendering: inside the mesh's bounding
+ * box grown by CV_LCD_EYE_MARGIN, and in front of every panel (a panel is
+ * flat: an eye behind its plane sees its back from every texel, and the
+ * figures would be those of a black panel).  Only this offline command
+ * refuses such an eye; the service (`cave run`) renders whatever head it is
+ * given.  Returns 0, or 2 with the message printed. */
+#define CV_LCD_EYE_MARGIN 0.05
+static int check_eye(const double eye[3], const cv_lcd_layout *L, const cv_lcd_config *lc,
+                     const cv_mesh *m) {
+  float lo[3], hi[3];
+  cv_mesh_bounds(m, lo, hi);
+  for (int k = 0; k < 3; k++)
+    if (!(eye[k] >= lo[k] - CV_LCD_EYE_MARGIN && eye[k] <= hi[k] + CV_LCD_EYE_MARGIN))
+      return cli_fail("lcd", 2,
+                      "--eye: %g,%g,%g is outside the scene (bounding box %.3f..%.3f, %.3f..%.3f, "
+                      "%.3f..%.3f m, grown by %g m): expected the driver's eye inside the car",
+                      eye[0], eye[1], eye[2], lo[0], hi[0], lo[1], hi[1], lo[2], hi[2],
+                      CV_LCD_EYE_MARGIN);
+  for (int i = 0; i < L->n; i++) {
+    const cv_lcd_panel *pn = &L->rect[i];
+    double d = 0;
+    for (int k = 0; k < 3; k++) d += (eye[k] - pn->center[k]) * pn->normal[k];
+    if (!(d > 1e-6))
+      return cli_fail("lcd", 2,
+                      "--eye: %g,%g,%g is behind panel '%s' (%.3f m behind its plane, normal "
+                      "%.3f,%.3f,%.3f): it would see the panel's back; expected an eye in front of it",
+                      eye[0], eye[1], eye[2], lc->panels[i].name, -d, pn->normal[0], pn->normal[1],
+                      pn->normal[2]);
+  }
+  return 0;
+}
+
 /* Prints a panel's figures: samples, the reflection's error, where the
  * rays went, the reflection and veil, CR and VL. */
 static void print_panel(const char *nm, const cv_lcd_accum *acc, const cv_lcd_error *e,
@@ -511,19 +580,71 @@ static void print_panel(const char *nm, const cv_lcd_accum *acc, const cv_lcd_er
  * <stem>.cr.png); several: <stem>.<name>.exr, .exr.json, .cr.png
  * (--heatmap FILE: <FILE stem>.<name>.png); with --png the tone-mapped PNG
  * too.  Returns 0, or the exit status with the message printed. */
+typedef struct panel_paths {
+  char exr[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heat[CV_PATH_MAX + 40], png[CV_PATH_MAX + 40];
+} panel_paths;
+
+/* The files of the panel named nm (see write_panel_files). */
+static void make_panel_paths(const lcd_opts *o, int multi, const char *nm, panel_paths *pp) {
+  const int stem = (int)strlen(o->out) - 4;
+  if (multi) snprintf(pp->exr, sizeof pp->exr, "%.*s.%s.exr", stem, o->out, nm);
+  else snprintf(pp->exr, sizeof pp->exr, "%s", o->out);
+  snprintf(pp->side, sizeof pp->side, "%s.json", pp->exr);
+  if (o->heat_s && multi) snprintf(pp->heat, sizeof pp->heat, "%.*s.%s.png", (int)strlen(o->heat_s) - 4, o->heat_s, nm);
+  else if (o->heat_s) snprintf(pp->heat, sizeof pp->heat, "%s", o->heat_s);
+  else snprintf(pp->heat, sizeof pp->heat, "%.*s.cr.png", (int)strlen(pp->exr) - 4, pp->exr);
+  snprintf(pp->png, sizeof pp->png, "%.*s.png", (int)strlen(pp->exr) - 4, pp->exr);
+}
+
+/* An output path that is a folder cannot be written: 1 (message printed). */
+static int output_is_folder(const char *opt, const char *path) {
+  struct stat st;
+  if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
+    return cli_fail("lcd", 1, "%s: cannot write %s: it is a folder, expected a file", opt, path);
+  return 0;
+}
+
+/* Every output of the run, before any work: the folders of -o and
+ * --heatmap exist and are writable, and no file to write is a folder.
+ * Returns 0, or the exit status with the message printed. */
+static int check_outputs(const lcd_opts *o, const cv_lcd_config *lc) {
+  if (cli_check_output("lcd", "-o", o->out)) return 1;
+  if (o->heat_s && cli_check_output("lcd", "--heatmap", o->heat_s)) return 1;
+  if (o->drive_s) {
+    char png[CV_PATH_MAX + 8];
+    snprintf(png, sizeof png, "%.*s.png", (int)strlen(o->out) - 4, o->out);
+    return output_is_folder("-o", o->out) || output_is_folder("-o", png);
+  }
+  for (int i = 0; i < lc->n_panels; i++) {
+    panel_paths pp;
+    make_panel_paths(o, lc->n_panels > 1, lc->panels[i].name, &pp);
+    if (output_is_folder("-o", pp.exr) || output_is_folder("-o", pp.side) ||
+        output_is_folder(o->heat_s ? "--heatmap" : "-o", pp.heat) ||
+        (o->png && output_is_folder("--png", pp.png)))
+      return 1;
+  }
+  return 0;
+}
+
+/* The files written so far, removed when a later one fails: a failed run
+ * leaves no part of its result. */
+typedef struct written_files {
+  char path[4 * CV_LCD_MAX_PANELS][CV_PATH_MAX + 48];
+  int n;
+} written_files;
+
+static void written_add(written_files *w, const char *path) {
+  if (w->n < 4 * CV_LCD_MAX_PANELS) snprintf(w->path[w->n++], sizeof w->path[0], "%s", path);
+}
+
 static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const cv_lcd_layout *L,
                              int i, const cv_image *content, const cv_lcd_accum *crop,
                              const cv_lcd_error *e, const cv_lcd_key *key, double render_s,
                              const char *brdf_source, const cv_lcd_readability *rd,
-                             const cv_lcd_read_params *q) {
-  const int stem = (int)strlen(o->out) - 4;
-  char exrp[CV_PATH_MAX + 40], side[CV_PATH_MAX + 48], heatp[CV_PATH_MAX + 40];
-  if (multi) snprintf(exrp, sizeof exrp, "%.*s.%s.exr", stem, o->out, nm);
-  else snprintf(exrp, sizeof exrp, "%s", o->out);
-  snprintf(side, sizeof side, "%s.json", exrp);
-  if (o->heat_s && multi) snprintf(heatp, sizeof heatp, "%.*s.%s.png", (int)strlen(o->heat_s) - 4, o->heat_s, nm);
-  else if (o->heat_s) snprintf(heatp, sizeof heatp, "%s", o->heat_s);
-  else snprintf(heatp, sizeof heatp, "%.*s.cr.png", (int)strlen(exrp) - 4, exrp);
+                             const cv_lcd_read_params *q, written_files *wf) {
+  panel_paths pp;
+  make_panel_paths(o, multi, nm, &pp);
+  const char *exrp = pp.exr, *side = pp.side, *heatp = pp.heat;
   cv_err err;
   cv_err_clear(&err);
   cv_image *pc = NULL, *img = NULL;
@@ -532,15 +653,14 @@ static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const
     memcpy(cv_image_at(pc, 0, y), cv_image_at(content, 0, L->y0[i] + y), 3 * (size_t)L->w[i] * sizeof(float));
   int rc = 0;
   if (cv_lcd_accum_to_image(crop, pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
+      (written_add(wf, exrp), 0) ||
       write_sidecar(side, crop, e, key, render_s, brdf_source, rd, q, &o->vp, &err) ||
-      write_heatmap(heatp, rd, &err)) {
+      (written_add(wf, side), 0) || write_heatmap(heatp, rd, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
-  } else if (o->png) {
-    char pngp[CV_PATH_MAX + 40];
-    snprintf(pngp, sizeof pngp, "%.*s.png", (int)strlen(exrp) - 4, exrp);
+  } else if (written_add(wf, heatp), o->png) {
     cv_preview_stats pst;
-    if (cv_preview_write_png(pngp, img, 0, &pst, &err)) rc = cli_fail("lcd", 1, "%s", err.msg);
-    else printf("wrote %s (exposure %.4g)\n", pngp, pst.exposure);
+    if (cv_preview_write_png(pp.png, img, 0, &pst, &err)) rc = cli_fail("lcd", 1, "%s", err.msg);
+    else printf("wrote %s (exposure %.4g)\n", pp.png, pst.exposure), written_add(wf, pp.png);
   }
   if (!rc) printf("wrote %s, %s and %s\n", exrp, side, heatp);
   cv_image_destroy(img);
@@ -571,9 +691,14 @@ static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lc
   }
   for (int i = 0; i < L->n && !rc; i++)
     print_panel(lc->panels[i].name, crop[i], &e[i], &q[i], &rd[i], &o->vp, sun_deg[i]);
+  written_files wf;
+  wf.n = 0;
   for (int i = 0; i < L->n && !rc; i++)
     rc = write_panel_files(o, multi, lc->panels[i].name, L, i, content, crop[i], &e[i], key,
-                           render_s, ps->brdf[i]->source, &rd[i], &q[i]);
+                           render_s, ps->brdf[i]->source, &rd[i], &q[i], &wf);
+  if (rc) { /* nothing of a failed run is left behind */
+    for (int k = 0; k < wf.n; k++) unlink(wf.path[k]);
+  }
   for (int i = 0; i < L->n; i++) {
     cv_lcd_readability_free(&rd[i]);
     cv_lcd_accum_destroy(crop[i]);
@@ -608,8 +733,7 @@ int cmd_lcd(int argc, char **argv) {
   if (o.cfg_path && cv_lcd_config_load(o.cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   if (o.spp > 0) lc.spp = o.spp;
   if (o.rounds > 0) lc.rounds = o.rounds;
-  if (o.size_s && (sscanf(o.size_s, "%dx%d", &lc.width, &lc.height) != 2 || lc.width < 1 ||
-                 lc.height < 1 || lc.width > 16384 || lc.height > 16384))
+  if (o.size_s && parse_wxh(o.size_s, &lc.width, &lc.height))
     return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", o.size_s);
   if (o.brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", o.brdf_s);
   if (o.content_s) {
@@ -618,6 +742,11 @@ int cmd_lcd(int argc, char **argv) {
     fclose(cf);
     snprintf(lc.content, sizeof lc.content, "%s", o.content_s);
   }
+  /* an option overrides the block and every panel's own value (docs/scene-config.md) */
+  cv_lcd_config_override(&lc, (o.size_s ? CV_LCD_SET_SIZE : 0u) | (o.brdf_s ? CV_LCD_SET_BRDF : 0u) |
+                                  (o.content_s ? CV_LCD_SET_CONTENT : 0u) |
+                                  (o.lum >= 0 ? CV_LCD_SET_WHITE : 0u) |
+                                  (o.black >= 0 ? CV_LCD_SET_BLACK : 0u));
   if (o.lum >= 0) lc.content_luminance = o.lum;
   if (o.seed >= 0) lc.seed = (uint32_t)o.seed;
   if (o.sampling) lc.brdf_fraction = !strcmp(o.sampling, "brdf") ? 1.0 : !strcmp(o.sampling, "cosine") ? 0.0 : 0.9;
@@ -626,12 +755,6 @@ int cmd_lcd(int argc, char **argv) {
   if (o.cr_min >= 1) lc.cr_min = o.cr_min;
   if (o.age >= 0) lc.age = o.age;
   if (o.pigment >= 0) lc.pigment = o.pigment;
-  if (o.lum >= 0 || o.black >= 0) { /* the options set the white and black of every panel */
-    for (int i = 0; i < lc.n_panels; i++) {
-      if (o.lum >= 0) lc.panels[i].content_luminance = o.lum;
-      if (o.black >= 0) lc.panels[i].black_luminance = o.black;
-    }
-  }
   if (cv_lcd_config_panels(&lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   o.rp.white = lc.panels[0].content_luminance;
   o.rp.black = lc.panels[0].black_luminance;
@@ -644,6 +767,9 @@ int cmd_lcd(int argc, char **argv) {
       return cli_fail("lcd", 2, "panel '%s': %s", lc.panels[i].name, err.msg);
   }
   if (o.heat_s && !cli_has_ext(o.heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", o.heat_s);
+  /* every output before any work: a bad one fails here, not after the rounds */
+  const int ost = check_outputs(&o, &lc);
+  if (ost) return ost;
 
   int rc = 1;
   cv_scene_config cfg;
@@ -693,6 +819,8 @@ int cmd_lcd(int argc, char **argv) {
         rc = cli_fail("lcd", 1, "%s", err.msg);
         goto done;
       }
+      if (o.have_eye && !o.head_s && (rc = check_eye(o.eye, &L0, &lc, m))) goto done;
+      rc = 1;
       cv_bake_params bp = {.bands = cfg.bands ? cfg.bands : 5, .rays = cfg.rays ? cfg.rays : 1024,
                            .bounces = cfg.bounces, .seed = cfg.seed, .spread = (float)cfg.spread,
                            .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = 1};
@@ -724,8 +852,13 @@ int cmd_lcd(int argc, char **argv) {
     goto done;
   }
   cv_lcd_layout L;
-  if (cv_lcd_layout_make(&lc, m, &L, &err) ||
-      cv_lcd_panels_create(&lc, &L, cv_tracer_rt(tr), m, &ps, &err)) {
+  if (cv_lcd_layout_make(&lc, m, &L, &err)) {
+    rc = cli_fail("lcd", 1, "%s", err.msg);
+    goto done;
+  }
+  if (o.have_eye && !o.head_s && (rc = check_eye(o.eye, &L, &lc, m))) goto done;
+  rc = 1;
+  if (cv_lcd_panels_create(&lc, &L, cv_tracer_rt(tr), m, &ps, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg);
     goto done;
   }

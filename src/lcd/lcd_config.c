@@ -38,7 +38,7 @@ static int num(const char *file, const cJSON *o, const char *key, double lo, dou
   if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble))
     return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: expected a number", file, key);
   if (v->valuedouble < lo || v->valuedouble > hi)
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: %g is outside [%g, %g]", file, key,
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: %.10g is outside [%.10g, %.10g]", file, key,
                       v->valuedouble, lo, hi);
   if (integer && v->valuedouble != floor(v->valuedouble))
     return cv_err_set(err, CV_ERR_CONFIG, "%s: lcd.%s: expected an integer", file, key);
@@ -267,9 +267,24 @@ int cv_lcd_config_panels(cv_lcd_config *c, cv_err *err) {
   return CV_OK;
 }
 
+void cv_lcd_config_override(cv_lcd_config *c, unsigned what) {
+  for (int i = 0; i < c->n_panels && i < CV_LCD_MAX_PANELS; i++) {
+    cv_lcd_panel_config *p = &c->panels[i];
+    if (what & CV_LCD_SET_SIZE) p->width = p->height = 0;
+    if (what & CV_LCD_SET_BRDF) p->brdf[0] = 0;
+    if (what & CV_LCD_SET_CONTENT) p->content_set = 0;
+    if (what & CV_LCD_SET_WHITE) p->content_luminance = -1;
+    if (what & CV_LCD_SET_BLACK) p->black_luminance = -2;
+  }
+}
+
 static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open (%s)", path, strerror(errno));
+  if (cv_json_file_check(f, path, err)) {
+    fclose(f);
+    return CV_ERR_IO;
+  }
   size_t cap = 4096, n = 0;
   char *buf = malloc(cap);
   while (buf) {
@@ -353,7 +368,7 @@ static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   if ((st = num(path, o, "rounds", 1, 100000, 1, &d, err))) goto done;
   c->rounds = (int)d;
   if ((st = num(path, o, "content_luminance", 0, 1e6, 0, &c->content_luminance, err))) goto done;
-  if ((st = num(path, o, "eye_tolerance", 1e-5, 1, 0, &c->eye_tolerance, err))) goto done;
+  if ((st = num(path, o, "eye_tolerance", CV_LCD_TOLERANCE_MIN, CV_LCD_TOLERANCE_MAX, 0, &c->eye_tolerance, err))) goto done;
   if ((st = num(path, o, "brdf_fraction", 0, 1, 0, &c->brdf_fraction, err))) goto done;
   d = c->seed;
   if ((st = num(path, o, "seed", 0, 4294967295.0, 1, &d, err))) goto done;
@@ -366,7 +381,7 @@ static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
   c->sun_samples = (int)d;
   if ((st = num(path, o, "clamp", 0, 1e30, 0, &c->clamp, err))) goto done;
   if ((st = num(path, o, "black_luminance", 0, 1e6, 0, &c->black_luminance, err))) goto done;
-  if ((st = num(path, o, "cr_min", 1, 1000, 0, &c->cr_min, err))) goto done;
+  if ((st = num(path, o, "cr_min", 1, CV_LCD_CR_MAX, 0, &c->cr_min, err))) goto done;
   if ((st = num(path, o, "age", 0, 150, 0, &c->age, err))) goto done;
   if ((st = num(path, o, "pigment", 0, 1, 0, &c->pigment, err))) goto done;
   if (cv_lcd_config_black(c) > c->content_luminance) {

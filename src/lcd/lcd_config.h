@@ -94,4 +94,26 @@ double cv_lcd_config_black(const cv_lcd_config *c);
  * lcd.panels[i].field): black above white. */
 int cv_lcd_config_panels(cv_lcd_config *c, cv_err *err);
 
+/* What a command-line option set in the block (cv_lcd_config_override). */
+enum {
+  CV_LCD_SET_SIZE = 1,    /* width, height */
+  CV_LCD_SET_BRDF = 2,    /* brdf */
+  CV_LCD_SET_CONTENT = 4, /* content */
+  CV_LCD_SET_WHITE = 8,   /* content_luminance */
+  CV_LCD_SET_BLACK = 16   /* black_luminance */
+};
+/* One rule for `cave lcd` and `cave run` (docs/scene-config.md): an option
+ * sets the block's value AND every panel's, so a panel's own value of that
+ * field is dropped (the panel then takes the block's).  what: CV_LCD_SET_*
+ * bits.  Call after the options set the block, before
+ * cv_lcd_config_panels. */
+void cv_lcd_config_override(cv_lcd_config *c, unsigned what);
+
+/* The ranges every reader of the settings checks, the same in the config
+ * and on the command line. */
+#define CV_LCD_TOLERANCE_MIN 1e-5 /* metres (lcd.eye_tolerance, --lcd-tolerance) */
+#define CV_LCD_TOLERANCE_MAX 1.0
+#define CV_LCD_LUMINANCE_MAX 1e6  /* cd/m^2 (white, black, adaptation) */
+#define CV_LCD_CR_MAX 1000.0      /* lcd.cr_min, --cr-min */
+
 #endif
