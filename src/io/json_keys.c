@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 int cv_json_key_allowed(const char *key, const char *const *allowed) {
   for (const char *const *a = allowed; *a; a++)
@@ -70,4 +71,11 @@ void cv_json_syntax_error(const char *text, const char *errpos, int *line, int *
   else
     snprintf(what, n, "JSON syntax error near '%s'%s", shown,
              nonnum ? " (NaN and Inf are not JSON numbers)" : "");
+}
+
+int cv_json_file_check(FILE *f, const char *path, cv_err *err) {
+  struct stat st;
+  if (fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode))
+    return cv_err_set(err, CV_ERR_IO, "%s: is a folder, expected a JSON file", path);
+  return CV_OK;
 }

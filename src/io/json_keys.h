@@ -6,6 +6,9 @@
 #define CV_IO_JSON_KEYS_H
 
 #include <stddef.h>
+#include <stdio.h>
+
+#include "core/status.h"
 
 /* 1 when key is in the NULL-terminated list allowed. */
 int cv_json_key_allowed(const char *key, const char *const *allowed);
@@ -23,5 +26,11 @@ const char *cv_json_key_show(const char *key, char *buf, size_t n);
  * '<the next characters, escaped>'", with a hint when they spell NaN or Inf. */
 void cv_json_syntax_error(const char *text, const char *errpos, int *line, int *col, char *what,
                           size_t n);
+
+/* Right after fopen(path) of a file to be read whole (a config): CV_OK for
+ * a file that can be read, else err "<path>: is a folder, expected a JSON
+ * file" (a folder opens, but reads as nothing or as a huge size) and
+ * CV_ERR_IO.  The caller still closes f. */
+int cv_json_file_check(FILE *f, const char *path, cv_err *err);
 
 #endif

@@ -118,7 +118,7 @@ static int get_num(ctx *x, const cJSON *obj, const char *key, const char *path, 
     return fail(x, field, "expected a number%s", "");
   if (v->valuedouble < lo || v->valuedouble > hi) {
     char rng[128];
-    snprintf(rng, sizeof rng, "%g is outside [%g, %g]", v->valuedouble, lo, hi);
+    snprintf(rng, sizeof rng, "%.10g is outside [%.10g, %.10g]", v->valuedouble, lo, hi);
     return fail(x, field, "%s", rng);
   }
   *out = v->valuedouble;
@@ -148,7 +148,7 @@ static int get_rgb(ctx *x, const cJSON *v, const char *field, double lo, double 
     if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble) || e->valuedouble < lo ||
         e->valuedouble > hi) {
       char rng[96];
-      snprintf(rng, sizeof rng, "expected numbers in [%g, %g]", lo, hi);
+      snprintf(rng, sizeof rng, "expected numbers in [%.10g, %.10g]", lo, hi);
       return fail(x, field, "%s", rng);
     }
     out[k] = e->valuedouble;
@@ -285,9 +285,9 @@ static int parse_prt(ctx *x, const cJSON *o, cv_scene_config *c) {
   }
   const cJSON *r = cJSON_GetObjectItemCaseSensitive(o, "rays");
   if (cJSON_IsString(r)) {
-    if (strcmp(r->valuestring, "auto")) return fail(x, "prt.rays", "expected 1..1048576 or \"auto\"%s", "");
+    if (strcmp(r->valuestring, "auto")) return fail(x, "prt.rays", "expected 1..16777216 or \"auto\"%s", "");
     c->rays = 0;
-  } else if (r && (st = get_int(x, o, "rays", "prt", 1, 1 << 20, &c->rays))) {
+  } else if (r && (st = get_int(x, o, "rays", "prt", 1, 1 << 24, &c->rays))) {
     return st;
   }
   if ((st = get_int(x, o, "bounces", "prt", 0, 16, &c->bounces))) return st;
@@ -341,6 +341,7 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
   if (env) {
     l->kind = CV_LIGHT_ENV;
     if (cJSON_IsString(env)) {
+      if (!env->valuestring[0]) return fail(&x, "lighting.env", "expected a file name, got \"\"%s", "");
       if ((st = cv_resolve_env_path(env->valuestring, base_dir, l->env[0], err)))
         return cv_err_prefix(err, "%s: lighting.env", file);
       l->n_env = 1;
@@ -350,7 +351,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
       l->n_env = cJSON_GetArraySize(env);
       for (int i = 0; i < l->n_env; i++) {
         const cJSON *e = cJSON_GetArrayItem(env, i);
-        if (!cJSON_IsString(e)) return fail(&x, "lighting.env", "expected file names%s", "");
+        if (!cJSON_IsString(e) || !e->valuestring[0])
+          return fail(&x, "lighting.env", "expected file names (an empty one is none)%s", "");
         if ((st = cv_resolve_env_path(e->valuestring, base_dir, l->env[i], err)))
           return cv_err_prefix(err, "%s: lighting.env[%d]", file, i);
         l->weight[i] = 1.0 / l->n_env;
@@ -414,6 +416,10 @@ int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
   snprintf(c->source, sizeof c->source, "%s", path);
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  if (cv_json_file_check(f, path, err)) {
+    fclose(f);
+    return CV_ERR_IO;
+  }
   fseek(f, 0, SEEK_END);
   long n = ftell(f);
   fseek(f, 0, SEEK_SET);

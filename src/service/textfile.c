@@ -5,12 +5,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 int cv_service_read_text(const char *path, char **text, size_t *len, cv_err *err) {
   *text = NULL;
   if (len) *len = 0;
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open (%s)", path, strerror(errno));
+  struct stat sb;
+  if (fstat(fileno(f), &sb) == 0 && S_ISDIR(sb.st_mode)) {
+    fclose(f);
+    return cv_err_set(err, CV_ERR_IO, "%s: is a folder, expected a file", path);
+  }
   size_t cap = 4096, n = 0;
   char *b = malloc(cap);
   if (!b) {

@@ -110,7 +110,7 @@ static int read_vec3(ctx *x, const cJSON *v, const char *field, double out[3]) {
     if (!read_number(x, cJSON_GetArrayItem(v, k), f, &t[k])) {
       ok = 0;
     } else if (fabs(t[k]) > COORD_LIMIT) {
-      problem(x, CV_ERR_RANGE, f, "%g is outside [-%g, %g]", t[k], COORD_LIMIT, COORD_LIMIT);
+      problem(x, CV_ERR_RANGE, f, "%.10g is outside [-%.10g, %.10g]", t[k], COORD_LIMIT, COORD_LIMIT);
       ok = 0;
     }
   }
@@ -126,7 +126,7 @@ static int opt_num(ctx *x, const cJSON *o, const char *key, double lo, int lo_op
   double d;
   if (!read_number(x, v, key, &d)) return 0;
   if ((lo_open ? !(d > lo) : !(d >= lo)) || (hi_open ? !(d < hi) : !(d <= hi))) {
-    problem(x, CV_ERR_RANGE, key, "%g is outside %c%g, %g%c", d, lo_open ? '(' : '[', lo, hi,
+    problem(x, CV_ERR_RANGE, key, "%.10g is outside %c%.10g, %.10g%c", d, lo_open ? '(' : '[', lo, hi,
             hi_open ? ')' : ']');
     return 0;
   }
@@ -712,6 +712,10 @@ int cv_cave_load_all(const char *path, cv_cave *out, char *buf, size_t cap, int 
   if (!path || !out) return cv_err_set(err, CV_ERR_INVALID, "cv_cave_load: no path or output");
   FILE *f = fopen(path, "rb");
   if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  if (cv_json_file_check(f, path, err)) {
+    fclose(f);
+    return CV_ERR_IO;
+  }
   char *t = NULL;
   long n = -1;
   if (fseek(f, 0, SEEK_END) == 0) n = ftell(f);
