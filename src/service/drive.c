@@ -80,7 +80,7 @@ static int opt_num(ctx *x, const cJSON *obj, const char *path, const char *name,
     return 0;
   }
   if (d < lo || d > hi) {
-    cv_problem(x, CV_ERR_RANGE, field, "%g is outside [%g, %g]", d, lo, hi);
+    cv_problem(x, CV_ERR_RANGE, field, "%.10g is outside [%.10g, %.10g]", d, lo, hi);
     return 0;
   }
   *out = d;
@@ -142,7 +142,7 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
   opt_num(x, o, path, "roll", -ANGLE_MAX, ANGLE_MAX, &kf->roll);
   if (is_sky) {
     opt_num(x, o, path, "turbidity", 2.0, 10.0, &kf->turbidity);
-    opt_num(x, o, path, "sun_elevation", -90.0, 90.0, &kf->elevation);
+    opt_num(x, o, path, "sun_elevation", -10.0, 90.0, &kf->elevation); /* as lighting.sky and --sky: the same Preetham sky */
     opt_num(x, o, path, "sun_azimuth", -ANGLE_MAX, ANGLE_MAX, &kf->azimuth);
     return;
   }
