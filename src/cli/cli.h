@@ -37,16 +37,42 @@ int cli_parse_int(const char *s, int lo, int hi, int *out);
 /* "x,y,z" (n values) into out; 0 on success. */
 int cli_parse_vec(const char *s, int n, double *out);
 
-/* Checks before any work that the folder of an output path exists and is
- * writable; prints "cave <cmd>: <opt>: cannot write ..." and returns 1 if
- * not, else 0. */
+/* Checks before any work that the output path is a name (not empty: exit 2)
+ * that is not a folder, and that its folder exists and is writable; prints
+ * "cave <cmd>: <opt>: cannot write ..." and returns the exit status (2 for
+ * an empty name, else 1) if not, else 0. */
 int cli_check_output(const char *cmd, const char *opt, const char *path);
+/* --size WxH: two decimal integers in 1..max joined by 'x', nothing else
+ * ("32x24junk", "32x24.9", "+32x24", " 32x24" are refused); 0 on success. */
+int cli_parse_size(const char *s, int max, int *w, int *h);
+
+/* A pinhole camera as given on the command line (--view, --look, --view-up)
+ * with the strings to quote in an error. */
+typedef struct cli_camera_arg {
+  const double *eye, *look, *up;
+  const char *eye_s, *look_s, *up_s;
+} cli_camera_arg;
+/* Checks before any work that the camera can be traced: --view and --look
+ * within +-1e6 m, --look at least 1e-6 m from --view, --view-up non-zero and
+ * not along the view.  Prints "cave <cmd>: <option>: expected ..., got '...'"
+ * and returns 2, else 0. */
+int cli_check_camera(const char *cmd, const cli_camera_arg *c);
+
+/* An option `a` came last on the line, without the value it needs (or it is
+ * no option at all): prints the usage (help non-NULL) and "option 'a' needs a
+ * value" when a is one of value_opts (NULL-terminated) or a lighting option,
+ * else "unknown option 'a'"; returns 2. */
+int cli_value_missing(const char *cmd, void (*help)(FILE *), const char *a,
+                      const char *const *value_opts);
+
 /* --illuminance: lux in (0, 1e7] or "auto" (CV_ILLUMINANCE_AUTO); 0 on success. */
 int cli_parse_illuminance(const char *s, double *lux);
 
 /* The lighting options shared by shade, render and reference: --env FILE[,..],
  * --weights W,.., --scale S, --illuminance LUX|auto, --env-constant R,G,B,
- * --sky T,EL,AZ, --yaw/--pitch/--roll DEG.  argv[*i] is the option.  Returns 0
+ * --sky T,EL,AZ, --yaw/--pitch/--roll DEG; in the scene config's ranges
+ * (radiance, scale and weights 0..1e9, yaw and azimuth -360..360, pitch
+ * -90..90, roll -180..180, no empty name).  argv[*i] is the option.  Returns 0
  * when it is none of these, 1 when it was taken (with its value: *i advanced),
  * or minus the exit code (-1 or -2) after printing the error as `cave CMD: ...`.
  * --weights is only kept in *weights; cli_apply_weights checks it. */

@@ -16,6 +16,8 @@
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
 
+static int is_light_option(const char *a);
+
 void cli_print_usage(void (*help)(FILE *)) {
   char *buf = NULL;
   size_t n = 0;
@@ -48,10 +50,13 @@ int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n,
 
 int cli_check_output(const char *cmd, const char *opt, const char *path) {
   char dir[4096];
+  if (!path || !*path) return cli_fail(cmd, 2, "%s: expected a file name, got ''", opt);
   if (strlen(path) >= sizeof dir) return cli_fail(cmd, 2, "%s: path too long", opt);
+  struct stat stt;
+  if (stat(path, &stt) == 0 && S_ISDIR(stt.st_mode))
+    return cli_fail(cmd, 1, "%s: cannot write %s: it is a folder", opt, path);
   snprintf(dir, sizeof dir, "%s", path);
   const char *d = dirname(dir);
-  struct stat stt;
   if (stat(d, &stt) != 0)
     return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
   if (!S_ISDIR(stt.st_mode))
@@ -59,6 +64,75 @@ int cli_check_output(const char *cmd, const char *opt, const char *path) {
   if (access(d, W_OK) != 0)
     return cli_fail(cmd, 1, "%s: cannot write %s: folder %s: %s", opt, path, d, strerror(errno));
   return 0;
+}
+
+int cli_parse_size(const char *s, int max, int *w, int *h) {
+  /* digits 'x' digits, nothing else: no sign, blank, exponent, fraction or tail */
+  long v[2] = {0, 0};
+  const char *p = s;
+  for (int k = 0; k < 2; k++) {
+    if (!p || !isdigit((unsigned char)*p)) return -1;
+    for (; isdigit((unsigned char)*p); p++) {
+      v[k] = 10 * v[k] + (*p - '0');
+      if (v[k] > max) return -1;
+    }
+    if (k == 0 && *p++ != 'x') return -1;
+  }
+  if (*p || v[0] < 1 || v[1] < 1) return -1;
+  *w = (int)v[0];
+  *h = (int)v[1];
+  return 0;
+}
+
+/* Largest |coordinate| of a camera point, in metres: far beyond any car or
+ * CAVE, and well inside what a float ray origin can carry. */
+#define CLI_CAMERA_MAX_M 1e6
+
+int cli_check_camera(const char *cmd, const cli_camera_arg *c) {
+  const struct {
+    const char *name;
+    const double *v;
+    const char *s;
+  } pts[2] = {{"--view", c->eye, c->eye_s}, {"--look", c->look, c->look_s}};
+  for (int k = 0; k < 2; k++)
+    for (int j = 0; j < 3; j++)
+      if (!isfinite(pts[k].v[j]) || fabs(pts[k].v[j]) > CLI_CAMERA_MAX_M)
+        return cli_fail(cmd, 2, "%s: expected x,y,z within +-1e6 m, got '%s'", pts[k].name,
+                        pts[k].s);
+  double f[3], u[3], fl = 0, um = 0, ul = 0;
+  for (int j = 0; j < 3; j++) {
+    f[j] = c->look[j] - c->eye[j];
+    fl += f[j] * f[j];
+    um = fmax(um, fabs(c->up[j]));
+  }
+  fl = sqrt(fl);
+  if (!(fl >= 1e-6))
+    return cli_fail(cmd, 2, "--look: expected a point other than --view '%s' (the camera looks "
+                            "from --view towards --look), got '%s'", c->eye_s, c->look_s);
+  if (!(um > 0) || !isfinite(um))
+    return cli_fail(cmd, 2, "--view-up: expected a non-zero x,y,z, got '%s'", c->up_s);
+  for (int j = 0; j < 3; j++) {
+    f[j] /= fl;
+    u[j] = c->up[j] / um; /* scaled first: a tiny vector does not underflow */
+    ul += u[j] * u[j];
+  }
+  ul = sqrt(ul);
+  double r[3] = {f[1] * u[2] - f[2] * u[1], f[2] * u[0] - f[0] * u[2], f[0] * u[1] - f[1] * u[0]};
+  double sin_a = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]) / ul;
+  if (!(sin_a > 1e-6))
+    return cli_fail(cmd, 2, "--view-up: expected a vector not along the view from --view '%s' "
+                            "to --look '%s' (looking straight up or down needs e.g. --view-up "
+                            "0,0,-1), got '%s'", c->eye_s, c->look_s, c->up_s);
+  return 0;
+}
+
+int cli_value_missing(const char *cmd, void (*help)(FILE *), const char *a,
+                      const char *const *value_opts) {
+  int known = is_light_option(a);
+  for (int k = 0; !known && value_opts && value_opts[k]; k++) known = !strcmp(a, value_opts[k]);
+  if (help) cli_print_usage(help);
+  if (known) return cli_fail(cmd, 2, "option '%s' needs a value", a);
+  return cli_fail(cmd, 2, "unknown option '%s'", a);
 }
 
 int cli_parse_illuminance(const char *s, double *lux) {
@@ -263,21 +337,32 @@ static int is_light_option(const char *a) {
 
 static int parse_env_list(const char *cmd, const char *val, cv_light_spec *spec) {
   char buf[8192];
+  if (strlen(val) >= sizeof buf) return cli_fail(cmd, 2, "--env: list too long");
   snprintf(buf, sizeof buf, "%s", val);
-  char *save = NULL;
   cv_err err;
   cv_err_clear(&err);
-  spec->kind = CV_LIGHT_ENV;
-  spec->n_env = 0;
-  for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-    if (spec->n_env == CV_MAX_ENV_MAPS) return cli_fail(cmd, 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
-    if (cv_resolve_env_path(tok, NULL, spec->env[spec->n_env], &err))
+  /* every field a name: "", ",", "a.exr,,b.exr" are refused (an unset
+   * $MAP must not leave an env light without maps) */
+  int n = 0;
+  for (char *tok = buf;; n++) {
+    char *comma = strchr(tok, ',');
+    if (comma) *comma = '\0';
+    if (!*tok) return cli_fail(cmd, 2, "--env: expected FILE[,FILE...], got '%s'", val);
+    if (n == CV_MAX_ENV_MAPS) return cli_fail(cmd, 2, "--env: at most %d maps", CV_MAX_ENV_MAPS);
+    if (cv_resolve_env_path(tok, NULL, spec->env[n], &err))
       return cli_fail(cmd, 1, "--env: %s", err.msg);
-    spec->n_env++;
+    if (!comma) break;
+    tok = comma + 1;
   }
+  spec->kind = CV_LIGHT_ENV;
+  spec->n_env = n + 1;
   for (int k = 0; k < spec->n_env; k++) spec->weight[k] = 1.0 / spec->n_env;
   return 0;
 }
+
+/* The ranges of the scene config's lighting (src/io/scene_config.c): a
+ * radiance, scale or weight above CLI_LIGHT_MAX would overflow a float. */
+#define CLI_LIGHT_MAX 1e9
 
 int cli_parse_light(const char *cmd, int argc, char **argv, int *i, cv_light_spec *spec,
                     const char **weights) {
@@ -291,27 +376,33 @@ int cli_parse_light(const char *cmd, int argc, char **argv, int *i, cv_light_spe
   } else if (!strcmp(a, "--weights")) {
     *weights = val;
   } else if (!strcmp(a, "--scale")) {
-    if (cli_parse_double(val, &spec->scale) || spec->scale < 0)
-      return -cli_fail(cmd, 2, "--scale: expected a non-negative number, got '%s'", val);
+    if (cli_parse_double(val, &spec->scale) || spec->scale < 0 || spec->scale > CLI_LIGHT_MAX)
+      return -cli_fail(cmd, 2, "--scale: expected a number in [0, 1e9], got '%s'", val);
   } else if (!strcmp(a, "--illuminance")) {
     if (cli_parse_illuminance(val, &spec->illuminance))
       return -cli_fail(cmd, 2, "--illuminance: expected lux (0, 1e7] or auto, got '%s'", val);
   } else if (!strcmp(a, "--env-constant")) {
     spec->kind = CV_LIGHT_CONSTANT;
-    if (cli_parse_vec(val, 3, spec->constant) || spec->constant[0] < 0 || spec->constant[1] < 0 ||
-        spec->constant[2] < 0)
-      return -cli_fail(cmd, 2, "--env-constant: expected R,G,B >= 0, got '%s'", val);
+    const double *c = spec->constant;
+    if (cli_parse_vec(val, 3, spec->constant) || c[0] < 0 || c[1] < 0 || c[2] < 0 ||
+        c[0] > CLI_LIGHT_MAX || c[1] > CLI_LIGHT_MAX || c[2] > CLI_LIGHT_MAX)
+      return -cli_fail(cmd, 2, "--env-constant: expected R,G,B each in [0, 1e9], got '%s'", val);
   } else if (!strcmp(a, "--sky")) {
     double s[3];
     spec->kind = CV_LIGHT_SKY;
-    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90)
-      return -cli_fail(cmd, 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),AZIMUTH, got '%s'", val);
+    if (cli_parse_vec(val, 3, s) || s[0] < 2 || s[0] > 10 || s[1] < -10 || s[1] > 90 ||
+        s[2] < -360 || s[2] > 360)
+      return -cli_fail(cmd, 2, "--sky: expected TURBIDITY(2..10),ELEVATION(-10..90),"
+                               "AZIMUTH(-360..360), got '%s'", val);
     spec->turbidity = s[0];
     spec->sun_elevation_deg = s[1];
     spec->sun_azimuth_deg = s[2];
   } else {
     double d;
-    if (cli_parse_double(val, &d)) return -cli_fail(cmd, 2, "%s: expected degrees, got '%s'", a, val);
+    /* the scene config's car pose ranges (docs/scene-config.md) */
+    double lim = !strcmp(a, "--yaw") ? 360 : !strcmp(a, "--pitch") ? 90 : 180;
+    if (cli_parse_double(val, &d) || d < -lim || d > lim)
+      return -cli_fail(cmd, 2, "%s: expected degrees in [-%g, %g], got '%s'", a, lim, lim, val);
     if (!strcmp(a, "--yaw")) spec->yaw_deg = d;
     else if (!strcmp(a, "--pitch")) spec->pitch_deg = d;
     else spec->roll_deg = d;
@@ -326,7 +417,8 @@ int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights)
   if (cli_parse_vec(weights, spec->n_env, w))
     return cli_fail(cmd, 2, "--weights: expected %d comma-separated numbers, got '%s'", spec->n_env, weights);
   for (int k = 0; k < spec->n_env; k++) {
-    if (w[k] < 0) return cli_fail(cmd, 2, "--weights: negative weight %g", w[k]);
+    if (w[k] < 0 || w[k] > CLI_LIGHT_MAX)
+      return cli_fail(cmd, 2, "--weights: expected weights in [0, 1e9], got '%s'", weights);
     spec->weight[k] = w[k];
     sum += w[k];
   }

@@ -42,12 +42,23 @@ int cv_parse_int(const char *s, int lo, int hi, int *out) {
 
 int cv_parse_vec(const char *s, int n, double *out) {
   char buf[256];
-  if (!s || strlen(s) >= sizeof buf) return -1;
-  strcpy(buf, s);
-  char *save = NULL, *tok = strtok_r(buf, ",", &save);
+  if (!s || n < 1 || strlen(s) >= sizeof buf) return -1;
+  /* field by field: an empty field ("5,,0", ",5,0", "5,0,") is an error,
+   * not skipped (strtok would collapse it and shift the values) */
+  const char *p = s;
   for (int i = 0; i < n; i++) {
-    if (!tok || cv_parse_double(tok, &out[i])) return -1;
-    tok = strtok_r(NULL, ",", &save);
+    const char *comma = strchr(p, ',');
+    size_t len = comma ? (size_t)(comma - p) : strlen(p);
+    if (len == 0) return -1;
+    memcpy(buf, p, len);
+    buf[len] = '\0';
+    if (cv_parse_double(buf, &out[i])) return -1;
+    if (i + 1 < n) {
+      if (!comma) return -1;
+      p = comma + 1;
+    } else if (comma) {
+      return -1; /* more than n fields, or a trailing comma */
+    }
   }
-  return tok ? -1 : 0;
+  return 0;
 }

@@ -12,7 +12,8 @@ int cv_parse_int(const char *s, int lo, int hi, int *out);
  * ("1/30", "1001/30000"; the divisor not 0): the form --dt takes in every
  * command.  0 on success, -1 otherwise. */
 int cv_parse_seconds(const char *s, double *out);
-/* "x,y,z" (exactly n comma-separated finite numbers) into out; 0 on success. */
+/* "x,y,z" (exactly n comma-separated finite numbers, no empty field: "5,,0"
+ * and ",5,0" are errors) into out; 0 on success. */
 int cv_parse_vec(const char *s, int n, double *out);
 
 #endif
