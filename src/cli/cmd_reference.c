@@ -18,9 +18,9 @@
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave reference <scene.prt | scene.json | mesh.obj|.ply|.gltf|.glb | default>\n"
-          "                      LIGHT --view x,y,z --look x,y,z [--up x,y,z] [--fov DEG]\n"
+          "                      LIGHT --view x,y,z --look x,y,z [--view-up x,y,z] [--fov DEG]\n"
           "                      [--size WxH] [--spp N] [--pass N] [--bounces N] [--seed S]\n"
-          "                      [--tess N] [--threads N] [--error se.exr] [--png view.png]\n"
+          "                      [--tess N] [--threads N] [--error se.exr] [--png]\n"
           "                      [--exposure E] [--ids ids.exr] [--quiet] -o view.exr\n\n"
           "Unbiased Monte Carlo path tracer of the car interior: Lambert surfaces with each\n"
           "triangle's material albedo, the environment seen only through window triangles,\n"
@@ -28,7 +28,8 @@ static void help(FILE *f) {
           "openings (area sampling), both MIS-weighted with the cosine lobe, and of the\n"
           "sky's sun; Russian roulette.  Shares no transfer code\n"
           "with the PRT bake: use it to measure `cave shade --view` (same camera, one ray\n"
-          "through each pixel centre).  A map's sun stays in the map (no extraction).\n\n"
+          "through each pixel centre).  A map's sun stays in the map (no extraction, so\n"
+          "no --no-sun).\n\n"
           "LIGHT is one of\n"
           "  --env FILE[,FILE...] [--weights w1,w2,...] [--scale S | --illuminance LUX|auto]\n"
           "                       lat-long HDR maps\n"
@@ -36,6 +37,12 @@ static void help(FILE *f) {
           "  --env-constant R,G,B constant environment radiance\n"
           "  --sky T,ELEV,AZIM    Preetham sky and its sun (as cave shade)\n"
           "  [--yaw DEG] [--pitch DEG] [--roll DEG]   car orientation\n\n"
+          "  --view x,y,z   the eye, metres (within +-1e6)\n"
+          "  --look x,y,z   the point looked at (not the eye)\n"
+          "  --view-up x,y,z  the camera's up vector (default 0,1,0; not along the view:\n"
+          "                 looking straight down or up needs e.g. 0,0,-1)\n"
+          "  --fov DEG      vertical field of view (default 70)\n"
+          "  --size WxH     picture size (default 640x480, each side 1..16384)\n"
           "  --spp N        samples per pixel (default 64)\n"
           "  --pass N       samples per progressive pass, one progress line each (default 16)\n"
           "  --bounces N    keep light that bounced at most N times (N = 2 matches a 2-bounce\n"
@@ -44,11 +51,20 @@ static void help(FILE *f) {
           "  --tess N       built-in cabin subdivision (default or .json input)\n"
           "  --threads N    OpenMP threads (default: all cores)\n"
           "  --error FILE   EXR of the per-pixel standard error of each channel's mean\n"
-          "  --png FILE     tone-mapped preview (log-average to 0.18, Reinhard, sRGB)\n"
+          "  --png          also write a tone-mapped preview next to -o (view.exr: view.png;\n"
+          "                 log-average to 0.18, Reinhard, sRGB)\n"
           "  --exposure E   fixed exposure for --png instead of the log-average\n"
           "  --ids FILE     EXR (1 channel) of 1 + the material index each pixel sees, 0 for none\n"
           "                 (region masks for the error report; the indices are printed)\n"
-          "Input .prt: its cleaned mesh and material albedos (not its per-vertex albedos).\n");
+          "Input .prt: its cleaned mesh and material albedos (not its per-vertex albedos).\n"
+          "Every output's folder is checked before the render; on an error nothing is left.\n"
+          "\nexamples:\n"
+          "  cave reference scene.prt --env forest.exr --illuminance auto --view -0.37,1.02,0 \\\n"
+          "                 --look -0.15,0.65,-1.0 --fov 60 --spp 256 -o ref.exr --error se.exr\n"
+          "  cave reference default --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 \\\n"
+          "                 --size 320x240 --spp 64 -o view.exr --png\n"
+          "  cave reference scene.prt --env-constant 1,1,1 --view -0.37,1.1,0.3 \\\n"
+          "                 --look -0.37,0,0.3 --view-up 0,0,-1 --ids ids.exr -o floor.exr\n");
 }
 
 typedef struct {
@@ -99,8 +115,14 @@ int cmd_reference(int argc, char **argv) {
   cv_ref_camera cam = {.up = {0, 1, 0}, .fov_deg = 70, .w = 640, .h = 480};
   cv_ref_params rp;
   cv_ref_params_default(&rp);
-  int have_view = 0, have_look = 0, threads = 0, tess = 0;
+  int have_view = 0, have_look = 0, threads = 0, tess = 0, png = 0;
   double exposure = 0;
+  const char *eye_s = "", *look_s = "", *up_s = "0,1,0 (the default)";
+  char png_path[4096];
+  static const char *const value_opts[] = {"-o", "--error", "--ids", "--view", "--look",
+                                           "--view-up", "--fov", "--size", "--spp", "--pass",
+                                           "--bounces", "--seed", "--tess", "--threads",
+                                           "--exposure", NULL};
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -111,34 +133,44 @@ int cmd_reference(int argc, char **argv) {
       rp.quiet = 1;
       continue;
     }
+    if (!strcmp(a, "--png")) {
+      /* a flag, as in cave lcd; the old form --png FILE.png gets a hint */
+      if (val && val[0] != '-' && cli_has_ext(val, ".png"))
+        return cli_fail("reference", 2, "--png: a flag (the preview goes next to -o, view.exr: "
+                                        "view.png), got a file '%s'", val);
+      png = 1;
+      continue;
+    }
+    if (!strcmp(a, "--no-sun"))
+      return cli_fail("reference", 2, "--no-sun: not taken: cave reference always keeps a map's "
+                                      "sun in the map and samples it from there (no extraction)");
+    if (!strcmp(a, "--up"))
+      return cli_fail("reference", 2, "--up: the camera's up vector is --view-up x,y,z (--up y|z "
+                                      "is a mesh file's up axis, in cave bake and materials)");
     int pl = cli_parse_light("reference", argc, argv, &i, &lo.spec, &lo.weights);
     if (pl < 0) return -pl;
     if (pl) continue;
-    if (a[0] == '-' && a[1] && !val) {
-      cli_print_usage(help);
-      return cli_fail("reference", 2, "option '%s' needs a value", a);
-    }
+    if (a[0] == '-' && a[1] && !val) return cli_value_missing("reference", help, a, value_opts);
     if (!strcmp(a, "-o")) {
       out = argv[++i];
     } else if (!strcmp(a, "--error")) {
       err_out = argv[++i];
     } else if (!strcmp(a, "--ids")) {
       ids_out = argv[++i];
-    } else if (!strcmp(a, "--png")) {
-      png_out = argv[++i];
-    } else if (!strcmp(a, "--view") || !strcmp(a, "--look") || !strcmp(a, "--up")) {
+    } else if (!strcmp(a, "--view") || !strcmp(a, "--look") || !strcmp(a, "--view-up")) {
       double *dst = !strcmp(a, "--view") ? cam.eye : !strcmp(a, "--look") ? cam.look : cam.up;
       if (cli_parse_vec(argv[++i], 3, dst))
         return cli_fail("reference", 2, "%s: expected x,y,z, got '%s'", a, val);
       have_view |= !strcmp(a, "--view");
       have_look |= !strcmp(a, "--look");
+      if (!strcmp(a, "--view")) eye_s = val;
+      else if (!strcmp(a, "--look")) look_s = val;
+      else up_s = val;
     } else if (!strcmp(a, "--fov")) {
       if (cli_parse_double(argv[++i], &cam.fov_deg) || cam.fov_deg <= 1 || cam.fov_deg >= 179)
         return cli_fail("reference", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
     } else if (!strcmp(a, "--size")) {
-      char extra;
-      if (sscanf(argv[++i], "%dx%d%c", &cam.w, &cam.h, &extra) != 2 || cam.w < 1 || cam.h < 1 ||
-          cam.w > 16384 || cam.h > 16384)
+      if (cli_parse_size(argv[++i], 16384, &cam.w, &cam.h))
         return cli_fail("reference", 2, "--size: expected WxH (1..16384), got '%s'", val);
     } else if (!strcmp(a, "--spp")) {
       if (cli_parse_int(argv[++i], 1, 1 << 20, &rp.spp))
@@ -182,11 +214,29 @@ int cmd_reference(int argc, char **argv) {
     return cli_fail("reference", 2, "--error: expected an .exr path, got '%s'", err_out);
   if (ids_out && !cli_has_ext(ids_out, ".exr"))
     return cli_fail("reference", 2, "--ids: expected an .exr path, got '%s'", ids_out);
-  if (png_out && !cli_has_ext(png_out, ".png"))
-    return cli_fail("reference", 2, "--png: expected a .png path, got '%s'", png_out);
+  if (png) {
+    if (strlen(out) - 4 + 5 > sizeof png_path)
+      return cli_fail("reference", 2, "-o: path too long for --png, got '%s'", out);
+    snprintf(png_path, sizeof png_path, "%.*s.png", (int)strlen(out) - 4, out);
+    png_out = png_path;
+  }
   if (!have_view || !have_look)
     return cli_fail("reference", 2, "--view x,y,z and --look x,y,z are required");
+  cli_camera_arg ca = {cam.eye, cam.look, cam.up, eye_s, look_s, up_s};
+  if (cli_check_camera("reference", &ca)) return 2;
   if (finish_light(&lo)) return 2;
+  /* every output's folder before minutes of path tracing */
+  const char *outs[4][2] = {{"-o", out}, {"--error", err_out}, {"--ids", ids_out},
+                            {"--png", png_out}};
+  for (int k = 0; k < 4; k++) {
+    if (!outs[k][1]) continue;
+    int cst = cli_check_output("reference", outs[k][0], outs[k][1]);
+    if (cst) return cst;
+    for (int j = 0; j < k; j++)
+      if (outs[j][1] && !strcmp(outs[j][1], outs[k][1]))
+        return cli_fail("reference", 2, "%s: '%s' is also the %s output", outs[k][0], outs[k][1],
+                        outs[j][0]);
+  }
   if (threads) omp_set_num_threads(threads);
 
   int rc = 1;
@@ -227,33 +277,52 @@ int cmd_reference(int argc, char **argv) {
          100 * st.median_rel_se, 100 * st.p90_rel_se, (unsigned long long)st.nonfinite,
          (unsigned long long)st.blocked_view);
   /* ZIP: cv_exr_write guards against OpenEXR issue #2306 (a chunk whose
-   * deflated size equals its raw size was stored wrongly; noisy images hit it). */
-  if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err) ||
-      (err_out && cv_exr_write(err_out, se, 0, CV_EXR_ZIP, &err))) {
+   * deflated size equals its raw size was stored wrongly; noisy images hit it).
+   * Each file is written whole (temp + rename); when one fails, those
+   * written before it are removed: an error leaves nothing behind. */
+  const char *written[4];
+  int n_written = 0;
+  if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
     rc = cli_fail("reference", 1, "%s", err.msg);
     goto done;
+  }
+  written[n_written++] = out;
+  if (err_out) {
+    if (cv_exr_write(err_out, se, 0, CV_EXR_ZIP, &err)) {
+      rc = cli_fail("reference", 1, "--error: %s", err.msg);
+      goto unwrite;
+    }
+    written[n_written++] = err_out;
   }
   if (ids_out) {
     if (cv_image_create(cam.w, cam.h, 1, &ids) || cv_ref_material_ids(sc, &cam, ids, &err) ||
         cv_exr_write(ids_out, ids, 0, CV_EXR_NONE, &err)) {
       rc = cli_fail("reference", 1, "--ids: %s", err.msg[0] ? err.msg : "out of memory");
-      goto done;
+      goto unwrite;
     }
+    written[n_written++] = ids_out;
+  }
+  cv_preview_stats ps;
+  if (png_out) {
+    if (cv_preview_write_png(png_out, img, exposure, &ps, &err)) {
+      rc = cli_fail("reference", 1, "--png: %s", err.msg);
+      goto unwrite;
+    }
+    written[n_written++] = png_out;
+  }
+  if (ids_out)
     for (size_t k = 0; k < m->nm; k++)
       printf("material %zu: %s (albedo %.3g %.3g %.3g)\n", k, m->mats[k].name,
              (double)m->mats[k].albedo[0], (double)m->mats[k].albedo[1],
              (double)m->mats[k].albedo[2]);
-  }
-  if (png_out) {
-    cv_preview_stats ps;
-    if (cv_preview_write_png(png_out, img, exposure, &ps, &err)) {
-      rc = cli_fail("reference", 1, "%s", err.msg);
-      goto done;
-    }
-  }
-  printf("wrote %s%s%s%s%s\n", out, err_out ? ", " : "", err_out ? err_out : "",
-         png_out ? ", " : "", png_out ? png_out : "");
+  if (png_out) printf("preview: %s, exposure %.4g\n", png_out, ps.exposure);
+  printf("wrote");
+  for (int k = 0; k < n_written; k++) printf("%s %s", k ? "," : "", written[k]);
+  printf("\n");
   rc = 0;
+  goto done;
+unwrite:
+  for (int k = 0; k < n_written; k++) remove(written[k]);
 done:
   cv_image_destroy(img);
   cv_image_destroy(se);

@@ -21,7 +21,7 @@ static void help(FILE *f) {
           "usage: cave shade <scene.prt> LIGHT [--yaw DEG] [--pitch DEG] [--roll DEG]\n"
           "                  [--sun-samples N] [--split K [--split-grid W] [--split-samples N]]\n"
           "                  -o out.ply [--ascii]\n"
-          "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--up x,y,z]\n"
+          "       cave shade <scene.prt> LIGHT --view x,y,z --look x,y,z [--view-up x,y,z]\n"
           "                  [--fov DEG] [--size WxH] [--exposure E] [--pixel-lights sun|all|none]\n"
           "                  [same --sun-samples/--split options] -o view.exr|view.png\n\n"
           "LIGHT is one of\n"
@@ -36,6 +36,10 @@ static void help(FILE *f) {
           "A sun found in a map (or the sky's sun) is split out of the SH lighting and\n"
           "added as a directional light with ray-traced visibility through the windows.\n"
           "The PLY holds float x y z and float red green blue = linear exit radiance.\n"
+          "A view looks from --view towards --look (metres, within +-1e6); --view-up is\n"
+          "the camera's up vector (default 0,1,0; give another, e.g. 0,0,-1, to look\n"
+          "straight down or up); --fov the vertical field of view (default 70),\n"
+          "--size the picture (default 640x480, each side 1..16384).\n"
           "--split K cuts the K brightest window-visible cells of a W x W/2 grid (default\n"
           "W 64) out of the map as extra directional lights treated like the sun (an\n"
           "all-frequency answer to window light; docs/reference.md).\n"
@@ -56,7 +60,9 @@ static void help(FILE *f) {
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
           "  cave shade scene.prt --env forest.exr --split 64 --view -0.37,1.02,0 \\\n"
           "             --look -0.15,0.65,-1.0 --fov 60 -o driver.exr\n"
-          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n"
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look -0.37,0,0.3 \\\n"
+          "             --view-up 0,0,-1 -o floor.png\n");
 }
 
 typedef struct {
@@ -95,6 +101,11 @@ int cmd_shade(int argc, char **argv) {
   cv_relight_opts_default(&ro);
   double exposure = 0;
   view_opts v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480};
+  const char *eye_s = "", *look_s = "", *up_s = "0,1,0 (the default)";
+  static const char *const value_opts[] = {"-o", "--sun-samples", "--split-samples",
+                                           "--pixel-lights", "--split", "--split-grid", "--view",
+                                           "--look", "--view-up", "--fov", "--size",
+                                           "--exposure", NULL};
   const char *weights = NULL;
   cv_err err;
   cv_err_clear(&err);
@@ -107,11 +118,11 @@ int cmd_shade(int argc, char **argv) {
       ascii = 1;
     } else if (!strcmp(a, "--no-sun")) {
       spec.extract_sun = 0;
+    } else if (!strcmp(a, "--up")) {
+      return cli_fail("shade", 2, "--up: the camera's up vector is --view-up x,y,z (--up y|z is a "
+                                  "mesh file's up axis, in cave bake and materials)");
     } else if (!val) {
-      if (a[0] == '-') {
-        cli_print_usage(help);
-        return cli_fail("shade", 2, "option '%s' needs a value", a);
-      }
+      if (a[0] == '-' && a[1]) return cli_value_missing("shade", help, a, value_opts);
       if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
       in = a;
     } else if (!strcmp(a, "-o")) {
@@ -139,16 +150,19 @@ int cmd_shade(int argc, char **argv) {
     } else if (!strcmp(a, "--view")) {
       if (cli_parse_vec(argv[++i], 3, v.eye)) return cli_fail("shade", 2, "--view: expected x,y,z, got '%s'", val);
       have_view = 1;
+      eye_s = val;
     } else if (!strcmp(a, "--look")) {
       if (cli_parse_vec(argv[++i], 3, v.look)) return cli_fail("shade", 2, "--look: expected x,y,z, got '%s'", val);
       have_look = 1;
-    } else if (!strcmp(a, "--up")) {
-      if (cli_parse_vec(argv[++i], 3, v.up)) return cli_fail("shade", 2, "--up: expected x,y,z, got '%s'", val);
+      look_s = val;
+    } else if (!strcmp(a, "--view-up")) {
+      if (cli_parse_vec(argv[++i], 3, v.up)) return cli_fail("shade", 2, "--view-up: expected x,y,z, got '%s'", val);
+      up_s = val;
     } else if (!strcmp(a, "--fov")) {
       if (cli_parse_double(argv[++i], &v.fov) || v.fov <= 1 || v.fov >= 179)
         return cli_fail("shade", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
     } else if (!strcmp(a, "--size")) {
-      if (sscanf(argv[++i], "%dx%d", &v.w, &v.h) != 2 || v.w < 1 || v.h < 1 || v.w > 16384 || v.h > 16384)
+      if (cli_parse_size(argv[++i], 16384, &v.w, &v.h))
         return cli_fail("shade", 2, "--size: expected WxH (1..16384), got '%s'", val);
     } else if (!strcmp(a, "--exposure")) {
       if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
@@ -165,7 +179,8 @@ int cmd_shade(int argc, char **argv) {
     cli_print_usage(help);
     return cli_fail("shade", 2, "a .prt input and -o FILE are required");
   }
-  if (cli_check_output("shade", "-o", out)) return 1;
+  int cst = cli_check_output("shade", "-o", out);
+  if (cst) return cst;
   if (spec.kind == CV_LIGHT_NONE)
     return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
   int wst = cli_apply_weights("shade", &spec, weights);
@@ -176,6 +191,10 @@ int cmd_shade(int argc, char **argv) {
     return cli_fail("shade", 2, "-o: a view is written as .exr or .png, got '%s'", out);
   if (!is_view && !cli_has_ext(out, ".ply"))
     return cli_fail("shade", 2, "-o: per-vertex output is a .ply (or add --view for an image), got '%s'", out);
+  if (is_view) {
+    cli_camera_arg ca = {v.eye, v.look, v.up, eye_s, look_s, up_s};
+    if (cli_check_camera("shade", &ca)) return 2;
+  }
 
   int rc = 1;
   cv_prt *p = NULL;

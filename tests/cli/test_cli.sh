@@ -215,7 +215,7 @@ expect_error "no lighting" "no lighting" $CAVE shade a.prt -o x.ply
 # --- reference ---------------------------------------------------------------
 if $CAVE reference --help >out.txt 2>&1 && grep -q "usage" out.txt; then ok "help reference"; else bad "help reference"; fi
 RV="--view -0.37,1.02,0.1 --look -0.3,0.85,-1 --size 32x20"
-expect_ok "reference exr+png+error+ids" $CAVE reference a.prt --env good.exr $RV --spp 4 --pass 2 --quiet -o r.exr --png r.png --error rse.exr --ids rid.exr
+expect_ok "reference exr+png+error+ids" $CAVE reference a.prt --env good.exr $RV --spp 4 --pass 2 --quiet -o r.exr --png --error rse.exr --ids rid.exr
 [ -s r.exr ] && [ -s r.png ] && [ -s rse.exr ] && [ -s rid.exr ] && ok "reference outputs written" || bad "reference outputs missing"
 expect_ok "reference sky, bounces" $CAVE reference a.prt --sky 3,30,20 $RV --spp 2 --bounces 1 --quiet -o r2.exr
 expect_error "reference no view" "--view" $CAVE reference a.prt --env-constant 1,1,1 -o y.exr
