@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include <omp.h>
 
@@ -17,7 +18,7 @@ static void help(FILE *f) {
           "usage: cave bake <scene.json | mesh.obj|.ply|.gltf|.glb | default> -o scene.prt\n"
           "                 [--bands N|auto] [--rays N|auto] [--bounces N] [--seed S]\n"
           "                 [--budget E] [--spread F] [--cosine-only] [--tail on|off] [--tess N]\n"
-          "                 [--threads N] [--force] [--quiet]\n"
+          "                 [--threads N] [--force] [--quiet] [--view-budget E] [LIGHT]\n"
           "                 [--units U] [--up y|z] [--model-scale S] [--rotate X,Y,Z]\n"
           "                 [--translate X,Y,Z]\n\n"
           "Precomputes per-vertex radiance transfer (Dmitriev et al. 2004, section 4.1):\n"
@@ -37,7 +38,16 @@ static void help(FILE *f) {
           "                  the bake against its all-frequency value (needs LIGHT; prints\n"
           "                  every candidate; docs/reference.md)\n"
           "  LIGHT           --env FILE[,FILE...] | --env-constant R,G,B | --sky T,ELEV,AZIM\n"
-          "                  (as cave shade): overrides the config's lighting\n"
+          "                  (as cave shade): overrides the config's lighting.  It does not\n"
+          "                  change the transfer: it steers the auto picks (--bands/--rays\n"
+          "                  auto, --view-budget) and is reported.  With --env also:\n"
+          "  --weights W1,W2,...  the maps' blend weights (default: equal)\n"
+          "  --scale S       radiance multiplier of the map(s) (default 1)\n"
+          CLI_ILLUMINANCE_HELP
+          "  --no-sun        keep a sun found in the map(s) in the SH lighting instead of\n"
+          "                  splitting it out (also for a config whose lighting is \"env\")\n"
+          "  --yaw/--pitch/--roll DEG  the car's orientation under the lighting (also on\n"
+          "                  the config's lighting; needs one of the two)\n"
           "  --tail on|off   add the bounces after the last as a geometric series (the\n"
           "                  last bounce x r/(1-r), r = ratio of the last two; default on)\n"
           "  --spread F      fraction 0..1 of each vertex's triangles that ray origins\n"
@@ -60,11 +70,28 @@ static void help(FILE *f) {
           "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");
 }
 
+/* 1 when a and b name the same file (the same string, or both exist and
+ * are one inode: a link or another spelling of the path). */
+static int same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  if (!strcmp(a, b)) return 1;
+  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+static int is_dir(const char *path) {
+  struct stat st;
+  return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
 /* cave bake's command line, as given. */
 typedef struct bake_opts {
   const char *in, *out;
   const char *bands_s, *rays_s, *bounces_s, *seed_s, *budget_s, *tess_s;
-  int force, quiet, threads, cosine_only, tail;
+  int force, quiet, threads, cosine_only, tail, no_sun;
+  const char *env_only;   /* the first of --scale/--illuminance given (they need --env) */
+  const char *pose;       /* the first of --yaw/--pitch/--roll given */
+  int pose_given;         /* bits: 1 --yaw, 2 --pitch, 4 --roll */
+  int have_light;         /* --env, --env-constant or --sky given */
   double view_budget, spread;
   cv_light_spec lspec;
   const char *weights;
@@ -94,6 +121,8 @@ static int parse_opts(int argc, char **argv, bake_opts *o) {
       o->quiet = 1;
     } else if (!strcmp(a, "--cosine-only")) {
       o->cosine_only = 1;
+    } else if (!strcmp(a, "--no-sun")) {
+      o->no_sun = 1;
     } else if (!strcmp(a, "-o") && v) {
       o->out = argv[++i];
     } else if (!strcmp(a, "--bands") && v) {
@@ -102,6 +131,14 @@ static int parse_opts(int argc, char **argv, bake_opts *o) {
       o->rays_s = argv[++i];
     } else if ((pr = cli_parse_light("bake", argc, argv, &i, &o->lspec, &o->weights)) != 0) {
       if (pr < 0) return -pr;
+      if (!strcmp(a, "--scale") || !strcmp(a, "--illuminance")) {
+        if (!o->env_only) o->env_only = a;
+      } else if (!strcmp(a, "--yaw") || !strcmp(a, "--pitch") || !strcmp(a, "--roll")) {
+        if (!o->pose) o->pose = a;
+        o->pose_given |= a[2] == 'y' ? 1 : a[2] == 'p' ? 2 : 4;
+      } else if (strcmp(a, "--weights")) {
+        o->have_light = 1;
+      }
     } else if (!strcmp(a, "--view-budget") && v) {
       if (cli_parse_double(argv[++i], &o->view_budget) || !(o->view_budget > 0) || o->view_budget > 1)
         return cli_fail("bake", 2, "--view-budget: expected a relative error in (0, 1], got '%s'", v);
@@ -144,7 +181,20 @@ int cmd_bake(int argc, char **argv) {
     cli_print_usage(help);
     return cli_fail("bake", 2, "an input and -o FILE.prt are required");
   }
+  /* The output before any work: a .prt file, not the input, not a folder. */
+  if (!o.out[0]) return cli_fail("bake", 2, "-o: expected a file name");
+  if (strcmp(o.in, "default") && same_file(o.in, o.out))
+    return cli_fail("bake", 2, "-o: %s: is the input; expected a new .prt path", o.out);
+  if (!cli_has_ext(o.out, ".prt"))
+    return cli_fail("bake", 2, "-o: expected a .prt path, got '%s'", o.out);
+  if (is_dir(o.out)) return cli_fail("bake", 1, "-o: %s is a folder, expected a file", o.out);
   if (cli_check_output("bake", "-o", o.out)) return 1;
+  /* The lighting modifiers that only act on the command line's --env maps. */
+  if (o.env_only && o.lspec.kind != CV_LIGHT_ENV) return cli_fail("bake", 2, "%s needs --env", o.env_only);
+  if (o.weights) {
+    const int wrc = cli_apply_weights("bake", &o.lspec, o.weights);
+    if (wrc) return wrc;
+  }
   cv_scene_config cfg;
   cv_err err;
   cv_err_clear(&err);
@@ -161,6 +211,15 @@ int cmd_bake(int argc, char **argv) {
   int rc = 1;
   cv_mesh *m = NULL;
   cv_tracer *tr = NULL;
+  if (!cfg.mesh_is_cabin && same_file(cfg.mesh_path, o.out)) {
+    rc = cli_fail("bake", 2, "-o: %s: is the scene's mesh; expected a new .prt path", o.out);
+    goto done;
+  }
+  if (o.tess_s && !cfg.mesh_is_cabin) {
+    rc = cli_fail("bake", 2, "--tess: applies to the built-in cabin, not to a mesh file (%s)",
+                  cfg.mesh_path);
+    goto done;
+  }
   cv_prt *prt = NULL;
   cv_scene_light *sl = NULL;
   /* Command-line overrides. */
@@ -206,10 +265,28 @@ int cmd_bake(int argc, char **argv) {
   if (o.cosine_only >= 0) cfg.window_sampling = !o.cosine_only;
   if (o.tail >= 0) cfg.tail = o.tail;
 
-  if (o.lspec.kind != CV_LIGHT_NONE) {
-    if ((rc = cli_apply_weights("bake", &o.lspec, o.weights)) != 0) goto done;
-    rc = 1;
+  if (o.have_light) {
     cfg.light = o.lspec;
+  } else if (o.pose) { /* the car's orientation under the config's lighting */
+    if (cfg.light.kind == CV_LIGHT_NONE) {
+      rc = cli_fail("bake", 2, "%s needs the lighting: --env, --env-constant or --sky (or the "
+                    "config's \"lighting\")", o.pose);
+      goto done;
+    }
+    if (o.pose_given & 1) cfg.light.yaw_deg = o.lspec.yaw_deg;
+    if (o.pose_given & 2) cfg.light.pitch_deg = o.lspec.pitch_deg;
+    if (o.pose_given & 4) cfg.light.roll_deg = o.lspec.roll_deg;
+  }
+  if (o.no_sun) {
+    if (cfg.light.kind != CV_LIGHT_ENV) {
+      /* only a map's sun can stay in the SH: the sky's is always a separate light */
+      rc = cli_fail("bake", 2, "--no-sun: applies to env maps (--env, or the config's \"env\" "
+                    "lighting)%s", cfg.light.kind == CV_LIGHT_NONE ? "; no lighting is given"
+                    : cfg.light.kind == CV_LIGHT_SKY ? ", not to --sky: its sun is always split out"
+                    : ", not to --env-constant: it has no sun");
+      goto done;
+    }
+    cfg.light.extract_sun = 0;
   }
   if (o.view_budget > 0 && cfg.light.kind == CV_LIGHT_NONE) {
     rc = cli_fail("bake", 2, "--view-budget: needs the lighting (--env, --env-constant or --sky, "

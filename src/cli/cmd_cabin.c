@@ -1,30 +1,57 @@
 /* `cave cabin`: writes the built-in parametric cabin as OBJ + MTL, so it can
  * be inspected in any modeller or fed back through the importer. */
+#include <errno.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "cli/cli.h"
 #include "io/obj_write.h"
+#include "io/scene_config.h"
 #include "mesh/cabin.h"
+
+/* The ranges mesh/cabin.c accepts (its check_params), named here so the
+ * command line refuses a bad value with the option's name and exit 2. */
+#define CABIN_LENGTH_MIN 1.5
+#define CABIN_LENGTH_MAX 5.0
+#define CABIN_WIDTH_MIN 1.0
+#define CABIN_WIDTH_MAX 2.5
+#define CABIN_HEIGHT_MIN 0.9
+#define CABIN_HEIGHT_MAX 2.0
 
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave cabin [--tess N | --triangles N] [--length M] [--width M] [--height M]\n"
           "                  -o cabin.obj\n\n"
-          "Writes the built-in car cabin (the default scene) as OBJ with a sibling .mtl.\n"
+          "Writes the built-in car cabin as OBJ with a sibling .mtl (cabin.obj -> cabin.mtl);\n"
+          "with the defaults it is the default scene's cabin ('cave bake default').\n"
           "Window openings are materials named window_*, the dashboard display lcd_panel.\n\n"
-          "  --tess N        subdivision scale 1..64 (default 1, about 10K triangles)\n"
+          "  --tess N        subdivision scale 1..64 (default %d, the default scene's, about\n"
+          "                  38K triangles; 1 gives about 10K)\n"
           "  --triangles N   pick the smallest tess reaching N triangles (8 gives ~585K)\n"
-          "  --length/--width/--height M   interior size in metres (2.6 / 1.45 / 1.2)\n"
-          "  -o FILE         output OBJ path (required)\n"
+          "  --length M      interior length in metres, %g..%g (default 2.6)\n"
+          "  --width M       interior width in metres, %g..%g (default 1.45)\n"
+          "  --height M      interior height in metres, %g..%g (default 1.2)\n"
+          "  -o FILE.obj     output OBJ path (required; the .mtl goes beside it)\n"
           "\nexamples:\n"
           "  cave cabin -o cabin.obj\n"
-          "  cave cabin --tess 2 --length 2.8 -o long.obj\n");
+          "  cave cabin --tess 1 --length 2.8 -o long.obj\n",
+          CV_SCENE_DEFAULT_TESS, CABIN_LENGTH_MIN, CABIN_LENGTH_MAX, CABIN_WIDTH_MIN,
+          CABIN_WIDTH_MAX, CABIN_HEIGHT_MIN, CABIN_HEIGHT_MAX);
+}
+
+/* An output path must not be a folder (the write would fail after the
+ * other file was written). */
+static int is_dir(const char *path) {
+  struct stat st;
+  return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
 int cmd_cabin(int argc, char **argv) {
   cv_cabin_params p;
   cv_cabin_default_params(&p);
+  p.tess = CV_SCENE_DEFAULT_TESS; /* the default scene's cabin */
   const char *out = NULL;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -43,10 +70,14 @@ int cmd_cabin(int argc, char **argv) {
       p.tess = cv_cabin_tess_for_triangles((size_t)n);
       i++;
     } else if ((!strcmp(a, "--length") || !strcmp(a, "--width") || !strcmp(a, "--height")) && v) {
+      const int len = !strcmp(a, "--length"), wid = !strcmp(a, "--width");
+      const double lo = len ? CABIN_LENGTH_MIN : wid ? CABIN_WIDTH_MIN : CABIN_HEIGHT_MIN;
+      const double hi = len ? CABIN_LENGTH_MAX : wid ? CABIN_WIDTH_MAX : CABIN_HEIGHT_MAX;
       double d;
-      if (cli_parse_double(v, &d)) return cli_fail("cabin", 2, "%s: expected metres, got '%s'", a, v);
-      if (!strcmp(a, "--length")) p.length = d;
-      else if (!strcmp(a, "--width")) p.width = d;
+      if (cli_parse_double(v, &d) || !(d >= lo && d <= hi))
+        return cli_fail("cabin", 2, "%s: expected metres in %g..%g, got '%s'", a, lo, hi, v);
+      if (len) p.length = d;
+      else if (wid) p.width = d;
       else p.height = d;
       i++;
     } else {
@@ -58,6 +89,26 @@ int cmd_cabin(int argc, char **argv) {
     cli_print_usage(help);
     return cli_fail("cabin", 2, "-o FILE.obj is required");
   }
+  /* Before any work: an .obj name (the .mtl is its sibling: x.mtl would
+   * get the OBJ and x.mtl.mtl the materials), a writable folder, and no
+   * folder in the way of either file. */
+  if (!out[0]) return cli_fail("cabin", 2, "-o: expected a file name");
+  if (!cli_has_ext(out, ".obj") || strlen(out) <= 4 || out[strlen(out) - 5] == '/')
+    return cli_fail("cabin", 2, "-o: expected an .obj path, got '%s'", out);
+  if (cli_check_output("cabin", "-o", out)) return 1;
+  size_t n = strlen(out);
+  char *mtl = malloc(n + 8);
+  if (!mtl) return cli_fail("cabin", 1, "out of memory");
+  memcpy(mtl, out, n + 1);
+  if (strcmp(out + n - 4, ".obj") == 0) memcpy(mtl + n - 4, ".mtl", 5); /* as io/obj_write.c */
+  else memcpy(mtl + n, ".mtl", 5);
+  const char *in_way = is_dir(out) ? out : is_dir(mtl) ? mtl : NULL;
+  if (in_way) {
+    int rc = cli_fail("cabin", 1, "-o: %s is a folder, expected a file", in_way);
+    free(mtl);
+    return rc;
+  }
+  free(mtl);
   cv_mesh *m;
   cv_err err;
   cv_err_clear(&err);

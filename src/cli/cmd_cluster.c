@@ -94,6 +94,7 @@ int cmd_cluster(int argc, char **argv) {
   if (!cfg) return cli_fail("cluster", 2, "%s: expected a CAVE config (e.g. configs/caves/cave5.json)", what);
   if (farm_path && gather_given) return cli_fail("cluster", 2, "--gather and --farm: give one of them");
   if (out && !out[0]) return cli_fail("cluster", 2, "-o: expected a file name");
+  if (master && !master[0]) return cli_fail("cluster", 2, "--master-host: expected a host name, got ''");
 
   static cv_cave cave; /* large: not on the stack */
   static char buf[8192];
@@ -105,6 +106,12 @@ int cmd_cluster(int argc, char **argv) {
   cv_farm farm;
   memset(&farm, 0, sizeof farm);
   if (farm_path && cv_farm_load(farm_path, &farm, &err)) return cli_fail("cluster", 1, "--farm: %s", err.msg);
+  /* --gather is a command-line value: too many ranks with it is a usage
+   * error (2), said with the range this CAVE leaves for it. */
+  if (!farm_path && (long)n_gather + 1 + cave.n_outputs > CV_DEPLOY_MAX_RANKS)
+    return cli_fail("cluster", 2, "--gather: expected 0..%d for %s (1 master + %d wall-eye ranks, "
+                    "at most %d ranks in all), got '%d'", CV_DEPLOY_MAX_RANKS - 1 - cave.n_outputs, cfg,
+                    cave.n_outputs, CV_DEPLOY_MAX_RANKS, n_gather);
   cv_deploy_opts o = {master, n_gather, farm_path ? &farm : NULL, cores};
   cv_deploy d;
   int st = cv_deploy_plan(&cave, &o, &d, &err);

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli/cli.h"
@@ -291,6 +292,46 @@ static int load_display(const char *path, cv_display **d) {
   return 0;
 }
 
+/* Output file of eye e and surface k (k unused for an atlas). */
+static void output_name(const comp_opts *o, const comp_input *in, int e, size_t k, char *path, size_t n) {
+  const char *eye = in->eyes == 2 ? (e ? "_right" : "_left") : "";
+  char suffix[100];
+  if (in->atlas) {
+    snprintf(suffix, sizeof suffix, "%s", eye);
+  } else {
+    const cv_display_surface *S = cv_display_surface_at(in->d, k);
+    snprintf(suffix, sizeof suffix, "%s%s%s", in->ns > 1 ? "_" : "", in->ns > 1 ? S->name : "", eye);
+  }
+  out_path(o->out, suffix, path, n);
+}
+
+/* 1 when a and b name the same file (the same string, or one inode). */
+static int same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  if (!strcmp(a, b)) return 1;
+  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+/* Every output file before any work, so that none is written when another
+ * cannot be: not a folder, not one of the inputs. */
+static int check_outputs(const comp_opts *o, const comp_input *in) {
+  const size_t per_eye = in->atlas ? 1 : in->ns;
+  for (int e = 0; e < in->eyes; e++)
+    for (size_t k = 0; k < per_eye; k++) {
+      char path[1200];
+      output_name(o, in, e, k, path, sizeof path);
+      struct stat st;
+      if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
+        return cli_fail("compensate", 1, "-o: %s is a folder, expected a file", path);
+      if (same_file(path, o->display_path))
+        return cli_fail("compensate", 2, "-o: %s: is the --display file", path);
+      for (int i = 0; i < o->n_img; i++)
+        if (same_file(path, o->img_path[i]) || (i < o->n_right && same_file(path, o->right_path[i])))
+          return cli_fail("compensate", 2, "-o: %s: is an input image; expected a new name", path);
+    }
+  return 0;
+}
+
 /* The display and every image, checked against each other. */
 static int load_inputs(const comp_opts *o, comp_input *in) {
   int rc = load_display(o->display_path, &in->d);
@@ -303,12 +344,21 @@ static int load_inputs(const comp_opts *o, comp_input *in) {
                     "%s has %zu surfaces: give one --image per surface or one atlas, not %d",
                     o->display_path, in->ns, o->n_img);
   in->eyes = o->n_right ? 2 : 1;
+  if ((rc = check_outputs(o, in))) return rc;
   cv_err err;
   cv_err_clear(&err);
   for (int e = 0; e < in->eyes; e++)
     for (int k = 0; k < o->n_img; k++)
       if (cv_exr_read(e ? o->right_path[k] : o->img_path[k], &in->imgs[e][k], &err))
         return cli_fail("compensate", 1, "%s", err.msg);
+  /* each eye's image of a surface (or atlas) has the same size: the cuts
+   * and the correction are made with the left one's */
+  for (int k = 0; k < o->n_right; k++) {
+    const cv_image *l = in->imgs[0][k], *r = in->imgs[1][k];
+    if (l->w != r->w || l->h != r->h)
+      return cli_fail("compensate", 2, "--right %s is %dx%d, its --image %s is %dx%d: the eyes' "
+                      "images must match", o->right_path[k], r->w, r->h, o->img_path[k], l->w, l->h);
+  }
   for (int e = 0; e < in->eyes; e++)
     for (int k = 0; k < o->n_img; k++) warn_range(e ? o->right_path[k] : o->img_path[k], in->imgs[e][k]);
   in->w0 = in->imgs[0][0]->w;
@@ -487,7 +537,6 @@ static int write_exr(const char *path, const cv_image *im, int quiet) {
 static int write_outputs(const comp_opts *o, const comp_input *in, const comp_solution *s,
                          uint64_t *clamped) {
   for (int e = 0; e < in->eyes; e++) {
-    const char *eye = in->eyes == 2 ? (e ? "_right" : "_left") : "";
     cv_image *res = NULL;
     if (in->atlas && cv_image_create(in->w0, in->h0, 3, &res)) return COMP_NOMEM();
     for (size_t k = 0; k < in->ns; k++) {
@@ -509,9 +558,8 @@ static int write_outputs(const comp_opts *o, const comp_input *in, const comp_so
         for (int y = 0; y < in->h0; y++)
           memcpy(cv_image_at(res, (int)k * part->w, y), cv_image_at(im, 0, y), 3 * part->w * sizeof(float));
       } else {
-        char path[1200], suffix[100];
-        snprintf(suffix, sizeof suffix, "%s%s%s", in->ns > 1 ? "_" : "", in->ns > 1 ? S->name : "", eye);
-        out_path(o->out, suffix, path, sizeof path);
+        char path[1200];
+        output_name(o, in, e, k, path, sizeof path);
         rc = write_exr(path, im, o->quiet);
       }
       cv_image_destroy(im);
@@ -523,7 +571,7 @@ static int write_outputs(const comp_opts *o, const comp_input *in, const comp_so
     }
     if (in->atlas) {
       char path[1200];
-      out_path(o->out, eye, path, sizeof path);
+      output_name(o, in, e, 0, path, sizeof path);
       int rc = write_exr(path, res, o->quiet);
       cv_image_destroy(res);
       if (rc) return rc;

@@ -11,14 +11,15 @@
 
 static void help(FILE *f) {
   fprintf(f,
-          "usage: cave materials <scene.json | mesh.obj|.ply|.gltf|.glb|.fbx|.dae|.ifc>\n"
+          "usage: cave materials <scene.json | mesh.obj|.ply|.gltf|.glb|.fbx|.dae|.ifc | default>\n"
           "                      [--units U] [--up y|z] [--model-scale S] [--rotate X,Y,Z]\n"
           "                      [--translate X,Y,Z]\n\n"
           "Lists every material of the model: index, triangle count, area (m^2, after\n"
           "units and transform), tag (window / lcd / none) and albedo, as the bake will\n"
           "see them before geometry cleaning.  With a scene config the overrides of its\n"
           "\"materials\" list (glob patterns) are applied first and a line per pattern says\n"
-          "how many materials and triangles it matched.\n\n" CLI_PLACE_HELP
+          "how many materials and triangles it matched.  'default' lists the built-in\n"
+          "cabin of the default scene.\n\n" CLI_PLACE_HELP
           "\nexamples:\n"
           "  cave materials /usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc\n"
           "  cave materials configs/scenes/default.json\n");

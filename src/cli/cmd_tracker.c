@@ -8,8 +8,14 @@
 #include <string.h>
 #include <time.h>
 
+#include <cjson/cJSON.h>
+
 #include "cli/cli.h"
+#include "io/json_keys.h"
+#include "service/textfile.h"
 #include "service/tracker_calib.h"
+
+#define COUNT_MAX (1 << 30)
 
 static void help(FILE *f) {
   fprintf(f,
@@ -22,12 +28,14 @@ static void help(FILE *f) {
           "the units, the room-to-CAVE transform, the body id, the marker-to-eye offset and\n"
           "the interpupillary distance; without one: mm, identity, body 1, port 5000.\n\n"
           "  --listen        receive and print (the only mode)\n"
-          "  --count N       stop after N poses (default: until interrupted)\n"
-          "  --seconds S     stop after S seconds (default: until interrupted)\n"
-          "  --port P        UDP port instead of the config's (0: any free port, printed)\n\n"
+          "  --count N       stop after N poses, 1..%d (default: until interrupted)\n"
+          "  --seconds S     stop after S > 0 seconds (default: until interrupted)\n"
+          "  --port P        UDP port 0..65535 instead of the config's (0: any free port,\n"
+          "                  printed)\n\n"
           "examples:\n"
           "  cave tracker configs/trackers/dtrack.json --listen\n"
-          "  cave tracker configs/trackers/dtrack.json --listen --count 10 --port 5001\n");
+          "  cave tracker configs/trackers/dtrack.json --listen --count 10 --port 5001\n",
+          COUNT_MAX);
 }
 
 static volatile sig_atomic_t g_stop = 0;
@@ -54,6 +62,29 @@ static void print_head(uint32_t frame, const cv_tracked_head *h) {
          z(h->roll_deg));
 }
 
+/* The tracker config: cv_tracker_config_load, but a text that is not JSON
+ * (empty, cut short) is reported as the other config loaders do, with the
+ * line, the column and what is wrong there. */
+static int load_config(const char *path, cv_tracker_config *c, cv_err *err) {
+  char *text = NULL;
+  size_t n = 0;
+  int st = cv_service_read_text(path, &text, &n, err);
+  if (st) return st;
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
+  if (!root) {
+    int line, col;
+    char what[128];
+    cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
+    free(text);
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: line %d, column %d: %s", path, line, col, what);
+  }
+  cJSON_Delete(root);
+  st = cv_tracker_config_parse(text, path, c, err);
+  free(text);
+  return st;
+}
+
 int cmd_tracker(int argc, char **argv) {
   const char *cfg_path = NULL;
   int listen = 0, count = 0, port = -1;
@@ -71,10 +102,12 @@ int cmd_tracker(int argc, char **argv) {
         return cli_fail("tracker", 2, "%s: missing value", a);
       }
       i++;
-      if ((!strcmp(a, "--count") && cli_parse_int(v, 1, 1 << 30, &count)) ||
-          (!strcmp(a, "--port") && cli_parse_int(v, 0, 65535, &port)) ||
-          (!strcmp(a, "--seconds") && (cli_parse_double(v, &seconds) || !(seconds > 0))))
-        return cli_fail("tracker", 2, "%s: bad value '%s'", a, v);
+      if (!strcmp(a, "--count") && cli_parse_int(v, 1, COUNT_MAX, &count))
+        return cli_fail("tracker", 2, "--count: expected a pose count 1..%d, got '%s'", COUNT_MAX, v);
+      if (!strcmp(a, "--port") && cli_parse_int(v, 0, 65535, &port))
+        return cli_fail("tracker", 2, "--port: expected a UDP port 0..65535, got '%s'", v);
+      if (!strcmp(a, "--seconds") && (cli_parse_double(v, &seconds) || !(seconds > 0) || seconds > 1e9))
+        return cli_fail("tracker", 2, "--seconds: expected seconds > 0 (up to 1e9), got '%s'", v);
     } else if (a[0] == '-' && a[1]) {
       cli_print_usage(help);
       return cli_fail("tracker", 2, "unknown option '%s'", a);
@@ -92,7 +125,7 @@ int cmd_tracker(int argc, char **argv) {
   cv_err err;
   cv_err_clear(&err);
   if (cfg_path) {
-    if (cv_tracker_config_load(cfg_path, &c, &err)) return cli_fail("tracker", 1, "%s", err.msg);
+    if (load_config(cfg_path, &c, &err)) return cli_fail("tracker", 1, "%s", err.msg);
   } else {
     cv_tracker_config_default(&c);
   }

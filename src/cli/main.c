@@ -38,7 +38,7 @@ static void usage(FILE *f) {
           "commands:\n");
   for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
     fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
-  fprintf(f, "\n  help     this text\n  version  print the version\n");
+  fprintf(f, "\n  help [command]  this text, or the command's help\n  version         print the version\n");
 }
 
 int main(int argc, char **argv) {
@@ -47,6 +47,16 @@ int main(int argc, char **argv) {
     return 2;
   }
   const char *cmd = argv[1];
+  if (!strcmp(cmd, "help") && argc > 2) { /* cave help <command>: that command's help */
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+      if (!strcmp(argv[2], commands[i].name)) {
+        static char help_opt[] = "--help";
+        char *args[] = {argv[2], help_opt, NULL};
+        return commands[i].fn(2, args);
+      }
+    fprintf(stderr, "cave help: '%s' is not a command (cave --help lists them)\n", argv[2]);
+    return 2;
+  }
   if (!strcmp(cmd, "help") || !strcmp(cmd, "--help") || !strcmp(cmd, "-h")) {
     usage(stdout);
     return 0;
