@@ -3,7 +3,9 @@
  * all ranks agree on whether to start without exchanging a message, and
  * rank 0 alone prints the problems (every one of them).  Then each rank
  * takes its role (service.h). */
+#include <arpa/inet.h>
 #include <errno.h>
+#include <libgen.h>
 #include <stdarg.h>
 #include <signal.h>
 #include <stdio.h>
@@ -102,31 +104,35 @@ static void help(FILE *f) {
           "                       publishes it when the next state confirms it bit for bit.\n"
           "                       host-now: sharing without that prefetch; off: every\n"
           "                       wall-eye computes its own\n"
-          "  --display FILE.json  compensation display (default: generated from the walls)\n"
+          "  --display FILE.json  compensation display, or a CAVE config whose walls and\n"
+          "                       \"screens\" give it (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default: the\n"
           "                       config's screens.patches, 24)\n"
-          "  --reflectance R      screen reflectance of the generated display (default: the\n"
-          "                       config's screens.reflectance, 0.8)\n"
+          "  --reflectance R      screen reflectance of the generated display, 0 <= R < 1 as\n"
+          "                       screens.reflectance (1 would reflect all light for ever)\n"
+          "                       (default: the config's screens.reflectance, 0.8)\n"
           "  --compensation-ms T  time slot of the compensation solve per frame (default 20;\n"
           "                       warm-started from the previous frame)\n"
           "  --no-compensation    no scattering compensation\n"
           "  --scene-config FILE  scene config (configs/scenes/) whose \"lcd\" block sets the LCD\n"
           "                       model as in `cave lcd` (panels, BRDF, content, white/black,\n"
           "                       texels, samples, tolerance; docs/scene-config.md); the\n"
-          "                       --lcd-* options below override it\n"
+          "                       --lcd-* options below override the block and every\n"
+          "                       panel's own value\n"
           "  --lcd-size WxH       LCD texels of each panel (default lcd.resolution: 400 wide,\n"
           "                       height from the panel's aspect)\n"
           "  --lcd-spp N          samples per texel per round (default lcd.spp: 40)\n"
           "  --lcd-budget R       rounds per camera/lighting key (default 64)\n"
-          "  --lcd-tolerance M    camera-key quantisation, metres (default lcd.eye_tolerance: 0.005)\n"
+          "  --lcd-tolerance M    camera-key quantisation, 1e-5..1 m (default lcd.eye_tolerance: 0.005)\n"
           "  --lcd-content FILE   panel content image (default lcd.content: built-in test pattern)\n"
           "  --lcd-luminance L    panel white in cd/m2 (default lcd.content_luminance: 500)\n"
           "  --no-lcd             no LCD final gather\n"
           "  --no-idle-lcd        wall-eyes do not contribute LCD rounds\n"
           "  --lcd-wait           after the frames, wait until the LCD budget is summed\n"
-          "  --seed N             sample sequence seed (default 1)\n"
-          "  --metrics FILE       JSON lines (default OUT/metrics.jsonl)\n"
-          "  -o DIR               output folder (default out/run)\n"
+          "  --seed N             LCD sample sequence seed, 0..4294967295 (default lcd.seed: 1)\n"
+          "  --metrics FILE       JSON lines (default OUT/metrics.jsonl); its folder must exist\n"
+          "                       (or be -o DIR)\n"
+          "  -o DIR               output folder, created when missing (default out/run)\n"
           "  --quiet              no per-frame lines\n"
           "  --check              check the configuration for --ranks N and print the\n"
           "                       rank layout, without MPI\n\n"
@@ -179,12 +185,24 @@ static int parse_present(const char *v, unsigned *out) {
   return 0;
 }
 
+/* An integer 0..4294967295, digits only. */
+static int parse_u32(const char *s, unsigned long long *out) {
+  if (!s || !*s || strlen(s) > 10) return -1;
+  unsigned long long v = 0;
+  for (const char *c = s; *c; c++) {
+    if (*c < '0' || *c > '9') return -1;
+    v = 10 * v + (unsigned long long)(*c - '0');
+  }
+  if (v > 4294967295ULL) return -1;
+  *out = v;
+  return 0;
+}
+
 static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, char *desktop_view,
                  problems *pb) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     double d;
-    int n;
 #define NEED()                                                     \
   do {                                                             \
     if (!v) {                                                      \
@@ -322,7 +340,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (cv_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
     } else if (!strcmp(a, "--reflectance")) {
       NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--reflectance: expected 0..1, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= 0 && d < 1)) problem(pb, "--reflectance: expected 0 <= R < 1 (as screens.reflectance), got '%s'", v);
       else o->reflectance = d;
     } else if (!strcmp(a, "--compensation-ms")) {
       NEED();
@@ -343,7 +361,7 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (cv_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
     } else if (!strcmp(a, "--lcd-tolerance")) {
       NEED();
-      if (cv_parse_double(v, &d) || !(d >= 1e-4 && d <= 1)) problem(pb, "--lcd-tolerance: expected 1e-4..1 m, got '%s'", v);
+      if (cv_parse_double(v, &d) || !(d >= CV_LCD_TOLERANCE_MIN && d <= CV_LCD_TOLERANCE_MAX)) problem(pb, "--lcd-tolerance: expected 1e-5..1 m (as lcd.eye_tolerance), got '%s'", v);
       else o->lcd_tolerance = d;
     } else if (!strcmp(a, "--lcd-luminance")) {
       NEED();
@@ -351,8 +369,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       else o->lcd_luminance = d;
     } else if (!strcmp(a, "--seed")) {
       NEED();
-      if (cv_parse_int(v, 0, 2147483647, &n)) problem(pb, "--seed: expected 0..2^31-1, got '%s'", v);
-      else o->seed = (uint32_t)n, o->seed_set = 1;
+      unsigned long long u;
+      if (parse_u32(v, &u)) problem(pb, "--seed: expected 0..4294967295 (as lcd.seed), got '%s'", v);
+      else o->seed = (uint32_t)u, o->seed_set = 1;
     } else if (a[0] == '-') {
       problem(pb, "unknown option '%s' (cave run --help lists them)", a);
     } else if (!o->cave_path[0]) {
@@ -431,7 +450,7 @@ static void check_present(cv_service *s, problems *pb) {
  * panels placed on the baked scene.  Sets o->lcd_w/h (the stacked buffer),
  * lcd_spp, lcd_tolerance, lcd_luminance from it.  Every rank runs this and
  * gets the same result. */
-static void lcd_model(cv_service *s, problems *pb) {
+static void lcd_model(cv_service *s, int scene_ok, problems *pb) {
   cv_run_opts *o = &s->o;
   cv_lcd_config *c = &s->lcd;
   cv_err err;
@@ -451,12 +470,11 @@ static void lcd_model(cv_service *s, problems *pb) {
   if (o->lcd_tolerance > 0) c->eye_tolerance = o->lcd_tolerance;
   if (o->lcd_content[0]) snprintf(c->content, sizeof c->content, "%s", o->lcd_content);
   if (o->seed_set) c->seed = o->seed;
-  if (o->lcd_luminance >= 0) {
-    c->content_luminance = o->lcd_luminance;
-    for (int i = 0; i < c->n_panels; i++) c->panels[i].content_luminance = o->lcd_luminance;
-  }
-  if (o->lcd_w > 0)
-    for (int i = 0; i < c->n_panels; i++) c->panels[i].width = c->panels[i].height = 0;
+  if (o->lcd_luminance >= 0) c->content_luminance = o->lcd_luminance;
+  /* an option overrides the block and every panel's own value, as in cave lcd */
+  cv_lcd_config_override(c, (o->lcd_w > 0 ? CV_LCD_SET_SIZE : 0u) |
+                                (o->lcd_content[0] ? CV_LCD_SET_CONTENT : 0u) |
+                                (o->lcd_luminance >= 0 ? CV_LCD_SET_WHITE : 0u));
   if (cv_lcd_config_panels(c, &err)) {
     problem(pb, "--scene-config: %s", err.msg);
     return;
@@ -472,7 +490,10 @@ static void lcd_model(cv_service *s, problems *pb) {
   if (!o->lcd || !o->scene_path[0] || !file_readable(o->scene_path)) return;
   cv_prt *prt = NULL;
   cv_mesh *m = NULL;
-  if (cv_prt_read(o->scene_path, &prt, &err)) return; /* reported with --scene */
+  if (cv_prt_read(o->scene_path, &prt, &err)) { /* the whole file, as the run reads it */
+    if (scene_ok) problem(pb, "--scene: %s", err.msg);
+    return;
+  }
   if (cv_prt_to_mesh(prt, &m)) {
     problem(pb, "--scene: %s: cannot rebuild its mesh", o->scene_path);
   } else if (cv_lcd_layout_make(c, m, &s->lcd_layout, &err)) {
@@ -484,9 +505,40 @@ static void lcd_model(cv_service *s, problems *pb) {
     if (o->lcd_w > 4096 || o->lcd_h > 4096)
       problem(pb, "--lcd-size: the panels take %dx%d texels together (4096 x 4096 at most)", o->lcd_w,
               o->lcd_h);
+    /* the content images as the run reads them: one that is no image fails here */
+    cv_image *img = NULL;
+    if (cv_lcd_layout_content(c, &s->lcd_layout, &img, &err))
+      problem(pb, "%s: %s", o->lcd_content[0] ? "--lcd-content" : "--scene-config", err.msg);
+    cv_image_destroy(img);
   }
   cv_mesh_destroy(m);
   cv_prt_destroy(prt);
+}
+
+/* -o (a folder, created when missing: not an existing file) and --metrics
+ * (a file in a folder that exists, or in -o's), as the run opens them. */
+static void check_outputs(const cv_run_opts *o, problems *pb) {
+  struct stat st;
+  if (stat(o->out_dir, &st) == 0 && !S_ISDIR(st.st_mode))
+    problem(pb, "-o: %s: is a file, expected a folder (created when missing)", o->out_dir);
+  if (!o->metrics_path[0]) return;
+  if (stat(o->metrics_path, &st) == 0 && S_ISDIR(st.st_mode)) {
+    problem(pb, "--metrics: %s: is a folder, expected a file", o->metrics_path);
+    return;
+  }
+  char dir[CV_PATHLEN], outd[CV_PATHLEN];
+  snprintf(dir, sizeof dir, "%s", o->metrics_path);
+  snprintf(outd, sizeof outd, "%s", o->out_dir);
+  const char *d = dirname(dir);
+  size_t n = strlen(outd);
+  while (n > 1 && outd[n - 1] == '/') outd[--n] = 0;
+  if (!strcmp(d, outd)) return; /* -o's folder, created before the metrics open */
+  if (stat(d, &st) != 0)
+    problem(pb, "--metrics: cannot write %s: folder %s: %s", o->metrics_path, d, strerror(errno));
+  else if (!S_ISDIR(st.st_mode))
+    problem(pb, "--metrics: cannot write %s: %s is not a folder", o->metrics_path, d);
+  else if (access(d, W_OK) != 0)
+    problem(pb, "--metrics: cannot write %s: folder %s: %s", o->metrics_path, d, strerror(errno));
 }
 
 /* Every check that can be made before anything starts; fills s. */
@@ -519,13 +571,22 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     else
       s->n_gather = size - need;
   }
+  int scene_ok = 0; /* the header read; the whole file is read with the LCD model */
   if (!o->scene_path[0]) {
     problem(pb, "--scene: a baked scene (.prt) is required (cave bake makes one)");
   } else if (!file_readable(o->scene_path)) {
     problem(pb, "--scene: %s: cannot open: %s", o->scene_path, strerror(errno));
   } else {
     uint64_t h;
-    if (cv_prt_read_input_hash(o->scene_path, &h, &err)) problem(pb, "--scene: %s", err.msg);
+    if (cv_prt_read_input_hash(o->scene_path, &h, &err)) {
+      problem(pb, "--scene: %s", err.msg);
+    } else if (!o->lcd) { /* the payload against the header, as the run reads it */
+      cv_prt *prt = NULL;
+      if (cv_prt_read(o->scene_path, &prt, &err)) problem(pb, "--scene: %s", err.msg);
+      cv_prt_destroy(prt);
+    } else {
+      scene_ok = 1;
+    }
   }
   if (o->drive_path[0]) {
     char buf[4096];
@@ -558,7 +619,7 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     problem(pb, "--display and --no-compensation contradict each other");
   if (o->lcd_content[0] && !file_readable(o->lcd_content))
     problem(pb, "--lcd-content: %s: cannot open: %s", o->lcd_content, strerror(errno));
-  lcd_model(s, pb);
+  lcd_model(s, scene_ok, pb);
   if (s->n_walls > 0 && o->compensate) {
     cv_display *d;
     if (cv_service_display(s, &d, &err)) problem(pb, "--display: %s", err.msg);
@@ -567,6 +628,12 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
   if (s->n_walls > 0) check_present(s, pb);
   check_desktop(s, desktop_view, pb);
   if (!o->out_dir[0]) snprintf(o->out_dir, sizeof o->out_dir, "out/run");
+  check_outputs(o, pb);
+  if (o->dtrack_host[0]) {
+    struct in_addr ia;
+    if (inet_pton(AF_INET, o->dtrack_host, &ia) != 1)
+      problem(pb, "--dtrack-host: '%s' is not an IPv4 address (expected a.b.c.d)", o->dtrack_host);
+  }
   if (o->clock < 0) o->clock = (o->present & (CV_PRESENT_WINDOW | CV_PRESENT_DESKTOP)) ? 1 : 0;
   o->swap_lock = o->barrier || (o->present & CV_PRESENT_WINDOW);
 }
@@ -611,6 +678,12 @@ static int mkdirs(const char *path) {
       *p = '/';
     }
   if (mkdir(tmp, 0777) && errno != EEXIST) return -1;
+  struct stat st;
+  if (stat(tmp, &st) != 0) return -1;
+  if (!S_ISDIR(st.st_mode)) { /* EEXIST on a plain file is no folder */
+    errno = ENOTDIR;
+    return -1;
+  }
   return 0;
 }
 
