@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <poll.h>
 #include <signal.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -88,7 +89,13 @@ double cv_child_env_limit(const char *name, double fallback) {
   if (!s || !*s) return fallback;
   char *end;
   double v = strtod(s, &end);
-  return (*end == '\0' && v >= 0) ? v : fallback;
+  return (*end == '\0' && v >= 0 && isfinite(v)) ? v : NAN;
+}
+
+int cv_child_env_check(const char *name, double value, const char *what, cv_err *err) {
+  if (!isnan(value)) return CV_OK;
+  const char *s = getenv(name);
+  return cv_err_set(err, CV_ERR_RANGE, "%s: expected %s, got '%s'", name, what, s ? s : "");
 }
 
 int cv_child_single_threaded(void) {

@@ -44,9 +44,13 @@
  * MPI's) stays held in the child for ever. */
 int cv_child_single_threaded(void);
 
-/* A limit from the environment variable name: a non-negative number, else
- * (unset, empty, unparsable or negative) fallback. */
+/* A limit from the environment variable name: a non-negative number;
+ * unset or empty: fallback; anything else (unparsable, negative, NaN/Inf):
+ * NaN, which cv_child_env_check turns into an error. */
 double cv_child_env_limit(const char *name, double fallback);
+/* CV_OK when value (a limit from cv_child_env_limit) is not NaN, else err
+ * "<name>: expected <what>, got '<its value>'" and CV_ERR_RANGE. */
+int cv_child_env_check(const char *name, double value, const char *what, cv_err *err);
 
 typedef struct cv_child_limits {
   double seconds;   /* wall-clock seconds (0 = none) */

@@ -82,6 +82,10 @@ int cv_exr_imf_decode(const char *path, const cv_exr_window *win, double raw_byt
     cv_exr_guard_default(&def);
     g = &def;
   }
+  /* a bad CAVE_EXR_TIMEOUT / CAVE_EXR_MEMORY_MB is refused, not read as the default */
+  if (cv_child_env_check("CAVE_EXR_TIMEOUT", g->seconds, "seconds >= 0 (0 = none)", err) ||
+      cv_child_env_check("CAVE_EXR_MEMORY_MB", g->memory_mb, "megabytes >= 0 (0 = none)", err))
+    return CV_ERR_RANGE;
   if (g->in_process) return decode_here(path, win, px, err);
   if (!cv_child_single_threaded()) {
     /* a fork of a threaded process (the service's LCD worker, OpenMP or

@@ -147,6 +147,10 @@ int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **ou
   if (stats) memset(stats, 0, sizeof *stats);
   char fmtb[16], what[40];
   snprintf(what, sizeof what, "import (%s)", format_of(path, fmtb, sizeof fmtb));
+  /* a bad CAVE_IMPORT_TIMEOUT / CAVE_IMPORT_MEMORY_MB is refused, not read as the default */
+  if (cv_child_env_check("CAVE_IMPORT_TIMEOUT", opts->limit_seconds, "seconds >= 0 (0 = none)", err) ||
+      cv_child_env_check("CAVE_IMPORT_MEMORY_MB", opts->limit_memory_mb, "megabytes >= 0 (0 = none)", err))
+    return CV_ERR_RANGE;
   const cv_child_limits lim = {opts->limit_seconds, opts->limit_memory_mb};
   const cv_child_labels lab = {path, what, "assimp", "CAVE_IMPORT_TIMEOUT", "CAVE_IMPORT_MEMORY_MB"};
   import_job job = {path, opts};
