@@ -78,11 +78,6 @@ static int same_file(const char *a, const char *b) {
   return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
-static int is_dir(const char *path) {
-  struct stat st;
-  return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
-}
-
 /* cave bake's command line, as given. */
 typedef struct bake_opts {
   const char *in, *out;
@@ -187,8 +182,7 @@ int cmd_bake(int argc, char **argv) {
     return cli_fail("bake", 2, "-o: %s: is the input; expected a new .prt path", o.out);
   if (!cli_has_ext(o.out, ".prt"))
     return cli_fail("bake", 2, "-o: expected a .prt path, got '%s'", o.out);
-  if (is_dir(o.out)) return cli_fail("bake", 1, "-o: %s is a folder, expected a file", o.out);
-  if (cli_check_output("bake", "-o", o.out)) return 1;
+  if (cli_check_output("bake", "-o", o.out)) return 1; /* a folder, a missing folder */
   /* The lighting modifiers that only act on the command line's --env maps. */
   if (o.env_only && o.lspec.kind != CV_LIGHT_ENV) return cli_fail("bake", 2, "%s needs --env", o.env_only);
   if (o.weights) {

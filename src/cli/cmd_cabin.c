@@ -1,10 +1,8 @@
 /* `cave cabin`: writes the built-in parametric cabin as OBJ + MTL, so it can
  * be inspected in any modeller or fed back through the importer. */
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "cli/cli.h"
 #include "io/obj_write.h"
@@ -39,13 +37,6 @@ static void help(FILE *f) {
           "  cave cabin --tess 1 --length 2.8 -o long.obj\n",
           CV_SCENE_DEFAULT_TESS, CABIN_LENGTH_MIN, CABIN_LENGTH_MAX, CABIN_WIDTH_MIN,
           CABIN_WIDTH_MAX, CABIN_HEIGHT_MIN, CABIN_HEIGHT_MAX);
-}
-
-/* An output path must not be a folder (the write would fail after the
- * other file was written). */
-static int is_dir(const char *path) {
-  struct stat st;
-  return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
 int cmd_cabin(int argc, char **argv) {
@@ -95,20 +86,17 @@ int cmd_cabin(int argc, char **argv) {
   if (!out[0]) return cli_fail("cabin", 2, "-o: expected a file name");
   if (!cli_has_ext(out, ".obj") || strlen(out) <= 4 || out[strlen(out) - 5] == '/')
     return cli_fail("cabin", 2, "-o: expected an .obj path, got '%s'", out);
-  if (cli_check_output("cabin", "-o", out)) return 1;
   size_t n = strlen(out);
   char *mtl = malloc(n + 8);
   if (!mtl) return cli_fail("cabin", 1, "out of memory");
   memcpy(mtl, out, n + 1);
   if (strcmp(out + n - 4, ".obj") == 0) memcpy(mtl + n - 4, ".mtl", 5); /* as io/obj_write.c */
   else memcpy(mtl + n, ".mtl", 5);
-  const char *in_way = is_dir(out) ? out : is_dir(mtl) ? mtl : NULL;
-  if (in_way) {
-    int rc = cli_fail("cabin", 1, "-o: %s is a folder, expected a file", in_way);
-    free(mtl);
-    return rc;
-  }
+  /* both files: a folder in the way of the .obj left the .mtl behind */
+  int rc = cli_check_output("cabin", "-o", out);
+  if (!rc) rc = cli_check_output("cabin", "-o", mtl);
   free(mtl);
+  if (rc) return rc;
   cv_mesh *m;
   cv_err err;
   cv_err_clear(&err);

@@ -320,9 +320,8 @@ static int check_outputs(const comp_opts *o, const comp_input *in) {
     for (size_t k = 0; k < per_eye; k++) {
       char path[1200];
       output_name(o, in, e, k, path, sizeof path);
-      struct stat st;
-      if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
-        return cli_fail("compensate", 1, "-o: %s is a folder, expected a file", path);
+      const int rc = cli_check_output("compensate", "-o", path); /* a folder in the way */
+      if (rc) return rc;
       if (same_file(path, o->display_path))
         return cli_fail("compensate", 2, "-o: %s: is the --display file", path);
       for (int i = 0; i < o->n_img; i++)
