@@ -61,10 +61,9 @@ static void help(FILE *f) {
           "\nexamples:\n"
           "  cave reference scene.prt --env forest.exr --illuminance auto --view -0.37,1.02,0 \\\n"
           "                 --look -0.15,0.65,-1.0 --fov 60 --spp 256 -o ref.exr --error se.exr\n"
-          "  cave reference default --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 \\\n"
-          "                 --size 320x240 --spp 64 -o view.exr --png\n"
           "  cave reference scene.prt --env-constant 1,1,1 --view -0.37,1.1,0.3 \\\n"
-          "                 --look -0.37,0,0.3 --view-up 0,0,-1 --ids ids.exr -o floor.exr\n");
+          "                 --look -0.37,0,0.3 --view-up 0,0,-1 --ids ids.exr -o floor.exr\n"
+          "  cave reference default --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o v.exr --png\n");
 }
 
 typedef struct {

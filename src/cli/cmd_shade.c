@@ -60,9 +60,9 @@ static void help(FILE *f) {
           "  cave shade scene.prt --env forest.exr --illuminance auto -o lit.ply\n"
           "  cave shade scene.prt --env forest.exr --split 64 --view -0.37,1.02,0 \\\n"
           "             --look -0.15,0.65,-1.0 --fov 60 -o driver.exr\n"
-          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n"
           "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look -0.37,0,0.3 \\\n"
-          "             --view-up 0,0,-1 -o floor.png\n");
+          "             --view-up 0,0,-1 -o floor.png\n"
+          "  cave shade scene.prt --sky 3,35,0 --view -0.37,1.1,0.3 --look 0,1,-1 -o view.png\n");
 }
 
 typedef struct {
