@@ -203,11 +203,23 @@ static void test_environment(void **state) {
   assert_true(g.seconds == 7.5);
   assert_true(g.memory_mb == 300);
   assert_int_equal(g.verbose, 1);
+  /* a bad value is refused by the decode, naming the variable (it fell
+   * back to the default silently) */
   setenv("CAVE_EXR_TIMEOUT", "-3", 1);
   setenv("CAVE_EXR_MEMORY_MB", "lots", 1);
   cv_exr_guard_default(&g);
-  assert_true(g.seconds == CV_EXR_DEFAULT_SECONDS);
-  assert_true(g.memory_mb < 0);
+  assert_true(isnan(g.seconds) && isnan(g.memory_mb));
+  uint16_t *px = cv_exr_rgba_alloc(3, 2);
+  const cv_exr_window win = {0, 0, 3, 2};
+  cv_err err;
+  assert_int_equal(cv_exr_imf_decode(CRASH_INPUT, &win, 3 * 2 * 6, px, &g, &err), CV_ERR_RANGE);
+  assert_string_equal(err.msg, "CAVE_EXR_TIMEOUT: expected seconds >= 0 (0 = none), got '-3'");
+  setenv("CAVE_EXR_TIMEOUT", "2", 1);
+  cv_exr_guard_default(&g);
+  assert_int_equal(cv_exr_imf_decode(CRASH_INPUT, &win, 3 * 2 * 6, px, &g, &err), CV_ERR_RANGE);
+  assert_string_equal(err.msg, "CAVE_EXR_MEMORY_MB: expected megabytes >= 0 (0 = none), got 'lots'");
+  cv_exr_rgba_free(px, 3, 2);
+  assert_no_child();
   unsetenv("CAVE_EXR_TIMEOUT");
   unsetenv("CAVE_EXR_MEMORY_MB");
   unsetenv("CAVE_EXR_VERBOSE");
