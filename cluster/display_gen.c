@@ -12,37 +12,11 @@
 #include "service.h"
 #include "service_internal.h"
 
-/* A CAVE config (top-level "walls", no "surfaces") rather than a display
- * description, decided by the keys as `cave compensate --display` does
- * (cmd_compensate.c), so that each loader reports its own problems;
- * anything unreadable goes to the display loader, which says why. */
-static int is_cave_config(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return 0;
-  char *text = NULL;
-  long n = -1;
-  if (!fseek(f, 0, SEEK_END) && (n = ftell(f)) >= 0 && n < (64L << 20) && !fseek(f, 0, SEEK_SET) &&
-      (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
-    text[n] = 0;
-  else
-    n = -1;
-  fclose(f);
-  int cave = 0;
-  if (n >= 0) {
-    cJSON *root = cJSON_Parse(text);
-    cave = cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
-           !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
-    cJSON_Delete(root);
-  }
-  free(text);
-  return cave;
-}
-
 int cv_service_display(const cv_service *s, cv_display **out, cv_err *err) {
   *out = NULL;
   cv_display *d = NULL;
   int st;
-  if (s->o.display_path[0] && is_cave_config(s->o.display_path)) {
+  if (s->o.display_path[0] && cv_display_is_cave_config(s->o.display_path)) {
     /* a CAVE config stands in for a display description (docs/display-format.md):
      * its walls and "screens", --patches / --reflectance overriding */
     cv_cave dc;

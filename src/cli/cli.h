@@ -42,6 +42,9 @@ int cli_parse_vec(const char *s, int n, double *out);
  * "cave <cmd>: <opt>: cannot write ..." and returns the exit status (2 for
  * an empty name, else 1) if not, else 0. */
 int cli_check_output(const char *cmd, const char *opt, const char *path);
+/* 1 when a and b name the same file: the same string, or both exist and are
+ * one inode (a link or another spelling of the path). */
+int cli_same_file(const char *a, const char *b);
 /* --size WxH: two decimal integers in 1..max joined by 'x', nothing else
  * ("32x24junk", "32x24.9", "+32x24", " 32x24" are refused); 0 on success. */
 int cli_parse_size(const char *s, int max, int *w, int *h);

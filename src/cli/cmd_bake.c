@@ -70,14 +70,6 @@ static void help(FILE *f) {
           "  cave bake regr01.obj --units cm --up z --rays 64 -o house.prt\n");
 }
 
-/* 1 when a and b name the same file (the same string, or both exist and
- * are one inode: a link or another spelling of the path). */
-static int same_file(const char *a, const char *b) {
-  struct stat sa, sb;
-  if (!strcmp(a, b)) return 1;
-  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
-}
-
 /* cave bake's command line, as given. */
 typedef struct bake_opts {
   const char *in, *out;
@@ -157,8 +149,11 @@ static int parse_opts(int argc, char **argv, bake_opts *o) {
       if (cli_parse_int(argv[++i], 1, 1024, &o->threads))
         return cli_fail("bake", 2, "--threads: expected 1..1024, got '%s'", v);
     } else if (a[0] == '-' && a[1]) {
-      cli_print_usage(help);
-      return cli_fail("bake", 2, "unknown or incomplete option '%s'", a);
+      static const char *const value_opts[] = {
+          "-o", "--bands", "--rays", "--view-budget", "--tail", "--bounces", "--spread", "--seed",
+          "--budget", "--tess", "--threads", "--units", "--up", "--model-scale", "--rotate",
+          "--translate", NULL};
+      return cli_value_missing("bake", help, a, value_opts);
     } else if (!o->in) {
       o->in = a;
     } else {
@@ -178,7 +173,7 @@ int cmd_bake(int argc, char **argv) {
   }
   /* The output before any work: a .prt file, not the input, not a folder. */
   if (!o.out[0]) return cli_fail("bake", 2, "-o: expected a file name");
-  if (strcmp(o.in, "default") && same_file(o.in, o.out))
+  if (strcmp(o.in, "default") && cli_same_file(o.in, o.out))
     return cli_fail("bake", 2, "-o: %s: is the input; expected a new .prt path", o.out);
   if (!cli_has_ext(o.out, ".prt"))
     return cli_fail("bake", 2, "-o: expected a .prt path, got '%s'", o.out);
@@ -205,7 +200,7 @@ int cmd_bake(int argc, char **argv) {
   int rc = 1;
   cv_mesh *m = NULL;
   cv_tracer *tr = NULL;
-  if (!cfg.mesh_is_cabin && same_file(cfg.mesh_path, o.out)) {
+  if (!cfg.mesh_is_cabin && cli_same_file(cfg.mesh_path, o.out)) {
     rc = cli_fail("bake", 2, "-o: %s: is the scene's mesh; expected a new .prt path", o.out);
     goto done;
   }

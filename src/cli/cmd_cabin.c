@@ -27,7 +27,7 @@ static void help(FILE *f) {
           "Window openings are materials named window_*, the dashboard display lcd_panel.\n\n"
           "  --tess N        subdivision scale 1..64 (default %d, the default scene's, about\n"
           "                  38K triangles; 1 gives about 10K)\n"
-          "  --triangles N   pick the smallest tess reaching N triangles (8 gives ~585K)\n"
+          "  --triangles N   pick the smallest tess reaching N triangles (8 gives ~571K)\n"
           "  --length M      interior length in metres, %g..%g (default 2.6)\n"
           "  --width M       interior width in metres, %g..%g (default 1.45)\n"
           "  --height M      interior height in metres, %g..%g (default 1.2)\n"
@@ -72,8 +72,9 @@ int cmd_cabin(int argc, char **argv) {
       else p.height = d;
       i++;
     } else {
-      cli_print_usage(help);
-      return cli_fail("cabin", 2, "unknown or incomplete option '%s'", a);
+      static const char *const value_opts[] = {"-o", "--tess", "--triangles", "--length",
+                                               "--width", "--height", NULL};
+      return cli_value_missing("cabin", help, a, value_opts);
     }
   }
   if (!out) {

@@ -25,31 +25,6 @@
 
 #define MAX_IMAGES 64
 
-/* A CAVE config (top-level "walls") rather than a display description
- * ("surfaces"): decided by the keys, so that each loader reports its own
- * problems; anything unreadable goes to the display loader, which says why. */
-static int is_cave_config(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return 0;
-  char *text = NULL;
-  long n = -1;
-  if (!fseek(f, 0, SEEK_END) && (n = ftell(f)) >= 0 && n < (64L << 20) && !fseek(f, 0, SEEK_SET) &&
-      (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
-    text[n] = 0;
-  else
-    n = -1;
-  fclose(f);
-  int cave = 0;
-  if (n >= 0) {
-    cJSON *root = cJSON_Parse(text);
-    cave = cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
-           !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
-    cJSON_Delete(root);
-  }
-  free(text);
-  return cave;
-}
-
 /* 1 when the dense form-factor build of n patches would take more than half
  * the physical memory: about 20 bytes per ordered pair at its peak (the
  * upper-triangle lists, the CSR copy and the final matrix). */
@@ -224,8 +199,10 @@ static int parse_options(int argc, char **argv, comp_opts *o) {
       else if (!strcmp(v, "direct")) o->half = 0, o->compress = 3;
       else return cli_fail("compensate", 2, "--storage: expected auto, float, half, low-rank or direct, got '%s'", v);
     } else if (!v) {
-      cli_print_usage(help);
-      return cli_fail("compensate", 2, "unknown or incomplete option '%s'", a);
+      static const char *const value_opts[] = {
+          "-o", "--display", "--image", "--right", "--solver", "--levels", "--time-ms",
+          "--threshold", "--drop", "--seam-budget", "--storage", NULL};
+      return cli_value_missing("compensate", help, a, value_opts);
     } else if (!strcmp(a, "--display")) {
       o->display_path = argv[++i];
     } else if (!strcmp(a, "-o")) {
@@ -275,7 +252,7 @@ static int parse_options(int argc, char **argv, comp_opts *o) {
 static int load_display(const char *path, cv_display **d) {
   cv_err err;
   cv_err_clear(&err);
-  if (is_cave_config(path)) { /* its walls and "screens" */
+  if (cv_display_is_cave_config(path)) { /* its walls and "screens" */
     cv_cave cave;
     if (cv_cave_load(path, &cave, &err)) return cli_fail("compensate", 1, "%s", err.msg);
     if (cv_display_from_cave(&cave, 0, -1, d, &err))
@@ -305,13 +282,6 @@ static void output_name(const comp_opts *o, const comp_input *in, int e, size_t 
   out_path(o->out, suffix, path, n);
 }
 
-/* 1 when a and b name the same file (the same string, or one inode). */
-static int same_file(const char *a, const char *b) {
-  struct stat sa, sb;
-  if (!strcmp(a, b)) return 1;
-  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
-}
-
 /* Every output file before any work, so that none is written when another
  * cannot be: not a folder, not one of the inputs. */
 static int check_outputs(const comp_opts *o, const comp_input *in) {
@@ -322,10 +292,10 @@ static int check_outputs(const comp_opts *o, const comp_input *in) {
       output_name(o, in, e, k, path, sizeof path);
       const int rc = cli_check_output("compensate", "-o", path); /* a folder in the way */
       if (rc) return rc;
-      if (same_file(path, o->display_path))
+      if (cli_same_file(path, o->display_path))
         return cli_fail("compensate", 2, "-o: %s: is the --display file", path);
       for (int i = 0; i < o->n_img; i++)
-        if (same_file(path, o->img_path[i]) || (i < o->n_right && same_file(path, o->right_path[i])))
+        if (cli_same_file(path, o->img_path[i]) || (i < o->n_right && cli_same_file(path, o->right_path[i])))
           return cli_fail("compensate", 2, "-o: %s: is an input image; expected a new name", path);
     }
   return 0;

@@ -375,25 +375,6 @@ static int parse_seed(const char *s, long long *out) {
   return 0;
 }
 
-/* --size WxH: the whole string, two integers 1..16384, digits only
- * (no sign, no fraction, nothing after). */
-static int parse_wxh(const char *s, int *w, int *h) {
-  long v[2] = {0, 0};
-  const char *c = s;
-  for (int k = 0; k < 2; k++) {
-    if (*c < '0' || *c > '9') return -1;
-    for (; *c >= '0' && *c <= '9'; c++) {
-      v[k] = 10 * v[k] + (*c - '0');
-      if (v[k] > 16384) return -1;
-    }
-    if (k == 0 && *c++ != 'x') return -1;
-  }
-  if (*c || v[0] < 1 || v[1] < 1) return -1;
-  *w = (int)v[0];
-  *h = (int)v[1];
-  return 0;
-}
-
 /* Reads argv into o.  Returns -1 to go on, else the exit status (0 after
  * --help; 2 with the message printed for a bad option). */
 static int parse_opts(int argc, char **argv, lcd_opts *o) {
@@ -406,6 +387,11 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
   cv_lcd_veil_params_default(&o->vp);
   o->seed = -1;
   cv_light_spec_default(&o->spec);
+  static const char *const value_opts[] = {
+      "-o", "--adaptation", "--age", "--black", "--brdf", "--cave", "--content", "--cr-min",
+      "--drive", "--dt", "--eye", "--glare-spc", "--head-path", "--heatmap", "--lcd-config",
+      "--luminance", "--pigment", "--prt", "--rounds", "--sampling", "--scene-offset", "--seed",
+      "--size", "--spp", "--threads", NULL};
   for (int i = 1, st; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -416,8 +402,7 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
     } else if (!strcmp(a, "--no-sun")) {
       o->spec.extract_sun = 0;
     } else if (a[0] == '-' && !val) {
-      cli_print_usage(help);
-      return cli_fail("lcd", 2, "option '%s' needs a value", a);
+      return cli_value_missing("lcd", help, a, value_opts);
     } else if ((st = cli_parse_light("lcd", argc, argv, &i, &o->spec, &o->weights)) != 0) {
       if (st < 0) return -st;
       /* the car's orientation alone is no lighting source */
@@ -733,7 +718,7 @@ int cmd_lcd(int argc, char **argv) {
   if (o.cfg_path && cv_lcd_config_load(o.cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   if (o.spp > 0) lc.spp = o.spp;
   if (o.rounds > 0) lc.rounds = o.rounds;
-  if (o.size_s && parse_wxh(o.size_s, &lc.width, &lc.height))
+  if (o.size_s && cli_parse_size(o.size_s, 16384, &lc.width, &lc.height))
     return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", o.size_s);
   if (o.brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", o.brdf_s);
   if (o.content_s) {

@@ -215,8 +215,11 @@ static int parse_args(int argc, char **argv, render_args *a) {
       if (a->cfg) return cli_fail("render", 2, "more than one CAVE config ('%s' and '%s')", a->cfg, o);
       a->cfg = o;
     } else if (!val) {
-      cli_print_usage(help);
-      return cli_fail("render", 2, "unknown or incomplete option '%s'", o);
+      static const char *const value_opts[] = {
+          "-o", "--scene", "--head", "--gaze", "--frames", "--dt", "--size", "--supersample",
+          "--lum-res", "--split", "--split-samples", "--split-grid", "--bg-res", "--gpu",
+          "--transfer", NULL};
+      return cli_value_missing("render", help, o, value_opts);
     } else if (!strcmp(o, "-o")) {
       a->outdir = argv[++i];
     } else if (!strcmp(o, "--scene")) {

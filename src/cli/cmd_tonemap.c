@@ -52,13 +52,6 @@ static void help(FILE *f) {
           LDMAX_MAX, LUM_MIN, LUM_MAX, LUM_MIN, LUM_MAX);
 }
 
-/* 1 when a and b name the same file (the same string, or one inode). */
-static int same_file(const char *a, const char *b) {
-  struct stat sa, sb;
-  if (!strcmp(a, b)) return 1;
-  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
-}
-
 int cmd_tonemap(int argc, char **argv) {
   const char *in = NULL, *out = NULL;
   cv_drago d;
@@ -73,8 +66,8 @@ int cmd_tonemap(int argc, char **argv) {
       if (in) return cli_fail("tonemap", 2, "more than one input ('%s' and '%s')", in, a);
       in = a;
     } else if (!v) {
-      cli_print_usage(help);
-      return cli_fail("tonemap", 2, "unknown or incomplete option '%s'", a);
+      static const char *const value_opts[] = {"-o", "--bias", "--ldmax", "--lwa", "--lmax", NULL};
+      return cli_value_missing("tonemap", help, a, value_opts);
     } else if (!strcmp(a, "-o")) {
       out = argv[++i];
     } else if (!strcmp(a, "--bias")) {
@@ -103,7 +96,7 @@ int cmd_tonemap(int argc, char **argv) {
   int png = cli_has_ext(out, ".png");
   if (!png && !cli_has_ext(out, ".exr"))
     return cli_fail("tonemap", 2, "-o: expected an .exr or .png path, got '%s'", out);
-  if (same_file(in, out))
+  if (cli_same_file(in, out))
     return cli_fail("tonemap", 2, "-o: %s: is the input image; expected a new .exr or .png path", out);
   if (have_lwa && have_lmax && d.lwmax < d.lwa * LMAX_MIN_RATIO)
     return cli_fail("tonemap", 2, "--lmax: %g cd/m2 is below 1e-6 x --lwa %g", d.lwmax, d.lwa);

@@ -8,11 +8,8 @@
 #include <string.h>
 #include <time.h>
 
-#include <cjson/cJSON.h>
 
 #include "cli/cli.h"
-#include "io/json_keys.h"
-#include "service/textfile.h"
 #include "service/tracker_calib.h"
 
 #define COUNT_MAX (1 << 30)
@@ -62,29 +59,6 @@ static void print_head(uint32_t frame, const cv_tracked_head *h) {
          z(h->roll_deg));
 }
 
-/* The tracker config: cv_tracker_config_load, but a text that is not JSON
- * (empty, cut short) is reported as the other config loaders do, with the
- * line, the column and what is wrong there. */
-static int load_config(const char *path, cv_tracker_config *c, cv_err *err) {
-  char *text = NULL;
-  size_t n = 0;
-  int st = cv_service_read_text(path, &text, &n, err);
-  if (st) return st;
-  const char *end = NULL;
-  cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
-  if (!root) {
-    int line, col;
-    char what[128];
-    cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
-    free(text);
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: line %d, column %d: %s", path, line, col, what);
-  }
-  cJSON_Delete(root);
-  st = cv_tracker_config_parse(text, path, c, err);
-  free(text);
-  return st;
-}
-
 int cmd_tracker(int argc, char **argv) {
   const char *cfg_path = NULL;
   int listen = 0, count = 0, port = -1;
@@ -125,7 +99,7 @@ int cmd_tracker(int argc, char **argv) {
   cv_err err;
   cv_err_clear(&err);
   if (cfg_path) {
-    if (load_config(cfg_path, &c, &err)) return cli_fail("tracker", 1, "%s", err.msg);
+    if (cv_tracker_config_load(cfg_path, &c, &err)) return cli_fail("tracker", 1, "%s", err.msg);
   } else {
     cv_tracker_config_default(&c);
   }

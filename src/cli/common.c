@@ -48,6 +48,12 @@ int cli_parse_double(const char *s, double *out) { return cv_parse_double(s, out
 int cli_parse_int(const char *s, int lo, int hi, int *out) { return cv_parse_int(s, lo, hi, out); }
 int cli_parse_vec(const char *s, int n, double *out) { return cv_parse_vec(s, n, out); }
 
+int cli_same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  if (!strcmp(a, b)) return 1;
+  return stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
 int cli_check_output(const char *cmd, const char *opt, const char *path) {
   char dir[4096];
   if (!path || !*path) return cli_fail(cmd, 2, "%s: expected a file name, got ''", opt);

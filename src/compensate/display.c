@@ -786,6 +786,12 @@ static int read_file(const char *path, char **text, ctx *x) {
     cv_problem(x, CV_ERR_IO, "", "cannot open: %s", strerror(errno));
     return CV_ERR_IO;
   }
+  cv_err fe;
+  if (cv_json_file_check(f, path, &fe)) {
+    fclose(f);
+    cv_problem(x, CV_ERR_IO, "", "is a folder, expected a JSON file");
+    return CV_ERR_IO;
+  }
   fseek(f, 0, SEEK_END);
   long n = ftell(f);
   fseek(f, 0, SEEK_SET);
@@ -826,6 +832,28 @@ int cv_display_parse(const char *json, const char *name, cv_display **out, cv_er
   ctx x = {.file = name ? name : "(display)"};
   cv_display *d = parse_text(&x, json);
   return finish(&x, d, out, err);
+}
+
+int cv_display_is_cave_config(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return 0;
+  char *text = NULL;
+  long n = -1;
+  if (!fseek(f, 0, SEEK_END) && (n = ftell(f)) >= 0 && n < (64L << 20) && !fseek(f, 0, SEEK_SET) &&
+      (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
+    text[n] = 0;
+  else
+    n = -1;
+  fclose(f);
+  int cave = 0;
+  if (n >= 0) {
+    cJSON *root = cJSON_Parse(text);
+    cave = cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
+           !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
+    cJSON_Delete(root);
+  }
+  free(text);
+  return cave;
 }
 
 int cv_display_load(const char *path, cv_display **out, cv_err *err) {

@@ -159,6 +159,12 @@ typedef struct cv_display {
  * as "file: field.path: what", followed by " [+N more problems]" when there
  * are others), CV_ERR_NOMEM; *out is NULL then. */
 int cv_display_load(const char *path, cv_display **out, cv_err *err);
+/* 1 when path holds a CAVE config (a top-level "walls" and no "surfaces")
+ * rather than a display description: decided by the keys alone, so that
+ * each loader reports its own problems (anything unreadable: 0, and the
+ * display loader says why).  `cave compensate --display` and `cave run
+ * --display` take either. */
+int cv_display_is_cave_config(const char *path);
 
 /* As cv_display_load on JSON text already in memory; name is used in the
  * messages in place of the file name. */

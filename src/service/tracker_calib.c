@@ -164,9 +164,10 @@ int cv_tracker_config_parse(const char *text, const char *name, cv_tracker_confi
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
   if (!root) {
-    int line = 1;
-    for (const char *p = text; end && p < end && *p; p++) line += *p == '\n';
-    return cv_err_set(err, CV_ERR_CONFIG, "%s:%d: JSON syntax error", name, line);
+    int line, col;
+    char what[128];
+    cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
+    return cv_err_set(err, CV_ERR_CONFIG, "%s: line %d, column %d: %s", name, line, col, what);
   }
   ctx x = {name, err};
   int st = parse_root(&x, root, c);
