@@ -209,6 +209,22 @@ static void test_parse_seconds(void **state) {
   }
 }
 
+static void test_parse_vec(void **state) {
+  (void)state;
+  double v[3] = {0, 0, 0};
+  assert_int_equal(cv_parse_vec("5,-0.25,1e2", 3, v), 0);
+  assert_true(v[0] == 5 && v[1] == -0.25 && v[2] == 100);
+  assert_int_equal(cv_parse_vec("7", 1, v), 0);
+  assert_true(v[0] == 7);
+  /* empty fields, too few or too many, trailing junk, non-finite */
+  const char *bad[] = {"5,,0,0", ",5,0", "5,0,", "5,0", "5,0,0,0", "5,0,0x", "", ",",
+                       "nan,0,0", "1e999,0,0", "5, ,0"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    v[0] = v[1] = v[2] = 7;
+    if (cv_parse_vec(bad[i], 3, v) == 0) fail_msg("'%s' accepted", bad[i]);
+  }
+}
+
 /* FNV-1a of the float bits of the table-driven Owen-scrambled Sobol points
  * (8 dimensions, 3 seeds, indices 0..65535 and 64 large ones), and of the
  * reference path cv_sobol_owen_n.  SOBOL_GOLDEN was printed by the
@@ -286,7 +302,7 @@ int main(void) {
       cmocka_unit_test(test_hash_vectors),         cmocka_unit_test(test_hash_typed),
       cmocka_unit_test(test_progress_null),        cmocka_unit_test(test_progress_plain_lines),
       cmocka_unit_test(test_progress_tty_and_quiet), cmocka_unit_test(test_progress_openmp),
-      cmocka_unit_test(test_progress_unknown_total), cmocka_unit_test(test_parse_seconds),
+      cmocka_unit_test(test_progress_unknown_total), cmocka_unit_test(test_parse_seconds), cmocka_unit_test(test_parse_vec),
       cmocka_unit_test(test_sobol_bit_identical),  cmocka_unit_test(test_fast_trig),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
