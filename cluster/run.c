@@ -571,22 +571,16 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
     else
       s->n_gather = size - need;
   }
-  int scene_ok = 0; /* the header read; the whole file is read with the LCD model */
+  int scene_ok = 0; /* the header and the file's size read; the whole file is read with the LCD model */
   if (!o->scene_path[0]) {
     problem(pb, "--scene: a baked scene (.prt) is required (cave bake makes one)");
   } else if (!file_readable(o->scene_path)) {
     problem(pb, "--scene: %s: cannot open: %s", o->scene_path, strerror(errno));
   } else {
     uint64_t h;
-    if (cv_prt_read_input_hash(o->scene_path, &h, &err)) {
-      problem(pb, "--scene: %s", err.msg);
-    } else if (!o->lcd) { /* the payload against the header, as the run reads it */
-      cv_prt *prt = NULL;
-      if (cv_prt_read(o->scene_path, &prt, &err)) problem(pb, "--scene: %s", err.msg);
-      cv_prt_destroy(prt);
-    } else {
-      scene_ok = 1;
-    }
+    /* the header and its counts against the file's size (a truncated file) */
+    if (cv_prt_read_input_hash(o->scene_path, &h, &err)) problem(pb, "--scene: %s", err.msg);
+    else scene_ok = 1;
   }
   if (o->drive_path[0]) {
     char buf[4096];

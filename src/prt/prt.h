@@ -79,8 +79,10 @@ int cv_prt_write(const char *path, const cv_prt *p, cv_err *err);
  * message names the file, the field, its value and what was expected.
  * *out owned by the caller. */
 int cv_prt_read(const char *path, cv_prt **out, cv_err *err);
-/* Reads only the header's input hash (to skip re-baking an unchanged scene).
- * Returns CV_ERR_NOT_FOUND if the file does not exist. */
+/* Reads only the header's input hash (to skip re-baking an unchanged scene),
+ * after checking the header's counts against the file's size as cv_prt_read
+ * does (a stat, no payload read: a truncated file is refused with the same
+ * message).  Returns CV_ERR_NOT_FOUND if the file does not exist. */
 int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err);
 
 /* Gives p the texture arrays (zeroed) and sets CV_PRT_TEXTURED. */

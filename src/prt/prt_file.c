@@ -207,20 +207,6 @@ static int read_header(FILE *f, const char *path, header *h, cv_err *err) {
   return CV_OK;
 }
 
-int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err) {
-  FILE *f = fopen(path, "rb");
-  if (!f) {
-    if (errno == ENOENT) return cv_err_set(err, CV_ERR_NOT_FOUND, "%s: no such file", path);
-    return cv_err_set(err, CV_ERR_IO, "%s: %s", path, strerror(errno));
-  }
-  header h;
-  int st = read_header(f, path, &h, err);
-  fclose(f);
-  if (st) return st;
-  *hash = h.input_hash;
-  return CV_OK;
-}
-
 /* Payload bytes the header's counts call for, from the counts alone (read_header
  * bounds them: nv, nt <= 2^32, nm <= 2^20, bands <= 8, so no overflow in 64 bits). */
 static uint64_t payload_bytes(const header *h) {
@@ -248,6 +234,21 @@ static int check_counts(FILE *f, const char *path, const header *h, cv_err *err)
                     (unsigned long long)h->nm, h->bands,
                     (h->flags & CV_PRT_HAS_INDIRECT) ? ", indirect" : "", (unsigned long long)want,
                     (unsigned long long)have);
+}
+
+int cv_prt_read_input_hash(const char *path, uint64_t *hash, cv_err *err) {
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    if (errno == ENOENT) return cv_err_set(err, CV_ERR_NOT_FOUND, "%s: no such file", path);
+    return cv_err_set(err, CV_ERR_IO, "%s: %s", path, strerror(errno));
+  }
+  header h;
+  int st = read_header(f, path, &h, err);
+  if (!st) st = check_counts(f, path, &h, err); /* a stat: a truncated file is no match */
+  fclose(f);
+  if (st) return st;
+  *hash = h.input_hash;
+  return CV_OK;
 }
 
 /* Per-vertex records: finite position, transfer, albedo in [0, 1], normal

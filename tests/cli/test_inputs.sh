@@ -9,30 +9,9 @@ CAVE=$1 W=$2 ROOT=$3
 HERE=$(cd "$(dirname "$0")" && pwd)
 rm -rf "$W" && mkdir -p "$W" && cd "$W" || exit 1
 pass=0 fail=0
-ok() { echo "ok: $1"; pass=$((pass + 1)); }
-bad() { echo "FAIL: $1"; fail=$((fail + 1)); }
-
-# expect_error NAME PATTERN CMD...: a clean failure (exit 1 or 2, no
-# signal) whose last stderr line matches PATTERN (grep regex).
-expect_error() {
-  local name=$1 pat=$2
-  shift 2
-  "$@" >out.txt 2>err.txt
-  local rc=$?
-  if [ $rc -eq 0 ] || [ $rc -gt 2 ]; then
-    bad "$name: exit status $rc (expected 1 or 2)"; tail -n 5 err.txt; return
-  fi
-  if ! tail -n 1 err.txt | grep -q -- "$pat"; then
-    bad "$name: last error line lacks '$pat'"; tail -n 5 err.txt; return
-  fi
-  ok "$name: $(tail -n 1 err.txt)"
-}
-
-expect_ok() {
-  local name=$1
-  shift
-  if "$@" >out.txt 2>err.txt; then ok "$name"; else bad "$name: exit $?"; tail -n 5 err.txt; fi
-}
+# the shared checks; several cases here print a usage before the error line
+EXPECT_ONE_LINE=0
+. "$HERE/expect.sh"
 
 # expect_absent NAME FILE...: none of the files exists (nothing left behind).
 expect_absent() {
