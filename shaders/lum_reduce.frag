@@ -10,14 +10,19 @@
 //   w: its invalid pixels (a NaN, Inf or negative channel), each counted by
 //      the one footprint that holds its centre, so the counts add up to the
 //      image's.
-// Y is Rec.709 luminance (CV_Y).  src/tonemap/foveal.c cv_lum_downsample
-// does the same on the CPU in double; tests/render compares them.
+// Y is Rec.709 luminance (CV_Y).  Written as o_lum = x / y (NaN without a
+// valid pixel: the luminance image the CPU reads back, 4 bytes a pixel) and
+// o_mb = (z, w), which lum_block.frag reduces further so that the largest Y
+// and the invalid count come back in a few bytes.  src/tonemap/foveal.c
+// cv_lum_downsample does the same on the CPU in double; tests/render
+// compares them.
 
 uniform sampler2D u_src;
 uniform ivec2 u_size;  // resolved HDR pixels (W, H)
 uniform ivec2 u_out;   // output pixels
 uniform int u_ss;      // supersampling factor of the target (1 or 2)
-layout(location = 0) out vec4 o_stats;
+layout(location = 0) out float o_lum;
+layout(location = 1) out vec2 o_mb;
 
 vec3 cv_pixel(ivec2 p) {
   if (u_ss == 1) return texelFetch(u_src, p, 0).rgb;
@@ -58,5 +63,6 @@ void main() {
       mx = max(mx, Y);
     }
   }
-  o_stats = vec4(s, sw, mx, bad);
+  o_lum = sw > 0.0 ? s / sw : uintBitsToFloat(0x7fc00000u);
+  o_mb = vec2(mx, bad);
 }

@@ -69,15 +69,19 @@ int cvr_ensure_main(cv_renderer *r, int w, int h, GLenum dfmt, cv_err *err) {
   return cvr_fbo_complete("shading", w, h, err);
 }
 
+/* The supersampling resolve's targets: the display image as a texture (the
+ * GPU post pass reads it), the HDR image as a renderbuffer. */
 int cvr_ensure_res(cv_renderer *r, int w, int h, cv_err *err) {
-  if (r->fbo_res && r->res_w == w && r->res_h == h) return CV_OK;
-  GLuint old[2] = {r->rb_res_disp, r->rb_res_hdr};
-  glDeleteRenderbuffers(2, old);
+  const GLenum fmt = cvr_disp_fmt(r, 1, 1);
+  if (r->fbo_res && r->res_w == w && r->res_h == h && r->res_fmt == fmt) return CV_OK;
+  glDeleteTextures(1, &r->tex_res_disp);
+  glDeleteRenderbuffers(1, &r->rb_res_hdr);
   if (!r->fbo_res) glGenFramebuffers(1, &r->fbo_res);
-  r->rb_res_disp = cvr_make_rb(cvr_disp_fmt(r, 1, 1), w, h);
+  r->tex_res_disp = cvr_make_tex(fmt, w, h);
+  r->res_fmt = fmt;
   r->rb_res_hdr = cvr_make_rb(GL_RGBA32F, w, h);
   glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_res);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->rb_res_disp);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, r->tex_res_disp, 0);
   glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, r->rb_res_hdr);
   r->res_w = w, r->res_h = h;
   return cvr_fbo_complete("resolve", w, h, err);
@@ -98,6 +102,7 @@ int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img) {
       r->rgba8 = b, r->rgba8_cap = need;
     }
     glReadPixels(0, 0, img->w, img->h, GL_RGBA, GL_UNSIGNED_BYTE, r->rgba8);
+    r->io_read += need;
     for (int y = 0; y < img->h; y++) {
       const uint8_t *src = r->rgba8 + (size_t)(img->h - 1 - y) * img->w * 4;
       float *dst = img->px + (size_t)y * row;
@@ -107,6 +112,7 @@ int cvr_read_image(cv_renderer *r, GLenum att, int is8, cv_image *img) {
     return CV_OK;
   }
   glReadPixels(0, 0, img->w, img->h, img->c == 1 ? GL_RED : GL_RGB, GL_FLOAT, img->px);
+  r->io_read += (size_t)img->w * img->h * (img->c == 1 ? 1 : 3) * sizeof(float);
   for (int y = 0; y < img->h / 2; y++) {
     float *a = img->px + (size_t)y * row, *b = img->px + (size_t)(img->h - 1 - y) * row;
     for (size_t i = 0; i < row; i++) {
@@ -413,31 +419,53 @@ void cvr_shading_depth_state(const cv_renderer *r) {
   glDepthMask(r->o.depth_less ? GL_TRUE : GL_FALSE);
 }
 
+/* Targets of the luminance statistics for a w x h luminance image: the
+ * image (R32F) and the (max, invalid) pairs (RG32F texture), then those
+ * pairs in blocks of LUM_BLOCK^2. */
+#define LUM_BLOCK 8
+static int ensure_reduce(cv_renderer *r, int w, int h, cv_err *err) {
+  if (r->fbo_red && r->red_w == w && r->red_h == h) return CV_OK;
+  const int bw = (w + LUM_BLOCK - 1) / LUM_BLOCK, bh = (h + LUM_BLOCK - 1) / LUM_BLOCK;
+  float *buf = realloc(r->red_cpu, 2 * (size_t)bw * bh * sizeof *buf);
+  if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  r->red_cpu = buf;
+  glDeleteRenderbuffers(1, &r->rb_red);
+  glDeleteRenderbuffers(1, &r->rb_blk);
+  glDeleteTextures(1, &r->tex_red_mb);
+  if (!r->fbo_red) glGenFramebuffers(1, &r->fbo_red);
+  if (!r->fbo_blk) glGenFramebuffers(1, &r->fbo_blk);
+  r->rb_red = cvr_make_rb(GL_R32F, w, h);
+  r->tex_red_mb = cvr_make_tex(GL_RG32F, w, h);
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_red);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->rb_red);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, r->tex_red_mb, 0);
+  int st = cvr_fbo_complete("luminance statistics", w, h, err);
+  if (st) return st;
+  r->rb_blk = cvr_make_rb(GL_RG32F, bw, bh);
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_blk);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->rb_blk);
+  if ((st = cvr_fbo_complete("luminance blocks", bw, bh, err))) return st;
+  r->red_w = w, r->red_h = h;
+  return CV_OK;
+}
+
 /* The luminance statistics of the HDR target just drawn (W x H pixels of
- * ss x ss texels; r->tex_hdr) into lum (lum_reduce.frag), read back and
- * finished in double: the mean, the max, the invalid count. */
+ * ss x ss texels; r->tex_hdr) into lum (lum_reduce.frag, then
+ * lum_block.frag): the luminance image and the (max, invalid) pairs of
+ * LUM_BLOCK^2 blocks come back (4 bytes a luminance pixel + 8 a block), the
+ * max and the count finished on the CPU. */
 int cvr_reduce_luminance(cv_renderer *r, int W, int H, int ss, cv_image *lum, double *max_y,
                          uint64_t *n_invalid, cv_err *err) {
   const int w = lum->w, h = lum->h;
-  if (!r->fbo_red || r->red_w != w || r->red_h != h) {
-    float *buf = realloc(r->red_cpu, 4 * (size_t)w * h * sizeof *buf);
-    if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
-    r->red_cpu = buf;
-    glDeleteRenderbuffers(1, &r->rb_red);
-    if (!r->fbo_red) glGenFramebuffers(1, &r->fbo_red);
-    r->rb_red = cvr_make_rb(GL_RGBA32F, w, h);
-    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_red);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->rb_red);
-    r->red_w = w, r->red_h = h;
-    int st = cvr_fbo_complete("luminance statistics", w, h, err);
-    if (st) return st;
-  }
+  int st = ensure_reduce(r, w, h, err);
+  if (st) return st;
+  static const GLenum bufs[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
   glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_red);
-  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glDrawBuffers(2, bufs);
   glViewport(0, 0, w, h);
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_CULL_FACE);
-  const GLuint p = r->prog_lumred;
+  GLuint p = r->prog_lumred;
   glUseProgram(p);
   glUniform2i(glGetUniformLocation(p, "u_size"), W, H);
   glUniform2i(glGetUniformLocation(p, "u_out"), w, h);
@@ -445,19 +473,28 @@ int cvr_reduce_luminance(cv_renderer *r, int W, int H, int ss, cv_image *lum, do
   glActiveTexture(GL_TEXTURE0 + U_SRC);
   glBindTexture(GL_TEXTURE_2D, r->tex_hdr);
   cvr_draw_fullscreen(r);
+  const int bw = (w + LUM_BLOCK - 1) / LUM_BLOCK, bh = (h + LUM_BLOCK - 1) / LUM_BLOCK;
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_blk);
+  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glViewport(0, 0, bw, bh);
+  p = r->prog_lumblk;
+  glUseProgram(p);
+  glUniform2i(glGetUniformLocation(p, "u_size"), w, h);
+  glUniform1i(glGetUniformLocation(p, "u_block"), LUM_BLOCK);
+  glBindTexture(GL_TEXTURE_2D, r->tex_red_mb);
+  cvr_draw_fullscreen(r);
   glEnable(GL_DEPTH_TEST);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_red);
+  cvr_read_image(r, GL_COLOR_ATTACHMENT0, 0, lum);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo_blk);
   glReadBuffer(GL_COLOR_ATTACHMENT0);
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, r->red_cpu);
+  glReadPixels(0, 0, bw, bh, GL_RG, GL_FLOAT, r->red_cpu);
+  r->io_read += 2 * (size_t)bw * bh * sizeof(float);
   double mx = 0, bad = 0;
-  for (int j = 0; j < h; j++) {
-    const float *row = r->red_cpu + 4 * (size_t)(h - 1 - j) * w; /* GL rows bottom-up */
-    for (int i = 0; i < w; i++) {
-      const float *q = row + 4 * i;
-      lum->px[(size_t)j * w + i] = q[1] > 0 ? (float)((double)q[0] / q[1]) : NAN;
-      if (q[2] > mx) mx = q[2];
-      bad += q[3];
-    }
+  for (size_t i = 0; i < (size_t)bw * bh; i++) {
+    if (r->red_cpu[2 * i] > mx) mx = r->red_cpu[2 * i];
+    bad += r->red_cpu[2 * i + 1];
   }
   if (max_y) *max_y = mx;
   if (n_invalid) *n_invalid = (uint64_t)bad;
@@ -470,13 +507,17 @@ int cv_renderer_shade(cv_renderer *r, const cv_render_view *v, const cv_drago_co
   return cv_renderer_shade_stats(r, v, dc, transfer, out_display, out_hdr, NULL, NULL, NULL, t, err);
 }
 
-int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
-                            int transfer, cv_image *out_display, cv_image *out_hdr,
-                            cv_image *out_lum, double *max_y, uint64_t *n_invalid,
-                            cv_frame_timing *t, cv_err *err) {
+/* cv_renderer_shade_stats, and with `keep` the display image drawn and
+ * left on the GPU (cv_renderer_shade_gpu) instead of read back. */
+static int shade(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc, int transfer,
+                 cv_image *out_display, int keep, cv_image *out_hdr, cv_image *out_lum, double *max_y,
+                 uint64_t *n_invalid, cv_frame_timing *t, cv_err *err) {
   int st = cvr_check_view(r, v, err);
   if (st) return st;
-  const int gpu_stats = out_lum && cv_renderer_lum_stats_on_gpu(r);
+  if (keep && !r->o.display_float)
+    return cv_err_set(err, CV_ERR_INVALID, "shade: a display image kept on the GPU needs opts.display_float");
+  const int want_disp = out_display || keep;
+  const int gpu_stats = out_lum && (keep || cv_renderer_lum_stats_on_gpu(r));
   if (out_lum && !gpu_stats && !out_hdr) {
     /* statistics on the CPU: the HDR image is read back into scratch */
     if (!r->hdr_scratch || r->hdr_scratch->w != v->w || r->hdr_scratch->h != v->h) {
@@ -487,13 +528,13 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
     }
     out_hdr = r->hdr_scratch;
   }
-  if (!out_display && !out_hdr && !out_lum)
+  if (!want_disp && !out_hdr && !out_lum)
     return cv_err_set(err, CV_ERR_INVALID, "shade: no output image");
   if (out_lum && (out_lum->c != 1 || out_lum->w < 1 || out_lum->h < 1 || !out_lum->px ||
                   out_lum->w > r->max_rb || out_lum->h > r->max_rb))
     return cv_err_set(err, CV_ERR_INVALID, "shade: the luminance image must be 1 channel, 1..%d pixels a side",
                       (int)r->max_rb);
-  if (out_display && !dc) return cv_err_set(err, CV_ERR_INVALID, "shade: display output needs Drago constants");
+  if (want_disp && !dc) return cv_err_set(err, CV_ERR_INVALID, "shade: display output needs Drago constants");
   cv_image *outs[2] = {out_display, out_hdr};
   for (int k = 0; k < 2; k++)
     if (outs[k] && (outs[k]->c != 3 || outs[k]->w != v->w || outs[k]->h != v->h || !outs[k]->px))
@@ -507,9 +548,9 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
   cvr_set_cull(r, 1);
   const int ss = v->supersample, W = v->w * ss, H = v->h * ss;
   const int draw_hdr = out_hdr || out_lum;
-  int flags = (out_display ? F_DISP : 0) | (draw_hdr ? F_HDR : 0) |
-              (out_display && transfer ? F_TRANSFER : 0);
-  if (out_display) {
+  int flags = (want_disp ? F_DISP : 0) | (draw_hdr ? F_HDR : 0) |
+              (want_disp && transfer ? F_TRANSFER : 0);
+  if (want_disp) {
     cvr_tone_table(r, dc);
     if (!r->tone_ok) flags |= F_EXACT;
   }
@@ -524,7 +565,7 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
   double t0 = cvr_tick(r);
   cvr_depth_pass(r, mvp, W, H);
   double t1 = cvr_tick(r);
-  const GLenum bufs[2] = {out_display ? GL_COLOR_ATTACHMENT0 : GL_NONE,
+  const GLenum bufs[2] = {want_disp ? GL_COLOR_ATTACHMENT0 : GL_NONE,
                           draw_hdr ? GL_COLOR_ATTACHMENT1 : GL_NONE};
   glDrawBuffers(2, bufs);
   if (r->o.debug_clear) {
@@ -555,7 +596,7 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
     glUseProgram(r->prog_down);
     glActiveTexture(GL_TEXTURE0 + U_SRC);
     for (int k = 0; k < 2; k++) {
-      if (!outs[k]) continue;
+      if (!outs[k] && !(k == 0 && keep)) continue;
       glDrawBuffer(GL_COLOR_ATTACHMENT0 + k);
       glBindTexture(GL_TEXTURE_2D, k ? r->tex_hdr : r->tex_disp);
       cvr_draw_fullscreen(r);
@@ -570,6 +611,12 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
       return cv_err_set(err, CV_ERR_NOMEM, "out of memory reading back");
   double t5 = cvr_tick(r);
   if ((st = cvr_gl_check("shading pass", err))) return st;
+  if (want_disp) { /* where the display image now is (render_post.c reads it) */
+    r->disp_src = ss > 1 ? r->tex_res_disp : r->tex_disp;
+    r->disp_fbo = read_fbo;
+    r->disp_w = v->w, r->disp_h = v->h;
+    r->disp_float = (ss > 1 ? r->res_fmt : r->main_fmt) == GL_RGBA32F;
+  }
   double t6 = t5;
   if (gpu_stats) {
     if ((st = cvr_reduce_luminance(r, v->w, v->h, ss, out_lum, max_y, n_invalid, err))) return st;
@@ -592,6 +639,19 @@ int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_dr
     if (out_lum) t->lum_ms = t6 - t5, t->lum_read_ms = 0;
   }
   return CV_OK;
+}
+
+int cv_renderer_shade_stats(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                            int transfer, cv_image *out_display, cv_image *out_hdr,
+                            cv_image *out_lum, double *max_y, uint64_t *n_invalid,
+                            cv_frame_timing *t, cv_err *err) {
+  return shade(r, v, dc, transfer, out_display, 0, out_hdr, out_lum, max_y, n_invalid, t, err);
+}
+
+int cv_renderer_shade_gpu(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                          cv_image *out_hdr, cv_image *out_lum, double *max_y, uint64_t *n_invalid,
+                          cv_frame_timing *t, cv_err *err) {
+  return shade(r, v, dc, 0, NULL, 1, out_hdr, out_lum, max_y, n_invalid, t, err);
 }
 
 int cv_renderer_frame(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,

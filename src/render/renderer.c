@@ -594,6 +594,7 @@ int cv_renderer_create(const cv_prt *prt, const cv_render_opts *opts, cv_rendere
       (st = cvr_build("geom.vert", "unlit.frag", "", NULL, &r->prog_unlit, err)) ||
       (st = cvr_build("fullscreen.vert", "downsample.frag", "", NULL, &r->prog_down, err)) ||
       (st = cvr_build("fullscreen.vert", "lum_reduce.frag", "", NULL, &r->prog_lumred, err)) ||
+      (st = cvr_build("fullscreen.vert", "lum_block.frag", "", NULL, &r->prog_lumblk, err)) ||
       (r->win && (st = cvr_build("present.vert", "present.frag", "", NULL, &r->prog_present, err))) ||
       (st = cvr_upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err))) {
     cv_renderer_destroy(r);
@@ -618,14 +619,17 @@ void cv_renderer_destroy(cv_renderer *r) {
                      r->buf_idx_sun, r->buf_uvl};
     glDeleteBuffers(7, bufs);
     GLuint tex[] = {r->tex_transfer, r->tex_bg, r->tex_shadow, r->tex_disp, r->tex_hdr,
-                    r->tex_panel, r->tex_albedo, r->tex_shadow_imp};
-    glDeleteTextures(8, tex);
-    GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_disp, r->rb_res_hdr,
-                    r->rb_tiny, r->rb_red};
+                    r->tex_panel, r->tex_albedo, r->tex_shadow_imp, r->tex_res_disp, r->tex_red_mb};
+    glDeleteTextures(10, tex);
+    GLuint rbs[] = {r->rb_lum, r->rb_lum_depth, r->rb_depth, r->rb_res_hdr,
+                    r->rb_tiny, r->rb_red, r->rb_blk};
     glDeleteRenderbuffers(7, rbs);
     GLuint fbos[] = {r->fbo_shadow, r->fbo_lum, r->fbo_main, r->fbo_res, r->fbo_tiny, r->fbo_red,
-                     r->fbo_shadow_imp};
-    glDeleteFramebuffers(7, fbos);
+                     r->fbo_shadow_imp, r->fbo_blk};
+    glDeleteFramebuffers(8, fbos);
+    glDeleteQueries(1, &r->gpu_query);
+    glDeleteProgram(r->prog_lumblk);
+    cvr_post_free(r);
     GLuint vaos[] = {r->vao_geom, r->vao_empty};
     glDeleteVertexArrays(2, vaos);
     glDeleteProgram(r->prog_relight);
@@ -634,7 +638,7 @@ void cv_renderer_destroy(cv_renderer *r) {
     glDeleteProgram(r->prog_down);
     glDeleteProgram(r->prog_lumred);
     glDeleteProgram(r->prog_present);
-    glDeleteTextures(1, &r->tex_present);
+    glDeleteTextures(2, r->tex_present);
     for (int k = 0; k < 2; k++)
       for (int f = 0; f < NVARIANT; f++) glDeleteProgram(r->prog_var[k][f]);
     glDeleteBuffers(1, &r->buf_tone);

@@ -392,6 +392,68 @@ int cv_renderer_frame(cv_renderer *r, const cv_render_view *v, const cv_drago_co
                       int transfer, cv_image *out_display, cv_image *out_hdr, cv_image *out_lum,
                       cv_frame_timing *t, cv_err *err);
 
+/* ---- the frame on the GPU (render_post.c) ---------------------------------
+ * What a wall-eye does per eye without a CPU image (issue 29): shade with
+ * the display image left on the GPU (cv_renderer_shade_gpu), its patch
+ * means reduced there (cv_renderer_patch_means: 24 bytes a patch come back),
+ * equation 7 (Bimber et al. 2006: I = clamp(I0 - up(delta), 0, 1)), the
+ * clamp and Drago's Rec.709 transfer in a shader into the eye's 8-bit
+ * projector image (cv_renderer_post, "slot" 0 or 1), drawn into the window
+ * by cv_renderer_present_slots.  Full images come back only when asked for
+ * (cv_renderer_post_read, cv_renderer_display_read).  The patch sums are
+ * doubles (GL_ARB_gpu_shader_fp64); a GL without it cannot run this path
+ * (cv_renderer_post_available says why).  Needs opts.display_float. */
+
+/* 1 when this GL runs the post pass; else 0 and why (may be NULL). */
+int cv_renderer_post_available(cv_renderer *r, char *why, size_t cap);
+/* The wall's patch grid: nu x nv cells with edges eu[0..nu], ev[0..nv]
+ * (ascending 0..1, NULL = uniform; row v = 0 at the bottom, as
+ * compensate/resample.h) over w x h images; makes the weight tables and
+ * targets (once per grid).  Errors: CV_ERR_INVALID (sizes; more patches
+ * than pixels), CV_ERR_BACKEND (no fp64: see cv_renderer_post_available),
+ * CV_ERR_NOMEM. */
+int cv_renderer_post_grid(cv_renderer *r, int nu, int nv, const double *eu, const double *ev, int w, int h,
+                          cv_err *err);
+/* Passes (b) and (c) as cv_renderer_shade_stats with the display image
+ * (display-linear Drago values, no transfer) drawn into a float target and
+ * left there, the luminance statistics always reduced on the GPU; out_hdr
+ * (may be NULL) is read back. */
+int cv_renderer_shade_gpu(cv_renderer *r, const cv_render_view *v, const cv_drago_consts *dc,
+                          cv_image *out_hdr, cv_image *out_lum, double *max_y, uint64_t *n_invalid,
+                          cv_frame_timing *t, cv_err *err);
+/* Patch means of the last display image (3 nu nv, index v nu + u): what
+ * cv_downsample_to_patches gives of it on the CPU, within double rounding. */
+int cv_renderer_patch_means(cv_renderer *r, double *out, cv_err *err);
+/* Copies the last display image into slot's own texture, so that the next
+ * eye can be shaded before this one's post pass (cv_renderer_post, kept). */
+int cv_renderer_display_keep(cv_renderer *r, int slot, cv_err *err);
+/* Equation 7 with delta (3 nu nv floats, down(I0) - I_P; NULL: none), the
+ * clamp to [0, 1] and the Rec.709 transfer, of the last display image (or
+ * of the one kept in slot, kept = 1), into slot's 8-bit image. */
+int cv_renderer_post(cv_renderer *r, int slot, int kept, const float *delta, cv_err *err);
+/* Slot's 8-bit codes into codes (3 w h, row 0 at the top). */
+int cv_renderer_post_read(cv_renderer *r, int slot, uint8_t *codes, cv_err *err);
+/* The last display image (float) into img (c = 3, its size). */
+int cv_renderer_display_read(cv_renderer *r, cv_image *img, cv_err *err);
+/* Draws the slots' images into the window's back buffer as
+ * cv_renderer_present draws uploaded codes (slot 0, and 1 for a packed
+ * stereo layout), then glFinish.  Errors: as cv_renderer_present. */
+int cv_renderer_present_slots(cv_renderer *r, int layout, cv_err *err);
+
+/* Bytes read back from the GL and uploaded to it since create (images,
+ * statistics, patch means, relit vertices, tables, textures). */
+void cv_renderer_io(const cv_renderer *r, uint64_t *read_bytes, uint64_t *uploaded_bytes);
+/* GPU time of a frame's GL work with a timer query (GL_TIME_ELAPSED, core
+ * since 3.3): begin before the frame's first pass, end after its last;
+ * cv_renderer_gpu_timer_result waits for it (after the present's glFinish
+ * it is ready) and returns the ms, or NaN when no query ran. */
+void cv_renderer_gpu_timer_begin(cv_renderer *r);
+void cv_renderer_gpu_timer_end(cv_renderer *r);
+double cv_renderer_gpu_timer_result(cv_renderer *r);
+/* Sets opts.timing after create (0: no glFinish between passes, as a GPU
+ * frame wants; 1, 2: see cv_render_opts). */
+void cv_renderer_set_timing(cv_renderer *r, int timing);
+
 /* Benchmark reference: the depth pre-pass and then the same mesh with the
  * same vertex format in a constant colour (depth EQUAL), at the view's size
  * (times supersample), read back into out (may be NULL; c = 3, v->w x v->h,

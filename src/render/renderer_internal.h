@@ -10,6 +10,8 @@
  *   render_casters.c  the sun's shadow casters: a simplified copy of the opaque mesh
  *   render_relight.c  the relight on the CPU (software GL)
  *   render_edges.c    directed-edge sets (closedness), triangle normals
+ *   render_post.c     the frame's end on the GPU: patch means, equation 7,
+ *                     the 8-bit projector image per eye (owns struct cvr_post)
  * The GL objects are described in renderer.c. */
 #ifndef CV_RENDER_RENDERER_INTERNAL_H
 #define CV_RENDER_RENDERER_INTERNAL_H
@@ -53,11 +55,23 @@ enum { U_TRANSFER = 0, U_SHADOW = 2, U_BG = 3, U_SRC = 4, U_PANEL = 5, U_TONE = 
 #define LUT_TOL 2e-6
 
 
+typedef struct cvr_post cvr_post; /* render_post.c */
+
 struct cv_renderer {
   cv_egl egl;
+  cvr_post *post;     /* the GPU post pass (render_post.c), made on first use */
+  /* the display image of the last shade: its texture, the framebuffer holding it as
+   * attachment 0, size, float or 8-bit (0: none yet) */
+  GLuint disp_src, disp_fbo;
+  int disp_w, disp_h, disp_float;
+  /* bytes read back from and uploaded to the GL since create (cv_renderer_io) */
+  uint64_t io_read, io_up;
+  /* GPU time of the frame (timer queries: cv_renderer_gpu_timer_*) */
+  GLuint gpu_query;
+  int gpu_query_on;
   cv_window *win;     /* opts.window: the X11 window (NULL headless) */
-  GLuint prog_present, tex_present;
-  int present_w, present_h;
+  GLuint prog_present, tex_present[2]; /* cv_renderer_present: the uploaded codes per eye */
+  int present_w, present_h, present_made[2];
   cv_render_opts o;
   char gl_name[256];
   int nc;             /* SH coefficients */
@@ -71,7 +85,7 @@ struct cv_renderer {
   int panel_on;
   uint64_t panel_bad;
   float panel_c[3], panel_u[3], panel_v[3], panel_n[3], panel_half[2];
-  GLuint prog_relight, prog_depth, prog_unlit, prog_down, prog_lumred;
+  GLuint prog_relight, prog_depth, prog_unlit, prog_down, prog_lumred, prog_lumblk;
   GLuint prog_var[2][NVARIANT];
   /* the Drago table (LUT_*): texture buffer, the constants it was built
    * for, whether it passed LUT_TOL, its measured error, its uniforms */
@@ -107,12 +121,14 @@ struct cv_renderer {
   GLenum main_fmt;
   uint8_t *rgba8;     /* read-back scratch of 8-bit display targets */
   size_t rgba8_cap;
-  GLuint fbo_res, rb_res_disp, rb_res_hdr;
+  GLuint fbo_res, tex_res_disp, rb_res_hdr;
   int res_w, res_h;
+  GLenum res_fmt;
   /* the luminance statistics of the HDR target (lum_reduce.frag) */
-  GLuint fbo_red, rb_red;
+  GLuint fbo_red, rb_red, tex_red_mb; /* the luminance image, the (max, invalid) pairs */
+  GLuint fbo_blk, rb_blk;             /* those pairs in blocks (lum_block.frag) */
   int red_w, red_h;
-  float *red_cpu;     /* its read-back, 4 floats a pixel */
+  float *red_cpu;     /* the blocks' read-back, 2 floats a block */
   cv_image *hdr_scratch; /* the HDR read-back for statistics on the CPU */
   GLuint fbo_tiny, rb_tiny; /* 1x1: a complete framebuffer for the relight draw (a
                                surfaceless context has no default framebuffer) */
@@ -274,5 +290,8 @@ void cvr_draw_fullscreen(const cv_renderer *r);
 void cvr_depth_pass(cv_renderer *r, const float mvp[16], int W, int H);
 void cvr_shading_depth_state(const cv_renderer *r);
 int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err *err);
+void cvr_post_free(cv_renderer *r);
+/* The 8-bit projector image of slot (0 none: no grid), its size. */
+GLuint cvr_post_slot_texture(const cv_renderer *r, int slot, int *w, int *h);
 
 #endif
