@@ -53,7 +53,7 @@ static double thread_cpu_ms(void) {
 
 /* Reports set-up success ('O') or failure ('F' + message) to the master. */
 void cv_service_ready(int ok, const char *msg) {
-  char buf[512];
+  char buf[2048];
   buf[0] = ok ? 'O' : 'F';
   size_t n = 1;
   if (msg) {

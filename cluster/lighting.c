@@ -27,6 +27,8 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->patches = 0; /* the config's screens.patches */
   o->reflectance = -1; /* the config's screens.reflectance */
   o->compensation_ms = 20;
+  o->compensation_lag = 1;
+  o->post = CV_POST_AUTO;
   o->lcd = 1;
   /* the LCD model is the scene config's lcd block, as in `cave lcd` (run.c) */
   o->lcd_w = 0;

@@ -48,6 +48,7 @@ static size_t walleye_msg_cap(const master *m, int wall) {
 }
 
 static void master_free(master *m) {
+  master_comp_free(m); /* first: its thread uses the workspace */
   cv_head_path_destroy(m->path);
   cv_lightmix_destroy(m->mix);
   cv_dtrack_receiver_close(m->dtr);
@@ -89,32 +90,6 @@ static void master_free(master *m) {
 
 /* ---- set-up -------------------------------------------------------------- */
 
-static int setup_compensation(master *m, cv_err *err) {
-  cv_service *s = m->s;
-  int st = cv_service_display(s, &m->disp, err);
-  if (st) return st;
-  cv_ff_params fp;
-  cv_ff_params_default(&fp);
-  fp.quiet = 1;
-  st = cv_formfactors_build(m->disp, &fp, &m->F, NULL, err);
-  if (st) return st;
-  cv_display_scatter_system(m->disp, m->F, &m->sys);
-  st = cv_scatter_workspace_create_ex(&m->sys, CV_SCATTER_WS_COMPRESS, &m->ws, err);
-  if (st) return st;
-  const size_t n = cv_display_patch_count(m->disp);
-  m->T = malloc(3 * n * sizeof *m->T);
-  m->I = malloc(3 * n * sizeof *m->I);
-  m->r = calloc(3 * n, sizeof *m->r);
-  m->walls = calloc((size_t)s->n_walls, sizeof *m->walls);
-  if (!m->T || !m->I || !m->r || !m->walls) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
-  for (int w = 0; w < s->n_walls; w++) {
-    const cv_display_surface *S = cv_display_surface_at(m->disp, (size_t)w);
-    m->walls[w].r = calloc(3 * (size_t)S->nu * S->nv, sizeof(double));
-    if (!m->walls[w].r) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
-  }
-  return CV_OK;
-}
-
 static int master_setup(master *m, cv_err *err) {
   cv_service *s = m->s;
   m->wall_clock = s->o.clock == 1;
@@ -152,7 +127,7 @@ static int master_setup(master *m, cv_err *err) {
   m->ap.t0_rod = s->cave.t0_rod;
   m->ap.tau_cone = s->cave.tau_cone;
   m->ap.tau_rod = s->cave.tau_rod;
-  if (s->o.compensate && (st = setup_compensation(m, err))) return st;
+  if (s->o.compensate && (st = master_comp_setup(m, err))) return st;
   /* Mailboxes of the render ranks (reports + patch images, one per eye). */
   m->rep_mb = calloc((size_t)s->n_render, sizeof *m->rep_mb);
   m->reps = calloc((size_t)s->n_walleyes, sizeof *m->reps);
@@ -210,7 +185,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     snprintf(why, cap, "rank 0 (master): %s", setup_err->msg);
   }
   char **lines = calloc((size_t)s->size, sizeof *lines);
-  cv_mailbox *rb = cv_mailbox_open(-1, CV_TAG_READY, 1024);
+  cv_mailbox *rb = cv_mailbox_open(-1, CV_TAG_READY, 2048);
   int ready = 0;
   const double t0 = cv_service_now();
   while (rb && lines && ready < s->size - 1) {
@@ -406,6 +381,7 @@ static void merge_report(master *m, int from, const uint8_t *data, long len, uin
   master_health_seen(m, from);
   if (m->got[k]) return;
   m->got[k] = 1;
+  master_path_sample(m, from, &rep);
   (*ngot)++;
   m->reps[k] = rep;
   if (rep.state_hash != m->sent_hash) {
@@ -459,6 +435,7 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
     }
     /* LCD sums and the LCD image for the render ranks overlap their
      * rendering: off the frame's critical path. */
+    master_comp_poll(m); /* lag 1: the last frame's solve, while the wall-eyes render */
     lcd_drain(m);
     lcd_publish(m, 0);
     montage_drain(m);
@@ -475,54 +452,6 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
     }
   }
   return ngot;
-}
-
-/* Compensation solve on the walls that reported; walls without a report keep
- * last frame's images.  Sends each wall's render ranks its correction. */
-static void compensate_frame(master *m, uint32_t frame) {
-  const int nw = m->s->n_walls;
-  for (int w = 0; w < nw; w++) {
-    const cv_display_surface *S = cv_display_surface_at(m->disp, (size_t)w);
-    const size_t np = (size_t)S->nu * S->nv;
-    if (m->walls[w].got > 0)
-      for (size_t i = 0; i < 3 * np; i++) m->r[3 * S->offset + i] = m->walls[w].r[i] / m->walls[w].got;
-    memset(m->walls[w].r, 0, 3 * np * sizeof(double));
-    m->walls[w].got = 0;
-  }
-  const size_t n = cv_display_patch_count(m->disp);
-  for (size_t i = 0; i < n; i++)
-    for (int c = 0; c < 3; c++) {
-      const size_t p = 3 * i + c;
-      m->T[p] = (float)(m->sys.proj[i] * m->sys.refl[p] * m->r[p] + m->sys.env[p] * m->sys.refl[p]);
-    }
-  cv_scatter_opts o;
-  cv_scatter_opts_default(&o);
-  o.warm_start = 1;                   /* from the previous frame's clipped patches */
-  o.time_ms = m->s->o.compensation_ms; /* the paper's time slot: best so far when it runs out */
-  cv_err err;
-  m->comp_ok = cv_scatter_solve(m->ws, m->T, &o, m->I, &m->cst, &err) == CV_OK;
-  if (!m->comp_ok) {
-    fprintf(stderr, "cave run: master: compensation: %s\n", err.msg);
-    return;
-  }
-  for (int w = 0; w < nw; w++) {
-    const cv_display_surface *S = cv_display_surface_at(m->disp, (size_t)w);
-    const size_t np = (size_t)S->nu * S->nv;
-    size_t len = sizeof(cv_patch_msg) + 3 * np * sizeof(float);
-    uint8_t *buf = malloc(len);
-    if (!buf) continue;
-    cv_patch_msg pm = {.frame = frame, .n = (uint32_t)np};
-    memcpy(buf, &pm, sizeof pm);
-    float *d = (float *)(void *)(buf + sizeof pm);
-    for (size_t i = 0; i < 3 * np; i++) {
-      const size_t p = 3 * S->offset + i;
-      d[i] = (float)(m->r[p] - m->I[p]); /* equation 7's delta = down(I0) - I_P */
-    }
-    /* each render rank of the wall once (a packed-stereo rank has both eyes) */
-    for (int i = 0; i < m->s->n_render; i++)
-      if (m->s->cave.outputs[i].wall == w) cv_comm_send(buf, len, i + 1, CV_TAG_CORR);
-    free(buf);
-  }
 }
 
 typedef struct frame_times {
@@ -652,23 +581,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     lcd_readability_metrics(m, ml, "readability");
     cv_metrics_object_end(ml);
   }
-  if (m->disp) {
-    cv_metrics_object_begin(ml, "compensation");
-    cv_metrics_bool(ml, "ok", m->comp_ok);
-    cv_metrics_string(ml, "solver", cv_scatter_solver_name(m->cst.solver));
-    cv_metrics_double(ml, "residual", m->cst.residual);
-    cv_metrics_uint(ml, "clipped_patches", m->cst.clipped_patches);
-    cv_metrics_int(ml, "iterations", m->cst.iterations);
-    cv_metrics_bool(ml, "time_slot_hit", m->cst.exit == CV_SCATTER_EXIT_TIME);
-    cv_metrics_double(ml, "ms", m->cst.ms);
-    cv_metrics_double(ml, "frame_ms", (t->tc1 - t->tc0) * 1e3);
-    if (m->have_viewer) {
-      cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
-      cv_metrics_double(ml, "viewer_rms_uncompensated", m->viewer_rms_unc);
-      cv_metrics_double(ml, "viewer_ms", m->viewer_ms);
-    }
-    cv_metrics_object_end(ml);
-  }
+  if (m->disp) master_comp_metrics(m, ml, (t->tc1 - t->tc0) * 1e3);
   cv_metrics_object_begin(ml, "ranks");
   for (int k = 0; k < s->n_walleyes; k++) {
     const int rank = cv_cave_walleye_rank(&s->cave, k / 2, k % 2);
@@ -688,6 +601,13 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       cv_metrics_double(ml, "barrier_ms", r->ms_barrier);
       cv_metrics_double(ml, "lcd_ms", r->ms_lcd);
       cv_metrics_uint(ml, "lcd_rounds", r->lcd_rounds_done);
+      cv_metrics_uint(ml, "read_bytes", r->bytes_read);
+      cv_metrics_uint(ml, "upload_bytes", r->bytes_up);
+      cv_metrics_double(ml, "cpu_ms", r->ms_cpu);
+      if (r->ms_gpu >= 0) cv_metrics_double(ml, "gpu_ms", r->ms_gpu);
+      cv_metrics_double(ml, "corr_wait_ms", r->ms_corr_wait);
+      cv_metrics_int(ml, "corr_frame", r->corr_frame == 0xffffffffu ? -1 : (int64_t)r->corr_frame);
+      cv_metrics_uint(ml, "late_corr", r->late_corr);
       light_metrics(m, ml, rank, f);
     } else {
       cv_metrics_bool(ml, "late", 1);
@@ -755,6 +675,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_double(ml, "master_thread_cpu_s", (thread_cpu_ms() - m->run_cpu0_ms) * 1e-3);
   master_sync_summary(m, ml);
   cv_metrics_uint(ml, "late_reports", m->late_reports);
+  master_path_summary(m, ml);
   light_summary(m, ml);
   master_health_metrics(m, ml);
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
@@ -900,7 +821,7 @@ int cv_master_run(cv_service *s) {
     }
     t.tc0 = cv_service_now();
     t.cc0 = thread_cpu_ms();
-    if (m->disp) compensate_frame(m, f);
+    if (m->disp) master_comp_frame(m, f);
     t.tc1 = cv_service_now();
     t.cc1 = thread_cpu_ms();
     master_release_swaps(m, f);

@@ -84,6 +84,20 @@ typedef struct master {
   wall_in *walls;
   cv_scatter_stats cst;
   int comp_ok;
+  uint32_t comp_pending;  /* --compensation-lag 1: the frame whose patch images wait for
+                             their solve (0xffffffff: none; master_comp.c) */
+  double comp_t_in;       /* when they came in */
+  double comp_delay_ms;   /* CAVE_TEST_SOLVE_DELAY_MS */
+  float *comp_hold;       /* its deltas held back, of frame comp_hold_frame, until comp_hold_due */
+  uint32_t comp_hold_frame;
+  double comp_hold_due;   /* service time (0: nothing held) */
+  uint32_t comp_frame;    /* the frame of the last solve finished (0xffffffff: none) */
+  double comp_lag_ms;     /* its time from the patch images in to the corrections out */
+  uint64_t comp_solves;   /* solves finished */
+  /* the wall-eyes' frame path (issue 29): one sample per report, frames >= 2 */
+  double *path_read, *path_cpu, *path_gpu, *path_wait;
+  size_t path_n, path_cap;
+  uint64_t *late_corr;    /* per render rank: its count */
   /* LCD */
   cv_mailbox *lcd_mb;
   struct cv_lcd_reduce *lcd_red; /* allreduce with the gather ranks (NULL: none) */
@@ -260,6 +274,19 @@ void montage_flush(master *m);
 
 /* Heartbeat watch (master_health.c, docs/dead-rank.md). */
 enum { MASTER_STOP_DEAD = 100 }; /* stop_code: a wall-eye died */
+/* The scattering compensation (master_comp.c): set-up (form factors,
+ * solver, the thread with lag 1), the frame's solve (on the path, lag 0)
+ * or its hand-over to the thread (lag 1), the thread's finished solves
+ * sent (call while waiting), metrics. */
+int master_comp_setup(master *m, cv_err *err);
+void master_comp_free(master *m);
+void master_comp_frame(master *m, uint32_t frame);
+void master_comp_poll(master *m);
+void master_comp_metrics(master *m, cv_metrics_line *ml, double frame_ms);
+/* The frame path's samples of a report (master_comp.c) and their summary. */
+void master_path_sample(master *m, int from, const cv_walleye_report *r);
+void master_path_summary(master *m, cv_metrics_line *ml);
+
 int master_health_setup(master *m);
 void master_health_free(master *m);
 /* Starts the watch (every rank counts as heard of now). */

@@ -113,6 +113,16 @@ static void help(FILE *f) {
           "                       (default: the config's screens.reflectance, 0.8)\n"
           "  --compensation-ms T  time slot of the compensation solve per frame (default 20;\n"
           "                       warm-started from the previous frame)\n"
+          "  --compensation-lag L 1 (default): frame N shows the correction solved from frame\n"
+          "                       N-1's patch means, by the master's solver thread while N\n"
+          "                       renders (off the frame's path); 0: frame N's own, each\n"
+          "                       wall-eye waiting for the master's solve (docs/service.md)\n"
+          "  --post P             where a wall-eye's frame ends (patch means, equation 7, the\n"
+          "                       8-bit codes): gpu (in shaders: only the patch means and the\n"
+          "                       luminance statistics come back), cpu (the image read back),\n"
+          "                       auto (default: gpu on a hardware GL with double-precision\n"
+          "                       shaders, cpu on a software GL, where it measured faster; the\n"
+          "                       ready line says which runs and why)\n"
           "  --no-compensation    no scattering compensation\n"
           "  --scene-config FILE  scene config (configs/scenes/) whose \"lcd\" block sets the LCD\n"
           "                       model as in `cave lcd` (panels, BRDF, content, white/black,\n"
@@ -342,6 +352,15 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       NEED();
       if (cv_parse_double(v, &d) || !(d >= 0 && d < 1)) problem(pb, "--reflectance: expected 0 <= R < 1 (as screens.reflectance), got '%s'", v);
       else o->reflectance = d;
+    } else if (!strcmp(a, "--compensation-lag")) {
+      NEED();
+      if (cv_parse_int(v, 0, 1, &o->compensation_lag)) problem(pb, "--compensation-lag: expected 0 or 1 (frames), got '%s'", v);
+    } else if (!strcmp(a, "--post")) {
+      NEED();
+      if (!strcmp(v, "auto")) o->post = CV_POST_AUTO;
+      else if (!strcmp(v, "gpu")) o->post = CV_POST_GPU;
+      else if (!strcmp(v, "cpu")) o->post = CV_POST_CPU;
+      else problem(pb, "--post: expected auto, gpu or cpu, got '%s'", v);
     } else if (!strcmp(a, "--compensation-ms")) {
       NEED();
       if (cv_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);

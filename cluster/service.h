@@ -81,6 +81,10 @@ typedef struct cv_run_opts {
   int patches;                   /* patches per wall side for the generated display (default 24) */
   double reflectance;            /* screens of the generated display (default 0.8) */
   double compensation_ms;        /* time slot of the solve per frame (default 20) */
+  int compensation_lag;          /* --compensation-lag: 1 (default): frame N applies frame N-1's
+                                    correction, solved by the master's solver thread while N
+                                    renders; 0: frame N's own, solved on the frame's path */
+  int post;                      /* --post: CV_POST_AUTO (default), CV_POST_GPU, CV_POST_CPU */
   int lcd;                       /* 1: LCD final gather (default) */
   int lcd_w, lcd_h, lcd_spp;     /* after set-up: the stacked panels' buffer (panels.h) and
                                     samples per round; options: 0 = the scene config's */
@@ -96,6 +100,11 @@ typedef struct cv_run_opts {
   int seed_set;                  /* --seed given: it also sets the LCD sequences' seed */
   int quiet;
 } cv_run_opts;
+
+/* --post: where a wall-eye's frame ends (patch means, equation 7, the 8-bit
+ * codes): on the GPU (render_post.c; the frame never leaves the GL), on the
+ * CPU (the image read back), or auto: the GPU where the GL can (fp64). */
+enum { CV_POST_AUTO = 0, CV_POST_GPU = 1, CV_POST_CPU = 2 };
 
 void cv_run_opts_default(cv_run_opts *o);
 

@@ -7,13 +7,21 @@
  *     adaptation, display-linear; the HDR image downsampled to the
  *     luminance image of the foveal statistics: no luminance pass);
  *   report each eye (statistics, patch means, the previous frame's swap
- *     time) to the master; on desktop preview frames the left eye also
- *     sends its uncompensated tone-mapped image as 8-bit codes;
- *   apply the master's scattering correction for this wall (or the last
- *     one when it is late) with equation 7;
- *   present: 8-bit projector codes (the PNG's) drawn into the window,
- *     glFinish, the swap-lock barrier among all render ranks, swap, stamp;
+ *     time and frame-path counters) to the master; on desktop preview
+ *     frames the left eye also sends its uncompensated tone-mapped image
+ *     as 8-bit codes;
+ *   apply the master's scattering correction for this wall with equation
+ *     7: frame N - lag's (--compensation-lag; the last one when it does not
+ *     come within --timeout-ms, counted as late);
+ *   present: the 8-bit projector image drawn into the window, glFinish,
+ *     the swap-lock barrier among all render ranks, swap, stamp;
  *   write the frame's files when the master marks it.
+ * With --post gpu (auto where the GL can) the frame ends on the GPU
+ * (render/renderer.h, "the frame on the GPU"): the display image, equation
+ * 7 and the codes stay in the GL, only the patch means and the luminance
+ * statistics come back; images are read back only on frames that write
+ * files or desktop previews.  With --post cpu the display image comes back
+ * and equation 7 and the codes run here (compensate/resample.h).
  * While waiting it answers the master's clock probes, does LCD rounds in an
  * idle thread, takes LCD images, and watches its window: Escape, a closed
  * window or a lost X connection is sent to the master, which stops every
@@ -52,6 +60,8 @@ static int send_to_master(const uint8_t *buf, size_t len, void *user) {
 /* One eye of the output. */
 typedef struct eye_view {
   int eye;              /* 0 left, 1 right */
+  int slot;             /* the renderer's projector image of this eye (--post gpu) */
+  int failed;           /* this frame: no image (head behind the wall, GL error) */
   cv_image *disp_img;   /* uncompensated display-linear (Drago, no transfer) */
   cv_image *hdr, *lum;
   cv_image *out;        /* compensated display-linear: what the projector gets */
@@ -72,6 +82,19 @@ typedef struct walleye {
   int w, h;
   float *delta;       /* 3 np: last correction */
   int have_delta;
+  uint32_t corr_frame; /* its frame (0xffffffff: none) */
+  float *pend;        /* 3 np: a correction of a later frame, kept for that frame */
+  uint32_t pend_frame; /* its frame (0xffffffff: none) */
+  int gpu_post;       /* 1: the frame ends on the GPU (--post) */
+  char post_why[sizeof(((cv_err *)0)->msg)]; /* --post auto chose the CPU: why */
+  /* the frame path (reported with the next frame): thread CPU ms inside GL
+   * calls, in the relight and the waits; the last frame's figures; the GL
+   * counters at the last report */
+  double cpu_gl, cpu_skip;
+  double prev_cpu, prev_gpu, prev_wait;
+  uint32_t prev_corr;
+  uint64_t io_read_rep, io_up_rep;
+  double cpu_drawn;   /* thread CPU ms when the present's draw returned */
   uint64_t light_key;
   int have_light;
   cv_lightshare ls;   /* --share-lighting (lightshare.h) */
@@ -107,6 +130,7 @@ static void walleye_free(walleye *we) {
     free(v->patch);
   }
   free(we->delta);
+  free(we->pend);
   cv_mailbox_close(we->state_mb);
   cv_mailbox_close(we->corr_mb);
   cv_mailbox_close(we->lcdimg_mb);
@@ -145,6 +169,51 @@ static int eye_setup(walleye *we, eye_view *v, int eye, size_t np, cv_err *err) 
   return CV_OK;
 }
 
+/* Thread CPU ms (the frame path's own work, whatever else the host runs). */
+static double thread_cpu_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+/* --post: the GPU where asked, or (auto) on a hardware GL with
+ * double-precision shaders and no more patches than pixels (on a software GL
+ * the CPU path measured faster); the reason for the CPU is kept for the
+ * ready line.  --post gpu on a GL that cannot is an
+ * error naming why. */
+static int choose_post(walleye *we, cv_err *err) {
+  const int want = we->s->o.post;
+  if (want == CV_POST_CPU) {
+    snprintf(we->post_why, sizeof we->post_why, "--post cpu");
+    return CV_OK;
+  }
+  char why[sizeof err->msg];
+  if (want == CV_POST_AUTO && cv_renderer_is_software(we->r)) {
+    /* measured (docs/benchmarks.md, "The frame on the GPU"): on llvmpipe the
+     * shader passes cost more CPU than the read-back and the CPU's loops */
+    snprintf(we->post_why, sizeof we->post_why, "--post auto on a software GL: the CPU path measured faster on "
+             "llvmpipe (27.3 against 12.3 CAVE frames/s at 240^2 on 2 cores)");
+    return CV_OK;
+  }
+  if (cv_renderer_post_available(we->r, why, sizeof why)) {
+    const int nu = we->S ? we->S->nu : 1, nv = we->S ? we->S->nv : 1;
+    int st = cv_renderer_post_grid(we->r, nu, nv, we->S ? we->S->edge_u : NULL, we->S ? we->S->edge_v : NULL,
+                                   we->w, we->h, err);
+    if (st == CV_OK) {
+      we->gpu_post = 1;
+      /* a GPU frame is not cut by a glFinish per pass: its time comes from a timer query */
+      if (!cv_renderer_is_software(we->r)) cv_renderer_set_timing(we->r, 0);
+      return CV_OK;
+    }
+    snprintf(why, sizeof why, "%s", err->msg);
+  }
+  if (want == CV_POST_GPU)
+    return cv_err_set(err, CV_ERR_BACKEND, "outputs[%d] (wall %s): --post gpu: %s", we->s->rank - 1,
+                      we->s->cave.walls[we->wall].name, why);
+  snprintf(we->post_why, sizeof we->post_why, "%s", why);
+  return CV_OK;
+}
+
 static int walleye_setup(walleye *we, cv_err *err) {
   cv_service *s = we->s;
   const cv_rank_role role = cv_cave_rank_role(&s->cave, s->rank);
@@ -167,6 +236,7 @@ static int walleye_setup(walleye *we, cv_err *err) {
   cv_render_opts ro;
   cv_render_default_opts(&ro);
   ro.timing = 1;
+  ro.display_float = 1; /* display-linear values in float: equation 7 and the codes from them */
   ro.cull_back = -1; /* on when the scene is closed and consistently wound */
   /* Small wall-eyes shade in one depth-LESS pass: the z pre-pass is a whole
    * geometry pass, which at 360^2 costs more than shading the overdraw
@@ -194,15 +264,20 @@ static int walleye_setup(walleye *we, cv_err *err) {
     we->S = cv_display_surface_at(we->disp, (size_t)we->wall);
     np = (size_t)we->S->nu * we->S->nv;
     we->delta = calloc(3 * np, sizeof *we->delta);
-    if (!we->delta) return cv_err_set(err, CV_ERR_NOMEM, "render rank: out of memory");
+    we->pend = calloc(3 * np, sizeof *we->pend);
+    if (!we->delta || !we->pend) return cv_err_set(err, CV_ERR_NOMEM, "render rank: out of memory");
     we->corr_mb = cv_mailbox_open(0, CV_TAG_CORR, sizeof(cv_patch_msg) + 3 * np * sizeof(float));
     if (!we->corr_mb) return cv_err_set(err, CV_ERR_NOMEM, "render rank: cannot post receives");
   }
   for (int e = 0; e < 2; e++)
     if (we->o->eyes >> e & 1) {
+      we->ev[we->n_eyes].slot = we->n_eyes;
       st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
       if (st) return st;
     }
+  we->corr_frame = we->pend_frame = we->prev_corr = 0xffffffffu;
+  we->prev_gpu = -1;
+  if ((st = choose_post(we, err))) return st;
   if (s->o.lcd && s->lcd_layout.n > 0) {
     /* The first panel's frame, to show its part of the LCD image on it (the
      * renderer shows one panel). */
@@ -406,7 +481,18 @@ static void render_eye(walleye *we, eye_view *v, const cv_frame_state *fs, cv_fr
   double mx = 0;
   uint64_t bad = 0;
   cv_image *hdr = (fs->flags & CV_FS_WRITE) ? v->hdr : NULL;
-  if (vst || cv_renderer_shade_stats(we->r, &rv, &dc, 0, v->disp_img, hdr, v->lum, &mx, &bad, tm, &err)) {
+  const double c0 = thread_cpu_ms();
+  int st = vst;
+  if (!st && we->gpu_post) {
+    /* the display image stays on the GPU; it comes back only for files and previews */
+    st = cv_renderer_shade_gpu(we->r, &rv, &dc, hdr, v->lum, &mx, &bad, tm, &err);
+    if (!st && (fs->flags & (CV_FS_WRITE | CV_FS_PREVIEW))) st = cv_renderer_display_read(we->r, v->disp_img, &err);
+  } else if (!st) {
+    st = cv_renderer_shade_stats(we->r, &rv, &dc, 0, v->disp_img, hdr, v->lum, &mx, &bad, tm, &err);
+  }
+  we->cpu_gl += thread_cpu_ms() - c0;
+  v->failed = st != 0;
+  if (st) {
     /* head behind this wall or a GL failure: black frame, no statistics */
     if (!vst) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
     memset(v->disp_img->px, 0, 3 * (size_t)we->w * we->h * sizeof(float));
@@ -438,8 +524,27 @@ static void send_report(walleye *we, eye_view *v, cv_walleye_report *rep) {
   size_t np = 0;
   if (we->disp) {
     np = (size_t)we->S->nu * we->S->nv;
-    cv_downsample_to_patches(v->disp_img, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v, v->patch);
+    cv_err err;
+    const double c0 = thread_cpu_ms();
+    if (v->failed) memset(v->patch, 0, 3 * np * sizeof *v->patch);
+    else if (!we->gpu_post)
+      cv_downsample_to_patches(v->disp_img, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v, v->patch);
+    else if (cv_renderer_patch_means(we->r, v->patch, &err)) {
+      fprintf(stderr, "cave run: rank %d: frame %u: %s\n", we->s->rank, rep->frame, err.msg);
+      memset(v->patch, 0, 3 * np * sizeof *v->patch);
+    }
+    if (we->gpu_post) we->cpu_gl += thread_cpu_ms() - c0;
   }
+  uint64_t io_read, io_up;
+  cv_renderer_io(we->r, &io_read, &io_up);
+  rep->bytes_read = io_read - we->io_read_rep;
+  rep->bytes_up = io_up - we->io_up_rep;
+  we->io_read_rep = io_read, we->io_up_rep = io_up;
+  rep->ms_cpu = we->prev_cpu;
+  rep->ms_gpu = we->prev_gpu;
+  rep->ms_corr_wait = we->prev_wait;
+  rep->corr_frame = we->prev_corr;
+  rep->late_corr = we->late_corr;
   rep->ms_lcd = we->lcd_ms;
   rep->lcd_rounds_done = we->lcd_rounds_done;
   rep->swap_frame = we->swap_frame;
@@ -478,37 +583,62 @@ static void send_preview(walleye *we, const eye_view *v, const cv_frame_state *f
   free(buf);
 }
 
-/* This frame's correction for the wall, or the last one when late. */
-static void take_correction(walleye *we, const cv_frame_state *fs) {
-  cv_service *s = we->s;
+/* Keeps a correction message if it is frame `want`'s (into delta: got),
+ * of a later frame (kept for that frame) or the newest older one so far
+ * (delta, used if want's does not come). */
+static int keep_correction(walleye *we, const uint8_t *data, long l, uint32_t want) {
   const size_t np = (size_t)we->S->nu * we->S->nv;
-  const double deadline = cv_service_now() + (fs->frame == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s)
-                                                             : s->o.timeout_ms * 1e-3);
-  int got = 0;
+  cv_patch_msg pm;
+  if ((size_t)l != sizeof pm + 3 * np * sizeof(float)) return 0;
+  memcpy(&pm, data, sizeof pm);
+  if (pm.n != np) return 0;
+  if (pm.frame > want && (we->pend_frame == 0xffffffffu || pm.frame > we->pend_frame)) {
+    memcpy(we->pend, data + sizeof pm, 3 * np * sizeof(float));
+    we->pend_frame = pm.frame;
+    return 0;
+  }
+  if (pm.frame > want || (we->have_delta && we->corr_frame != 0xffffffffu && pm.frame < we->corr_frame)) return 0;
+  memcpy(we->delta, data + sizeof pm, 3 * np * sizeof(float));
+  we->have_delta = 1;
+  we->corr_frame = pm.frame;
+  return pm.frame == want;
+}
+
+/* Frame `want`'s correction for the wall (want = this frame - lag), waited
+ * for at most --timeout-ms (the start-up time on frame 0); when it does not
+ * come, the last one stays and it counts as late.  Exactly frame want's is
+ * applied whenever it comes in time, so the images do not depend on timing.
+ * Returns the ms waited. */
+static double take_correction(walleye *we, const cv_frame_state *fs, int64_t want) {
+  cv_service *s = we->s;
+  if (want < 0) return 0; /* lag 1 on frame 0: nothing solved yet */
+  const double t0 = cv_service_now(), c0 = thread_cpu_ms();
+  const double deadline = t0 + (fs->frame == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s)
+                                                : s->o.timeout_ms * 1e-3);
+  const size_t np = (size_t)we->S->nu * we->S->nv;
+  int got = we->have_delta && we->corr_frame == (uint32_t)want;
+  if (!got && we->pend_frame == (uint32_t)want) { /* it came during an earlier frame */
+    memcpy(we->delta, we->pend, 3 * np * sizeof(float));
+    we->have_delta = 1, we->corr_frame = (uint32_t)want, we->pend_frame = 0xffffffffu;
+    got = 1;
+  }
   while (!got) {
     const uint8_t *data;
     long l;
-    while ((l = cv_mailbox_take(we->corr_mb, &data, NULL)) >= 0) {
-      cv_patch_msg pm;
-      if ((size_t)l != sizeof pm + 3 * np * sizeof(float)) continue;
-      memcpy(&pm, data, sizeof pm);
-      if (pm.n != np) continue;
-      memcpy(we->delta, data + sizeof pm, 3 * np * sizeof(float));
-      we->have_delta = 1;
-      if (pm.frame == fs->frame) {
-        got = 1;
-        break;
-      }
-    }
+    while (!got && (l = cv_mailbox_take(we->corr_mb, &data, NULL)) >= 0) got = keep_correction(we, data, l, (uint32_t)want);
     if (got || cv_service_now() > deadline || *s->stop) break;
     idle(we);
     nap();
   }
   if (!got) we->late_corr++;
+  we->cpu_skip += thread_cpu_ms() - c0;
+  return (cv_service_now() - t0) * 1e3;
 }
 
-/* out = the projector image of each eye: compensated (equation 7) or as rendered. */
-static void compensate_eyes(walleye *we) {
+/* out = the projector image of each eye on the CPU (--post cpu, and the
+ * files of a written frame): compensated (equation 7) or as rendered;
+ * codes: its 8-bit codes too. */
+static void compensate_eyes(walleye *we, int codes) {
   const size_t px = 3 * (size_t)we->w * we->h;
   double *dd = NULL;
   if (we->disp && we->have_delta) {
@@ -523,9 +653,21 @@ static void compensate_eyes(walleye *we) {
       cv_apply_patch_delta(v->disp_img, dd, we->S->nu, we->S->nv, we->S->edge_u, we->S->edge_v, v->out);
     else
       memcpy(v->out->px, v->disp_img->px, px * sizeof(float));
-    cv_rec709_codes(&we->lut, v->out->px, px, v->code);
+    if (codes) cv_rec709_codes(&we->lut, v->out->px, px, v->code);
   }
   free(dd);
+}
+
+/* The GPU post pass of eye k (--post gpu): equation 7 with the correction
+ * in hand (none without compensation or before the first), into its slot;
+ * kept: from the display image kept for it (cv_renderer_display_keep). */
+static void post_eye(walleye *we, eye_view *v, int kept) {
+  cv_err err;
+  const double c0 = thread_cpu_ms();
+  const float *delta = we->disp && we->have_delta ? we->delta : NULL;
+  if (v->failed ? cv_renderer_post_black(we->r, v->slot, &err) : cv_renderer_post(we->r, v->slot, kept, delta, &err))
+    fprintf(stderr, "cave run: rank %d: %s\n", we->s->rank, err.msg);
+  we->cpu_gl += thread_cpu_ms() - c0;
 }
 
 /* Scheduled swap: ready to the master, then its swap time (this rank's
@@ -562,12 +704,16 @@ static void present(walleye *we, const cv_frame_state *fs) {
   const double t0 = cv_service_now();
   cv_err err;
   const int window = (s->o.present & CV_PRESENT_WINDOW) && we->win_event == CV_WIN_OK;
+  const double c0 = thread_cpu_ms();
   if (window) {
     const int packed = we->o->eyes == 3;
-    if (cv_renderer_present(we->r, we->ev[0].code, packed ? we->ev[1].code : NULL, we->w, we->h,
-                            we->o->stereo, &err))
-      fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
+    const int st = we->gpu_post ? cv_renderer_present_slots(we->r, we->o->stereo, &err)
+                                : cv_renderer_present(we->r, we->ev[0].code, packed ? we->ev[1].code : NULL, we->w,
+                                                      we->h, we->o->stereo, &err);
+    if (st) fprintf(stderr, "cave run: rank %d: frame %u: %s\n", s->rank, fs->frame, err.msg);
   }
+  we->cpu_drawn = thread_cpu_ms();
+  we->cpu_gl += we->cpu_drawn - c0;
   double tb = cv_service_now();
   if (s->o.swap_lock && s->o.swap_sync == CV_SWAP_SCHEDULED) {
     wait_for_go(we, fs->frame);
@@ -591,6 +737,17 @@ static void present(walleye *we, const cv_frame_state *fs) {
   we->swap_frame = fs->frame;
   we->ms_barrier = (tb1 - tb) * 1e3;
   we->ms_present = (we->swap_t - t0) * 1e3;
+}
+
+/* A written frame on the GPU path: each eye's codes (what the window
+ * shows) and, on the CPU, the compensated display-linear image the master's
+ * viewer simulation takes. */
+static void fetch_written(walleye *we) {
+  cv_err err;
+  for (int k = 0; k < we->n_eyes; k++)
+    if (cv_renderer_post_read(we->r, we->ev[k].slot, we->ev[k].code, &err))
+      fprintf(stderr, "cave run: rank %d: %s\n", we->s->rank, err.msg);
+  compensate_eyes(we, 0);
 }
 
 static int write_outputs(walleye *we, eye_view *v, const cv_frame_state *fs, cv_err *err) {
@@ -653,13 +810,17 @@ static void ready_text(const walleye *we, char *buf, size_t cap) {
   char casters[64];
   if (sc.tolerance_m > 0) snprintf(casters, sizeof casters, "casters within %.2g mm", 1e3 * sc.tolerance_m);
   else snprintf(casters, sizeof casters, "the mesh");
-  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s from %s transfer; luminance statistics %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
+  char post[sizeof we->post_why + 64];
+  if (we->gpu_post) snprintf(post, sizeof post, "frame end on the GPU (patch means, equation 7, Rec.709 codes in shaders; "
+                             "only patch means and luminance statistics read back)");
+  else snprintf(post, sizeof post, "frame end on the CPU (image read back: %s)", we->post_why);
+  snprintf(buf, cap, "rank %d on %s: wall %s, %s; %s; GL %s (%s); relight %s from %s transfer; luminance statistics %s; %s; sun's shadow map of %s; hardware swap sync: none (EGL has no swap-group extension); shared lighting: %s",
            we->s->rank, host, we->s->cave.walls[we->wall].name,
            o->eyes == 3 ? cv_stereo_mode_name(o->stereo) : (o->eyes == 1 ? "left eye" : "right eye"), where,
            cv_renderer_gl_name(we->r), cv_renderer_is_software(we->r) ? "software" : "hardware GPU",
            cv_renderer_relight_on_cpu(we->r) ? "on the CPU" : "by transform feedback",
            cv_renderer_half_transfer(we->r) ? "half-float" : "float",
-           cv_renderer_lum_stats_on_gpu(we->r) ? "on the GPU" : "on the CPU", casters, share);
+           we->gpu_post || cv_renderer_lum_stats_on_gpu(we->r) ? "on the GPU" : "on the CPU", post, casters, share);
 }
 
 /* The master's adaptation priming (CV_FS_MEASURE): every eye rendered and
@@ -683,6 +844,78 @@ static void measure_frame(walleye *we, const cv_frame_state *fs, uint64_t state_
   }
 }
 
+/* Each eye: render, report, and on the GPU path its post pass as soon as
+ * its correction is in hand (frame N - lag's; with lag 0 after every eye
+ * reported, the first eye's display image kept meanwhile). */
+static void render_eyes(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0,
+                        cv_frame_timing *tm, double *wait) {
+  const int lag = we->s->o.compensation_lag;
+  const int64_t want = (int64_t)fs->frame - lag;
+  for (int k = 0; k < we->n_eyes; k++) {
+    eye_view *v = &we->ev[k];
+    cv_walleye_report rep;
+    memset(&rep, 0, sizeof rep);
+    rep.frame = fs->frame;
+    rep.rank = we->s->rank;
+    rep.wall = we->wall;
+    rep.eye = v->eye;
+    rep.state_hash = state_hash;
+    render_eye(we, v, fs, tm, &rep);
+    rep.ms_total = (cv_service_now() - t0) * 1e3;
+    send_preview(we, v, fs); /* before the report: complete when the frame is */
+    send_report(we, v, &rep);
+    if (!we->gpu_post) continue;
+    if (we->disp && lag > 0 && k == 0) *wait += take_correction(we, fs, want);
+    if (!we->disp || lag > 0) {
+      post_eye(we, v, 0);
+    } else if (k + 1 < we->n_eyes) {
+      cv_err err;
+      const double c0 = thread_cpu_ms();
+      if (cv_renderer_display_keep(we->r, v->slot, &err)) fprintf(stderr, "cave run: rank %d: %s\n", we->s->rank, err.msg);
+      we->cpu_gl += thread_cpu_ms() - c0;
+    }
+  }
+  if (we->disp && (lag == 0 || !we->gpu_post)) *wait += take_correction(we, fs, want);
+  if (we->gpu_post && we->disp && lag == 0)
+    for (int k = 0; k < we->n_eyes; k++) post_eye(we, &we->ev[k], k + 1 < we->n_eyes);
+}
+
+/* One frame: relight, the eyes, the correction, present, files; the frame
+ * path's figures kept for the next report.  Returns 1 when a file failed. */
+static int run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0) {
+  cv_service *s = we->s;
+  const double c0 = thread_cpu_ms();
+  we->cpu_gl = we->cpu_skip = 0;
+  if (we->lw) cv_lcd_worker_post(we->lw, fs);
+  cv_frame_timing tm;
+  memset(&tm, 0, sizeof tm);
+  relight_if_needed(we, fs, &tm);
+  we->cpu_skip += thread_cpu_ms() - c0; /* a lighting change is not the frame's path */
+  double wait = 0;
+  if (we->gpu_post) cv_renderer_gpu_timer_begin(we->r);
+  render_eyes(we, fs, state_hash, t0, &tm, &wait);
+  if (we->gpu_post) cv_renderer_gpu_timer_end(we->r);
+  else compensate_eyes(we, 1);
+  present(we, fs);
+  we->prev_cpu = fmax(0, we->cpu_drawn - c0 - we->cpu_gl - we->cpu_skip);
+  const double gpu = we->gpu_post ? cv_renderer_gpu_timer_result(we->r) : NAN;
+  we->prev_gpu = isfinite(gpu) ? gpu : -1;
+  we->prev_wait = wait;
+  we->prev_corr = we->have_delta ? we->corr_frame : 0xffffffffu;
+  int rc = 0;
+  if (fs->flags & CV_FS_WRITE) {
+    if (we->gpu_post) fetch_written(we);
+    for (int k = 0; k < we->n_eyes; k++) {
+      cv_err err;
+      if (write_outputs(we, &we->ev[k], fs, &err)) {
+        fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
+        rc = 1;
+      }
+    }
+  }
+  return rc;
+}
+
 int cv_walleye_run(cv_service *s) {
   walleye WE;
   memset(&WE, 0, sizeof WE);
@@ -695,7 +928,7 @@ int cv_walleye_run(cv_service *s) {
   if (cv_lightshare_setup(&we->ls, s, st == CV_OK ? we->r : NULL, st == CV_OK ? view_cost(we) : 0, 512, 256))
     fprintf(stderr, "cave run: rank %d: shared lighting: MPI shared memory failed, computing the lighting\n", s->rank);
   {
-    char msg[900];
+    char msg[1400];
     if (st == CV_OK) ready_text(we, msg, sizeof msg);
     else snprintf(msg, sizeof msg, "rank %d (outputs[%d], wall %s): %s", s->rank, s->rank - 1,
                   we->o ? s->cave.walls[we->wall].name : "?", err.msg);
@@ -718,32 +951,7 @@ int cv_walleye_run(cv_service *s) {
       measure_frame(we, &fs, state_hash, t0);
       continue;
     }
-    if (we->lw) cv_lcd_worker_post(we->lw, &fs);
-    cv_frame_timing tm;
-    memset(&tm, 0, sizeof tm);
-    relight_if_needed(we, &fs, &tm);
-    for (int k = 0; k < we->n_eyes; k++) {
-      cv_walleye_report rep;
-      memset(&rep, 0, sizeof rep);
-      rep.frame = fs.frame;
-      rep.rank = s->rank;
-      rep.wall = we->wall;
-      rep.eye = we->ev[k].eye;
-      rep.state_hash = state_hash;
-      render_eye(we, &we->ev[k], &fs, &tm, &rep);
-      rep.ms_total = (cv_service_now() - t0) * 1e3;
-      send_preview(we, &we->ev[k], &fs); /* before the report: complete when the frame is */
-      send_report(we, &we->ev[k], &rep);
-    }
-    if (we->disp) take_correction(we, &fs);
-    compensate_eyes(we);
-    present(we, &fs);
-    if (fs.flags & CV_FS_WRITE)
-      for (int k = 0; k < we->n_eyes; k++)
-        if (write_outputs(we, &we->ev[k], &fs, &err)) {
-          fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
-          rc = 1;
-        }
+    if (run_frame(we, &fs, state_hash, t0)) rc = 1;
     /* the host's leader: the next frame's lighting while the others render */
     if (we->have_light) cv_lightshare_prefetch(&we->ls, s, we->r, we->mix, &fs, we->light_key);
     idle(we);

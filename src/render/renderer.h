@@ -431,6 +431,8 @@ int cv_renderer_display_keep(cv_renderer *r, int slot, cv_err *err);
  * clamp to [0, 1] and the Rec.709 transfer, of the last display image (or
  * of the one kept in slot, kept = 1), into slot's 8-bit image. */
 int cv_renderer_post(cv_renderer *r, int slot, int kept, const float *delta, cv_err *err);
+/* Slot's image black (an eye with no image this frame). */
+int cv_renderer_post_black(cv_renderer *r, int slot, cv_err *err);
 /* Slot's 8-bit codes into codes (3 w h, row 0 at the top). */
 int cv_renderer_post_read(cv_renderer *r, int slot, uint8_t *codes, cv_err *err);
 /* The last display image (float) into img (c = 3, its size). */

@@ -69,6 +69,7 @@ struct cv_renderer {
   /* GPU time of the frame (timer queries: cv_renderer_gpu_timer_*) */
   GLuint gpu_query;
   int gpu_query_on;
+  double gpu_query_t0; /* wall ms at its begin */
   cv_window *win;     /* opts.window: the X11 window (NULL headless) */
   GLuint prog_present, tex_present[2]; /* cv_renderer_present: the uploaded codes per eye */
   int present_w, present_h, present_made[2];

@@ -234,6 +234,13 @@ int cv_walleye_report_pack(const cv_walleye_report *rp, uint8_t *buf) {
   put_f64(&w, rp->swap_t);
   put_f64(&w, rp->ms_present);
   put_f64(&w, rp->ms_barrier);
+  put_u64(&w, rp->bytes_read);
+  put_u64(&w, rp->bytes_up);
+  put_f64(&w, rp->ms_cpu);
+  put_f64(&w, rp->ms_gpu);
+  put_f64(&w, rp->ms_corr_wait);
+  put_u32(&w, rp->corr_frame);
+  put_u64(&w, rp->late_corr);
   if (w.off != CV_WALLEYE_REPORT_BYTES) return CV_ERR_INVALID;
   return w.nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
@@ -276,6 +283,13 @@ int cv_walleye_report_unpack(const uint8_t *buf, size_t len, cv_walleye_report *
   p.swap_t = GET_F64(&r, "swap_t");
   p.ms_present = GET_F64(&r, "ms_present");
   p.ms_barrier = GET_F64(&r, "ms_barrier");
+  p.bytes_read = get_u64(&r);
+  p.bytes_up = get_u64(&r);
+  p.ms_cpu = GET_F64(&r, "ms_cpu");
+  p.ms_gpu = GET_F64(&r, "ms_gpu");
+  p.ms_corr_wait = GET_F64(&r, "ms_corr_wait");
+  p.corr_frame = get_u32(&r);
+  p.late_corr = get_u64(&r);
   if (r.off != CV_WALLEYE_REPORT_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
   if (r.bad) return nonfinite_err(&r, what, err);

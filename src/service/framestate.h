@@ -109,11 +109,19 @@ typedef struct cv_walleye_report {
   double swap_t;             /* monotonic seconds of this rank's clock when that swap returned */
   double ms_present;         /* that frame: present draw + glFinish, barrier wait, swap (ms) */
   double ms_barrier;         /* of which waiting in the swap-lock barrier (ms) */
+  /* The frame path (issue 29), of that same previous frame of this rank: */
+  uint64_t bytes_read;       /* bytes read back from the GL since the rank's previous report */
+  uint64_t bytes_up;         /* bytes uploaded to the GL since the rank's previous report */
+  double ms_cpu;             /* thread CPU ms of the frame's path outside GL calls (no relight, no waits) */
+  double ms_gpu;             /* GPU ms of the frame's GL work (timer query); -1: none */
+  double ms_corr_wait;       /* ms waited for the scattering correction */
+  uint32_t corr_frame;       /* the frame whose correction was applied (0xffffffff: none) */
+  uint64_t late_corr;        /* corrections that did not come in time, since the start */
 } cv_walleye_report;
 
 #define CV_WALLEYE_REPORT_MAGIC 0x52455743u /* "CWER" */
-#define CV_WALLEYE_REPORT_VERSION 2u
-#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8 + 4 + 8 * 3)
+#define CV_WALLEYE_REPORT_VERSION 3u
+#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8 + 4 + 8 * 3 + 8 * 2 + 8 * 3 + 4 + 8)
 
 /* Packs r into buf (CV_WALLEYE_REPORT_BYTES bytes).  Errors: CV_ERR_NONFINITE
  * if a double is not finite, CV_ERR_INVALID on NULL. */

@@ -101,7 +101,7 @@ static void test_size_constants(void **state) {
   (void)state;
   assert_int_equal(CV_DRIVE_STATE_BYTES, 128);
   assert_int_equal(CV_FRAME_STATE_BYTES, 1956);
-  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 156);
+  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 208);
 }
 
 static void test_round_trip_bit_exact(void **state) {
@@ -289,6 +289,13 @@ static void fill_report(cv_walleye_report *r) {
   r->swap_t = 12345.678901234;
   r->ms_present = 2.5;
   r->ms_barrier = 0.125;
+  r->bytes_read = 68424;
+  r->bytes_up = (1ull << 33) + 5;
+  r->ms_cpu = 0.75;
+  r->ms_gpu = -1;
+  r->ms_corr_wait = 0.0625;
+  r->corr_frame = 0xffffffffu;
+  r->late_corr = 42;
 }
 
 static void test_walleye_round_trip(void **state) {
@@ -317,6 +324,8 @@ static void test_walleye_round_trip(void **state) {
   assert_int_equal(u.swap_frame, 76);
   assert_memory_equal(&u.swap_t, &r.swap_t, 8);
   assert_true(u.ms_present == 2.5 && u.ms_barrier == 0.125);
+  assert_true(u.bytes_read == 68424 && u.bytes_up == (1ull << 33) + 5 && u.late_corr == 42);
+  assert_true(u.ms_cpu == 0.75 && u.ms_gpu == -1 && u.ms_corr_wait == 0.0625 && u.corr_frame == 0xffffffffu);
 
   r.max_l = NAN;
   assert_int_equal(cv_walleye_report_pack(&r, b), CV_ERR_NONFINITE);
