@@ -38,7 +38,7 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->lcd_tolerance = 0;
   o->lcd_luminance = -1;
   o->lcd_idle = 1;
-  o->share_lighting = 1; /* CV_SHARE_HOST */
+  o->share_lighting = 4; /* CV_SHARE_AUTO */
   o->half_transfer = -1;
   o->seed = 1;
   o->present = CV_PRESENT_FILES;

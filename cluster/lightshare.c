@@ -6,9 +6,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "core/hash.h"
 #include "service_internal.h"
+
+static int join(cv_lightshare *ls, const cv_service *s, cv_renderer *r, size_t cost, int bg_w, int bg_h);
 
 /* Each of the segment's two slots starts with this (64 bytes). */
 typedef struct slot {
@@ -38,14 +41,52 @@ static slot *slot_at(const cv_lightshare *ls, int i) {
 static uint8_t *render_part(const cv_lightshare *ls, int i) { return (uint8_t *)slot_at(ls, i) + sizeof(slot); }
 static uint8_t *bg_part(const cv_lightshare *ls, int i) { return render_part(ls, i) + pad64(ls->render_bytes); }
 
+const char *cv_share_lighting_name(int mode) {
+  static const char *names[] = {"off", "host", "host-now", "background", "auto"};
+  return mode >= 0 && mode <= CV_SHARE_AUTO ? names[mode] : "?";
+}
+
+/* --share-lighting auto, once the host's group is known: on a hardware GL
+ * each wall-eye relights on its own GPU (6.8 ms on an H200, docs/
+ * benchmarks.md) and only the background image (CPU work) is shared; on a
+ * software GL the lighting is CPU work too, shared while the host has fewer
+ * than 4 cores per wall-eye (on 2 cores sharing cut a lighting change's CPU
+ * to about a tenth, docs/benchmarks.md, "Shared lighting"), else each rank
+ * computes it (no wait for a leader). */
+static void resolve_auto(cv_lightshare *ls, cv_renderer *r) {
+  const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+  const int members = ls->hs.members > 0 ? ls->hs.members : 1;
+  const double per = (double)(cores > 0 ? cores : 1) / members;
+  if (r && !cv_renderer_is_software(r)) {
+    ls->mode = CV_SHARE_BACKGROUND;
+    snprintf(ls->why, sizeof ls->why, "auto: background (a hardware GL relights on its GPU)");
+  } else if (per < 4) {
+    ls->mode = CV_SHARE_HOST;
+    snprintf(ls->why, sizeof ls->why, "auto: host (a software GL, %.2g cores per wall-eye)", per);
+  } else {
+    ls->mode = CV_SHARE_OFF;
+    snprintf(ls->why, sizeof ls->why, "auto: off (a software GL, %.2g cores per wall-eye)", per);
+  }
+}
+
 int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, size_t cost, int bg_w, int bg_h) {
   memset(ls, 0, sizeof *ls);
   ls->mode = s->o.share_lighting;
   ls->hs.leader = -1;
   ls->active = -1;
   ls->wait_s = 0.25e-3 * s->o.timeout_ms;
-  ls->prefetch_on = ls->mode == CV_SHARE_HOST;
   if (ls->mode == CV_SHARE_OFF) return 0;
+  int st = join(ls, s, r, cost, bg_w, bg_h);
+  if (ls->mode == CV_SHARE_AUTO) resolve_auto(ls, r);
+  ls->bg_only = ls->mode == CV_SHARE_BACKGROUND;
+  ls->prefetch_on = ls->mode == CV_SHARE_HOST;
+  if (ls->mode == CV_SHARE_OFF) ls->hs.base = NULL; /* auto chose off: joined, shares nothing */
+  return st;
+}
+
+/* Joins the host group of the ranks with the same scene and GL (collective). */
+static int join(cv_lightshare *ls, const cv_service *s, cv_renderer *r, size_t cost, int bg_w, int bg_h) {
+  (void)s;
   /* the same scene on the same kind of GL: the same products, bit for bit */
   int color = -1;
   size_t bytes = 0;
@@ -69,10 +110,15 @@ int cv_lightshare_setup(cv_lightshare *ls, const cv_service *s, cv_renderer *r, 
 }
 
 void cv_lightshare_describe(const cv_lightshare *ls, char *buf, size_t cap) {
-  if (ls->mode == CV_SHARE_OFF) snprintf(buf, cap, "off");
-  else if (!ls->hs.base) snprintf(buf, cap, "alone (no other wall-eye of this scene and GL on its host)");
-  else if (ls->hs.index == 0) snprintf(buf, cap, "leader of %d wall-eyes on this host", ls->hs.members);
-  else snprintf(buf, cap, "importer (leader rank %d, %d wall-eyes on this host)", ls->hs.leader, ls->hs.members);
+  char role[160];
+  const char *part = ls->bg_only ? " of the background image" : "";
+  if (ls->mode == CV_SHARE_OFF) snprintf(role, sizeof role, "off");
+  else if (!ls->hs.base) snprintf(role, sizeof role, "alone (no other wall-eye of this scene and GL on its host)");
+  else if (ls->hs.index == 0) snprintf(role, sizeof role, "leader%s of %d wall-eyes on this host", part, ls->hs.members);
+  else snprintf(role, sizeof role, "importer%s (leader rank %d, %d wall-eyes on this host)", part, ls->hs.leader,
+                ls->hs.members);
+  if (ls->why[0]) snprintf(buf, cap, "%s [%s]", role, ls->why);
+  else snprintf(buf, cap, "%s", role);
 }
 
 /* Computes the lighting: the renderer's products and the background image
@@ -95,7 +141,7 @@ static int write_slot(cv_lightshare *ls, int i, cv_renderer *r, const cv_image *
   if (!(q & 1)) atomic_store_explicit(&h->seq, q + 1, memory_order_relaxed);
   atomic_store_explicit(&h->key, 0, memory_order_relaxed);
   atomic_thread_fence(memory_order_release);
-  int st = cv_renderer_lighting_export(r, render_part(ls, i), ls->render_bytes, err);
+  int st = ls->bg_only ? CV_OK : cv_renderer_lighting_export(r, render_part(ls, i), ls->render_bytes, err);
   uint8_t *b = bg_part(ls, i);
   int32_t wh[2] = {0, 0};
   if (bg && bg->c == 3 && bg->w == ls->bg_w && bg->h == ls->bg_h) {
@@ -117,20 +163,22 @@ static void open_slot(cv_lightshare *ls, int i, uint64_t key, uint64_t c) {
 }
 
 /* Uploads slot i into r.  0, or non-zero (err). */
-static int import_slot(cv_lightshare *ls, int i, cv_renderer *r, cv_frame_timing *tm, cv_err *err) {
+static int import_slot(cv_lightshare *ls, int i, cv_renderer *r, const cv_lighting *l, cv_frame_timing *tm,
+                       cv_err *err) {
   const uint8_t *b = bg_part(ls, i);
   int32_t wh[2];
   memcpy(wh, b, sizeof wh);
   cv_image bg = {.w = wh[0], .h = wh[1], .c = 3, .px = (float *)(void *)(uintptr_t)(b + BG_HDR)};
-  int st = cv_renderer_lighting_import(r, render_part(ls, i), ls->render_bytes, tm, err);
+  int st = ls->bg_only ? cv_renderer_set_lighting(r, l, NULL, tm, err)
+                       : cv_renderer_lighting_import(r, render_part(ls, i), ls->render_bytes, tm, err);
   if (!st) st = cv_renderer_set_background(r, wh[0] > 0 ? &bg : NULL, err);
   return st;
 }
 
 /* An importer: 1 imported, 0 not (yet), -1 torn or refused (r's lighting
  * forgotten). */
-static int try_import(cv_lightshare *ls, const cv_service *s, cv_renderer *r, uint64_t key, cv_frame_timing *tm,
-                      int *ahead) {
+static int try_import(cv_lightshare *ls, const cv_service *s, cv_renderer *r, const cv_lighting *l, uint64_t key,
+                      cv_frame_timing *tm, int *ahead) {
   for (int i = 0; i < 2; i++) {
     slot *h = slot_at(ls, i);
     const uint64_t q1 = atomic_load_explicit(&h->seq, memory_order_acquire);
@@ -140,7 +188,7 @@ static int try_import(cv_lightshare *ls, const cv_service *s, cv_renderer *r, ui
     if (k && c > ls->changes) *ahead = 1;
     if (!k || k != key || c != ls->changes) continue;
     cv_err err;
-    const int st = import_slot(ls, i, r, tm, &err);
+    const int st = import_slot(ls, i, r, l, tm, &err);
     atomic_thread_fence(memory_order_acquire);
     const uint64_t q2 = atomic_load_explicit(&h->seq, memory_order_relaxed);
     if (st || q1 != q2) {
@@ -179,7 +227,7 @@ static int restore(cv_lightshare *ls, cv_renderer *r, cv_err *err) {
     cv_renderer_lighting_forget(r);
     return cv_err_set(err, CV_ERR_INVALID, "shared lighting: no published lighting to return to");
   }
-  return import_slot(ls, ls->active, r, NULL, err);
+  return import_slot(ls, ls->active, r, NULL, NULL, err); /* host mode only (prefetch) */
 }
 
 int cv_lightshare_restore(cv_lightshare *ls, cv_renderer *r, cv_err *err) {
@@ -228,7 +276,7 @@ int cv_lightshare_relight(cv_lightshare *ls, const cv_service *s, cv_renderer *r
         what = CV_LIGHT_DEAD;
         break;
       }
-      got = try_import(ls, s, r, key, tm, &ahead);
+      got = try_import(ls, s, r, l, key, tm, &ahead);
       if (got) break;
       if (ahead || clock_ms(CLOCK_MONOTONIC) > deadline) {
         what = CV_LIGHT_LATE;

@@ -30,7 +30,14 @@
 struct cv_lightmix;
 
 /* --share-lighting */
-enum { CV_SHARE_OFF = 0, CV_SHARE_HOST = 1, CV_SHARE_HOST_NOW = 2 /* host without the prefetch */ };
+enum { CV_SHARE_OFF = 0, CV_SHARE_HOST = 1, CV_SHARE_HOST_NOW = 2 /* host without the prefetch */,
+       CV_SHARE_BACKGROUND = 3, /* only the CPU-only part (the background image from the maps or the
+                                   sky) is shared; each wall-eye relights, splits and draws its
+                                   shadow map on its own GL */
+       CV_SHARE_AUTO = 4 /* the default: background on a hardware GL; host on a software GL
+                            with fewer than 4 cores per wall-eye on the host, else off */ };
+/* "host", "host-now", "off", "background", "auto" */
+const char *cv_share_lighting_name(int mode);
 
 /* What a rank did for one lighting change. */
 enum {
@@ -59,7 +66,9 @@ typedef struct cv_light_msg {
 } cv_light_msg;
 
 typedef struct cv_lightshare {
-  int mode;           /* CV_SHARE_* */
+  int mode;           /* CV_SHARE_* (auto resolved at set-up) */
+  int bg_only;        /* CV_SHARE_BACKGROUND: only the background image is shared */
+  char why[160];      /* auto: what it picked and why */
   cv_host_share hs;   /* the segment (hs.base NULL: not sharing) */
   size_t render_bytes;/* the renderer's export part */
   int bg_w, bg_h;     /* background image part */

@@ -233,8 +233,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_bool(ml, "desktop", m->desk != NULL);
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
-    cv_metrics_string(ml, "share_lighting", s->o.share_lighting == CV_SHARE_HOST ? "host"
-                                            : (s->o.share_lighting == CV_SHARE_HOST_NOW ? "host-now" : "off"));
+    cv_metrics_string(ml, "share_lighting", cv_share_lighting_name(s->o.share_lighting));
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
       char k[16];
@@ -504,7 +503,7 @@ static void light_summary(master *m, cv_metrics_line *ml) {
     for (int k = 0; k < 6; k++) c[k] += m->light_have[i] ? m->light[i].count[k] : 0;
   cv_metrics_object_begin(ml, "shared_lighting");
   const int mode = m->s->o.share_lighting;
-  cv_metrics_string(ml, "mode", mode == CV_SHARE_HOST ? "host" : (mode == CV_SHARE_HOST_NOW ? "host-now" : "off"));
+  cv_metrics_string(ml, "mode", cv_share_lighting_name(mode));
   for (int k = 0; k < 6; k++) cv_metrics_uint(ml, light_name((uint32_t)k), c[k]);
   uint64_t p[2] = {0, 0};
   for (int i = 0; i < m->s->n_render; i++)

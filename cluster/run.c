@@ -93,7 +93,10 @@ static void help(FILE *f) {
           "                       (MPI_Ibarrier among the render ranks, swap on release)\n"
           "  --swap-margin-ms T   scheduled swaps: the swap time is T ms after the last rank\n"
           "                       is ready (default 3)\n"
-          "  --share-lighting S   host (default): the wall-eyes of one host with the same\n"
+          "  --share-lighting S   auto (default): background on a hardware GL, host on a\n"
+          "                       software GL with fewer than 4 cores per wall-eye on the\n"
+          "                       host, else off (the ready line says what it picked).\n"
+          "                       host: the wall-eyes of one host with the same\n"
           "                       scene and GL compute each lighting change once: the first\n"
           "                       (leader) relights, draws the sun's shadow map and the\n"
           "                       background into shared memory, the others upload them\n"
@@ -102,8 +105,10 @@ static void help(FILE *f) {
           "                       (counted: docs/metrics.md).  The leader also computes the\n"
           "                       next frame's lighting ahead, predicted from the drive, and\n"
           "                       publishes it when the next state confirms it bit for bit.\n"
-          "                       host-now: sharing without that prefetch; off: every\n"
-          "                       wall-eye computes its own\n"
+          "                       host-now: sharing without that prefetch; background:\n"
+          "                       only the background image is shared, each wall-eye\n"
+          "                       relights and draws its shadow map on its own GL; off:\n"
+          "                       every wall-eye computes its own\n"
           "  --display FILE.json  compensation display, or a CAVE config whose walls and\n"
           "                       \"screens\" give it (default: generated from the walls)\n"
           "  --patches P          patches per wall side of the generated display (default: the\n"
@@ -257,7 +262,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
       if (!strcmp(v, "host")) o->share_lighting = CV_SHARE_HOST;
       else if (!strcmp(v, "host-now")) o->share_lighting = CV_SHARE_HOST_NOW;
       else if (!strcmp(v, "off")) o->share_lighting = CV_SHARE_OFF;
-      else problem(pb, "--share-lighting: expected host, host-now or off, got '%s'", v);
+      else if (!strcmp(v, "background")) o->share_lighting = CV_SHARE_BACKGROUND;
+      else if (!strcmp(v, "auto")) o->share_lighting = CV_SHARE_AUTO;
+      else problem(pb, "--share-lighting: expected auto, host, host-now, background or off, got '%s'", v);
     } else if (!strcmp(a, "--swap-sync")) {
       NEED();
       if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;

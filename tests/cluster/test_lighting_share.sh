@@ -34,16 +34,16 @@ COMMON=(--scene scene.prt --size 48 --drive "$SRC/configs/drives/sky.json" --dt 
         --write-every 1 --no-lcd --patches 8 --timeout-ms 60000 --quiet)
 
 "$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --share-lighting 2 >out.txt 2>err.txt; rc=$?
-[ $rc -eq 2 ] && grep -q "share-lighting: expected host, host-now or off, got '2'" err.txt \
+[ $rc -eq 2 ] && grep -q "share-lighting: expected auto, host, host-now, background or off, got '2'" err.txt \
   && ok "bad --share-lighting refused: $(head -1 err.txt)" || bad "bad value: rc $rc $(cat err.txt)"
 
-for mode in host host-now off; do
+for mode in host host-now off background auto; do
   timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --share-lighting $mode -o $mode \
     >out_$mode.txt 2>err_$mode.txt; rc=$?
   [ $rc -eq 0 ] && ok "11 ranks, --share-lighting $mode" || bad "run $mode rc $rc: $(tail -5 err_$mode.txt)"
 done
 
-for mode in host host-now; do
+for mode in host host-now background auto; do
   n=0; differ=0
   for f in $mode/*.exr $mode/*.png; do
     [ -e "$f" ] || continue
@@ -93,6 +93,25 @@ _, _, off = load(sys.argv[2])
 so = off["shared_lighting"]
 print("off:", so)
 assert so["mode"] == "off" and so["computed"] == 10 * sl["led"] and so["imported"] == 0, so
+PY
+python3 - background auto <<'PY' && ok "background: each wall-eye relit itself, the background image shared; auto picked host on llvmpipe with 0.2 cores per wall-eye" || bad "background / auto metrics"
+import json, sys
+def load(d):
+    lines = [json.loads(l) for l in open(d + "/metrics.jsonl")]
+    return lines[0], lines[-1]
+ready, summ = load(sys.argv[1])
+roles = ready["ranks"]
+assert ready["share_lighting"] == "background", ready
+assert sum("shared lighting: leader of the background image of 10" in t for r, t in roles.items()) == 1, roles
+assert sum("shared lighting: importer of the background image" in t for r, t in roles.items()) == 9, roles
+sb = summ["shared_lighting"]
+print("background:", sb)
+assert sb["mode"] == "background" and sb["led"] >= 5 and sb["imported"] + sb["late_leader"] == 9 * sb["led"], sb
+ready, summ = load(sys.argv[2])
+assert ready["share_lighting"] == "auto", ready
+picked = [t.split("shared lighting: ")[1] for r, t in ready["ranks"].items() if r != "0"]
+print("auto:", picked[0])
+assert all("[auto: host (a software GL" in p for p in picked), picked
 PY
 # --- a late leader: the leader (named in the ready line) stopped for 3 s ----
 # (with --transfer float: the option reaches every wall-eye, said in its ready line)
