@@ -13,7 +13,7 @@
  * Also the wall-eyes' frame-path samples (issue 29) and their summary.
  *
  * CAVE_TEST_SOLVE_DELAY_MS (tests only, docs/service.md): each solve's
- * deltas are held back this long (the master goes on, and solves the next
+ * deltas after frame 0's are held back this long (the master goes on, and solves the next
  * patch images only after they went out), to make corrections late on
  * purpose. */
 #include <math.h>
@@ -128,7 +128,7 @@ static void solve_and_send(master *m, uint32_t frame, double t_in) {
     fprintf(stderr, "cave run: master: compensation: %s\n", err.msg);
     return;
   }
-  if (m->comp_delay_ms > 0) { /* the test hook: the deltas held back, the master not blocked */
+  if (m->comp_delay_ms > 0 && frame > 0) { /* the test hook: the deltas held back, the master not blocked */
     const size_t n = cv_display_patch_count(m->disp);
     if (!m->comp_hold && !(m->comp_hold = malloc(3 * n * sizeof *m->comp_hold))) return;
     for (size_t i = 0; i < 3 * n; i++) m->comp_hold[i] = (float)(m->r[i] - m->I[i]);

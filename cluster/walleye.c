@@ -12,7 +12,7 @@
  *     as 8-bit codes;
  *   apply the master's scattering correction for this wall with equation
  *     7: frame N - lag's (--compensation-lag; the last one when it does not
- *     come within --timeout-ms, counted as late);
+ *     come within --timeout-ms / 2, counted as late);
  *   present: the 8-bit projector image drawn into the window, glFinish,
  *     the swap-lock barrier among all render ranks, swap, stamp;
  *   write the frame's files when the master marks it.
@@ -605,7 +605,7 @@ static int keep_correction(walleye *we, const uint8_t *data, long l, uint32_t wa
 }
 
 /* Frame `want`'s correction for the wall (want = this frame - lag), waited
- * for at most --timeout-ms (the start-up time on frame 0); when it does not
+ * for at most --timeout-ms / 2 (the start-up time on frame 0); when it does not
  * come, the last one stays and it counts as late.  Exactly frame want's is
  * applied whenever it comes in time, so the images do not depend on timing.
  * Returns the ms waited. */
@@ -613,8 +613,9 @@ static double take_correction(walleye *we, const cv_frame_state *fs, int64_t wan
   cv_service *s = we->s;
   if (want < 0) return 0; /* lag 1 on frame 0: nothing solved yet */
   const double t0 = cv_service_now(), c0 = thread_cpu_ms();
+  /* half the master's deadline: the next frame's report must still make it */
   const double deadline = t0 + (fs->frame == 0 ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s)
-                                                : s->o.timeout_ms * 1e-3);
+                                                : 0.5e-3 * s->o.timeout_ms);
   const size_t np = (size_t)we->S->nu * we->S->nv;
   int got = we->have_delta && we->corr_frame == (uint32_t)want;
   if (!got && we->pend_frame == (uint32_t)want) { /* it came during an earlier frame */
@@ -850,7 +851,9 @@ static void measure_frame(walleye *we, const cv_frame_state *fs, uint64_t state_
 static void render_eyes(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0,
                         cv_frame_timing *tm, double *wait) {
   const int lag = we->s->o.compensation_lag;
-  const int64_t want = (int64_t)fs->frame - lag;
+  /* frame N - lag's correction; frame 0 waits for its own (the first frames are
+   * compensated too: the master solves frame 0 while it waits for frame 1) */
+  const int64_t want = fs->frame == 0 ? 0 : (int64_t)fs->frame - lag;
   for (int k = 0; k < we->n_eyes; k++) {
     eye_view *v = &we->ev[k];
     cv_walleye_report rep;

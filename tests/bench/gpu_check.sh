@@ -14,7 +14,8 @@
 #   (dmon.txt) and cave run's metrics (run<SIZE>_<share>_<drive>_metrics.jsonl).
 #   Compare the EXR with llvmpipe's render of the same command elsewhere
 #   with img_diff.  Env: GPU (0; software: a dry run on llvmpipe),
-#   TABLE_FRAMES (10), RUNS ("720:host 1440:host 1440:off 1440:host:none"),
+#   TABLE_FRAMES (10), RUNS ("720:auto 1440:auto 1440:auto:none 1440:host:none"; auto: on
+#   a GPU the frame ends on it, --post auto, and each wall-eye relights on it, issue 29),
 #   RUN_FRAMES (24), ONLY_RUN (1: skip the renders and benchmarks),
 #   OMP_NUM_THREADS (1 for cave run, as cluster/main-job.sh),
 #   CABIN (a cached cave_bench_render_t8.prt instead of baking it).
@@ -33,7 +34,7 @@ OUT="${2:?usage: gpu_check.sh BUILD_DIR OUT_DIR [LOOP_FRAMES]}"
 LOOP="${3:-300}"
 GPU="${GPU:-0}"            # the device index asked for (software: a dry run on llvmpipe)
 TABLE_FRAMES="${TABLE_FRAMES:-10}"
-RUNS="${RUNS:-720:host 1440:host 1440:off 1440:host:none}"   # cave run: SIZE:--share-lighting[:drive (sky; none: no drive, a fixed light)]
+RUNS="${RUNS:-720:auto 1440:auto 1440:auto:none 1440:host:none}"   # cave run: SIZE:--share-lighting[:drive (sky; none: no drive, a fixed light)]
 ONLY_RUN="${ONLY_RUN:-0}"  # 1: the machine, the bakes and cave run only
 RUN_FRAMES="${RUN_FRAMES:-24}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -124,6 +125,7 @@ print("  wall-eyes, mean over ranks of each rank's median ms: " + ", ".join(
     "%s %.2f" % (k, st.mean(st.median(v) for v in d.values())) for k, d in sorted(keys.items())))
 comp = [f["compensation"]["frame_ms"] for f in fr if isinstance(f.get("compensation"), dict) and "frame_ms" in f["compensation"]]
 if comp: print("  master compensation.frame_ms median %.2f" % st.median(comp))
+print("  master_ms p99 %.3f, frame path (issue 29): %s" % (s.get("master_ms_p99", 0), s.get("frame_path")))
 PY
   done
   cp "$W/run1440_host_sky/frame"*"_front_L.png" "$OUT/run1440_front_L.png" 2>/dev/null
