@@ -5,8 +5,9 @@
 /* ---------------------------------------------------------------- present */
 
 /* Draws textures tex[0] (and tex[1] for a packed stereo layout), each
- * w x h, into the window's back buffer, then glFinish. */
-static int draw_eyes(cv_renderer *r, const GLuint tex[2], int w, int h, int layout, cv_err *err) {
+ * w x h, into the window's back buffer, then glFinish; gl_rows: their row 0
+ * is the image's bottom (drawn by GL) instead of its top (uploaded). */
+static int draw_eyes(cv_renderer *r, const GLuint tex[2], int w, int h, int layout, int gl_rows, cv_err *err) {
   const int packed = layout == CV_STEREO_SIDE_BY_SIDE || layout == CV_STEREO_TOP_BOTTOM;
   int ww, wh;
   cv_window_size(r->win, &ww, &wh);
@@ -25,6 +26,7 @@ static int draw_eyes(cv_renderer *r, const GLuint tex[2], int w, int h, int layo
                                                      : (w == ww && h == wh);
   const GLint filt = exact ? GL_NEAREST : GL_LINEAR;
   const GLint loc = glGetUniformLocation(r->prog_present, "u_rect");
+  glUniform1i(glGetUniformLocation(r->prog_present, "u_gl_rows"), gl_rows);
   glBindVertexArray(r->vao_empty);
   for (int e = 0; e < (packed ? 2 : 1); e++) {
     glBindTexture(GL_TEXTURE_2D, tex[e]);
@@ -69,7 +71,7 @@ int cv_renderer_present(cv_renderer *r, const uint8_t *left, const uint8_t *righ
     r->present_made[e] = 1;
     r->io_up += 3 * (size_t)w * h;
   }
-  return draw_eyes(r, r->tex_present, w, h, layout, err);
+  return draw_eyes(r, r->tex_present, w, h, layout, 0, err);
 }
 
 int cv_renderer_present_slots(cv_renderer *r, int layout, cv_err *err) {
@@ -80,7 +82,7 @@ int cv_renderer_present_slots(cv_renderer *r, int layout, cv_err *err) {
   if (!tex[0] || (packed && !tex[1]))
     return cv_err_set(err, CV_ERR_INVALID, "renderer: present: no projector image (cv_renderer_post_grid)");
   if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
-  return draw_eyes(r, tex, w, h, layout, err);
+  return draw_eyes(r, tex, w, h, layout, 1, err);
 }
 
 int cv_renderer_swap(cv_renderer *r, cv_err *err) {

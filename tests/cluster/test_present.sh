@@ -110,10 +110,18 @@ n=$(ls w/frame*_*.png | wc -l); bad_png=0
 for f in w/frame*_front_L.png; do "$XCHECK" 2>/dev/null; python3 -c "import sys; d=open('$f','rb').read(); sys.exit(0 if d[:8]==b'\x89PNG\r\n\x1a\n' and d[-8:-4]==b'IEND' else 1)" || bad_png=$((bad_png+1)); done
 [ $bad_png -eq 0 ] && ok "files whole after the stop ($n PNGs)" || bad "$bad_png truncated PNGs"
 
-# --- Escape in a window ---------------------------------------------------------
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --present window -o esc >esc.out 2>esc.err &
+# --- Escape in a window; the frame ending on the GPU (--post gpu: the window
+# draws the post pass's 8-bit image, no upload) ------------------------------------
+"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --post gpu --no-compensation \
+  --present window,files --write-every 2 -o esc >esc.out 2>esc.err &
 pid=$!
-for i in $(seq 1 240); do grep -q '"frame":3,' esc/metrics.jsonl 2>/dev/null && break; sleep 0.5; done
+for i in $(seq 1 240); do grep -q '"frame":5,' esc/metrics.jsonl 2>/dev/null && break; sleep 0.5; done
+sleep 1
+"$XCHECK" grab root screen_gpu.png >/dev/null 2>&1 || bad "screenshot of the --post gpu windows"
+last=$(ls esc/frame*_floor_L.png 2>/dev/null | tail -1)
+r=$("$XCHECK" compare "cave floor L (rank 7)" "$last" 2>&1)
+echo "$r" | grep -q "^max 0 " && head -1 esc/metrics.jsonl | grep -q "frame end on the GPU" \
+  && ok "--post gpu: the window shows exactly the codes of the PNG ($last)" || bad "--post gpu window vs $last: $r"
 wid=$("$XCHECK" find "cave floor L (rank 7)" | cut -d' ' -f1)
 xdotool key --window "$wid" Escape 2>/dev/null
 for i in $(seq 1 120); do kill -0 $pid 2>/dev/null || break; sleep 0.5; done
