@@ -607,6 +607,8 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
       cv_metrics_double(ml, "corr_wait_ms", r->ms_corr_wait);
       cv_metrics_int(ml, "corr_frame", r->corr_frame == 0xffffffffu ? -1 : (int64_t)r->corr_frame);
       cv_metrics_uint(ml, "late_corr", r->late_corr);
+      if (r->files_dropped) cv_metrics_uint(ml, "files_dropped", r->files_dropped);
+      if (r->files_failed) cv_metrics_uint(ml, "files_failed", r->files_failed);
       light_metrics(m, ml, rank, f);
     } else {
       cv_metrics_bool(ml, "late", 1);
@@ -857,7 +859,7 @@ int cv_master_run(cv_service *s) {
   lcd_reduce_finish(m);
   lcd_drain(m);
   if (!*s->stop) lcd_publish(m, 1);
-  if (m->lcd_mb) lcd_write(m, "lcd");
+  if (m->lcd_mb && (s->o.present & CV_PRESENT_FILES)) lcd_write(m, "lcd"); /* files only when asked */
   /* the last written frame's images are on their way (not waited for when
    * interrupted by a signal: mpirun follows its SIGTERM with SIGKILL) */
   for (const double t0 = cv_service_now(); !*s->stop && cv_service_now() - t0 < s->o.timeout_ms * 1e-3;) {

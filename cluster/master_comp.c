@@ -23,6 +23,7 @@
 #include <time.h>
 
 #include "comm.h"
+#include "io/filewriter.h"
 #include "master_internal.h"
 #include "service/metrics.h"
 
@@ -61,8 +62,9 @@ void master_comp_free(master *m) {
   free(m->comp_hold);
   m->comp_hold = NULL;
   free(m->path_read), free(m->path_cpu), free(m->path_gpu), free(m->path_wait), free(m->late_corr);
+  free(m->files_dropped), free(m->files_failed);
   m->path_read = m->path_cpu = m->path_gpu = m->path_wait = NULL;
-  m->late_corr = NULL;
+  m->late_corr = m->files_dropped = m->files_failed = NULL;
 }
 
 /* ---- the solve --------------------------------------------------------------- */
@@ -204,9 +206,14 @@ static int grow(master *m) {
 }
 
 void master_path_sample(master *m, int from, const cv_walleye_report *r) {
-  if (from >= 1 && from <= m->s->n_render) {
-    if (!m->late_corr) m->late_corr = calloc((size_t)m->s->n_render, sizeof *m->late_corr);
+  if (from >= 1 && from <= m->s->n_render) { /* the ranks' own counts: the latest */
+    const size_t n = (size_t)m->s->n_render;
+    if (!m->late_corr) m->late_corr = calloc(n, sizeof *m->late_corr);
+    if (!m->files_dropped) m->files_dropped = calloc(n, sizeof *m->files_dropped);
+    if (!m->files_failed) m->files_failed = calloc(n, sizeof *m->files_failed);
     if (m->late_corr && r->late_corr > m->late_corr[from - 1]) m->late_corr[from - 1] = r->late_corr;
+    if (m->files_dropped && r->files_dropped > m->files_dropped[from - 1]) m->files_dropped[from - 1] = r->files_dropped;
+    if (m->files_failed && r->files_failed > m->files_failed[from - 1]) m->files_failed[from - 1] = r->files_failed;
   }
   /* the figures are of the rank's previous frame; frames 0 and 1 pay the start */
   if (r->frame < 2 || grow(m)) return;
@@ -245,4 +252,18 @@ void master_path_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_uint(ml, "late_corrections", late);
   cv_metrics_uint(ml, "solves", m->comp_solves);
   cv_metrics_object_end(ml);
+  /* --present files: written frames' files the writer threads dropped or
+   * failed (the wall-eyes' and the master's montages; final after the drain) */
+  cv_filewriter_stats st;
+  cv_filewriter_drain(m->fw, &st);
+  uint64_t dropped = st.dropped, failed = st.failed;
+  for (int i = 0; i < m->s->n_render; i++) {
+    dropped += m->files_dropped ? m->files_dropped[i] : 0;
+    failed += m->files_failed ? m->files_failed[i] : 0;
+  }
+  cv_metrics_bool(ml, "files", (m->s->o.present & CV_PRESENT_FILES) != 0);
+  cv_metrics_uint(ml, "files_dropped", dropped);
+  cv_metrics_uint(ml, "files_failed", failed);
+  if (st.failed) fprintf(stderr, "cave run: master: %llu montages not written; first: %s\n",
+                         (unsigned long long)st.failed, st.first_error);
 }

@@ -22,6 +22,7 @@
 #include <string.h>
 
 #include "comm.h"
+#include "io/filewriter.h"
 #include "compensate/resample.h"
 #include "master_internal.h"
 #include "view/montage.h"
@@ -40,10 +41,14 @@ int master_images_setup(master *m, cv_err *err) {
   }
   cv_rec709_lut_init(&m->lut);
   m->viewer_rms = m->viewer_rms_unc = NAN;
+  /* files only when asked; montages of up to two frames (4 each) may wait */
+  if (s->o.present & CV_PRESENT_FILES) return cv_filewriter_create(8, &m->fw, err);
   return CV_OK;
 }
 
 void master_images_free(master *m) {
+  cv_filewriter_destroy(m->fw);
+  m->fw = NULL;
   for (int w = 0; m->img_mb && w < m->s->n_walls; w++) cv_mailbox_close(m->img_mb[w]);
   for (int w = 0; m->mont && w < m->s->n_walls; w++) cv_image_destroy(m->mont[w]);
   for (int w = 0; m->mont_unc && w < m->s->n_walls; w++) cv_image_destroy(m->mont_unc[w]);
@@ -52,27 +57,53 @@ void master_images_free(master *m) {
   free(m->mont_unc);
 }
 
+/* A montage for the master's writer thread (--present files): its walls'
+ * transfer-applied values and the path; written to a temporary name, then
+ * renamed (whole files only). */
+typedef struct montage_job {
+  char path[CV_PATHLEN + 96];
+  const cv_cave *cave;
+  cv_image *tr[CV_CAVE_MAX_WALLS];
+} montage_job;
+
+static void montage_job_free(void *p) {
+  montage_job *j = p;
+  for (int w = 0; w < CV_CAVE_MAX_WALLS; w++) cv_image_destroy(j->tr[w]);
+  free(j);
+}
+
+static int montage_job_write(void *p, cv_err *err) {
+  montage_job *j = p;
+  char tmp[CV_PATHLEN + 128];
+  snprintf(tmp, sizeof tmp, "%s.tmp", j->path);
+  int st = cv_montage_write(tmp, j->cave, j->tr, err);
+  if (!st && rename(tmp, j->path)) st = cv_err_set(err, CV_ERR_IO, "%s: cannot rename %s into place", j->path, tmp);
+  if (st) remove(tmp);
+  return st;
+}
+
 /* Display-linear images -> the transfer-applied values the montage writer
- * quantises (the PNGs' codes / 255). */
+ * quantises (the PNGs' codes / 255), handed to the writer thread; nothing
+ * without --present files.  CV_OK when queued. */
 static int write_montage(master *m, const char *suffix, cv_image **imgs) {
   cv_service *s = m->s;
-  cv_image *tr[CV_CAVE_MAX_WALLS] = {0};
+  if (!m->fw) return CV_ERR_INVALID;
+  montage_job *j = calloc(1, sizeof *j);
+  if (!j) return CV_ERR_NOMEM;
+  j->cave = &s->cave;
+  snprintf(j->path, sizeof j->path, "%s/montage%05u_L%s.png", s->o.out_dir, m->mont_frame, suffix);
   int st = CV_OK;
   for (int w = 0; w < s->n_walls && !st; w++) {
     if (!imgs[w]) continue;
     const size_t n = 3 * (size_t)imgs[w]->w * imgs[w]->h;
-    st = cv_image_create(imgs[w]->w, imgs[w]->h, 3, &tr[w]);
-    for (size_t i = 0; !st && i < n; i++) tr[w]->px[i] = cv_rec709_code(&m->lut, imgs[w]->px[i]) / 255.0f;
+    st = cv_image_create(imgs[w]->w, imgs[w]->h, 3, &j->tr[w]);
+    for (size_t i = 0; !st && i < n; i++) j->tr[w]->px[i] = cv_rec709_code(&m->lut, imgs[w]->px[i]) / 255.0f;
   }
-  char path[CV_PATHLEN + 96];
-  snprintf(path, sizeof path, "%s/montage%05u_L%s.png", s->o.out_dir, m->mont_frame, suffix);
-  cv_err err;
-  if (!st && cv_montage_write(path, &s->cave, tr, &err)) {
-    fprintf(stderr, "cave run: montage: %s\n", err.msg);
-    st = CV_ERR_IO;
+  if (st) {
+    montage_job_free(j);
+    return st;
   }
-  for (int w = 0; w < s->n_walls; w++) cv_image_destroy(tr[w]);
-  return st;
+  return cv_filewriter_submit(m->fw, (cv_write_job){montage_job_write, montage_job_free, j}) ? CV_ERR_IO : CV_OK;
 }
 
 /* Patch means of every wall's image into x (3n, display patch order). */

@@ -98,6 +98,7 @@ typedef struct master {
   double *path_read, *path_cpu, *path_gpu, *path_wait;
   size_t path_n, path_cap;
   uint64_t *late_corr;    /* per render rank: its count */
+  uint64_t *files_dropped, *files_failed; /* per render rank: its counts of written frames */
   /* LCD */
   cv_mailbox *lcd_mb;
   struct cv_lcd_reduce *lcd_red; /* allreduce with the gather ranks (NULL: none) */
@@ -175,6 +176,7 @@ typedef struct master {
   int mont_have;
   uint64_t montages;
   double viewer_rms, viewer_rms_unc, viewer_ms; /* last viewer simulation (display-linear) */
+  struct cv_filewriter *fw; /* --present files: the montages' writer thread (master_images.c) */
   int have_viewer;
   cv_rec709_lut lut;
   /* the desktop preview (--present desktop) */

@@ -461,14 +461,20 @@ static void check_desktop(cv_service *s, const char *view, problems *pb) {
   problem(pb, "--desktop-view: expected cross or a wall of %s (%s), got '%s'", o->cave_path, names + 2, view);
 }
 
-/* Window outputs need an X display: the output's, or $DISPLAY. */
+/* Window outputs need an X display (the output's, or $DISPLAY) and a
+ * stereo mode EGL can show: quad-buffered stereo is refused here as the run
+ * would refuse it (cluster/walleye.c). */
 static void check_present(cv_service *s, problems *pb) {
   if (!(s->o.present & CV_PRESENT_WINDOW)) return;
   const char *env = getenv("DISPLAY");
-  for (int i = 0; i < s->cave.n_outputs; i++)
+  for (int i = 0; i < s->cave.n_outputs; i++) {
+    const char *wall = s->cave.walls[s->cave.outputs[i].wall].name;
     if (!s->cave.outputs[i].display[0] && !(env && env[0]))
-      problem(pb, "--present window: outputs[%d] (wall %s) names no display and DISPLAY is not set", i,
-              s->cave.walls[s->cave.outputs[i].wall].name);
+      problem(pb, "--present window: outputs[%d] (wall %s) names no display and DISPLAY is not set", i, wall);
+    if (s->cave.outputs[i].stereo == CV_STEREO_QUAD)
+      problem(pb, "--present window: outputs[%d] (wall %s): quad-buffered stereo needs a stereo GL config, and EGL "
+              "offers none: use \"passive\" (one output per eye) or \"side-by-side\"/\"top-bottom\"", i, wall);
+  }
 }
 
 /* The LCD model (s->lcd, s->lcd_layout), the same as `cave lcd`'s: the
@@ -750,9 +756,11 @@ int cmd_run(int argc, char **argv) {
     cv_comm_finalize();
     return 2;
   }
+  /* Each rank's pid, for operators (and the fault tests: SIGSTOP a rank);
+   * removed again on a clean exit. */
+  char pd[CV_PATHLEN + 32], pf[CV_PATHLEN + 64];
+  pf[0] = 0;
   {
-    /* Each rank's pid, for operators (and the fault tests: SIGSTOP a rank). */
-    char pd[CV_PATHLEN + 32], pf[CV_PATHLEN + 64];
     snprintf(pd, sizeof pd, "%s/pids", s.o.out_dir);
     if (!mkdirs(pd)) {
       snprintf(pf, sizeof pf, "%s/rank%d.pid", pd, s.rank);
@@ -787,5 +795,9 @@ int cmd_run(int argc, char **argv) {
   else rc = cv_gather_run(&s);
   cv_drive_destroy(s.drive);
   cv_comm_finalize();
+  if (rc == 0 && pf[0]) {
+    remove(pf);
+    rmdir(pd); /* the last rank out removes the folder (others' files: ENOTEMPTY) */
+  }
   return rc;
 }

@@ -37,6 +37,7 @@
 #include "compensate/resample.h"
 #include "core/hash.h"
 #include "io/exr.h"
+#include "io/filewriter.h"
 #include "io/png.h"
 #include "lcd/gather.h"
 #include "lcdwork.h"
@@ -95,6 +96,8 @@ typedef struct walleye {
   uint32_t prev_corr;
   uint64_t io_read_rep, io_up_rep;
   double cpu_drawn;   /* thread CPU ms when the present's draw returned */
+  cv_filewriter *fw;  /* --present files: the writer thread (NULL: no files) */
+  uint64_t files_nomem; /* a written frame's files not queued: no memory for the copies */
   uint64_t light_key;
   int have_light;
   cv_lightshare ls;   /* --share-lighting (lightshare.h) */
@@ -115,6 +118,7 @@ typedef struct walleye {
 } walleye;
 
 static void walleye_free(walleye *we) {
+  cv_filewriter_destroy(we->fw); /* first: its jobs read the LUT */
   cv_lcd_worker_destroy(we->lw);
   cv_lightmix_destroy(we->mix);
   cv_renderer_destroy(we->r);
@@ -275,6 +279,8 @@ static int walleye_setup(walleye *we, cv_err *err) {
       st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
       if (st) return st;
     }
+  /* files only when asked (--present files): two frames of this output's eyes may wait */
+  if ((s->o.present & CV_PRESENT_FILES) && (st = cv_filewriter_create(2 * we->n_eyes, &we->fw, err))) return st;
   we->corr_frame = we->pend_frame = we->prev_corr = 0xffffffffu;
   we->prev_gpu = -1;
   if ((st = choose_post(we, err))) return st;
@@ -545,6 +551,10 @@ static void send_report(walleye *we, eye_view *v, cv_walleye_report *rep) {
   rep->ms_corr_wait = we->prev_wait;
   rep->corr_frame = we->prev_corr;
   rep->late_corr = we->late_corr;
+  cv_filewriter_stats fst;
+  cv_filewriter_stats_get(we->fw, &fst);
+  rep->files_dropped = fst.dropped + we->files_nomem;
+  rep->files_failed = fst.failed;
   rep->ms_lcd = we->lcd_ms;
   rep->lcd_rounds_done = we->lcd_rounds_done;
   rep->swap_frame = we->swap_frame;
@@ -751,45 +761,84 @@ static void fetch_written(walleye *we) {
   compensate_eyes(we, 0);
 }
 
-static int write_outputs(walleye *we, eye_view *v, const cv_frame_state *fs, cv_err *err) {
-  const char *wn = we->s->cave.walls[we->wall].name;
-  const char *en = v->eye ? "R" : "L";
-  char path[CV_PATHLEN + 96];
-  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.exr", we->s->o.out_dir, fs->frame, wn, en);
-  int st = cv_exr_write(path, v->hdr, 1, CV_EXR_ZIP, err);
-  if (st) return st;
-  /* PNG: the projector's 8-bit codes, the same bytes the window shows. */
-  snprintf(path, sizeof path, "%s/frame%05u_%s_%s.png", we->s->o.out_dir, fs->frame, wn, en);
-  st = cv_png_write(path, we->w, we->h, 3, v->code, err);
-  if (st) return st;
-  if (we->disp) {
-    /* the uncompensated tone-mapped image beside it */
-    uint8_t *u = malloc(3 * (size_t)we->w * we->h);
-    if (!u) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
-    cv_rec709_codes(&we->lut, v->disp_img->px, 3 * (size_t)we->w * we->h, u);
-    snprintf(path, sizeof path, "%s/frame%05u_%s_%s_uncompensated.png", we->s->o.out_dir, fs->frame, wn, en);
-    st = cv_png_write(path, we->w, we->h, 3, u, err);
-    free(u);
-    if (st) return st;
+/* One eye's files of a written frame, written by the rank's writer thread
+ * (io/filewriter.h) from copies: the linear HDR EXR, the projector's 8-bit
+ * codes (the same bytes the window shows) and, with compensation, the
+ * uncompensated tone-mapped image beside them (encoded in the thread). */
+typedef struct eye_files {
+  char exr[CV_PATHLEN + 96], png[CV_PATHLEN + 96], unc[CV_PATHLEN + 96];
+  cv_image *hdr, *disp;       /* disp NULL: no uncompensated image */
+  uint8_t *code;
+  const cv_rec709_lut *lut;
+} eye_files;
+
+static void eye_files_free(void *p) {
+  eye_files *f = p;
+  cv_image_destroy(f->hdr);
+  cv_image_destroy(f->disp);
+  free(f->code);
+  free(f);
+}
+
+static int eye_files_write(void *p, cv_err *err) {
+  eye_files *f = p;
+  const int w = f->hdr->w, h = f->hdr->h;
+  int st = cv_exr_write(f->exr, f->hdr, 1, CV_EXR_ZIP, err);
+  if (!st) st = cv_write_png_atomic(f->png, w, h, 3, f->code, err);
+  if (!st && f->disp) {
+    cv_rec709_codes(f->lut, f->disp->px, 3 * (size_t)w * h, f->code); /* the codes are written already */
+    st = cv_write_png_atomic(f->unc, w, h, 3, f->code, err);
   }
-  if (v->eye == 0) {
-    /* the master assembles the left eye's montages and the viewer
-     * simulation: display-linear compensated and uncompensated images */
-    const size_t npx = 3 * (size_t)we->w * we->h;
-    size_t n = sizeof(cv_patch_msg) + 2 * sizeof(int32_t) + 2 * npx * sizeof(float);
-    uint8_t *buf = malloc(n);
-    if (buf) {
-      cv_patch_msg pm = {.frame = fs->frame, .n = (uint32_t)we->wall};
-      int32_t wh[2] = {we->w, we->h};
-      memcpy(buf, &pm, sizeof pm);
-      memcpy(buf + sizeof pm, wh, sizeof wh);
-      memcpy(buf + sizeof pm + sizeof wh, v->out->px, npx * sizeof(float));
-      memcpy(buf + sizeof pm + sizeof wh + npx * sizeof(float), v->disp_img->px, npx * sizeof(float));
-      cv_comm_send(buf, n, 0, CV_TAG_IMAGE);
-      free(buf);
-    }
+  return st;
+}
+
+static cv_image *image_copy(const cv_image *a) {
+  cv_image *b = NULL;
+  if (cv_image_create(a->w, a->h, a->c, &b)) return NULL;
+  memcpy(b->px, a->px, (size_t)a->w * a->h * a->c * sizeof(float));
+  return b;
+}
+
+/* --present files: one eye's files to the writer thread (copies; a full
+ * queue drops them, counted).  Nothing here waits for the disk. */
+static void queue_files(walleye *we, const eye_view *v, const cv_frame_state *fs) {
+  if (!we->fw) return;
+  const char *wn = we->s->cave.walls[we->wall].name, *en = v->eye ? "R" : "L", *dir = we->s->o.out_dir;
+  eye_files *f = calloc(1, sizeof *f);
+  if (!f) return;
+  snprintf(f->exr, sizeof f->exr, "%s/frame%05u_%s_%s.exr", dir, fs->frame, wn, en);
+  snprintf(f->png, sizeof f->png, "%s/frame%05u_%s_%s.png", dir, fs->frame, wn, en);
+  snprintf(f->unc, sizeof f->unc, "%s/frame%05u_%s_%s_uncompensated.png", dir, fs->frame, wn, en);
+  const size_t n = 3 * (size_t)we->w * we->h;
+  f->hdr = image_copy(v->hdr);
+  f->disp = we->disp ? image_copy(v->disp_img) : NULL;
+  f->code = malloc(n);
+  f->lut = &we->lut;
+  if (!f->hdr || (we->disp && !f->disp) || !f->code) {
+    eye_files_free(f);
+    we->files_nomem++;
+    return;
   }
-  return CV_OK;
+  memcpy(f->code, v->code, n);
+  cv_filewriter_submit(we->fw, (cv_write_job){eye_files_write, eye_files_free, f});
+}
+
+/* The left eye of a written frame: its display-linear images, compensated
+ * and not, to the master (montages and the viewer simulation). */
+static void send_images(walleye *we, const eye_view *v, const cv_frame_state *fs) {
+  if (v->eye != 0) return;
+  const size_t npx = 3 * (size_t)we->w * we->h;
+  size_t n = sizeof(cv_patch_msg) + 2 * sizeof(int32_t) + 2 * npx * sizeof(float);
+  uint8_t *buf = malloc(n);
+  if (!buf) return;
+  cv_patch_msg pm = {.frame = fs->frame, .n = (uint32_t)we->wall};
+  int32_t wh[2] = {we->w, we->h};
+  memcpy(buf, &pm, sizeof pm);
+  memcpy(buf + sizeof pm, wh, sizeof wh);
+  memcpy(buf + sizeof pm + sizeof wh, v->out->px, npx * sizeof(float));
+  memcpy(buf + sizeof pm + sizeof wh + npx * sizeof(float), v->disp_img->px, npx * sizeof(float));
+  cv_comm_send(buf, n, 0, CV_TAG_IMAGE);
+  free(buf);
 }
 
 /* The ready line's text: where this rank renders and with what. */
@@ -884,7 +933,8 @@ static void render_eyes(walleye *we, const cv_frame_state *fs, uint64_t state_ha
 }
 
 /* One frame: relight, the eyes, the correction, present, files; the frame
- * path's figures kept for the next report.  Returns 1 when a file failed. */
+ * path's figures kept for the next report.  Returns 0 (files fail in the
+ * writer thread: counted, said at the end). */
 static int run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0) {
   cv_service *s = we->s;
   const double c0 = thread_cpu_ms();
@@ -905,18 +955,33 @@ static int run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash,
   we->prev_gpu = isfinite(gpu) ? gpu : -1;
   we->prev_wait = wait;
   we->prev_corr = we->have_delta ? we->corr_frame : 0xffffffffu;
-  int rc = 0;
-  if (fs->flags & CV_FS_WRITE) {
+  if (fs->flags & CV_FS_WRITE) { /* files (when asked) and the master's viewer simulation */
     if (we->gpu_post) fetch_written(we);
     for (int k = 0; k < we->n_eyes; k++) {
-      cv_err err;
-      if (write_outputs(we, &we->ev[k], fs, &err)) {
-        fprintf(stderr, "cave run: rank %d: %s\n", s->rank, err.msg);
-        rc = 1;
-      }
+      queue_files(we, &we->ev[k], fs);
+      send_images(we, &we->ev[k], fs);
     }
   }
-  return rc;
+  (void)s;
+  return 0;
+}
+
+/* The writer's queue written out, its thread ended; a file that could not
+ * be written or a written frame dropped is said once.  1 when files failed. */
+static int finish_files(walleye *we) {
+  if (!we->fw) return 0;
+  cv_filewriter *w = we->fw;
+  we->fw = NULL;
+  cv_filewriter_stats st;
+  cv_filewriter_drain(w, &st);
+  cv_filewriter_destroy(w);
+  if (st.dropped + we->files_nomem)
+    fprintf(stderr, "cave run: rank %d: %llu written frames' files dropped (the writer's queue was full)\n",
+            we->s->rank, (unsigned long long)(st.dropped + we->files_nomem));
+  if (st.failed)
+    fprintf(stderr, "cave run: rank %d: %llu frames' files not written; first: %s\n", we->s->rank,
+            (unsigned long long)st.failed, st.first_error);
+  return st.failed > 0;
 }
 
 int cv_walleye_run(cv_service *s) {
@@ -960,6 +1025,7 @@ int cv_walleye_run(cv_service *s) {
     idle(we);
   }
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, NULL, NULL);
+  rc |= finish_files(we);
   cv_comm_flush(5);
   walleye_free(we);
   return rc;

@@ -241,6 +241,8 @@ int cv_walleye_report_pack(const cv_walleye_report *rp, uint8_t *buf) {
   put_f64(&w, rp->ms_corr_wait);
   put_u32(&w, rp->corr_frame);
   put_u64(&w, rp->late_corr);
+  put_u64(&w, rp->files_dropped);
+  put_u64(&w, rp->files_failed);
   if (w.off != CV_WALLEYE_REPORT_BYTES) return CV_ERR_INVALID;
   return w.nonfinite ? CV_ERR_NONFINITE : CV_OK;
 }
@@ -290,6 +292,8 @@ int cv_walleye_report_unpack(const uint8_t *buf, size_t len, cv_walleye_report *
   p.ms_corr_wait = GET_F64(&r, "ms_corr_wait");
   p.corr_frame = get_u32(&r);
   p.late_corr = get_u64(&r);
+  p.files_dropped = get_u64(&r);
+  p.files_failed = get_u64(&r);
   if (r.off != CV_WALLEYE_REPORT_BYTES)
     return cv_err_set(err, CV_ERR_FORMAT, "%s: layout read %zu bytes", what, r.off);
   if (r.bad) return nonfinite_err(&r, what, err);

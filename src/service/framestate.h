@@ -117,11 +117,13 @@ typedef struct cv_walleye_report {
   double ms_corr_wait;       /* ms waited for the scattering correction */
   uint32_t corr_frame;       /* the frame whose correction was applied (0xffffffff: none) */
   uint64_t late_corr;        /* corrections that did not come in time, since the start */
+  uint64_t files_dropped;    /* written frames whose files were dropped (writer queue full), since the start */
+  uint64_t files_failed;     /* written frames whose files could not be written, since the start */
 } cv_walleye_report;
 
 #define CV_WALLEYE_REPORT_MAGIC 0x52455743u /* "CWER" */
-#define CV_WALLEYE_REPORT_VERSION 3u
-#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8 + 4 + 8 * 3 + 8 * 2 + 8 * 3 + 4 + 8)
+#define CV_WALLEYE_REPORT_VERSION 4u
+#define CV_WALLEYE_REPORT_BYTES (4 + 4 + 4 + 4 * 3 + 8 * 3 + 8 * 2 + 8 * 6 + 8 + 8 + 4 + 8 * 3 + 8 * 2 + 8 * 3 + 4 + 8 + 8 * 2)
 
 /* Packs r into buf (CV_WALLEYE_REPORT_BYTES bytes).  Errors: CV_ERR_NONFINITE
  * if a double is not finite, CV_ERR_INVALID on NULL. */

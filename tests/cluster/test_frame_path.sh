@@ -127,7 +127,26 @@ print("late corrections: summary", s["late_corrections"], "largest per-rank coun
 sys.exit(0 if s["late_corrections"] > 0 and per > 0 else 1)
 PY
 
-# (5) wrong values
+# (5) files only when asked (issue 33): --present none writes no image; a
+# written frame's files are whole (written by the writer threads to a
+# temporary name, then renamed); the pid files are gone after a clean exit
+run none --present none --write-every 2; rc=$?
+n=$(find none -type f | grep -vc "metrics.jsonl$")
+[ $rc -eq 0 ] && [ "$n" -eq 0 ] && [ ! -e none/pids ] && grep -q '"files":false' none/metrics.jsonl \
+  && ok "--present none: no file but metrics.jsonl ($(ls none | tr '\n' ' '))" || bad "--present none: rc $rc, $n other files: $(find none -type f | head -5)"
+python3 - gpu <<'PY' && ok "--present files: every PNG and EXR of the written frame whole, no temporary left, none dropped" || bad "files whole"
+import glob, json, os, sys
+d = sys.argv[1]
+png = glob.glob(d + "/*.png"); exr = glob.glob(d + "/*.exr"); tmp = glob.glob(d + "/*.tmp*")
+bad = [f for f in png if not (open(f, "rb").read()[:8] == b"\x89PNG\r\n\x1a\n" and open(f, "rb").read()[-8:-4] == b"IEND")]
+bad += [f for f in exr if open(f, "rb").read()[:4] != b"\x76\x2f\x31\x01"]
+s = json.loads(open(d + "/metrics.jsonl").readlines()[-1])
+print(len(png), "PNG,", len(exr), "EXR,", len(tmp), "temporaries; broken:", bad[:3], "; dropped", s["files_dropped"], "failed", s["files_failed"])
+# frame 4 of 10 wall-eyes: EXR + PNG + uncompensated PNG each, and 4 montages
+sys.exit(0 if len(exr) == 10 and len(png) == 24 and not tmp and not bad and s["files"] and s["files_dropped"] == 0 and s["files_failed"] == 0 else 1)
+PY
+
+# (6) wrong values
 "$CAVE" run "$CFG" --check --ranks 11 --scene scene.prt --post fast >o.txt 2>e.txt; rc=$?
 [ $rc -ne 0 ] && grep -q -- "--post: expected auto, gpu or cpu, got 'fast'" e.txt && ok "--post fast refused" || bad "--post fast: rc $rc $(cat e.txt)"
 "$CAVE" run "$CFG" --check --ranks 11 --scene scene.prt --compensation-lag 2 >o.txt 2>e.txt; rc=$?

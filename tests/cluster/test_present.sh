@@ -45,6 +45,9 @@ print(json.dumps(c))
 PY
 "$CAVE" run --check --ranks 10 quad.json --scene scene.prt >q.out 2>&1 && grep -q "rank 1: wall front, quad" q.out \
   && ok "quad config is valid: $(grep 'rank 1:' q.out)" || bad "quad --check: $(cat q.out)"
+"$CAVE" run --check --ranks 10 quad.json --scene scene.prt --present window >q.out 2>&1; rc=$?
+[ $rc -ne 0 ] && grep -q "outputs\[0\] (wall front): quad-buffered stereo needs a stereo GL config" q.out \
+  && ok "--check --present window refuses quad stereo as the run does" || bad "quad --check with windows: rc $rc $(cat q.out)"
 timeout 120 "${MPI[@]}" -np 10 "$CAVE" run quad.json "${COMMON[@]}" --frames 2 --present window -o q >q.out 2>q.err; rc=$?
 [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q "outputs\[0\] (wall front): quad-buffered stereo needs a stereo GL config" q.err \
   && ok "quad without a stereo config: $(grep -o 'outputs\[0\][^:]*: quad[^,]*' q.err | head -1)" || bad "quad: rc $rc $(cat q.err)"

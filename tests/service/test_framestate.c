@@ -101,7 +101,7 @@ static void test_size_constants(void **state) {
   (void)state;
   assert_int_equal(CV_DRIVE_STATE_BYTES, 128);
   assert_int_equal(CV_FRAME_STATE_BYTES, 1956);
-  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 208);
+  assert_int_equal(CV_WALLEYE_REPORT_BYTES, 224);
 }
 
 static void test_round_trip_bit_exact(void **state) {
@@ -296,6 +296,8 @@ static void fill_report(cv_walleye_report *r) {
   r->ms_corr_wait = 0.0625;
   r->corr_frame = 0xffffffffu;
   r->late_corr = 42;
+  r->files_dropped = 7;
+  r->files_failed = 1;
 }
 
 static void test_walleye_round_trip(void **state) {
@@ -325,6 +327,7 @@ static void test_walleye_round_trip(void **state) {
   assert_memory_equal(&u.swap_t, &r.swap_t, 8);
   assert_true(u.ms_present == 2.5 && u.ms_barrier == 0.125);
   assert_true(u.bytes_read == 68424 && u.bytes_up == (1ull << 33) + 5 && u.late_corr == 42);
+  assert_true(u.files_dropped == 7 && u.files_failed == 1);
   assert_true(u.ms_cpu == 0.75 && u.ms_gpu == -1 && u.ms_corr_wait == 0.0625 && u.corr_frame == 0xffffffffu);
 
   r.max_l = NAN;
