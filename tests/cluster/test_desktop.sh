@@ -148,7 +148,7 @@ done
 
 # --- one wall, Escape -----------------------------------------------------------------
 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim \
-  --present desktop --desktop-view front -o f >f.out 2>f.err &
+  --present desktop,files --desktop-view front -o f >f.out 2>f.err &
 pid=$!
 for i in $(seq 1 240); do [ -s f/montage00010_L.png ] && break; sleep 0.5; done
 FT="cave desktop preview (front)"
