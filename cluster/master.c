@@ -684,10 +684,12 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
   cv_metrics_uint(ml, "montages", m->montages);
   master_desktop_summary(m, ml);
+  pthread_mutex_lock(&m->img_mu); /* the image thread has ended its jobs (drained above) */
   if (m->have_viewer) {
     cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
     cv_metrics_double(ml, "viewer_rms_uncompensated", m->viewer_rms_unc);
   }
+  pthread_mutex_unlock(&m->img_mu);
   if (m->lcd_mb) {
     cv_metrics_uint(ml, "lcd_rounds", m->lcd_rounds);
     cv_metrics_uint(ml, "lcd_spp", (uint64_t)m->lcd_rounds * (uint64_t)s->o.lcd_spp);
@@ -865,7 +867,7 @@ int cv_master_run(cv_service *s) {
   for (const double t0 = cv_service_now(); !*s->stop && cv_service_now() - t0 < s->o.timeout_ms * 1e-3;) {
     montage_drain(m);
     cv_comm_progress();
-    if (!m->mont_have && m->montages > 0 && f > 0 && m->mont_frame + 1 >= f) break;
+    if (!m->mont_have && m->mont_flushed > 0 && f > 0 && m->mont_frame + 1 >= f) break;
     struct timespec ts = {0, 1000000};
     nanosleep(&ts, NULL);
   }

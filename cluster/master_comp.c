@@ -182,11 +182,13 @@ void master_comp_metrics(master *m, cv_metrics_line *ml, double frame_ms) {
   cv_metrics_double(ml, "frame_ms", frame_ms);
   cv_metrics_int(ml, "solved_frame", m->comp_frame == 0xffffffffu ? -1 : (int64_t)m->comp_frame);
   cv_metrics_double(ml, "solve_lag_ms", m->comp_lag_ms);
+  pthread_mutex_lock(&m->img_mu); /* set by the image thread (master_images.c) */
   if (m->have_viewer) {
     cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
     cv_metrics_double(ml, "viewer_rms_uncompensated", m->viewer_rms_unc);
     cv_metrics_double(ml, "viewer_ms", m->viewer_ms);
   }
+  pthread_mutex_unlock(&m->img_mu);
   cv_metrics_object_end(ml);
 }
 
@@ -224,29 +226,16 @@ void master_path_sample(master *m, int from, const cv_walleye_report *r) {
   m->path_n++;
 }
 
-static void summary_of(cv_metrics_line *ml, const char *name, double *v, size_t n) {
-  const double ps[3] = {50, 99, 100};
-  double q[3];
-  if (!n || cv_percentiles(v, n, ps, 3, q, NULL) != CV_OK) return;
-  char key[64];
-  snprintf(key, sizeof key, "%s_p50", name);
-  cv_metrics_double(ml, key, q[0]);
-  snprintf(key, sizeof key, "%s_p99", name);
-  cv_metrics_double(ml, key, q[1]);
-  snprintf(key, sizeof key, "%s_max", name);
-  cv_metrics_double(ml, key, q[2]);
-}
-
 void master_path_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_object_begin(ml, "frame_path");
   cv_metrics_uint(ml, "samples", m->path_n);
-  summary_of(ml, "read_bytes", m->path_read, m->path_n);
-  summary_of(ml, "cpu_ms", m->path_cpu, m->path_n);
+  master_metrics_pct(ml, "read_bytes", m->path_read, m->path_n);
+  master_metrics_pct(ml, "cpu_ms", m->path_cpu, m->path_n);
   size_t ng = 0; /* GPU times where a timer query ran */
   for (size_t i = 0; i < m->path_n; i++)
     if (m->path_gpu[i] >= 0) m->path_gpu[ng++] = m->path_gpu[i];
-  summary_of(ml, "gpu_ms", m->path_gpu, ng);
-  summary_of(ml, "corr_wait_ms", m->path_wait, m->path_n);
+  master_metrics_pct(ml, "gpu_ms", m->path_gpu, ng);
+  master_metrics_pct(ml, "corr_wait_ms", m->path_wait, m->path_n);
   uint64_t late = 0;
   for (int i = 0; m->late_corr && i < m->s->n_render; i++) late += m->late_corr[i];
   cv_metrics_uint(ml, "late_corrections", late);

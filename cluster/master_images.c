@@ -17,6 +17,7 @@
  * channel (display-linear), says whether compensation worked:
  * viewer_rms (compensated) against viewer_rms_uncompensated. */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -41,14 +42,17 @@ int master_images_setup(master *m, cv_err *err) {
   }
   cv_rec709_lut_init(&m->lut);
   m->viewer_rms = m->viewer_rms_unc = NAN;
-  /* files only when asked; montages of up to two frames (4 each) may wait */
-  if (s->o.present & CV_PRESENT_FILES) return cv_filewriter_create(8, &m->fw, err);
-  return CV_OK;
+  /* the image thread: two written frames may wait for it */
+  pthread_mutex_init(&m->img_mu, NULL);
+  m->img_mu_on = 1;
+  return cv_filewriter_create(2, &m->fw, err);
 }
 
 void master_images_free(master *m) {
-  cv_filewriter_destroy(m->fw);
+  cv_filewriter_destroy(m->fw); /* first: its jobs use the master */
   m->fw = NULL;
+  if (m->img_mu_on) pthread_mutex_destroy(&m->img_mu);
+  m->img_mu_on = 0;
   for (int w = 0; m->img_mb && w < m->s->n_walls; w++) cv_mailbox_close(m->img_mb[w]);
   for (int w = 0; m->mont && w < m->s->n_walls; w++) cv_image_destroy(m->mont[w]);
   for (int w = 0; m->mont_unc && w < m->s->n_walls; w++) cv_image_destroy(m->mont_unc[w]);
@@ -57,53 +61,47 @@ void master_images_free(master *m) {
   free(m->mont_unc);
 }
 
-/* A montage for the master's writer thread (--present files): its walls'
- * transfer-applied values and the path; written to a temporary name, then
- * renamed (whole files only). */
-typedef struct montage_job {
-  char path[CV_PATHLEN + 96];
-  const cv_cave *cave;
-  cv_image *tr[CV_CAVE_MAX_WALLS];
-} montage_job;
+/* A written frame's left-eye images, handed to the master's image thread
+ * (m->fw, io/filewriter.h): the montages (with --present files) and the
+ * viewer simulation (always: its error is a metric) run there, off the
+ * master's thread, which keeps collecting reports (the simulation took
+ * ~1 s on 2 busy cores and stalled the frame it ran in). */
+typedef struct frame_images {
+  master *m;
+  uint32_t frame;
+  int n_walls, complete, files;
+  cv_image *mont[CV_CAVE_MAX_WALLS], *unc[CV_CAVE_MAX_WALLS];
+} frame_images;
 
-static void montage_job_free(void *p) {
-  montage_job *j = p;
-  for (int w = 0; w < CV_CAVE_MAX_WALLS; w++) cv_image_destroy(j->tr[w]);
-  free(j);
-}
-
-static int montage_job_write(void *p, cv_err *err) {
-  montage_job *j = p;
-  char tmp[CV_PATHLEN + 128];
-  snprintf(tmp, sizeof tmp, "%s.tmp", j->path);
-  int st = cv_montage_write(tmp, j->cave, j->tr, err);
-  if (!st && rename(tmp, j->path)) st = cv_err_set(err, CV_ERR_IO, "%s: cannot rename %s into place", j->path, tmp);
-  if (st) remove(tmp);
-  return st;
+static void frame_images_free(void *p) {
+  frame_images *f = p;
+  for (int w = 0; w < CV_CAVE_MAX_WALLS; w++) cv_image_destroy(f->mont[w]), cv_image_destroy(f->unc[w]);
+  free(f);
 }
 
 /* Display-linear images -> the transfer-applied values the montage writer
- * quantises (the PNGs' codes / 255), handed to the writer thread; nothing
- * without --present files.  CV_OK when queued. */
-static int write_montage(master *m, const char *suffix, cv_image **imgs) {
-  cv_service *s = m->s;
-  if (!m->fw) return CV_ERR_INVALID;
-  montage_job *j = calloc(1, sizeof *j);
-  if (!j) return CV_ERR_NOMEM;
-  j->cave = &s->cave;
-  snprintf(j->path, sizeof j->path, "%s/montage%05u_L%s.png", s->o.out_dir, m->mont_frame, suffix);
+ * quantises (the PNGs' codes / 255), written whole (a temporary name, then
+ * renamed).  CV_OK when written. */
+static int write_montage(const frame_images *f, const char *suffix, cv_image **imgs, cv_err *err) {
+  const master *m = f->m;
+  const cv_service *s = m->s;
+  cv_image *tr[CV_CAVE_MAX_WALLS] = {0};
   int st = CV_OK;
-  for (int w = 0; w < s->n_walls && !st; w++) {
+  for (int w = 0; w < f->n_walls && !st; w++) {
     if (!imgs[w]) continue;
     const size_t n = 3 * (size_t)imgs[w]->w * imgs[w]->h;
-    st = cv_image_create(imgs[w]->w, imgs[w]->h, 3, &j->tr[w]);
-    for (size_t i = 0; !st && i < n; i++) j->tr[w]->px[i] = cv_rec709_code(&m->lut, imgs[w]->px[i]) / 255.0f;
+    st = cv_image_create(imgs[w]->w, imgs[w]->h, 3, &tr[w]);
+    for (size_t i = 0; !st && i < n; i++) tr[w]->px[i] = cv_rec709_code(&m->lut, imgs[w]->px[i]) / 255.0f;
   }
-  if (st) {
-    montage_job_free(j);
-    return st;
-  }
-  return cv_filewriter_submit(m->fw, (cv_write_job){montage_job_write, montage_job_free, j}) ? CV_ERR_IO : CV_OK;
+  char path[CV_PATHLEN + 96], tmp[CV_PATHLEN + 112];
+  snprintf(path, sizeof path, "%s/montage%05u_L%s.png", s->o.out_dir, f->frame, suffix);
+  snprintf(tmp, sizeof tmp, "%s.tmp", path);
+  if (st) st = cv_err_set(err, st, "montage %s: out of memory", path);
+  if (!st) st = cv_montage_write(tmp, &s->cave, tr, err);
+  if (!st && rename(tmp, path)) st = cv_err_set(err, CV_ERR_IO, "%s: cannot rename %s into place", path, tmp);
+  if (st) remove(tmp);
+  for (int w = 0; w < f->n_walls; w++) cv_image_destroy(tr[w]);
+  return st;
 }
 
 /* Patch means of every wall's image into x (3n, display patch order). */
@@ -161,49 +159,76 @@ static double rms_diff(const double *a, const double *b, size_t n) {
   return n ? sqrt(s / (double)n) : 0;
 }
 
-/* The viewer simulation of the montage's frame: two more montages and the
- * two RMS figures. */
-static void viewer_simulation(master *m) {
+/* The viewer simulation of a frame (its images in f): two more montages
+ * (with files) and the two RMS figures, published under m->img_mu. */
+static int viewer_simulation(frame_images *f, cv_err *err) {
+  master *m = f->m;
   const double t0 = cv_service_now();
   const size_t n = cv_display_patch_count(m->disp);
   double *xc = calloc(3 * n, sizeof *xc), *xu = calloc(3 * n, sizeof *xu);
   double *vc = calloc(3 * n, sizeof *vc), *vu = calloc(3 * n, sizeof *vu);
   cv_image *oc[CV_CAVE_MAX_WALLS] = {0}, *ou[CV_CAVE_MAX_WALLS] = {0};
-  if (xc && xu && vc && vu && !patch_means(m, m->mont, xc) && !patch_means(m, m->mont_unc, xu) &&
-      !viewer_patches(m, xc, vc) && !viewer_patches(m, xu, vu) && !viewer_images(m, m->mont, xc, vc, oc) &&
-      !viewer_images(m, m->mont_unc, xu, vu, ou)) {
+  int st = CV_OK;
+  if (xc && xu && vc && vu && !patch_means(m, f->mont, xc) && !patch_means(m, f->unc, xu) &&
+      !viewer_patches(m, xc, vc) && !viewer_patches(m, xu, vu) && !viewer_images(m, f->mont, xc, vc, oc) &&
+      !viewer_images(m, f->unc, xu, vu, ou)) {
+    pthread_mutex_lock(&m->img_mu);
     m->viewer_rms = rms_diff(vc, xu, 3 * n);     /* seen with compensation vs the target */
     m->viewer_rms_unc = rms_diff(vu, xu, 3 * n); /* seen without vs the target */
     m->have_viewer = 1;
-    write_montage(m, "_viewer", oc);
-    write_montage(m, "_viewer_uncompensated", ou);
+    m->viewer_ms = (cv_service_now() - t0) * 1e3;
+    pthread_mutex_unlock(&m->img_mu);
+    if (f->files && !(st = write_montage(f, "_viewer", oc, err))) st = write_montage(f, "_viewer_uncompensated", ou, err);
   } else {
-    fprintf(stderr, "cave run: master: viewer simulation of frame %u failed\n", m->mont_frame);
+    fprintf(stderr, "cave run: master: viewer simulation of frame %u failed\n", f->frame);
   }
-  for (int w = 0; w < m->s->n_walls; w++) {
+  for (int w = 0; w < f->n_walls; w++) {
     cv_image_destroy(oc[w]);
     cv_image_destroy(ou[w]);
   }
-  free(xc);
-  free(xu);
-  free(vc);
-  free(vu);
-  m->viewer_ms = (cv_service_now() - t0) * 1e3;
+  free(xc), free(xu), free(vc), free(vu);
+  return st;
 }
 
+static int frame_images_run(void *p, cv_err *err) {
+  frame_images *f = p;
+  master *m = f->m;
+  int st = CV_OK;
+  if (f->files) {
+    st = write_montage(f, "", f->mont, err);
+    pthread_mutex_lock(&m->img_mu);
+    m->montages += st == CV_OK;
+    pthread_mutex_unlock(&m->img_mu);
+    if (!st && m->disp) st = write_montage(f, "_uncompensated", f->unc, err);
+  }
+  if (m->disp && f->complete) {
+    cv_err e2;
+    const int vs = viewer_simulation(f, &e2);
+    if (!st && vs) st = vs, *err = e2;
+  }
+  return st;
+}
+
+/* The gathered images of m->mont_frame to the image thread (ownership
+ * moves); a full queue drops them (counted in the summary's files_dropped). */
 void montage_flush(master *m) {
   if (!m->mont_have) return;
-  if (write_montage(m, "", m->mont) == CV_OK) m->montages++;
-  if (m->disp) {
-    write_montage(m, "_uncompensated", m->mont_unc);
-    if (m->mont_have >= m->s->n_walls) viewer_simulation(m);
+  frame_images *f = calloc(1, sizeof *f);
+  if (f) {
+    f->m = m;
+    f->frame = m->mont_frame;
+    f->n_walls = m->s->n_walls;
+    f->complete = m->mont_have >= m->s->n_walls;
+    f->files = (m->s->o.present & CV_PRESENT_FILES) != 0;
   }
   for (int w = 0; w < m->s->n_walls; w++) {
-    cv_image_destroy(m->mont[w]);
-    cv_image_destroy(m->mont_unc[w]);
+    if (f) f->mont[w] = m->mont[w], f->unc[w] = m->mont_unc[w];
+    else cv_image_destroy(m->mont[w]), cv_image_destroy(m->mont_unc[w]);
     m->mont[w] = m->mont_unc[w] = NULL;
   }
   m->mont_have = 0;
+  m->mont_flushed++;
+  if (f) cv_filewriter_submit(m->fw, (cv_write_job){frame_images_run, frame_images_free, f});
 }
 
 /* Takes the left eye's written images; a montage is written once every wall

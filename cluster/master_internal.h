@@ -11,6 +11,7 @@
 #ifndef CV_CLUSTER_MASTER_INTERNAL_H
 #define CV_CLUSTER_MASTER_INTERNAL_H
 
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -175,8 +176,13 @@ typedef struct master {
   uint32_t mont_frame;
   int mont_have;
   uint64_t montages;
+  /* the image thread (master_images.c) writes the montages and runs the
+   * viewer simulation; it sets montages, viewer_*, have_viewer under img_mu */
   double viewer_rms, viewer_rms_unc, viewer_ms; /* last viewer simulation (display-linear) */
-  struct cv_filewriter *fw; /* --present files: the montages' writer thread (master_images.c) */
+  struct cv_filewriter *fw;
+  pthread_mutex_t img_mu;
+  int img_mu_on;
+  uint64_t mont_flushed;  /* written frames handed to the image thread (the master's count) */
   int have_viewer;
   cv_rec709_lut lut;
   /* the desktop preview (--present desktop) */
@@ -231,6 +237,8 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
                  double *t_sample, double *t_target);
 void master_sync_metrics(master *m, cv_metrics_line *ml);
 void master_sync_summary(master *m, cv_metrics_line *ml);
+/* "<stem>_p50", "_p99", "_max" of v[0..n) into the line (nothing when n = 0). */
+void master_metrics_pct(cv_metrics_line *ml, const char *stem, const double *v, size_t n);
 
 /* master_lcd.c */
 void lcd_drain(master *m);
