@@ -29,7 +29,9 @@
  *
  * Built on the first shadow map (an importer of shared lighting never draws
  * one, so never pays the build: build_ms in cv_renderer_shadow_casters). */
-#include "render/renderer_internal.h"
+#include "render/render_casters.h"
+
+#include "render/render_edges.h"
 
 #include <meshoptimizer.h>
 #include <stdint.h>
@@ -53,7 +55,7 @@ static size_t closure_defects(const uint32_t *orig, size_t nt0, const uint32_t *
 
 /* The opaque triangles on exactly welded positions (degenerate ones
  * dropped): *pos (nu points) and *ib (nt triangles). */
-static int weld_opaque(const cv_renderer *r, float **pos, size_t *nu, uint32_t **ib, size_t *nt) {
+static int weld_opaque(const cvr_scene *r, float **pos, size_t *nu, uint32_t **ib, size_t *nt) {
   *pos = NULL, *ib = NULL;
   unsigned *remap = malloc(r->nv_used * sizeof *remap + 4);
   if (!remap) return CV_ERR_NOMEM;
@@ -80,12 +82,12 @@ static int weld_opaque(const cv_renderer *r, float **pos, size_t *nu, uint32_t *
   return CV_OK;
 }
 
-static int build_casters(cv_renderer *r, cv_err *err) {
+static int build_casters(const cvr_ctx *c, cvr_casters *k, const cvr_scene *sc, cv_err *err) {
   const double t0 = cvr_now_ms();
   float *pos;
   uint32_t *ib;
   size_t nu, nt;
-  if (weld_opaque(r, &pos, &nu, &ib, &nt))
+  if (weld_opaque(sc, &pos, &nu, &ib, &nt))
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
   uint32_t *out = malloc(3 * nt * sizeof *out + 4);
   if (!out) {
@@ -95,12 +97,12 @@ static int build_casters(cv_renderer *r, cv_err *err) {
   const float scale = meshopt_simplifyScale(pos, nu, 3 * sizeof(float));
   float rel = 0;
   const size_t ni = scale > 0 ? meshopt_simplify(out, ib, 3 * nt, pos, nu, 3 * sizeof(float), 0,
-                                                 (float)(r->o.shadow_casters / scale),
+                                                 (float)(c->o->shadow_casters / scale),
                                                  meshopt_SimplifyLockBorder, &rel)
                               : 3 * nt;
   if (!(scale > 0)) memcpy(out, ib, 3 * nt * sizeof *out);
-  r->cast_defects = closure_defects(ib, nt, out, ni / 3);
-  r->cast_culled = cvr_shadow_culled(r) && r->cast_defects <= CASTER_DEFECTS_MAX * (ni / 3) ? 1 : 0;
+  k->defects = closure_defects(ib, nt, out, ni / 3);
+  k->culled = cvr_scene_shadow_culled(c, sc) && k->defects <= CASTER_DEFECTS_MAX * (ni / 3) ? 1 : 0;
   free(ib);
   /* Compact: only the vertices the casters use, in order of first use. */
   float *cpos = malloc(3 * nu * sizeof *cpos + 4);
@@ -110,84 +112,88 @@ static int build_casters(cv_renderer *r, cv_err *err) {
   }
   const size_t nv = meshopt_optimizeVertexFetch(cpos, out, ni, pos, nu, 3 * sizeof(float));
   free(pos);
-  r->cast_nt = ni / 3;
-  r->cast_idx = out;
-  r->cast_pos = pos = cpos;
-  r->cast_n = malloc(3 * r->cast_nt * sizeof *r->cast_n + 4);
-  r->cast_draw = malloc(3 * r->cast_nt * sizeof *r->cast_draw + 4);
-  if (!r->cast_n || !r->cast_draw)
+  k->nt = ni / 3;
+  k->idx = out;
+  k->pos = pos = cpos;
+  k->n = malloc(3 * k->nt * sizeof *k->n + 4);
+  k->draw = malloc(3 * k->nt * sizeof *k->draw + 4);
+  if (!k->n || !k->draw)
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory simplifying the shadow casters");
-  cvr_unit_normals(r->cast_pos, r->cast_idx, r->cast_nt, r->cast_n);
-  r->cast_err = (double)rel * scale;
-  glGenVertexArrays(1, &r->vao_cast);
-  glGenBuffers(1, &r->buf_cast_pos);
-  glGenBuffers(1, &r->buf_cast_idx);
-  glBindVertexArray(r->vao_cast);
-  glBindBuffer(GL_ARRAY_BUFFER, r->buf_cast_pos);
+  cvr_unit_normals(k->pos, k->idx, k->nt, k->n);
+  k->err = (double)rel * scale;
+  glGenVertexArrays(1, &k->vao);
+  glGenBuffers(1, &k->buf_pos);
+  glGenBuffers(1, &k->buf_idx);
+  glBindVertexArray(k->vao);
+  glBindBuffer(GL_ARRAY_BUFFER, k->buf_pos);
   glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(3 * nv * sizeof *pos + 4), pos, GL_STATIC_DRAW);
   glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, 0);
   glEnableVertexAttribArray(0);
-  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_cast_idx);
-  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->cast_nt * sizeof *out + 4), out,
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, k->buf_idx);
+  glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * k->nt * sizeof *out + 4), out,
                GL_STREAM_DRAW);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
-  r->cast_built = 1;
-  r->cast_ms = cvr_now_ms() - t0;
+  k->built = 1;
+  k->ms = cvr_now_ms() - t0;
   return cvr_gl_check("shadow casters", err);
 }
 
 /* The casters the map of sun s draws: with culling those facing away from
  * it or within split_margin of grazing (as DRAW_SHADOW), else all. */
-static size_t cull_casters(cv_renderer *r, const double s[3]) {
-  if (!r->cast_culled) {
-    memcpy(r->cast_draw, r->cast_idx, 3 * r->cast_nt * sizeof *r->cast_draw);
-    return r->cast_nt;
+static size_t cull_casters(const cvr_ctx *c, cvr_casters *k, const double s[3]) {
+  if (!k->culled) {
+    memcpy(k->draw, k->idx, 3 * k->nt * sizeof *k->draw);
+    return k->nt;
   }
-  const double m = r->o.split_margin > 0 ? r->o.split_margin : 0.0;
-  size_t k = 0;
-  for (size_t t = 0; t < r->cast_nt; t++) {
-    const float *n = r->cast_n + 3 * t;
+  const double m = c->o->split_margin > 0 ? c->o->split_margin : 0.0;
+  size_t kept = 0;
+  for (size_t t = 0; t < k->nt; t++) {
+    const float *n = k->n + 3 * t;
     if ((double)n[0] * s[0] + (double)n[1] * s[1] + (double)n[2] * s[2] > m) continue;
-    memcpy(r->cast_draw + 3 * k++, r->cast_idx + 3 * t, 3 * sizeof *r->cast_draw);
+    memcpy(k->draw + 3 * kept++, k->idx + 3 * t, 3 * sizeof *k->draw);
   }
-  return k;
+  return kept;
 }
 
-int cvr_draw_casters(cv_renderer *r, const double s[3], cv_err *err) {
-  if (!r->cast_built) {
-    int st = build_casters(r, err);
+int cvr_casters_draw(const cvr_ctx *c, cvr_casters *k, const cvr_scene *sc, const double s[3],
+                     cv_err *err) {
+  if (!k->built) {
+    int st = build_casters(c, k, sc, err);
     if (st) return st;
   }
-  const size_t n = cull_casters(r, s);
-  glBindVertexArray(r->vao_cast);
-  glBufferSubData(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * n * sizeof *r->cast_draw),
-                  r->cast_draw);
+  const size_t n = cull_casters(c, k, s);
+  glBindVertexArray(k->vao);
+  glBufferSubData(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * n * sizeof *k->draw), k->draw);
   if (n) glDrawElements(GL_TRIANGLES, (GLsizei)(3 * n), GL_UNSIGNED_INT, 0);
   glBindVertexArray(0);
-  r->cast_drawn = n;
+  k->drawn = n;
   return CV_OK;
 }
 
-void cvr_casters_free(cv_renderer *r) {
-  if (r->vao_cast) glDeleteVertexArrays(1, &r->vao_cast);
-  if (r->buf_cast_pos) glDeleteBuffers(1, &r->buf_cast_pos);
-  if (r->buf_cast_idx) glDeleteBuffers(1, &r->buf_cast_idx);
-  r->vao_cast = r->buf_cast_pos = r->buf_cast_idx = 0;
+void cvr_casters_free(cvr_casters *k) {
+  if (k->vao) glDeleteVertexArrays(1, &k->vao);
+  if (k->buf_pos) glDeleteBuffers(1, &k->buf_pos);
+  if (k->buf_idx) glDeleteBuffers(1, &k->buf_idx);
+  k->vao = k->buf_pos = k->buf_idx = 0;
 }
 
-int cv_renderer_shadow_casters(const cv_renderer *r, cv_shadow_casters *out) {
-  if (!r || !out) return CV_ERR_INVALID;
+void cvr_casters_free_cpu(cvr_casters *k) {
+  free(k->pos), free(k->n), free(k->idx), free(k->draw);
+  k->pos = k->n = NULL, k->idx = k->draw = NULL;
+}
+
+void cvr_casters_info(const cvr_ctx *c, const cvr_casters *k, const cvr_scene *sc,
+                      cv_shadow_casters *out) {
   memset(out, 0, sizeof *out);
-  out->tolerance_m = r->o.shadow_casters;
-  out->mesh_triangles = r->nt;
-  if (!r->cast_built) return CV_OK;
+  out->tolerance_m = c->o->shadow_casters;
+  out->mesh_triangles = sc->nt;
+  if (!k->built) return;
   out->built = 1;
-  out->triangles = r->cast_nt;
-  out->error_m = r->cast_err;
-  out->culled = r->cast_culled;
-  out->defects = r->cast_defects;
-  out->drawn = r->cast_drawn;
-  out->build_ms = r->cast_ms;
-  return CV_OK;
+  out->triangles = k->nt;
+  out->error_m = k->err;
+  out->culled = k->culled;
+  out->defects = k->defects;
+  out->drawn = k->drawn;
+  out->build_ms = k->ms;
 }

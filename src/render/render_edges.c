@@ -1,20 +1,15 @@
 /* Directed-edge sets of triangle meshes on welded indices: the closedness
- * the culled shadow map relies on (cv_renderer_mesh_closed, renderer.c) and
+ * the culled shadow map relies on (cv_renderer_mesh_closed, render_scene.c) and
  * the shadow casters' closure defects (render_casters.c).  One
  * open-addressing set of edge keys (a << 32 | b); 0 marks a free slot
  * (a == b, a degenerate edge, is never stored). */
-#include "render/renderer_internal.h"
+#include "render/render_edges.h"
+
+#include "render/render_gl.h"
 
 static uint64_t edge_key(uint32_t a, uint32_t b) { return (uint64_t)a << 32 | b; }
 
 static uint64_t reverse_key(uint64_t k) { return edge_key((uint32_t)k, (uint32_t)(k >> 32)); }
-
-uint64_t cvr_hash64(uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdull;
-  k ^= k >> 33;
-  return k;
-}
 
 /* The slot of key k: where it is, or the free slot where it would go. */
 static size_t slot_of(const cvr_edges *e, uint64_t k) {

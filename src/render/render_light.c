@@ -1,6 +1,10 @@
-/* The renderer's lighting: relight by transform feedback, the sun's shadow
- * map and split, the background and the dashboard LCD image (see renderer.h). */
-#include "render/renderer_internal.h"
+/* The renderer's lighting (render_light.h): a lighting change (the relight
+ * of render_relight.c, the sun split of the scene's chunks, the sun's
+ * shadow map of the casters or the mesh), the background and the
+ * dashboard LCD image (see renderer.h). */
+#include "render/render_light.h"
+
+#include "sh/sh.h"
 
 /* ---------------------------------------------------------------- lighting */
 
@@ -8,7 +12,7 @@
 static double along(const double a[3], const float p[3]) { return a[0] * p[0] + a[1] * p[1] + a[2] * p[2]; }
 
 /* The largest a . p over the vertices of chunk c's triangles. */
-static double chunk_max(const cv_renderer *r, size_t c, const double a[3]) {
+static double chunk_max(const cvr_scene *r, size_t c, const double a[3]) {
   const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
   double m = -INFINITY;
   for (size_t i = 3 * first; i < 3 * end; i++) m = fmax(m, along(a, r->pos_cpu + 3 * r->idx_cpu[i]));
@@ -16,7 +20,7 @@ static double chunk_max(const cv_renderer *r, size_t c, const double a[3]) {
 }
 
 /* An upper bound of a . p over chunk c's vertices: its box's corner on a's side. */
-static double box_bound(const cv_renderer *r, size_t c, const double a[3]) {
+static double box_bound(const cvr_scene *r, size_t c, const double a[3]) {
   const float *b = r->chunk_box + 6 * c;
   const float corner[3] = {a[0] >= 0 ? b[3] : b[0], a[1] >= 0 ? b[4] : b[1], a[2] >= 0 ? b[5] : b[2]};
   return along(a, corner);
@@ -27,7 +31,7 @@ static double box_bound(const cv_renderer *r, size_t c, const double a[3]) {
  * a chunk's box bounds its vertices' a . p from above (its corner on a's
  * side), so after the chunk of the largest bound, only chunks whose bound
  * reaches the maximum so far are read (a few of the 500 on the cabin). */
-static double extent_max(const cv_renderer *r, const double a[3]) {
+static double extent_max(const cvr_scene *r, const double a[3]) {
   double best_bound = -INFINITY, m = -INFINITY;
   size_t best = 0;
   for (size_t c = 0; c < r->nchunks; c++) {
@@ -41,7 +45,7 @@ static double extent_max(const cv_renderer *r, const double a[3]) {
 }
 
 /* The range of a . p over the opaque triangles' vertices (extent_max). */
-static void vertex_extent(const cv_renderer *r, const double a[3], double *lo, double *hi) {
+static void vertex_extent(const cvr_scene *r, const double a[3], double *lo, double *hi) {
   const double na[3] = {-a[0], -a[1], -a[2]};
   *hi = extent_max(r, a);
   *lo = -extent_max(r, na);
@@ -53,7 +57,8 @@ static void vertex_extent(const cv_renderer *r, const double a[3], double *lo, d
  * texels are square, the beam's longer side over opts.shadow_res; the map
  * takes size[0] x size[1] of them (the shorter side fewer: on llvmpipe the
  * clear and the fill cost by the texel). */
-void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *texel, int size[2]) {
+void cvr_sun_matrices(const cvr_ctx *c, cvr_shadow *sh, const cvr_scene *r, const double s[3],
+                      float clip[16], float *texel, int size[2]) {
   double up[3] = {0, 1, 0};
   if (fabs(s[1]) > 0.99) up[0] = 1, up[1] = 0;
   double x[3] = {up[1] * s[2] - up[2] * s[1], up[2] * s[0] - up[0] * s[2],
@@ -77,7 +82,7 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
   }
   /* Square texels: the longer side over res; the shorter side gets the
    * texels it needs and its range grows to a whole number of them. */
-  const int res = r->o.shadow_res;
+  const int res = c->o->shadow_res;
   const double tx = fmax(hi[0] - lo[0], hi[1] - lo[1]) / res;
   int n[2];
   for (int a = 0; a < 2; a++) {
@@ -91,7 +96,7 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
    * space (prt.frag): x, y = [0,1] coordinate * n_a - 0.5 (texel centres at
    * integers), z = the [0,1] depth.  Its linear part is A = D R, R the
    * rotation with rows axis_a, D = diag(n_x sc_x/2, n_y sc_y/2, sc_z/2). */
-  float *q = r->shadow_q;
+  float *q = sh->q;
   memset(clip, 0, 16 * sizeof *clip);
   memset(q, 0, 16 * sizeof *q);
   double D[3];
@@ -106,25 +111,20 @@ void cvr_sun_matrices(cv_renderer *r, const double s[3], float clip[16], float *
     q[12 + a] = (float)((0.5 * (-sc * lo[a] - 1) + 0.5) * ts - (a < 2 ? 0.5 : 0.0));
   }
   clip[15] = q[15] = 1;
-  for (int a = 0; a < 3; a++) r->shadow_k[a] = (float)(D[a] * D[a]);
-  r->shadow_k[3] = (float)-D[2];
+  for (int a = 0; a < 3; a++) sh->k[a] = (float)(D[a] * D[a]);
+  sh->k[3] = (float)-D[2];
   const double det = axis[0][0] * (axis[1][1] * axis[2][2] - axis[1][2] * axis[2][1]) -
                      axis[0][1] * (axis[1][0] * axis[2][2] - axis[1][2] * axis[2][0]) +
                      axis[0][2] * (axis[1][0] * axis[2][1] - axis[1][1] * axis[2][0]);
-  r->shadow_detsign = det < 0 ? -1 : 1;
+  sh->detsign = det < 0 ? -1 : 1;
   *texel = (float)tx;
 }
 
-/* Whether the shadow map is culled (opts.shadow_cull; -1: the mesh is closed). */
-int cvr_shadow_culled(const cv_renderer *r) {
-  return r->o.shadow_cull < 0 ? r->closed : r->o.shadow_cull != 0;
-}
-
-int cvr_shadow_target(cv_renderer *r, int n, cv_err *err) {
-  if (!r->fbo_shadow || r->shadow_depth_res != n) {
-    if (!r->fbo_shadow) glGenFramebuffers(1, &r->fbo_shadow);
-    if (!r->tex_shadow) glGenTextures(1, &r->tex_shadow);
-    glBindTexture(GL_TEXTURE_2D, r->tex_shadow);
+static int shadow_target(cvr_shadow *r, int n, cv_err *err) {
+  if (!r->fbo || r->depth_res != n) {
+    if (!r->fbo) glGenFramebuffers(1, &r->fbo);
+    if (!r->tex) glGenTextures(1, &r->tex);
+    glBindTexture(GL_TEXTURE_2D, r->tex);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, n, n, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
                  NULL);
     /* read by texelFetch, compared and filtered in prt.frag */
@@ -133,30 +133,32 @@ int cvr_shadow_target(cv_renderer *r, int n, cv_err *err) {
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_NONE);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, r->tex_shadow, 0);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, r->tex, 0);
     glDrawBuffer(GL_NONE);
     glReadBuffer(GL_NONE);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       return cv_err_set(err, CV_ERR_BACKEND, "shadow map framebuffer incomplete (%d texels)", n);
-    r->shadow_depth_res = n;
+    r->depth_res = n;
   }
-  r->shadow_res = n; /* the current map's (an imported one may differ) */
+  r->res = n; /* the current map's (an imported one may differ) */
   return CV_OK;
 }
 
-int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
-  const int n = r->o.shadow_res;
-  int st = cvr_shadow_target(r, n, err);
+static int render_shadow(const cvr_ctx *c, cvr_light *lt, cvr_scene *sc, cvr_casters *k,
+                         const double s[3], cv_err *err) {
+  cvr_shadow *r = &lt->shadow;
+  const int n = c->o->shadow_res;
+  int st = shadow_target(r, n, err);
   if (st) return st;
   float clip[16], texel;
   int size[2];
-  cvr_sun_matrices(r, s, clip, &texel, size);
+  cvr_sun_matrices(c, r, sc, s, clip, &texel, size);
   /* Against self-shadowing acne the lookup point moves 1.5 texels along the
    * triangle's normal (a slope-scaled polygon offset on top changed neither
    * the sun test's figures nor the time). */
-  r->shadow_bias = 1.5f * texel;
-  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_shadow);
+  r->bias = 1.5f * texel;
+  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
   glViewport(0, 0, size[0], size[1]);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -164,27 +166,27 @@ int cvr_render_shadow(cv_renderer *r, const double s[3], cv_err *err) {
   /* The whole texture: a scissored clear (only the map's texels) costs
    * more on llvmpipe (Mesa draws it as a quad). */
   glClear(GL_DEPTH_BUFFER_BIT);
-  cvr_set_cull(r, 0);
-  glUseProgram(r->prog_depth);
-  cvr_uni_mat(r->prog_depth, "u_mvp", clip);
-  if (r->o.shadow_casters > 0) {
-    if ((st = cvr_draw_casters(r, s, err))) return st;
+  cvr_scene_cull(c, sc, 0);
+  glUseProgram(sc->prog_depth);
+  cvr_uni_mat(sc->prog_depth, "u_mvp", clip);
+  if (c->o->shadow_casters > 0) {
+    if ((st = cvr_casters_draw(c, k, sc, s, err))) return st;
   } else {
-    cvr_draw_mesh(r, NULL, cvr_shadow_culled(r) && r->split_valid ? DRAW_SHADOW : DRAW_ALL);
+    cvr_scene_draw(c, sc, NULL, cvr_scene_shadow_culled(c, sc) && lt->split.valid ? DRAW_SHADOW : DRAW_ALL);
   }
-  for (int j = 0; j < 3; j++) r->shadow_s[j] = s[j];
-  r->shadow_w = size[0], r->shadow_h = size[1];
-  r->shadow_texel = texel;
-  r->shadow_valid = 1;
-  r->shadow_from_import = 0;
-  r->shadow_gen++, r->shadow_import = 0; /* drawn here (render_share.c) */
+  for (int j = 0; j < 3; j++) r->s[j] = s[j];
+  r->w = size[0], r->h = size[1];
+  r->texel = texel;
+  r->valid = 1;
+  r->from_import = 0;
+  r->gen++, r->import = 0; /* drawn here (render_share.c) */
   return cvr_gl_check("shadow map", err);
 }
 
 /* Half the diagonal of the scene's box: how far a point can be from its
  * centre, so a sun turned by |s - s0| (radians, small) moves a point's
  * shadow-map position by at most this times |s - s0|. */
-static double scene_radius(const cv_renderer *r) {
+static double scene_radius(const cvr_scene *r) {
   double d = 0;
   for (int j = 0; j < 3; j++) d += (r->hi[j] - r->lo[j]) * (r->hi[j] - r->lo[j]);
   return 0.5 * sqrt(d);
@@ -199,26 +201,16 @@ static double dist3(const double a[3], const double b[3]) {
  * made for a sun that differs from s by less than shadow_reuse texels at the
  * scene's radius.  Its matrices are kept with it, so the image is that of
  * the old sun's shadow, within that many texels of the new one. */
-static int shadow_reusable(const cv_renderer *r, const double s[3]) {
-  if (!r->shadow_valid || r->shadow_res != r->o.shadow_res || !(r->shadow_texel > 0)) return 0;
-  const double moved = dist3(s, r->shadow_s) * scene_radius(r) / r->shadow_texel;
-  return moved < r->o.shadow_reuse || dist3(s, r->shadow_s) == 0;
-}
-
-/* Unit winding normals of the uploaded triangles (those of cv_sun_direct
- * and prt.frag's n_t), built on the first split: 12 bytes a triangle. */
-static int tri_normals(cv_renderer *r) {
-  if (r->tri_n) return CV_OK;
-  r->tri_n = malloc(3 * r->nt * sizeof *r->tri_n + 4);
-  if (!r->tri_n) return CV_ERR_NOMEM;
-  cvr_unit_normals(r->pos_cpu, r->idx_cpu, r->nt, r->tri_n);
-  return CV_OK;
+static int shadow_reusable(const cvr_ctx *c, const cvr_shadow *r, const cvr_scene *sc, const double s[3]) {
+  if (!r->valid || r->res != c->o->shadow_res || !(r->texel > 0)) return 0;
+  const double moved = dist3(s, r->s) * scene_radius(sc) / r->texel;
+  return moved < c->o->shadow_reuse || dist3(s, r->s) == 0;
 }
 
 /* One chunk of the sun split: its triangles into out (the chunk's own
  * range of buf_idx_sun) in the three parts, their counts into chunk_na,
  * chunk_nf. */
-static void split_chunk(cv_renderer *r, size_t c, const float sf[3], double m, uint32_t *out) {
+static void split_chunk(cvr_scene *r, size_t c, const float sf[3], double m, uint32_t *out) {
   unsigned char part[CHUNK];
   const size_t first = c * CHUNK, end = first + CHUNK > r->nt ? r->nt : first + CHUNK;
   size_t k[3] = {0, 0, 0};
@@ -236,19 +228,6 @@ static void split_chunk(cv_renderer *r, size_t c, const float sf[3], double m, u
   r->chunk_nf[c] = (uint32_t)(k[0] + k[1]);
 }
 
-/* Binds buf_idx_sun to GL_ELEMENT_ARRAY_BUFFER (VAO 0 bound), giving it its
- * storage (3 nt indices) the first time: a split or an imported one is then
- * written into the same storage (no reallocation, no fresh pages). */
-void cvr_split_buffer_bind(cv_renderer *r) {
-  glBindVertexArray(0);
-  const int fresh = !r->buf_idx_sun;
-  if (fresh) glGenBuffers(1, &r->buf_idx_sun);
-  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->buf_idx_sun);
-  if (fresh)
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(3 * r->nt * sizeof(uint32_t) + 4), NULL,
-                 GL_DYNAMIC_DRAW);
-}
-
 /* The sun split (see the struct): reorders each chunk of buf_idx into
  * buf_idx_sun in three parts by c = n_t . s, m = opts.split_margin:
  * c > m, then |c| <= m, then c < -m.  The first two (chunk_nf) are drawn
@@ -261,17 +240,17 @@ void cvr_split_buffer_bind(cv_renderer *r) {
  * two, so the split is reused exactly.  Same triangles, vertex order and
  * positions: same depths (depth EQUAL).  The chunks are split in parallel
  * straight into the mapped buffer (no copy, no allocation per split). */
-int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
-  const double m = r->o.split_margin > 0 ? r->o.split_margin : 0.0;
-  if (r->split_valid && dist3(s, r->split_s) <= m) return CV_OK;
-  if (tri_normals(r)) return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
+static int sun_split(const cvr_ctx *ctx, cvr_sunsplit *sp, cvr_scene *r, const double s[3], cv_err *err) {
+  const double m = ctx->o->split_margin > 0 ? ctx->o->split_margin : 0.0;
+  if (sp->valid && dist3(s, sp->s) <= m) return CV_OK;
+  if (cvr_scene_tri_normals(r)) return cv_err_set(err, CV_ERR_NOMEM, "out of memory splitting the mesh for the sun");
   const float sf[3] = {(float)s[0], (float)s[1], (float)s[2]};
-  cvr_split_buffer_bind(r);
+  cvr_scene_parts_bind(r);
   uint32_t *out = glMapBufferRange(GL_ELEMENT_ARRAY_BUFFER, 0, (GLsizeiptr)(3 * r->nt * sizeof *out),
                                    GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
   if (!out) {
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
-    r->split_valid = 0;
+    sp->valid = 0;
     return cv_err_set(err, CV_ERR_BACKEND, "sun split: cannot map the index buffer (GL error 0x%04x)",
                       glGetError());
   }
@@ -281,105 +260,76 @@ int cvr_sun_split(cv_renderer *r, const double s[3], cv_err *err) {
   const GLboolean kept = glUnmapBuffer(GL_ELEMENT_ARRAY_BUFFER);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
   if (!kept) { /* the GL lost the contents (GL_FALSE): no split */
-    r->split_valid = 0;
+    sp->valid = 0;
     return cv_err_set(err, CV_ERR_BACKEND, "sun split: the index buffer's contents were lost on unmap");
   }
-  for (int j = 0; j < 3; j++) r->split_s[j] = s[j];
-  r->split_valid = 1;
-  r->split_gen++, r->split_import = 0; /* made here (render_share.c) */
+  for (int j = 0; j < 3; j++) sp->s[j] = s[j];
+  sp->valid = 1;
+  sp->gen++, sp->import = 0; /* made here (render_share.c) */
   return cvr_gl_check("sun split", err);
 }
 
-int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_light_stats *stats,
-                             cv_frame_timing *t, cv_err *err) {
-  if (!r || !l) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL lighting");
-  if (l->bands < 1 || l->bands > CV_PRT_MAX_BANDS || l->bands * l->bands < r->nc)
+/* The relight's uniforms: lighting without the sun (with td) and with the
+ * sun's SH projection E * y_i(s) and the split lights' (with ti), as
+ * relight.c. */
+static void relight_uniforms(const cv_lighting *l, int sun, int nc, const cvr_split *wl, float *ul,
+                             float *uls) {
+  double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS] = {0};
+  if (sun) cv_sh_eval_d((int)lround(sqrt(nc)), l->sun_dir, y);
+  for (int i = 0; i < nc; i++) {
+    for (int c = 0; c < 3; c++) {
+      ul[4 * i + c] = (float)l->sh[3 * i + c];
+      uls[4 * i + c] = (float)(l->sh[3 * i + c] + (sun ? l->sun_E[c] * y[i] : 0.0) +
+                               (wl->n ? wl->sh[3 * i + c] : 0.0));
+    }
+    ul[4 * i + 3] = uls[4 * i + 3] = 0;
+  }
+}
+
+int cvr_light_set(const cvr_ctx *c, cvr_light *r, cvr_scene *sc, cvr_relight *rl,
+                  const cvr_split *wl, cvr_casters *k, const cv_lighting *l,
+                  cv_render_light_stats *stats, cv_frame_timing *t, cv_err *err) {
+  if (l->bands < 1 || l->bands > CV_PRT_MAX_BANDS || l->bands * l->bands < sc->nc)
     return cv_err_set(err, CV_ERR_RANGE, "lighting has %d bands, the scene needs %d", l->bands,
-                      (int)lround(sqrt(r->nc)));
-  for (int i = 0; i < 3 * r->nc; i++)
+                      (int)lround(sqrt(sc->nc)));
+  for (int i = 0; i < 3 * sc->nc; i++)
     if (!isfinite(l->sh[i])) return cv_err_set(err, CV_ERR_NONFINITE, "lighting SH[%d] is not finite", i);
   double sd[3] = {0, 0, 0};
   int sun = 0;
   if (l->has_sun) {
     double n = sqrt(l->sun_dir[0] * l->sun_dir[0] + l->sun_dir[1] * l->sun_dir[1] +
                     l->sun_dir[2] * l->sun_dir[2]);
-    for (int c = 0; c < 3; c++)
-      if (!isfinite(l->sun_E[c]) || l->sun_E[c] < 0)
-        return cv_err_set(err, CV_ERR_NONFINITE, "sun irradiance[%d] is %g", c, l->sun_E[c]);
+    for (int ch = 0; ch < 3; ch++)
+      if (!isfinite(l->sun_E[ch]) || l->sun_E[ch] < 0)
+        return cv_err_set(err, CV_ERR_NONFINITE, "sun irradiance[%d] is %g", ch, l->sun_E[ch]);
     if (!(n > 0) || !isfinite(n)) return cv_err_set(err, CV_ERR_INVALID, "sun direction has no length");
-    for (int c = 0; c < 3; c++) sd[c] = l->sun_dir[c] / n;
+    for (int ch = 0; ch < 3; ch++) sd[ch] = l->sun_dir[ch] / n;
     sun = 1;
   }
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(c->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   cvr_gl_check("(before set_lighting)", NULL);
-  double t0 = cvr_tick(r);
-  /* Uniforms: lighting without the sun (with td) and with the sun's SH
-   * projection E * y_i(s) (with ti), as relight.c. */
+  double t0 = cvr_tick(c);
   float ul[4 * 64], uls[4 * 64];
-  double y[CV_PRT_MAX_BANDS * CV_PRT_MAX_BANDS] = {0};
-  if (sun) cv_sh_eval_d((int)lround(sqrt(r->nc)), l->sun_dir, y);
-  for (int i = 0; i < r->nc; i++) {
-    for (int c = 0; c < 3; c++) {
-      ul[4 * i + c] = (float)l->sh[3 * i + c];
-      uls[4 * i + c] = (float)(l->sh[3 * i + c] + (sun ? l->sun_E[c] * y[i] : 0.0) +
-                               (r->n_split ? r->split_sh[3 * i + c] : 0.0));
-    }
-    ul[4 * i + 3] = uls[4 * i + 3] = 0;
-  }
+  relight_uniforms(l, sun, sc->nc, wl, ul, uls);
   uint64_t clamped = 0;
-  const float *m = NULL;
-  if (r->relight_on_cpu) {
-    clamped = cvr_relight_cpu(r, ul, uls);
-    m = r->rad_cpu;
-  } else {
-  GLuint p = r->prog_relight;
-  glUseProgram(p);
-  glUniform4fv(glGetUniformLocation(p, "u_l"), r->nc, ul);
-  glUniform4fv(glGetUniformLocation(p, "u_ls"), r->nc, uls);
-  cvr_split_bind(r, p);
-  glActiveTexture(GL_TEXTURE0 + U_TRANSFER);
-  glBindTexture(GL_TEXTURE_BUFFER, r->tex_transfer);
-  glBindFramebuffer(GL_FRAMEBUFFER, r->fbo_tiny);
-  glBindVertexArray(r->vao_empty);
-  glEnable(GL_RASTERIZER_DISCARD);
-  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, r->buf_rad);
-  glBeginTransformFeedback(GL_POINTS);
-  glDrawArrays(GL_POINTS, 0, (GLsizei)r->nv);
-  glEndTransformFeedback();
-  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
-  glDisable(GL_RASTERIZER_DISCARD);
-  glBindVertexArray(0);
-  /* Clamp count: sum of the captured w (exact in double), only when asked
-   * for (mapping the buffer waits for the relight and reads 16 bytes a
-   * vertex back). */
-  if (stats) {
-    glBindBuffer(GL_ARRAY_BUFFER, r->buf_rad);
-    m = glMapBufferRange(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(4 * r->nv * sizeof(float)), GL_MAP_READ_BIT);
-    if (m) {
-      for (size_t v = 0; v < r->nv; v++) clamped += (uint64_t)m[4 * v + 3];
-      glUnmapBuffer(GL_ARRAY_BUFFER);
-    }
-    glBindBuffer(GL_ARRAY_BUFFER, 0);
-  }
-  }
-  int st = cvr_gl_check("relighting", err);
+  int st = cvr_relight_run(c, rl, sc, wl, ul, uls, stats != NULL, &clamped, err);
   if (st) return st;
-  if (stats && !m) return cv_err_set(err, CV_ERR_BACKEND, "cannot map the relit vertex buffer");
-  double t1 = cvr_tick(r), t2 = t1, t3 = t1;
+  double t1 = cvr_tick(c), t2 = t1, t3 = t1;
   int reused = 0;
   r->has_sun = sun;
   if (sun) {
-    for (int c = 0; c < 3; c++) {
-      r->sun_e[c] = (float)(l->sun_E[c] / M_PI);
+    for (int ch = 0; ch < 3; ch++) {
+      r->sun_e[ch] = (float)(l->sun_E[ch] / M_PI);
     }
     /* the split first: the culled shadow map draws a part of it */
     r->sun_split = 0;
-    if ((r->o.sun_split || cvr_shadow_culled(r)) && (st = cvr_sun_split(r, sd, err))) return st;
-    r->sun_split = r->o.sun_split;
-    t2 = cvr_tick(r);
-    reused = shadow_reusable(r, sd);
-    if (!reused && (st = cvr_render_shadow(r, sd, err))) return st;
-    t3 = cvr_tick(r);
+    if ((c->o->sun_split || cvr_scene_shadow_culled(c, sc)) && (st = sun_split(c, &r->split, sc, sd, err)))
+      return st;
+    r->sun_split = c->o->sun_split;
+    t2 = cvr_tick(c);
+    reused = shadow_reusable(c, &r->shadow, sc, sd);
+    if (!reused && (st = render_shadow(c, r, sc, k, sd, err))) return st;
+    t3 = cvr_tick(c);
   }
   r->lit = 1;
   if (stats) stats->clamped = clamped;
@@ -392,16 +342,27 @@ int cv_renderer_set_lighting(cv_renderer *r, const cv_lighting *l, cv_render_lig
   return CV_OK;
 }
 
-int cv_renderer_set_background(cv_renderer *r, const cv_image *img, cv_err *err) {
-  if (!r) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL");
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
-  if (!img) return cvr_upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err);
+int cvr_light_upload_background(cvr_light *r, int w, int h, const float *rgb, cv_err *err) {
+  if (!r->tex_bg) glGenTextures(1, &r->tex_bg);
+  glBindTexture(GL_TEXTURE_2D, r->tex_bg);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, w, h, 0, GL_RGB, GL_FLOAT, rgb);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  return cvr_gl_check("background upload", err);
+}
+
+int cvr_light_background(const cvr_ctx *ctx, cvr_light *r, const cv_image *img, cv_err *err) {
+  if (!img) return cvr_light_upload_background(r, 1, 1, (const float[3]){0, 0, 0}, err);
   if (img->w < 1 || img->h < 1 || img->c < 3 || !img->px)
     return cv_err_set(err, CV_ERR_INVALID, "background: expected an RGB image, got %dx%dx%d", img->w,
                       img->h, img->c);
-  if (img->w > r->max_rb || img->h > r->max_rb)
+  if (img->w > ctx->max_rb || img->h > ctx->max_rb)
     return cv_err_set(err, CV_ERR_RANGE, "background %dx%d exceeds the GL texture limit %d", img->w,
-                      img->h, (int)r->max_rb);
+                      img->h, (int)ctx->max_rb);
   size_t n = (size_t)img->w * img->h;
   float *rgb = malloc(3 * n * sizeof *rgb);
   if (!rgb) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
@@ -410,25 +371,24 @@ int cv_renderer_set_background(cv_renderer *r, const cv_image *img, cv_err *err)
       float v = img->px[i * img->c + c];
       rgb[3 * i + c] = isfinite(v) && v > 0 ? v : 0.0f;
     }
-  int st = cvr_upload_background(r, img->w, img->h, rgb, err);
+  int st = cvr_light_upload_background(r, img->w, img->h, rgb, err);
   free(rgb);
   return st;
 }
 
-int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3],
-                          const float v[3], const float size[2], const cv_image *img, cv_err *err) {
-  if (!r) return cv_err_set(err, CV_ERR_INVALID, "renderer: NULL");
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+int cvr_light_panel(const cvr_ctx *ctx, cvr_light *lt, const float center[3], const float u[3],
+                    const float v[3], const float size[2], const cv_image *img, cv_err *err) {
+  cvr_panel *r = &lt->panel;
   if (!img) {
-    r->panel_on = 0;
+    r->on = 0;
     return CV_OK;
   }
   if (!center || !u || !v || !size || img->w < 1 || img->h < 1 || img->c < 3 || !img->px ||
       !(size[0] > 0) || !(size[1] > 0))
     return cv_err_set(err, CV_ERR_INVALID, "panel: expected a frame, sizes > 0 and an RGB image");
-  if (img->w > r->max_rb || img->h > r->max_rb)
+  if (img->w > ctx->max_rb || img->h > ctx->max_rb)
     return cv_err_set(err, CV_ERR_RANGE, "panel image %dx%d exceeds the GL texture limit %d", img->w,
-                      img->h, (int)r->max_rb);
+                      img->h, (int)ctx->max_rb);
   double lu = 0, lv = 0;
   for (int a = 0; a < 3; a++) {
     lu += (double)u[a] * u[a];
@@ -436,15 +396,15 @@ int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3
   }
   if (!(lu > 0) || !(lv > 0)) return cv_err_set(err, CV_ERR_INVALID, "panel: zero axis");
   for (int a = 0; a < 3; a++) {
-    r->panel_c[a] = center[a];
-    r->panel_u[a] = (float)(u[a] / sqrt(lu));
-    r->panel_v[a] = (float)(v[a] / sqrt(lv));
+    r->c[a] = center[a];
+    r->u[a] = (float)(u[a] / sqrt(lu));
+    r->v[a] = (float)(v[a] / sqrt(lv));
   }
-  r->panel_n[0] = r->panel_u[1] * r->panel_v[2] - r->panel_u[2] * r->panel_v[1];
-  r->panel_n[1] = r->panel_u[2] * r->panel_v[0] - r->panel_u[0] * r->panel_v[2];
-  r->panel_n[2] = r->panel_u[0] * r->panel_v[1] - r->panel_u[1] * r->panel_v[0];
-  r->panel_half[0] = 0.5f * size[0];
-  r->panel_half[1] = 0.5f * size[1];
+  r->n[0] = r->u[1] * r->v[2] - r->u[2] * r->v[1];
+  r->n[1] = r->u[2] * r->v[0] - r->u[0] * r->v[2];
+  r->n[2] = r->u[0] * r->v[1] - r->u[1] * r->v[0];
+  r->half[0] = 0.5f * size[0];
+  r->half[1] = 0.5f * size[1];
   size_t n = (size_t)img->w * img->h;
   float *rgb = malloc(3 * n * sizeof *rgb);
   if (!rgb) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
@@ -455,8 +415,8 @@ int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3
       if (!(isfinite(x) && x >= 0)) bad++;
       rgb[3 * i + c] = isfinite(x) && x > 0 ? x : 0.0f; /* NaN/Inf/negative: black, counted */
     }
-  if (!r->tex_panel) glGenTextures(1, &r->tex_panel);
-  glBindTexture(GL_TEXTURE_2D, r->tex_panel);
+  if (!r->tex) glGenTextures(1, &r->tex);
+  glBindTexture(GL_TEXTURE_2D, r->tex);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, img->w, img->h, 0, GL_RGB, GL_FLOAT, rgb);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
@@ -465,16 +425,23 @@ int cv_renderer_set_panel(cv_renderer *r, const float center[3], const float u[3
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   glBindTexture(GL_TEXTURE_2D, 0);
   free(rgb);
-  r->panel_on = 1;
-  r->panel_bad = bad;
+  r->on = 1;
+  r->bad = bad;
   return cvr_gl_check("panel upload", err);
 }
 
-uint64_t cv_renderer_panel_invalid(const cv_renderer *r) { return r ? r->panel_bad : 0; }
+void cvr_light_forget(cvr_light *r) {
+  r->lit = 0;
+  r->shadow.valid = r->split.valid = 0;
+  r->shadow.import = r->split.import = 0;
+}
 
-int cv_renderer_tone_table(const cv_renderer *r, double *drago_err) {
-  if (drago_err) *drago_err = r && r->tone_built ? r->tone_err : NAN;
-  return r && r->tone_built && r->tone_ok;
+void cvr_light_free(cvr_light *r) {
+  GLuint tex[] = {r->shadow.tex, r->shadow.tex_imp, r->tex_bg, r->panel.tex};
+  glDeleteTextures(4, tex);
+  GLuint fbos[] = {r->shadow.fbo, r->shadow.fbo_imp};
+  glDeleteFramebuffers(2, fbos);
+  r->shadow.tex = r->shadow.tex_imp = r->tex_bg = r->panel.tex = r->shadow.fbo = r->shadow.fbo_imp = 0;
 }
 
 int cv_render_background_image(const cv_scene_light *sl, int w, cv_image **out) {

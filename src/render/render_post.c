@@ -7,9 +7,10 @@
  * (and the luminance statistics, render_passes.c) come back each frame.
  *
  * This feature owns its state (struct cvr_post); the renderer holds a
- * pointer to it and calls cvr_post_free at destroy.  It uses the GL helpers
- * of renderer.c and the display target of render_passes.c (r->disp_src). */
-#include "render/renderer_internal.h"
+ * pointer to it and calls cvr_post_free at destroy.  It uses only the GL
+ * layer (render_gl.h): the display image it reads comes as a
+ * cvr_image_ref from the caller (the passes' last shade). */
+#include "render/render_post.h"
 
 #include "core/overlaps.h"
 
@@ -53,8 +54,8 @@ static void post_free_grid(cvr_post *p) {
   p->nu = p->nv = p->w = p->h = 0;
 }
 
-void cvr_post_free(cv_renderer *r) {
-  cvr_post *p = r->post;
+void cvr_post_free(cvr_post **pp) {
+  cvr_post *p = *pp;
   if (!p) return;
   post_free_grid(p);
   glDeleteTextures(2, p->tex_keep);
@@ -63,17 +64,7 @@ void cvr_post_free(cv_renderer *r) {
   glDeleteProgram(p->prog_rows);
   glDeleteProgram(p->prog_post);
   free(p);
-  r->post = NULL;
-}
-
-static int has_extension(const char *name) {
-  GLint n = 0;
-  glGetIntegerv(GL_NUM_EXTENSIONS, &n);
-  for (GLint i = 0; i < n; i++) {
-    const char *e = (const char *)glGetStringi(GL_EXTENSIONS, (GLuint)i);
-    if (e && !strcmp(e, name)) return 1;
-  }
-  return 0;
+  *pp = NULL;
 }
 
 static void set_units(GLuint prog) {
@@ -90,13 +81,13 @@ static void set_units(GLuint prog) {
 }
 
 /* The feature's state and programs, made on first use. */
-static int post_state(cv_renderer *r, cv_err *err) {
-  if (r->post && r->post->prog_post) return CV_OK;
-  if (!r->post && !(r->post = calloc(1, sizeof *r->post))) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
-  cvr_post *p = r->post;
+static int post_state(cvr_post **pp, cv_err *err) {
+  if (*pp && (*pp)->prog_post) return CV_OK;
+  if (!*pp && !(*pp = calloc(1, sizeof **pp))) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
+  cvr_post *p = *pp;
   if (!p->checked) {
     p->checked = 1;
-    p->fp64 = has_extension("GL_ARB_gpu_shader_fp64");
+    p->fp64 = cvr_has_extension("GL_ARB_gpu_shader_fp64");
     if (!p->fp64)
       snprintf(p->why, sizeof p->why, "the GL (%s) has no GL_ARB_gpu_shader_fp64 (double sums of the patch means)",
                (const char *)glGetString(GL_RENDERER));
@@ -118,13 +109,13 @@ static int post_state(cv_renderer *r, cv_err *err) {
   return CV_OK;
 }
 
-int cv_renderer_post_available(cv_renderer *r, char *why, size_t cap) {
+int cvr_post_available(const cvr_ctx *c, cvr_post **pp, char *why, size_t cap) {
   cv_err err;
-  if (cv_egl_make_current(&r->egl)) {
+  if (cv_egl_make_current(c->egl)) {
     if (why && cap) snprintf(why, cap, "eglMakeCurrent failed");
     return 0;
   }
-  if (post_state(r, &err) == CV_OK) return 1;
+  if (post_state(pp, &err) == CV_OK) return 1;
   if (why && cap) snprintf(why, cap, "%s", err.msg);
   return 0;
 }
@@ -186,7 +177,7 @@ static GLuint target_tex(GLenum fmt, int w, int h) {
   return t;
 }
 
-static int grid_targets(cv_renderer *r, cvr_post *p, cv_err *err) {
+static int grid_targets(cvr_post *p, cv_err *err) {
   glGenFramebuffers(1, &p->fbo_a);
   glBindFramebuffer(GL_FRAMEBUFFER, p->fbo_a);
   for (int k = 0; k < 2; k++) {
@@ -215,13 +206,12 @@ static int grid_targets(cv_renderer *r, cvr_post *p, cv_err *err) {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   glBindTexture(GL_TEXTURE_2D, 0);
-  (void)r;
   return cvr_gl_check("post targets", err);
 }
 
 /* The tables of a grid: entries and their cells' firsts (columns, then
  * rows), the bracketing tables of equation 7's up-sampling. */
-static int grid_tables(cv_renderer *r, cvr_post *p, const double *U, const double *V, cv_err *err) {
+static int grid_tables(cvr_ctx *r, cvr_post *p, const double *U, const double *V, cv_err *err) {
   cv_overlaps ox = {0}, oy = {0};
   const int nu = p->nu, nv = p->nv, w = p->w, h = p->h;
   /* GL rows bottom up: row i covers [i / h, (i + 1) / h) of v (no flip) */
@@ -251,22 +241,22 @@ static int grid_tables(cv_renderer *r, cvr_post *p, const double *U, const doubl
   return st;
 }
 
-int cv_renderer_post_grid(cv_renderer *r, int nu, int nv, const double *eu, const double *ev, int w, int h,
-                          cv_err *err) {
-  if (!r || nu < 1 || nv < 1 || w < 1 || h < 1 || w > r->max_rb || h > r->max_rb || nu > w || nv > h)
+int cvr_post_grid(cvr_ctx *r, cvr_post **pp, int nu, int nv, const double *eu, const double *ev, int w,
+                  int h, cv_err *err) {
+  if (nu < 1 || nv < 1 || w < 1 || h < 1 || w > r->max_rb || h > r->max_rb || nu > w || nv > h)
     return cv_err_set(err, CV_ERR_INVALID, "post grid: %d x %d patches on %d x %d pixels (1..%d pixels, at "
-                      "most one patch a pixel)", nu, nv, w, h, r ? (int)r->max_rb : 0);
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
-  int st = post_state(r, err);
+                      "most one patch a pixel)", nu, nv, w, h, (int)r->max_rb);
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  int st = post_state(pp, err);
   if (st) return st;
-  cvr_post *p = r->post;
+  cvr_post *p = *pp;
   post_free_grid(p);
   p->nu = nu, p->nv = nv, p->w = w, p->h = h;
   double *tu = malloc((size_t)(nu + 1) * sizeof *tu), *tv = malloc((size_t)(nv + 1) * sizeof *tv);
   if (!tu || !tv) st = cv_err_set(err, CV_ERR_NOMEM, "out of memory");
   if (!st) st = grid_tables(r, p, uniform_edges(eu, nu, tu), uniform_edges(ev, nv, tv), err);
   free(tu), free(tv);
-  if (!st) st = grid_targets(r, p, err);
+  if (!st) st = grid_targets(p, err);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   if (st) post_free_grid(p);
   return st;
@@ -274,9 +264,9 @@ int cv_renderer_post_grid(cv_renderer *r, int nu, int nv, const double *eu, cons
 
 /* ---- per frame ------------------------------------------------------------ */
 
-static int check_source(const cv_renderer *r, const cvr_post *p, cv_err *err) {
+static int check_source(const cvr_image_ref *src, const cvr_post *p, cv_err *err) {
   if (!p || !p->nu) return cv_err_set(err, CV_ERR_INVALID, "post: no patch grid (cv_renderer_post_grid)");
-  if (!r->disp_src || r->disp_w != p->w || r->disp_h != p->h || !r->disp_float)
+  if (!src->tex || src->w != p->w || src->h != p->h || !src->is_float)
     return cv_err_set(err, CV_ERR_INVALID, "post: no %dx%d float display image on the GPU (shade with "
                       "cv_renderer_shade_gpu first)", p->w, p->h);
   return CV_OK;
@@ -303,18 +293,17 @@ static void draw_into(GLuint fbo, int nbuf, int w, int h) {
   glDisable(GL_BLEND);
 }
 
-int cv_renderer_patch_means(cv_renderer *r, double *out, cv_err *err) {
-  cvr_post *p = r ? r->post : NULL;
-  int st = r && out ? check_source(r, p, err) : cv_err_set(err, CV_ERR_INVALID, "patch means: NULL argument");
+int cvr_post_patch_means(cvr_ctx *r, cvr_post *p, const cvr_image_ref *src, double *out, cv_err *err) {
+  int st = check_source(src, p, err);
   if (st) return st;
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   bind_tables(p);
   /* columns: nu x h */
   draw_into(p->fbo_a, 2, p->nu, p->h);
   glUseProgram(p->prog_cols);
   glUniform1i(glGetUniformLocation(p->prog_cols, "u_base"), 0);
   glActiveTexture(GL_TEXTURE0 + U_POST_SRC);
-  glBindTexture(GL_TEXTURE_2D, r->disp_src);
+  glBindTexture(GL_TEXTURE_2D, src->tex);
   cvr_draw_fullscreen(r);
   /* rows: nu x nv */
   draw_into(p->fbo_b, 2, p->nu, p->nv);
@@ -347,12 +336,10 @@ int cv_renderer_patch_means(cv_renderer *r, double *out, cv_err *err) {
   return CV_OK;
 }
 
-int cv_renderer_display_keep(cv_renderer *r, int slot, cv_err *err) {
-  cvr_post *p = r ? r->post : NULL;
-  int st = r && slot >= 0 && slot < 2 ? check_source(r, p, err)
-                                      : cv_err_set(err, CV_ERR_INVALID, "display keep: slot 0 or 1");
+int cvr_post_keep(const cvr_ctx *r, cvr_post *p, const cvr_image_ref *src, int slot, cv_err *err) {
+  int st = check_source(src, p, err);
   if (st) return st;
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   if (!p->tex_keep[slot] || p->keep_w[slot] != p->w || p->keep_h[slot] != p->h) {
     glDeleteTextures(1, &p->tex_keep[slot]);
     if (!p->fbo_keep[slot]) glGenFramebuffers(1, &p->fbo_keep[slot]);
@@ -362,7 +349,7 @@ int cv_renderer_display_keep(cv_renderer *r, int slot, cv_err *err) {
     p->keep_w[slot] = p->w, p->keep_h[slot] = p->h;
     if ((st = cvr_fbo_complete("kept display image", p->w, p->h, err))) return st;
   }
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, r->disp_fbo);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, src->fbo);
   glReadBuffer(GL_COLOR_ATTACHMENT0);
   glBindFramebuffer(GL_DRAW_FRAMEBUFFER, p->fbo_keep[slot]);
   glDrawBuffer(GL_COLOR_ATTACHMENT0);
@@ -371,15 +358,14 @@ int cv_renderer_display_keep(cv_renderer *r, int slot, cv_err *err) {
   return cvr_gl_check("display keep", err);
 }
 
-int cv_renderer_post(cv_renderer *r, int slot, int kept, const float *delta, cv_err *err) {
-  cvr_post *p = r ? r->post : NULL;
-  if (!r || slot < 0 || slot > 1) return cv_err_set(err, CV_ERR_INVALID, "post: slot 0 or 1");
+int cvr_post_run(cvr_ctx *r, cvr_post *p, const cvr_image_ref *src, int slot, int kept, const float *delta,
+                 cv_err *err) {
   int st = kept ? (p && p->nu && p->tex_keep[slot] && p->keep_w[slot] == p->w
                        ? CV_OK
                        : cv_err_set(err, CV_ERR_INVALID, "post: nothing kept in slot %d", slot))
-                : check_source(r, p, err);
+                : check_source(src, p, err);
   if (st) return st;
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   if (delta) {
     glBindTexture(GL_TEXTURE_2D, p->tex_delta);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
@@ -391,7 +377,7 @@ int cv_renderer_post(cv_renderer *r, int slot, int kept, const float *delta, cv_
   glUseProgram(p->prog_post);
   glUniform1i(glGetUniformLocation(p->prog_post, "u_delta_on"), delta != NULL);
   glActiveTexture(GL_TEXTURE0 + U_POST_SRC);
-  glBindTexture(GL_TEXTURE_2D, kept ? p->tex_keep[slot] : r->disp_src);
+  glBindTexture(GL_TEXTURE_2D, kept ? p->tex_keep[slot] : src->tex);
   glActiveTexture(GL_TEXTURE0 + U_POST_DELTA);
   glBindTexture(GL_TEXTURE_2D, p->tex_delta);
   cvr_draw_fullscreen(r);
@@ -400,10 +386,9 @@ int cv_renderer_post(cv_renderer *r, int slot, int kept, const float *delta, cv_
   return cvr_gl_check("post pass", err);
 }
 
-int cv_renderer_post_black(cv_renderer *r, int slot, cv_err *err) {
-  cvr_post *p = r ? r->post : NULL;
+int cvr_post_black(const cvr_ctx *r, cvr_post *p, int slot, cv_err *err) {
   if (!p || !p->nu || slot < 0 || slot > 1) return cv_err_set(err, CV_ERR_INVALID, "post: no grid, or slot not 0 or 1");
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   static const float black[4] = {0, 0, 0, 1};
   glBindFramebuffer(GL_FRAMEBUFFER, p->fbo_slot[slot]);
   glClearBufferfv(GL_COLOR, 0, black);
@@ -411,11 +396,10 @@ int cv_renderer_post_black(cv_renderer *r, int slot, cv_err *err) {
   return cvr_gl_check("post black", err);
 }
 
-int cv_renderer_post_read(cv_renderer *r, int slot, uint8_t *codes, cv_err *err) {
-  cvr_post *p = r ? r->post : NULL;
+int cvr_post_read(cvr_ctx *r, cvr_post *p, int slot, uint8_t *codes, cv_err *err) {
   if (!p || !p->nu || slot < 0 || slot > 1 || !codes)
     return cv_err_set(err, CV_ERR_INVALID, "post read: no grid, or slot not 0 or 1");
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
+  if (cv_egl_make_current(r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
   const size_t n = (size_t)p->w * p->h;
   if (!p->rgba && !(p->rgba = malloc(4 * n))) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
   glBindFramebuffer(GL_READ_FRAMEBUFFER, p->fbo_slot[slot]);
@@ -432,56 +416,8 @@ int cv_renderer_post_read(cv_renderer *r, int slot, uint8_t *codes, cv_err *err)
   return cvr_gl_check("post read", err);
 }
 
-int cv_renderer_display_read(cv_renderer *r, cv_image *img, cv_err *err) {
-  if (!r || !img || img->c != 3 || !img->px || !r->disp_src || img->w != r->disp_w || img->h != r->disp_h)
-    return cv_err_set(err, CV_ERR_INVALID, "display read: expected a %dx%d RGB image and a display on the GPU",
-                      r ? r->disp_w : 0, r ? r->disp_h : 0);
-  if (cv_egl_make_current(&r->egl)) return cv_err_set(err, CV_ERR_BACKEND, "eglMakeCurrent failed");
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, r->disp_fbo);
-  if (cvr_read_image(r, GL_COLOR_ATTACHMENT0, !r->disp_float, img))
-    return cv_err_set(err, CV_ERR_NOMEM, "out of memory reading back");
-  return cvr_gl_check("display read", err);
-}
-
-GLuint cvr_post_slot_texture(const cv_renderer *r, int slot, int *w, int *h) {
-  const cvr_post *p = r->post;
+GLuint cvr_post_slot_texture(const cvr_post *p, int slot, int *w, int *h) {
   if (!p || !p->nu || slot < 0 || slot > 1) return 0;
   *w = p->w, *h = p->h;
   return p->tex_slot[slot];
-}
-
-/* ---- counters -------------------------------------------------------------- */
-
-void cv_renderer_io(const cv_renderer *r, uint64_t *read_bytes, uint64_t *uploaded_bytes) {
-  if (read_bytes) *read_bytes = r ? r->io_read : 0;
-  if (uploaded_bytes) *uploaded_bytes = r ? r->io_up : 0;
-}
-
-void cv_renderer_gpu_timer_begin(cv_renderer *r) {
-  if (!r || cv_egl_make_current(&r->egl)) return;
-  if (!r->gpu_query) glGenQueries(1, &r->gpu_query);
-  glBeginQuery(GL_TIME_ELAPSED, r->gpu_query);
-  r->gpu_query_on = 1;
-  r->gpu_query_t0 = cvr_now_ms();
-}
-
-void cv_renderer_gpu_timer_end(cv_renderer *r) {
-  if (!r || r->gpu_query_on != 1) return;
-  glEndQuery(GL_TIME_ELAPSED);
-  r->gpu_query_on = 2;
-}
-
-double cv_renderer_gpu_timer_result(cv_renderer *r) {
-  if (!r || r->gpu_query_on != 2) return NAN;
-  GLuint64 ns = 0;
-  glGetQueryObjectui64v(r->gpu_query, GL_QUERY_RESULT, &ns);
-  r->gpu_query_on = 0;
-  /* the GPU time cannot exceed the wall time since the begin: a result that
-   * does (seen on llvmpipe: 926 s for a 50 ms frame) is not a measurement */
-  const double ms = (double)ns * 1e-6;
-  return ms <= cvr_now_ms() - r->gpu_query_t0 + 1.0 ? ms : NAN;
-}
-
-void cv_renderer_set_timing(cv_renderer *r, int timing) {
-  if (r) r->o.timing = timing;
 }

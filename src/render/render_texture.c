@@ -21,7 +21,7 @@
  *  - a texture that cannot be read is a counted warning (cv_renderer_textures):
  *    its layer is filled with the material's albedo (the texture's mean, as
  *    stored by the bake), so the surface shows its mean instead of a hole. */
-#include "render/renderer_internal.h"
+#include "render/render_texture.h"
 
 #include "io/texture.h"
 
@@ -162,7 +162,7 @@ static void fill_layer(uint8_t *dst, int w, int h, const cv_image *t, const floa
 
 /* Loads every textured material's image (a failure: counted, the layer
  * filled with the material's albedo), uploads the array. */
-static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, int nlayers,
+static int upload_layers(cvr_texture *r, const cv_prt *p, const int *layer_of, int nlayers,
                          cv_err *err) {
   cv_image **img = calloc((size_t)nlayers + 1, sizeof *img);
   const float **alb = calloc((size_t)nlayers + 1, sizeof *alb);
@@ -178,8 +178,8 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
     cv_err e;
     cv_err_clear(&e);
     if (cv_texture_load(p->mat_tex[m], &img[l], &e)) {
-      if (!r->tex_missing++)
-        snprintf(r->tex_msg, sizeof r->tex_msg, "material '%.63s' texture: %.200s", p->mats[m].name,
+      if (!r->missing++)
+        snprintf(r->msg, sizeof r->msg, "material '%.63s' texture: %.200s", p->mats[m].name,
                  e.msg);
       continue;
     }
@@ -206,8 +206,8 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
     } else {
       for (int l = 0; l < nlayers; l++)
         fill_layer(px + (size_t)w * h * 4 * l, w, h, img[l], alb[l]);
-      glGenTextures(1, &r->tex_albedo);
-      glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_albedo);
+      glGenTextures(1, &r->tex);
+      glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex);
       glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
       glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_SRGB8_ALPHA8, w, h, nlayers, 0, GL_RGBA,
                    GL_UNSIGNED_BYTE, px);
@@ -218,7 +218,7 @@ static int upload_layers(cv_renderer *r, const cv_prt *p, const int *layer_of, i
       glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_REPEAT);
       glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
       free(px);
-      r->tex_layers = nlayers, r->tex_w = w, r->tex_h = h;
+      r->layers = nlayers, r->w = w, r->h = h;
       st = cvr_gl_check("texture upload", err);
     }
   }
@@ -261,7 +261,7 @@ static int assign_layers(const cv_prt *p, int *layer_of) {
   return nlayers;
 }
 
-int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err *err) {
+int cvr_texture_prepare(cvr_texture *r, const cv_prt *p, cv_prt **split, cv_err *err) {
   *split = NULL;
   if (!(p->flags & CV_PRT_TEXTURED) || !p->tri_uv || !p->mat_tex) return CV_OK;
   int *layer_of = malloc(p->nm * sizeof *layer_of + 1);
@@ -273,20 +273,30 @@ int cvr_texture_prepare(cv_renderer *r, const cv_prt *p, cv_prt **split, cv_err 
   int st = CV_OK;
   if (nlayers) {
     st = upload_layers(r, p, layer_of, nlayers, err);
-    if (!st) st = split_vertices(p, layer_of, split, &r->tex_uvl, &r->tex_orig, err);
-    if (!st) r->tex_split = (*split)->nv - p->nv;
+    if (!st) st = split_vertices(p, layer_of, split, &r->uvl, &r->orig, err);
+    if (!st) r->split = (*split)->nv - p->nv;
   }
   free(layer_of);
   return st;
 }
 
-int cv_renderer_textures(const cv_renderer *r, cv_render_tex_info *info) {
+int cvr_texture_info(const cvr_texture *r, cv_render_tex_info *info) {
   memset(info, 0, sizeof *info);
-  info->layers = r->tex_layers;
-  info->w = r->tex_w;
-  info->h = r->tex_h;
-  info->unread = r->tex_missing;
-  info->split_vertices = r->tex_split;
-  snprintf(info->first_error, sizeof info->first_error, "%s", r->tex_msg);
-  return r->tex_layers;
+  info->layers = r->layers;
+  info->w = r->w;
+  info->h = r->h;
+  info->unread = r->missing;
+  info->split_vertices = r->split;
+  snprintf(info->first_error, sizeof info->first_error, "%s", r->msg);
+  return r->layers;
+}
+
+void cvr_texture_free_upload(cvr_texture *t) {
+  free(t->uvl), free(t->orig);
+  t->uvl = NULL, t->orig = NULL;
+}
+
+void cvr_texture_free(cvr_texture *t) {
+  glDeleteTextures(1, &t->tex);
+  t->tex = 0;
 }

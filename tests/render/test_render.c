@@ -700,11 +700,11 @@ static void test_sun_matrices_fit(void **state) {
     for (int j = 0; j < 3; j++) s[j] = suns[k][j] / sqrt(l);
     float clip[16], texel;
     int size[2];
-    cvr_sun_matrices(r, s, clip, &texel, size);
-    const float *q = r->shadow_q;
+    cvr_sun_matrices(&r->ctx, &r->light.shadow, &r->scene, s, clip, &texel, size);
+    const float *q = r->light.shadow.q;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t v = 0; v < r->nv_used; v++) {
-      const float *p = r->pos_cpu + 3 * v;
+    for (size_t v = 0; v < r->scene.nv_used; v++) {
+      const float *p = r->scene.pos_cpu + 3 * v;
       for (int a = 0; a < 3; a++) {
         const double x = (double)q[a] * p[0] + (double)q[4 + a] * p[1] + (double)q[8 + a] * p[2] + q[12 + a];
         lo[a] = fmin(lo[a], x), hi[a] = fmax(hi[a], x);
@@ -716,7 +716,7 @@ static void test_sun_matrices_fit(void **state) {
            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
     assert_int_equal(size[lng], res);
     assert_true(size[1 - lng] >= 2 && size[1 - lng] <= res);
-    assert_true(fabs(r->shadow_k[0] / r->shadow_k[1] - 1) < 1e-5); /* square texels */
+    assert_true(fabs(r->light.shadow.k[0] / r->light.shadow.k[1] - 1) < 1e-5); /* square texels */
     for (int a = 0; a < 2; a++) /* inside: texel centres at integers, edges at -0.5, n - 0.5 */
       assert_true(lo[a] >= -0.5 && hi[a] <= size[a] - 0.5);
     assert_true(lo[2] >= 0 && hi[2] <= 1);
@@ -1389,12 +1389,12 @@ static void test_lum_stats_gpu(void **state) {
     for (int x = 0; x < 50; x++)
       for (int c = 0; c < 4; c++)
         rgba[4 * ((39 - y) * 50 + x) + c] = c < 3 ? h3->px[3 * (y * 50 + x) + c] : 1.0f;
-  glBindTexture(GL_TEXTURE_2D, F.r->tex_hdr);
+  glBindTexture(GL_TEXTURE_2D, F.r->passes.targets.tex_hdr);
   glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 50, 40, GL_RGBA, GL_FLOAT, rgba);
   glBindTexture(GL_TEXTURE_2D, 0);
   free(rgba);
   mx = -1, bad = 0;
-  OK(cvr_reduce_luminance(F.r, 50, 40, 1, lum, &mx, &bad, &err));
+  OK(cvr_reduce_luminance(&F.r->ctx, &F.r->passes, 50, 40, 1, lum, &mx, &bad, &err));
   assert_true(isnan(lum->px[0]));
   assert_true(bad > 100);
   lum_stats_compare(h3, lum, mx, bad, "50x40 with invalid pixels");
