@@ -23,8 +23,10 @@
 #include "io/tonemap_simple.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/light_level.h"
 #include "lcd/panels.h"
 #include "lcd/readability.h"
+#include "lcd/sweep.h"
 #include "prt/bake.h"
 #include "prt/scene_light.h"
 #include "service/drive.h"
@@ -100,13 +102,45 @@ static void help(FILE *f) {
           "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
 }
 
+/* s as a JSON string (quotes, backslashes and control characters escaped). */
+static void json_str(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const unsigned char *c = (const unsigned char *)s; *c; c++) {
+    if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
+    else if (*c < 0x20) fprintf(f, "\\u%04x", *c);
+    else fputc(*c, f);
+  }
+  fputc('"', f);
+}
+
+/* What the light level is (light_level.h) and the verdict: the sidecar's
+ * "light" block and the readability block's first fields. */
+typedef struct lcd_light_info {
+  cv_lcd_calib cal;
+  cv_lcd_illum il;
+} lcd_light_info;
+
+static void sidecar_light(FILE *f, const lcd_light_info *li) {
+  fprintf(f, "  \"light\": {\"absolute\": %s, \"assumed\": %s, \"source\": ",
+          li->cal.absolute ? "true" : "false", li->cal.assumed ? "true" : "false");
+  json_str(f, li->cal.source);
+  fprintf(f,
+          ",\n    \"unit\": \"%s\", \"outdoor_horizontal_illuminance\": %.6g,\n"
+          "    \"eye_horizontal_illuminance\": %.6g, \"eye_horizontal_illuminance_se\": %.3g,\n"
+          "    \"eye_vertical_illuminance\": %.6g, \"eye_vertical_illuminance_se\": %.3g},\n",
+          li->cal.absolute ? "lx" : "relative", li->il.outdoor_h, li->il.eye_h, li->il.eye_h_se,
+          li->il.eye_v, li->il.eye_v_se);
+}
+
 static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd_error *e,
                          const cv_lcd_key *key, double seconds, const char *brdf,
                          const cv_lcd_readability *rd, const cv_lcd_read_params *rp,
-                         const cv_lcd_veil_params *vp, cv_err *err) {
+                         const cv_lcd_veil_params *vp, const lcd_light_info *li, cv_err *err) {
   cv_outfile o;
   int st = cv_outfile_open(&o, path, 1, err);
   if (st) return st;
+  char why[160];
+  const cv_lcd_verdict_kind v = cv_lcd_verdict(rd, rp, li->cal.absolute, why, sizeof why);
   const int64_t *d = acc->data;
   fprintf(o.f,
           "{\n  \"width\": %d, \"height\": %d,\n  \"samples_per_texel\": %lld, \"rounds\": %lld,\n"
@@ -121,8 +155,13 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
           (long long)d[CV_LCD_ACC_SHADOW], (long long)d[CV_LCD_ACC_SUNLIT], key->eye_q[0],
           key->eye_q[1], key->eye_q[2], (unsigned long long)key->light_hash,
           (unsigned long long)key->setup_hash, brdf, seconds);
+  sidecar_light(o.f, li);
+  fprintf(o.f, "  \"readability\": {\"calibrated\": %s, \"verdict\": \"%s\", \"verdict_reason\": ",
+          li->cal.absolute ? "true" : "false", cv_lcd_verdict_name(v));
+  json_str(o.f, why);
+  fprintf(o.f, ",\n    \"area_min\": %.6g, \"vl_min\": %.6g,\n", rp->area_min, rp->vl_min);
   fprintf(o.f,
-          "  \"readability\": {\"white_luminance\": %.6g, \"black_luminance\": %.6g, \"cr_min\": %.6g,\n"
+          "    \"white_luminance\": %.6g, \"black_luminance\": %.6g, \"cr_min\": %.6g,\n"
           "    \"age\": %.6g, \"pigment\": %.6g,\n"
           "    \"contrast_ratio\": %.6g, \"contrast_ratio_se\": %.3g, \"contrast_ratio_worst\": %.6g,\n"
           "    \"area_meeting_cr_min\": %.6g, \"area_meeting_cr_min_se\": %.3g,\n"
@@ -138,7 +177,9 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
 }
 
 /* Writes the CR heat map (panel over a colour bar). */
-static int write_heatmap(const char *path, const cv_lcd_readability *rd, cv_err *err) {
+static int write_heatmap(const char *path, const cv_lcd_readability *rd, const char *name,
+                         const cv_lcd_read_params *q, const lcd_light_info *li, cv_err *err) {
+  (void)name, (void)q, (void)li;
   const int bar = rd->h / 12 > 8 ? rd->h / 12 : 8;
   uint8_t *px = malloc((size_t)rd->w * (size_t)(rd->h + bar) * 3);
   if (!px) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
@@ -352,8 +393,10 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
 typedef struct lcd_opts {
   const char *in, *out, *weights, *prt_path, *cfg_path;
   const char *brdf_s, *content_s, *sampling, *size_s;
-  const char *heat_s, *drive_s, *head_s, *cave_s;
-  int png, have_light, have_eye, threads, spp, rounds;
+  const char *heat_s, *drive_s, *head_s, *cave_s, *sweep_s;
+  int png, have_light, have_eye, threads, spp, rounds, sweep_n;
+  double sweep_lo, sweep_hi, area_min, vl_min;
+  char light_origin[CV_PATH_MAX + 32]; /* where the lighting came from (light_level.h) */
   double lum, eye[3], black, cr_min, age, pigment;
   double dt, offset[3];
   cv_lcd_read_params rp;
@@ -380,7 +423,8 @@ static int parse_seed(const char *s, long long *out) {
 static int parse_opts(int argc, char **argv, lcd_opts *o) {
   memset(o, 0, sizeof *o);
   o->spp = o->rounds = -1;
-  o->lum = o->black = o->cr_min = o->age = o->pigment = -1;
+  o->lum = o->black = o->cr_min = o->age = o->pigment = o->area_min = o->vl_min = -1;
+  snprintf(o->light_origin, sizeof o->light_origin, "command line");
   o->dt = 0.5;
   o->offset[0] = -0.37, o->offset[1] = -0.18, o->offset[2] = 0; /* configs/caves/cave5.json's scene_offset */
   cv_lcd_read_params_default(&o->rp);
@@ -388,10 +432,10 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
   o->seed = -1;
   cv_light_spec_default(&o->spec);
   static const char *const value_opts[] = {
-      "-o", "--adaptation", "--age", "--black", "--brdf", "--cave", "--content", "--cr-min",
-      "--drive", "--dt", "--eye", "--glare-spc", "--head-path", "--heatmap", "--lcd-config",
-      "--luminance", "--pigment", "--prt", "--rounds", "--sampling", "--scene-offset", "--seed",
-      "--size", "--spp", "--threads", NULL};
+      "-o", "--adaptation", "--age", "--area-min", "--black", "--brdf", "--cave", "--content",
+      "--cr-min", "--drive", "--dt", "--eye", "--glare-spc", "--head-path", "--heatmap",
+      "--illuminance-sweep", "--lcd-config", "--luminance", "--pigment", "--prt", "--rounds",
+      "--sampling", "--scene-offset", "--seed", "--size", "--spp", "--threads", "--vl-min", NULL};
   for (int i = 1, st; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -438,6 +482,15 @@ static int parse_opts(int argc, char **argv, lcd_opts *o) {
       if (cli_parse_double(argv[++i], &o->pigment) || !(o->pigment >= 0 && o->pigment <= 1)) return cli_fail("lcd", 2, "--pigment: expected 0..1, got '%s'", val);
     } else if (!strcmp(a, "--adaptation")) {
       if (cli_parse_double(argv[++i], &o->rp.adaptation) || !(o->rp.adaptation >= 0 && o->rp.adaptation <= CV_LCD_LUMINANCE_MAX)) return cli_fail("lcd", 2, "--adaptation: expected cd/m^2 in 0..1e6 (0 = automatic), got '%s'", val);
+    } else if (!strcmp(a, "--area-min")) {
+      if (cli_parse_double(argv[++i], &o->area_min) || !(o->area_min >= 0 && o->area_min <= 1)) return cli_fail("lcd", 2, "--area-min: expected a share of the panel area in 0..1, got '%s'", val);
+    } else if (!strcmp(a, "--vl-min")) {
+      if (cli_parse_double(argv[++i], &o->vl_min) || !(o->vl_min >= 0 && o->vl_min <= 1e6)) return cli_fail("lcd", 2, "--vl-min: expected a visibility level in 0..1e6, got '%s'", val);
+    } else if (!strcmp(a, "--illuminance-sweep")) {
+      char why[200];
+      o->sweep_s = argv[++i];
+      if (cv_lcd_sweep_parse(o->sweep_s, &o->sweep_lo, &o->sweep_hi, &o->sweep_n, why, sizeof why))
+        return cli_fail("lcd", 2, "--illuminance-sweep: %s", why);
     } else if (!strcmp(a, "--drive")) {
       o->drive_s = argv[++i];
     } else if (!strcmp(a, "--head-path")) {
@@ -536,7 +589,7 @@ static int check_eye(const double eye[3], const cv_lcd_layout *L, const cv_lcd_c
  * rays went, the reflection and veil, CR and VL. */
 static void print_panel(const char *nm, const cv_lcd_accum *acc, const cv_lcd_error *e,
                         const cv_lcd_read_params *q, const cv_lcd_readability *rd,
-                        const cv_lcd_veil_params *vp, double sun_deg) {
+                        const cv_lcd_veil_params *vp, double sun_deg, const lcd_light_info *li) {
   const int64_t *d = acc->data;
   int64_t rays = d[CV_LCD_ACC_HITS] + d[CV_LCD_ACC_ENV] + d[CV_LCD_ACC_LOST];
   printf("lcd %s: %lld samples per texel; estimated relative RMS error of the reflection %.2f%%; "
@@ -554,11 +607,36 @@ static void print_panel(const char *nm, const cv_lcd_accum *acc, const cv_lcd_er
          "L_v %.4g +- %.2g cd/m2 (CIE 146, age %g, pigment %g; %s)\n",
          nm, q->white, q->black, rd->L_r.value, rd->L_r.se, rd->L_v.value, rd->L_v.se, vp->age,
          vp->pigment, sun_txt);
+  const char *unc = li->cal.absolute ? "" : " [uncalibrated light]";
   printf("lcd %s: CR %.3g +- %.2g (required %g:1, ISO 15008); %.1f%% +- %.1f%% of the panel meets "
-         "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)\n",
+         "it (worst texel %.3g); VL %.3g +- %.2g at adaptation %.4g cd/m2 (threshold %.3g cd/m2)%s\n",
          nm, rd->cr_mean.value, rd->cr_mean.se, q->cr_min, 100 * rd->frac_ok.value,
          100 * rd->frac_ok.se, rd->cr_worst, rd->vl.value, rd->vl.se, rd->L_a.value,
-         rd->dL_threshold);
+         rd->dL_threshold, unc);
+  char why[160];
+  const cv_lcd_verdict_kind v = cv_lcd_verdict(rd, q, li->cal.absolute, why, sizeof why);
+  if (v == CV_LCD_UNCALIBRATED)
+    printf("lcd %s: uncalibrated: no verdict (the light's level is unknown: %s)\n", nm,
+           li->cal.source);
+  else
+    printf("lcd %s: %s (%s; needs CR >= %g, >= %.0f%% of the area, VL >= %g)%s\n", nm,
+           cv_lcd_verdict_name(v), why, q->cr_min, 100 * q->area_min, q->vl_min,
+           li->cal.assumed ? " under an ASSUMED light level" : "");
+}
+
+/* The light level: where it comes from, outdoors and at the eye. */
+static void print_light(const lcd_light_info *li) {
+  const cv_lcd_calib *c = &li->cal;
+  const char *u = c->absolute ? "lx" : "(relative units)";
+  printf("light: %s: %s\n", c->absolute ? (c->assumed ? "absolute by ASSUMPTION" : "absolute")
+                                        : "UNCALIBRATED", c->source);
+  printf("light: horizontal illuminance outdoors %.4g %s; at the eye %.4g +- %.2g %s horizontal, "
+         "%.4g +- %.2g %s vertical (facing ahead)\n",
+         li->il.outdoor_h, u, li->il.eye_h, li->il.eye_h_se, u, li->il.eye_v, li->il.eye_v_se, u);
+  if (!c->absolute)
+    printf("light: uncalibrated: the luminances below are in the map's units and no verdict is "
+           "given (absolute light: --illuminance LUX, --sky, or a config's \"illuminance\" or "
+           "\"absolute\": true; docs/readability.md)\n");
 }
 
 /* Writes panel i's files: one panel: -o, -o.json, --heatmap (or
@@ -595,7 +673,7 @@ static int output_is_folder(const char *opt, const char *path) {
 static int check_outputs(const lcd_opts *o, const cv_lcd_config *lc) {
   if (cli_check_output("lcd", "-o", o->out)) return 1;
   if (o->heat_s && cli_check_output("lcd", "--heatmap", o->heat_s)) return 1;
-  if (o->drive_s) {
+  if (o->drive_s || o->sweep_s) {
     char png[CV_PATH_MAX + 8];
     snprintf(png, sizeof png, "%.*s.png", (int)strlen(o->out) - 4, o->out);
     return output_is_folder("-o", o->out) || output_is_folder("-o", png);
@@ -626,7 +704,8 @@ static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const
                              int i, const cv_image *content, const cv_lcd_accum *crop,
                              const cv_lcd_error *e, const cv_lcd_key *key, double render_s,
                              const char *brdf_source, const cv_lcd_readability *rd,
-                             const cv_lcd_read_params *q, written_files *wf) {
+                             const cv_lcd_read_params *q, const lcd_light_info *li,
+                             written_files *wf) {
   panel_paths pp;
   make_panel_paths(o, multi, nm, &pp);
   const char *exrp = pp.exr, *side = pp.side, *heatp = pp.heat;
@@ -639,8 +718,8 @@ static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const
   int rc = 0;
   if (cv_lcd_accum_to_image(crop, pc, &img) || cv_exr_write(exrp, img, 0, CV_EXR_ZIP, &err) ||
       (written_add(wf, exrp), 0) ||
-      write_sidecar(side, crop, e, key, render_s, brdf_source, rd, q, &o->vp, &err) ||
-      (written_add(wf, side), 0) || write_heatmap(heatp, rd, &err)) {
+      write_sidecar(side, crop, e, key, render_s, brdf_source, rd, q, &o->vp, li, &err) ||
+      (written_add(wf, side), 0) || write_heatmap(heatp, rd, nm, q, li, &err)) {
     rc = cli_fail("lcd", 1, "%s", err.msg[0] ? err.msg : "cannot make the image");
   } else if (written_add(wf, heatp), o->png) {
     cv_preview_stats pst;
@@ -657,7 +736,8 @@ static int write_panel_files(const lcd_opts *o, int multi, const char *nm, const
  * printed) its files.  Returns the exit status. */
 static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_layout *L,
                          const cv_lcd_panels *ps, const cv_lcd_accum *all, const cv_image *content,
-                         const cv_lcd_key *key, double render_s, const double *sun_deg) {
+                         const cv_lcd_key *key, double render_s, const double *sun_deg,
+                         const lcd_light_info *li) {
   const int multi = lc->n_panels > 1;
   int rc = 0;
   cv_err err;
@@ -675,12 +755,12 @@ static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lc
       cv_lcd_accum_error(crop[i], &e[i]);
   }
   for (int i = 0; i < L->n && !rc; i++)
-    print_panel(lc->panels[i].name, crop[i], &e[i], &q[i], &rd[i], &o->vp, sun_deg[i]);
+    print_panel(lc->panels[i].name, crop[i], &e[i], &q[i], &rd[i], &o->vp, sun_deg[i], li);
   written_files wf;
   wf.n = 0;
   for (int i = 0; i < L->n && !rc; i++)
     rc = write_panel_files(o, multi, lc->panels[i].name, L, i, content, crop[i], &e[i], key,
-                           render_s, ps->brdf[i]->source, &rd[i], &q[i], &wf);
+                           render_s, ps->brdf[i]->source, &rd[i], &q[i], li, &wf);
   if (rc) { /* nothing of a failed run is left behind */
     for (int k = 0; k < wf.n; k++) unlink(wf.path[k]);
   }
@@ -688,6 +768,162 @@ static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lc
     cv_lcd_readability_free(&rd[i]);
     cv_lcd_accum_destroy(crop[i]);
   }
+  return rc;
+}
+
+/* --- the illuminance sweep (--illuminance-sweep LO:HI[:N]) ----------------- */
+
+/* The sweep's plot with gnuplot (when installed): CR of every panel against
+ * the illuminance (log scale), the area share on the right axis, the
+ * requirement, each panel's crossing and bright daylight marked.  1 when
+ * written. */
+static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
+                      const cv_lcd_read_params *rp, const double *cross, const float eye[3],
+                      double lo, double hi) {
+  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
+  FILE *g = popen("gnuplot", "w");
+  if (!g) return 0;
+  const int np = lc->n_panels, cols = 11;
+  fprintf(g,
+          "set terminal pngcairo size 1000,500 font ',10'\nset output '%s'\n"
+          "set datafile separator ','\nset key bottom left\nset grid\nset logscale x\n"
+          "set xlabel 'outdoor horizontal illuminance (lx)'\nset ylabel 'contrast ratio'\n"
+          "set y2label 'share of the panel area meeting %g:1'\nset y2range [0:1.05]\n"
+          "set ytics nomirror\nset y2tics 0.2\nset yrange [0:*]\nset xrange [%g:%g]\n"
+          "set format x '%%.0f'\n"
+          "set title 'LCD readability against the light level (eye %.3f %.3f %.3f m, the sun as "
+          "given): CR falls to %g:1 at",
+          png, rp->cr_min, lo, hi, eye[0], eye[1], eye[2], rp->cr_min);
+  for (int i = 0; i < np; i++)
+    fprintf(g, "%s %s %.0f lx", i ? "," : "", lc->panels[i].name, cross[i]);
+  fprintf(g, "'\n");
+  if (lo <= 1e5 && hi >= 1e5) /* bright daylight, for comparison */
+    fprintf(g, "set arrow from 100000, graph 0 to 100000, graph 1 nohead dt 3 lw 2 lc rgb '#888888'\n"
+               "set label 'bright daylight, about 100000 lx' at 100000, graph 0.5 right offset -0.5,0 "
+               "tc rgb '#555555'\n");
+  static const char *const col[CV_LCD_MAX_PANELS] = {"#3b528b", "#21918c", "#5ec962", "#440154"};
+  for (int i = 0; i < np; i++)
+    if (cross[i] > 0)
+      fprintf(g, "set arrow from %g, graph 0 to %g, graph 1 nohead dt 2 lc rgb '%s'\n", cross[i],
+              cross[i], col[i]);
+  fprintf(g, "plot ");
+  for (int i = 0; i < np; i++) {
+    const int c = 2 + cols * i + 4; /* the panel's CR column (1-based) */
+    fprintf(g,
+            "'%s' using 1:%d with linespoints lc rgb '%s' pt 7 ps 0.6 title 'CR %s', "
+            "'' using 1:%d axes x1y2 with lines dt 4 lc rgb '%s' title 'area share %s', ",
+            csv, c, col[i], lc->panels[i].name, c + 2, col[i], lc->panels[i].name);
+  }
+  fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", rp->cr_min,
+          rp->cr_min);
+  return pclose(g) == 0;
+}
+
+/* One panel's sweep summary from the grid's columns and the closed form. */
+static void sweep_report(const char *nm, const cv_lcd_readability *ref, const cv_lcd_read_params *q,
+                         double E_ref, const double *E, const double *area, const double *vl,
+                         const int *ok, int n, double *cross) {
+  double Es, se, Ea, Ev;
+  const int has = cv_lcd_sweep_crossing(ref, q, E_ref, &Es, &se);
+  *cross = has ? Es : 0;
+  if (has)
+    printf("sweep %s: the mean CR falls to %g:1 at %.4g +- %.2g lx%s\n", nm, q->cr_min, Es, se,
+           Es < E[0] || Es > E[n - 1] ? " (outside the sweep)" : "");
+  else
+    printf("sweep %s: the mean CR %s %g:1 at every light level\n", nm,
+           q->white > q->cr_min * q->black ? "meets" : "never meets", q->cr_min);
+  if (cv_lcd_sweep_grid_crossing(E, area, q->area_min, n, &Ea))
+    printf("sweep %s: the area meeting %g:1 falls below %.0f%% at about %.4g lx (between sweep steps)\n",
+           nm, q->cr_min, 100 * q->area_min, Ea);
+  else
+    printf("sweep %s: the area meeting %g:1 is %s %.0f%% over the whole sweep\n", nm, q->cr_min,
+           area[0] >= q->area_min ? "at least" : "below", 100 * q->area_min);
+  if (cv_lcd_sweep_grid_crossing(E, vl, q->vl_min, n, &Ev))
+    printf("sweep %s: VL falls below %g at about %.4g lx\n", nm, q->vl_min, Ev);
+  int last = -1;
+  while (last + 1 < n && ok[last + 1]) last++;
+  if (last < 0) printf("sweep %s: UNREADABLE already at %.4g lx\n", nm, E[0]);
+  else if (last == n - 1) printf("sweep %s: READABLE over the whole sweep, up to %.4g lx\n", nm, E[n - 1]);
+  else printf("sweep %s: READABLE up to %.4g lx, UNREADABLE from %.4g lx (sweep steps)\n", nm,
+              E[last], E[last + 1]);
+}
+
+/* The figures of every panel at each level of the sweep from the one
+ * render `all` (sweep.h), the CSV, the crossings and the plot. */
+static int lcd_sweep(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_panels *ps,
+                     const cv_lcd_accum *all, const lcd_light_info *li, const float eye[3]) {
+  const double E_ref = li->il.outdoor_h;
+  if (!(E_ref > 0))
+    return cli_fail("lcd", 1, "--illuminance-sweep: the lighting has no horizontal illuminance "
+                    "(a black upper hemisphere): there is no level to scale");
+  const int np = ps->L.n, n = o->sweep_n, multi = np > 1;
+  printf("sweep: %d levels %g..%g lx from one render at the lighting's own level (outdoor "
+         "horizontal illuminance %.4g %s), reflection and veil scaled (both are linear in the light)\n",
+         n, o->sweep_lo, o->sweep_hi, E_ref, li->cal.absolute ? "lx" : "in the map's units");
+  cv_err err;
+  cv_err_clear(&err);
+  cv_lcd_accum *crop[CV_LCD_MAX_PANELS] = {NULL};
+  cv_lcd_readability ref[CV_LCD_MAX_PANELS];
+  cv_lcd_read_params q[CV_LCD_MAX_PANELS];
+  memset(ref, 0, sizeof ref);
+  double *E = calloc((size_t)n, sizeof *E), *buf = calloc((size_t)n * 2 * np, sizeof *buf);
+  int *ok = calloc((size_t)n * np, sizeof *ok), rc = 0;
+  cv_outfile f;
+  if (!E || !buf || !ok) rc = cli_fail("lcd", 1, "out of memory");
+  else if (cv_outfile_open(&f, o->out, 1, &err)) rc = cli_fail("lcd", 1, "%s", err.msg);
+  for (int i = 0; i < np && !rc; i++) {
+    q[i] = panel_rp(&o->rp, lc, i);
+    if (panel_figures(ps, all, i, &q[i], &crop[i], &ref[i], &err))
+      rc = cli_fail("lcd", 1, "readability of %s: %s", lc->panels[i].name, err.msg);
+  }
+  static const char *const cols[11] = {"L_r", "L_r_se", "L_v", "L_v_se", "CR", "CR_se",
+                                       "area_meeting", "area_meeting_se", "VL", "VL_se", "readable"};
+  if (!rc) {
+    fprintf(f.f, "E_lx");
+    for (int i = 0; i < np; i++)
+      for (int c = 0; c < 11; c++)
+        fprintf(f.f, ",%s%s%s", multi ? lc->panels[i].name : "", multi ? "." : "", cols[c]);
+    fprintf(f.f, "\n");
+  }
+  for (int k = 0; k < n && !rc; k++) {
+    E[k] = cv_lcd_sweep_level(o->sweep_lo, o->sweep_hi, n, k);
+    fprintf(f.f, "%.6g", E[k]);
+    for (int i = 0; i < np && !rc; i++) {
+      cv_lcd_readability rd;
+      const cv_lcd_figure lv = ref[i].L_v;
+      if (cv_lcd_sweep_figures(crop[i], &q[i], &lv, E_ref, E[k], &rd, &err)) {
+        rc = cli_fail("lcd", 1, "sweep %s at %g lx: %s", lc->panels[i].name, E[k], err.msg);
+        break;
+      }
+      ok[i * n + k] = cv_lcd_verdict(&rd, &q[i], 1, NULL, 0) == CV_LCD_READABLE;
+      buf[(2 * i) * n + k] = rd.frac_ok.value;
+      buf[(2 * i + 1) * n + k] = rd.vl.value;
+      fprintf(f.f, ",%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%d", rd.L_r.value, rd.L_r.se,
+              rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se, rd.frac_ok.value,
+              rd.frac_ok.se, rd.vl.value, rd.vl.se, ok[i * n + k]);
+      cv_lcd_readability_free(&rd);
+    }
+    fprintf(f.f, "\n");
+  }
+  if (rc && E && buf && ok) cv_outfile_abort(&f);
+  else if (!rc && cv_outfile_commit(&f, &err)) rc = cli_fail("lcd", 1, "%s", err.msg);
+  double cross[CV_LCD_MAX_PANELS] = {0};
+  for (int i = 0; i < np && !rc; i++)
+    sweep_report(lc->panels[i].name, &ref[i], &q[i], E_ref, E, buf + 2 * i * n,
+                 buf + (2 * i + 1) * n, ok + i * n, n, &cross[i]);
+  if (!rc) {
+    char png[CV_PATH_MAX];
+    snprintf(png, sizeof png, "%.*s.png", (int)(strlen(o->out) - 4), o->out);
+    if (sweep_plot(o->out, png, lc, &o->rp, cross, eye, o->sweep_lo, o->sweep_hi)) printf("wrote %s and %s\n", o->out, png);
+    else printf("wrote %s (no plot: gnuplot is not installed)\n", o->out);
+  }
+  for (int i = 0; i < np; i++) {
+    cv_lcd_readability_free(&ref[i]);
+    cv_lcd_accum_destroy(crop[i]);
+  }
+  free(E);
+  free(buf);
+  free(ok);
   return rc;
 }
 
@@ -701,7 +937,9 @@ int cmd_lcd(int argc, char **argv) {
   }
   if (o.head_s && !o.drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
   if (o.drive_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", o.out);
-  if (!o.drive_s && !cli_has_ext(o.out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o.out);
+  if (o.sweep_s && o.drive_s) return cli_fail("lcd", 2, "--illuminance-sweep: not with --drive (a sweep is of one pose and sun position)");
+  if (o.sweep_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --illuminance-sweep the sweep is written as .csv, got '%s'", o.out);
+  if (!o.drive_s && !o.sweep_s && !cli_has_ext(o.out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o.out);
   if (o.cave_s) {
     cv_cave cave;
     cv_err cerr;
@@ -746,6 +984,8 @@ int cmd_lcd(int argc, char **argv) {
   o.rp.cr_min = lc.cr_min;
   o.vp.age = lc.age;
   o.vp.pigment = lc.pigment;
+  if (o.area_min >= 0) o.rp.area_min = o.area_min;
+  if (o.vl_min >= 0) o.rp.vl_min = o.vl_min;
   for (int i = 0; i < lc.n_panels; i++) {
     const cv_lcd_read_params q = panel_rp(&o.rp, &lc, i);
     if (cv_lcd_read_params_check(&q, &err))
@@ -786,6 +1026,7 @@ int cmd_lcd(int argc, char **argv) {
       if (pi != 0) o.spec.pitch_deg = pi;
       if (r != 0) o.spec.roll_deg = r;
       o.have_light = 1;
+      snprintf(o.light_origin, sizeof o.light_origin, "scene config %s", o.in);
     }
     if (o.prt_path) {
       if (cv_prt_read(o.prt_path, &p, &err)) {
@@ -891,6 +1132,10 @@ int cmd_lcd(int argc, char **argv) {
     goto done;
   }
   cv_lcd_key_eye(&key, lc.eye_tolerance, par.eye);
+  lcd_light_info li;
+  cv_lcd_calibration(&o.spec, o.light_origin, &li.cal);
+  cv_lcd_illuminance(ps->g[0], light, par.eye, &li.il);
+  if (!o.sweep_s) print_light(&li);
   if (cv_lcd_accum_create(L.W, L.H, clamp, &round_buf)) {
     rc = cli_fail("lcd", 1, "cannot allocate a %dx%d panel buffer", L.W, L.H);
     goto done;
@@ -922,7 +1167,8 @@ int cmd_lcd(int argc, char **argv) {
            lc.rounds, par.spp, render_s, setup_s, omp_get_max_threads(),
            render_s > 0 ? rays / render_s / 1e6 : 0.0, par.eye[0], par.eye[1], par.eye[2]);
   }
-  rc = report_panels(&o, &lc, &L, ps, prog.acc, content, &key, render_s, sun_deg);
+  if (o.sweep_s) rc = lcd_sweep(&o, &lc, ps, prog.acc, &li, par.eye);
+  else rc = report_panels(&o, &lc, &L, ps, prog.acc, content, &key, render_s, sun_deg, &li);
 done:
   cv_image_destroy(content);
   cv_lcd_progress_free(&prog);

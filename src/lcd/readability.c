@@ -134,6 +134,8 @@ void cv_lcd_read_params_default(cv_lcd_read_params *p) {
   p->black = 0.5;
   p->cr_min = 3;
   p->adaptation = 0;
+  p->area_min = 0.95;
+  p->vl_min = 5;
 }
 
 int cv_lcd_read_params_check(const cv_lcd_read_params *p, cv_err *err) {
@@ -147,6 +149,10 @@ int cv_lcd_read_params_check(const cv_lcd_read_params *p, cv_err *err) {
                       p->white, p->black);
   if (!(p->cr_min >= 1) || !isfinite(p->cr_min))
     return cv_err_set(err, CV_ERR_INVALID, "cr_min: %g: expected a ratio >= 1", p->cr_min);
+  if (!(p->area_min >= 0 && p->area_min <= 1))
+    return cv_err_set(err, CV_ERR_INVALID, "area_min: %g: expected a share in 0..1", p->area_min);
+  if (!(p->vl_min >= 0) || !isfinite(p->vl_min))
+    return cv_err_set(err, CV_ERR_INVALID, "vl_min: %g: expected a visibility level >= 0", p->vl_min);
   if (!(p->adaptation >= 0) || !isfinite(p->adaptation))
     return cv_err_set(err, CV_ERR_INVALID, "adaptation: %g: expected cd/m^2 >= 0 (0 = automatic)",
                       p->adaptation);
@@ -194,9 +200,17 @@ static double vl_of(double W, double B, double La) { return (W - B) / cv_tvi_fer
 
 int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
                                const cv_lcd_figure *lv, cv_lcd_readability *out, cv_err *err) {
+  return cv_lcd_readability_compute_scaled(acc, p, lv, 1.0, out, err);
+}
+
+int cv_lcd_readability_compute_scaled(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
+                                      const cv_lcd_figure *lv, double k,
+                                      cv_lcd_readability *out, cv_err *err) {
   memset(out, 0, sizeof *out);
   int st = cv_lcd_read_params_check(p, err);
   if (st) return st;
+  if (!(k > 0) || !isfinite(k))
+    return cv_err_set(err, CV_ERR_INVALID, "light scale: %g: expected a finite factor > 0", k);
   if (!lv || !isfinite(lv->value) || lv->value < 0 || !isfinite(lv->se) || lv->se < 0)
     return cv_err_set(err, CV_ERR_INVALID, "veiling luminance: expected a finite value >= 0");
   const int64_t n = acc->data[CV_LCD_ACC_SPP];
@@ -225,9 +239,9 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
       const size_t i = (size_t)y * (size_t)acc->w + (size_t)x;
       const int64_t *q = acc->data + cv_lcd_acc_rgb(acc, x, y);
       const int64_t *q2 = acc->data + cv_lcd_acc_m2(acc, x, y);
-      const double m = (0.2126 * (double)q[0] + 0.7152 * (double)q[1] + 0.0722 * (double)q[2]) *
+      const double m = k * (0.2126 * (double)q[0] + 0.7152 * (double)q[1] + 0.0722 * (double)q[2]) *
                        acc->unit / (double)n;
-      const double m2 = ((double)q2[0] * 0x1p40 + (double)q2[1]) * acc->unit * acc->unit / (double)n;
+      const double m2 = k * k * ((double)q2[0] * 0x1p40 + (double)q2[1]) * acc->unit * acc->unit / (double)n;
       double vs = m2 - m * m; /* variance of one sample */
       if (!(vs > 0)) vs = 0;
       const double se2 = vs / (double)n;
