@@ -202,7 +202,8 @@ typedef struct drive_job {
 /* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
  * CR with its error bars against time, the requirement as a line, the steps
  * below it marked.  Returns 1 when written. */
-static int drive_plot(const char *csv, const char *png, double cr_min, const cv_lcd_config *lc) {
+static int drive_plot(const char *csv, const char *png, double cr_min, const cv_lcd_config *lc,
+                      int absolute) {
   if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
   FILE *g = popen("gnuplot", "w");
   if (!g) return 0;
@@ -212,19 +213,20 @@ static int drive_plot(const char *csv, const char *png, double cr_min, const cv_
           "set datafile separator ','\n"
           "set key top right\n"
           "set xlabel 'drive time (s)'\nset ylabel 'contrast ratio'\nset grid\n"
-          "set title 'LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
-          "misses the required %g:1 (ISO 15008)'\n"
+          "set title \"LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
+          "misses the required %g:1 (ISO 15008)%s\"\n"
           "plot ",
-          png, cr_min);
+          png, cr_min,
+          absolute ? "" : "\\nUNCALIBRATED light (relative units): no verdict, CR not comparable with 3:1");
   static const char *const col[CV_LCD_MAX_PANELS] = {"#3b528b", "#21918c", "#5ec962", "#440154"};
   for (int i = 0; i < lc->n_panels; i++) {
-    const int c = 11 + 13 * i; /* the panel's CR column (1-based), its s.e. next */
+    const int c = 11 + 13 * i; /* the panel's CR column (1-based), its s.e. next, readable c + 7 */
     fprintf(g,
             "'%s' using 1:%d:%d with yerrorbars lc rgb '%s' pt 7 ps 0.6 title 'CR %s', "
             "'' using 1:%d with lines lc rgb '%s' notitle, "
-            "'' using 1:($%d < %g ? $%d : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' %s, ",
-            csv, c, c + 1, col[i], lc->panels[i].name, c, col[i], c, cr_min, c,
-            i == 0 ? "title 'unreadable'" : "notitle");
+            "'' using 1:($%d == 0 ? $%d : 1/0) with points pt 7 ps 1.2 lc rgb '#d62728' %s, ",
+            csv, c, c + 1, col[i], lc->panels[i].name, c, col[i], c + 7, c,
+            i == 0 ? "title 'UNREADABLE (CR, area or VL)'" : "notitle");
   }
   fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", cr_min, cr_min);
   return pclose(g) == 0;
@@ -259,6 +261,121 @@ static int store_veils(cv_lcd_accum *round_buf, int n, const cv_lcd_figure *lv) 
   return CV_OK;
 }
 
+/* The drive's running tallies per panel (for the closing lines). */
+typedef struct drive_tally {
+  int n_bad[CV_LCD_MAX_PANELS], worst_k[CV_LCD_MAX_PANELS];
+  double worst[CV_LCD_MAX_PANELS];
+  int absolute;
+} drive_tally;
+
+/* The figures of every panel at one step: a CSV row (the light columns
+ * last) and a line per panel.  Returns 0, or the exit status with the
+ * message printed. */
+static int drive_row(FILE *csv, const cv_lcd_panels *ps, const cv_lcd_config *lc,
+                     const cv_lcd_accum *acc, const cv_lcd_read_params *rp, double t, int k,
+                     const cv_drive_state *ds, const float eye[3], const double *sun_deg,
+                     const cv_lcd_illum *il, drive_tally *ty) {
+  const int np = ps->L.n, multi = np > 1;
+  cv_err err;
+  cv_err_clear(&err);
+  fprintf(csv, "%.3f,%.2f,%.4f,%.4f,%.4f", t, ds->yaw_deg, eye[0], eye[1], eye[2]);
+  for (int i = 0; i < np; i++) {
+    cv_lcd_readability rd;
+    memset(&rd, 0, sizeof rd);
+    cv_lcd_accum *crop = NULL;
+    const cv_lcd_read_params q = panel_rp(rp, lc, i);
+    if (panel_figures(ps, acc, i, &q, &crop, &rd, &err)) {
+      cv_lcd_readability_free(&rd);
+      cv_lcd_accum_destroy(crop);
+      return cli_fail("lcd", 1, "drive t=%.2f s: %s: %s", t, lc->panels[i].name, err.msg);
+    }
+    char why[160];
+    const cv_lcd_verdict_kind v = cv_lcd_verdict(&rd, &q, ty->absolute, why, sizeof why);
+    ty->n_bad[i] += v == CV_LCD_UNREADABLE;
+    if (rd.cr_mean.value < ty->worst[i]) ty->worst[i] = rd.cr_mean.value, ty->worst_k[i] = k;
+    fprintf(csv, ",%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d", sun_deg[i],
+            rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se,
+            rd.frac_ok.value, rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value,
+            v == CV_LCD_UNCALIBRATED ? -1 : v == CV_LCD_READABLE);
+    printf("t %6.2f s yaw %5.1f%s%s: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, "
+           "L_v %.4g cd/m2, VL %.3g +- %.2g%s%s%s\n",
+           t, ds->yaw_deg, multi ? " " : "", multi ? lc->panels[i].name : "", rd.cr_mean.value,
+           rd.cr_mean.se, 100 * rd.frac_ok.value, q.cr_min, rd.L_r.value, rd.L_v.value,
+           rd.vl.value, rd.vl.se, v == CV_LCD_UNCALIBRATED ? "  [uncalibrated]" : "",
+           v == CV_LCD_UNREADABLE ? "  UNREADABLE: " : "", v == CV_LCD_UNREADABLE ? why : "");
+    cv_lcd_readability_free(&rd);
+    cv_lcd_accum_destroy(crop);
+  }
+  fprintf(csv, ",%d,%.6g,%.6g,%.6g\n", ty->absolute, il->outdoor_h, il->eye_h, il->eye_v);
+  return 0;
+}
+
+/* One step of the drive: its lighting, eye, rounds, veils and light level,
+ * then drive_row.  Returns 0, or the exit status with the message printed. */
+static int drive_step(FILE *csv, const cv_drive *d, const cv_head_path *hp, const drive_job *j,
+                      const cv_prt *p, const cv_tracer *tr, const cv_lcd_panels *ps,
+                      const cv_lcd_config *lc, const cv_lcd_params *par0,
+                      const cv_lcd_read_params *rp, const cv_lcd_veil_params *vp, int k,
+                      drive_tally *ty) {
+  const double t = k * j->dt;
+  cv_err err;
+  cv_err_clear(&err);
+  cv_drive_state ds;
+  cv_drive_eval(d, t, &ds);
+  cv_light_spec spec;
+  cv_drive_to_light_spec(d, &ds, &spec);
+  cv_scene_light *sl = NULL;
+  cv_lcd_light *light = NULL;
+  cv_lcd_accum *round_buf = NULL;
+  cv_lcd_progress prog;
+  memset(&prog, 0, sizeof prog);
+  float eye[3];
+  if (hp) {
+    cv_head_pose hpose;
+    cv_head_path_eval(hp, t, 1, &hpose);
+    for (int a = 0; a < 3; a++) eye[a] = (float)(hpose.pos[a] + j->offset[a]);
+  } else {
+    for (int a = 0; a < 3; a++) eye[a] = (float)j->eye[a];
+  }
+  cv_lcd_params par = *par0;
+  cv_lcd_key key;
+  cv_lcd_figure lv[CV_LCD_MAX_PANELS];
+  double sun_deg[CV_LCD_MAX_PANELS];
+  int rc = 0;
+  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
+      cv_lcd_light_from_scene(sl, &spec, p, tr, lc->sun_samples, lc->env_width, &light, &err)) {
+    rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, err.msg);
+  } else {
+    const double clamp = cv_lcd_panels_clamp(ps, light, lc->clamp);
+    const uint64_t setup = cv_lcd_panels_setup_hash(ps, &par, clamp, lc->eye_tolerance, p->meta.input_hash);
+    if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
+      rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
+    } else {
+      cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
+      int st = cv_lcd_panels_veils(ps, light, par.eye, vp, lv, sun_deg);
+      if (!st) st = cv_lcd_accum_create(ps->L.W, ps->L.H, clamp, &round_buf);
+      for (int r = 0; r < lc->rounds && !st; r++) {
+        cv_lcd_accum_clear(round_buf);
+        st = cv_lcd_panels_round(ps, light, &par, (uint32_t)r, round_buf);
+        if (!st) st = store_veils(round_buf, ps->L.n, lv);
+        if (!st) st = cv_lcd_progress_submit(&prog, &key, round_buf, NULL);
+      }
+      if (st) rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, cv_status_str(st));
+    }
+  }
+  if (!rc) {
+    cv_lcd_illum il;
+    cv_lcd_illuminance(ps->g[0], light, par.eye, &il);
+    rc = drive_row(csv, ps, lc, prog.acc, rp, t, k, &ds, par.eye, sun_deg, &il, ty);
+  }
+  fflush(stdout);
+  cv_lcd_progress_free(&prog);
+  cv_lcd_accum_destroy(round_buf);
+  cv_lcd_light_destroy(light);
+  cv_scene_light_destroy(sl);
+  return rc;
+}
+
 static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
                      const cv_lcd_panels *ps, const cv_lcd_config *lc, const cv_lcd_params *par0,
                      const cv_lcd_read_params *rp, const cv_lcd_veil_params *vp) {
@@ -281,7 +398,7 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     return cli_fail("lcd", 1, "%s", err.msg);
   }
   /* one panel: the plain column names; several: each panel's 13 columns
-   * prefixed with its name */
+   * prefixed with its name; the light level's columns last */
   static const char *const cols[13] = {"sun_glare_deg", "L_r", "L_r_se", "L_v", "L_v_se", "CR",
                                        "CR_se", "area_meeting", "area_meeting_se", "VL", "VL_se",
                                        "L_a", "readable"};
@@ -289,88 +406,29 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
   for (int i = 0; i < np; i++)
     for (int c = 0; c < 13; c++)
       fprintf(o.f, ",%s%s%s", multi ? lc->panels[i].name : "", multi ? "." : "", cols[c]);
-  fprintf(o.f, "\n");
+  fprintf(o.f, ",light_absolute,E_outdoor_h,E_eye_h,E_eye_v\n");
+  /* the calibration is the drive's (every step's spec has the same) */
+  drive_tally ty;
+  memset(&ty, 0, sizeof ty);
+  for (int i = 0; i < np; i++) ty.worst[i] = INFINITY;
+  {
+    cv_drive_state ds0;
+    cv_light_spec spec0;
+    char origin[CV_PATH_MAX + 16];
+    cv_lcd_calib cal;
+    cv_drive_eval(d, 0, &ds0);
+    cv_drive_to_light_spec(d, &ds0, &spec0);
+    snprintf(origin, sizeof origin, "drive %s", j->drive_path);
+    cv_lcd_calibration(&spec0, origin, &cal);
+    ty.absolute = cal.absolute;
+    printf("light: %s: %s\n", cal.absolute ? (cal.assumed ? "absolute by ASSUMPTION" : "absolute")
+                                           : "UNCALIBRATED (no verdict)", cal.source);
+  }
   printf("drive: %s, %.1f s, %d steps of %.2f s; eye from %s\n", j->drive_path, dur, n < 1 ? 1 : n,
          j->dt, j->head_path ? j->head_path : "--eye");
-  int rc = 0, n_bad[CV_LCD_MAX_PANELS] = {0}, worst_k[CV_LCD_MAX_PANELS] = {0};
-  double worst[CV_LCD_MAX_PANELS];
-  for (int i = 0; i < np; i++) worst[i] = INFINITY;
-  for (int k = 0; k < (n < 1 ? 1 : n) && !rc; k++) {
-    const double t = k * j->dt;
-    cv_drive_state ds;
-    cv_drive_eval(d, t, &ds);
-    cv_light_spec spec;
-    cv_drive_to_light_spec(d, &ds, &spec);
-    cv_scene_light *sl = NULL;
-    cv_lcd_light *light = NULL;
-    cv_lcd_accum *acc = NULL, *round_buf = NULL;
-    cv_lcd_progress prog;
-    memset(&prog, 0, sizeof prog);
-    float eye[3];
-    if (hp) {
-      cv_head_pose hpose;
-      cv_head_path_eval(hp, t, 1, &hpose);
-      for (int a = 0; a < 3; a++) eye[a] = (float)(hpose.pos[a] + j->offset[a]);
-    } else {
-      for (int a = 0; a < 3; a++) eye[a] = (float)j->eye[a];
-    }
-    cv_lcd_params par = *par0;
-    cv_lcd_key key;
-    cv_lcd_figure lv[CV_LCD_MAX_PANELS];
-    double sun_deg[CV_LCD_MAX_PANELS];
-    if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err) ||
-        cv_lcd_light_from_scene(sl, &spec, p, tr, lc->sun_samples, lc->env_width, &light, &err)) {
-      rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, err.msg);
-    } else {
-      const double clamp = cv_lcd_panels_clamp(ps, light, lc->clamp);
-      const uint64_t setup = cv_lcd_panels_setup_hash(ps, &par, clamp, lc->eye_tolerance, p->meta.input_hash);
-      if (cv_lcd_key_make(eye, lc->eye_tolerance, light->hash, setup, &key)) {
-        rc = cli_fail("lcd", 1, "drive t=%.2f s: eye %g,%g,%g out of range", t, eye[0], eye[1], eye[2]);
-      } else {
-        cv_lcd_key_eye(&key, lc->eye_tolerance, par.eye);
-        int st = cv_lcd_panels_veils(ps, light, par.eye, vp, lv, sun_deg);
-        if (!st) st = cv_lcd_accum_create(ps->L.W, ps->L.H, clamp, &round_buf);
-        for (int r = 0; r < lc->rounds && !st; r++) {
-          cv_lcd_accum_clear(round_buf);
-          st = cv_lcd_panels_round(ps, light, &par, (uint32_t)r, round_buf);
-          if (!st) st = store_veils(round_buf, np, lv);
-          if (!st) st = cv_lcd_progress_submit(&prog, &key, round_buf, NULL);
-        }
-        acc = prog.acc;
-        if (st) rc = cli_fail("lcd", 1, "drive t=%.2f s: %s", t, cv_status_str(st));
-      }
-    }
-    if (!rc) fprintf(o.f, "%.3f,%.2f,%.4f,%.4f,%.4f", t, ds.yaw_deg, par.eye[0], par.eye[1], par.eye[2]);
-    for (int i = 0; i < np && !rc; i++) {
-      cv_lcd_readability rd;
-      memset(&rd, 0, sizeof rd);
-      cv_lcd_accum *crop = NULL;
-      const cv_lcd_read_params q = panel_rp(rp, lc, i);
-      if (panel_figures(ps, acc, i, &q, &crop, &rd, &err)) {
-        rc = cli_fail("lcd", 1, "drive t=%.2f s: %s: %s", t, lc->panels[i].name, err.msg);
-      } else {
-        const int ok = rd.cr_mean.value >= rp->cr_min;
-        n_bad[i] += !ok;
-        if (rd.cr_mean.value < worst[i]) worst[i] = rd.cr_mean.value, worst_k[i] = k;
-        fprintf(o.f, ",%.2f,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%.3g,%.6g,%d", sun_deg[i],
-                rd.L_r.value, rd.L_r.se, rd.L_v.value, rd.L_v.se, rd.cr_mean.value, rd.cr_mean.se,
-                rd.frac_ok.value, rd.frac_ok.se, rd.vl.value, rd.vl.se, rd.L_a.value, ok);
-        printf("t %6.2f s yaw %5.1f%s%s: CR %.3g +- %.2g, %.0f%% of the panel >= %g:1, L_r %.4g, "
-               "L_v %.4g cd/m2, VL %.3g +- %.2g%s\n",
-               t, ds.yaw_deg, multi ? " " : "", multi ? lc->panels[i].name : "", rd.cr_mean.value,
-               rd.cr_mean.se, 100 * rd.frac_ok.value, rp->cr_min, rd.L_r.value, rd.L_v.value,
-               rd.vl.value, rd.vl.se, ok ? "" : "  UNREADABLE");
-      }
-      cv_lcd_readability_free(&rd);
-      cv_lcd_accum_destroy(crop);
-    }
-    if (!rc) fprintf(o.f, "\n");
-    fflush(stdout);
-    cv_lcd_progress_free(&prog);
-    cv_lcd_accum_destroy(round_buf);
-    cv_lcd_light_destroy(light);
-    cv_scene_light_destroy(sl);
-  }
+  int rc = 0;
+  for (int k = 0; k < (n < 1 ? 1 : n) && !rc; k++)
+    rc = drive_step(o.f, d, hp, j, p, tr, ps, lc, par0, rp, vp, k, &ty);
   cv_drive_destroy(d);
   cv_head_path_destroy(hp);
   if (rc) {
@@ -378,13 +436,18 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
     return rc;
   }
   if (cv_outfile_commit(&o, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  for (int i = 0; i < np; i++)
-    printf("drive%s%s: CR below %g:1 at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
-           multi ? " " : "", multi ? lc->panels[i].name : "", rp->cr_min, n_bad[i], n < 1 ? 1 : n,
-           n_bad[i] * j->dt, dur, worst[i], worst_k[i] * j->dt);
+  for (int i = 0; i < np; i++) {
+    if (ty.absolute)
+      printf("drive%s%s: UNREADABLE at %d of %d steps (%.1f s of %.1f s); lowest CR %.3g at t %.2f s\n",
+             multi ? " " : "", multi ? lc->panels[i].name : "", ty.n_bad[i], n < 1 ? 1 : n,
+             ty.n_bad[i] * j->dt, dur, ty.worst[i], ty.worst_k[i] * j->dt);
+    else
+      printf("drive%s%s: uncalibrated light: no verdict; lowest CR %.3g (relative units) at t %.2f s\n",
+             multi ? " " : "", multi ? lc->panels[i].name : "", ty.worst[i], ty.worst_k[i] * j->dt);
+  }
   char png[CV_PATH_MAX];
   snprintf(png, sizeof png, "%.*s.png", (int)(strlen(j->csv) - 4), j->csv);
-  if (drive_plot(j->csv, png, rp->cr_min, lc)) printf("wrote %s and %s\n", j->csv, png);
+  if (drive_plot(j->csv, png, rp->cr_min, lc, ty.absolute)) printf("wrote %s and %s\n", j->csv, png);
   else printf("wrote %s (no plot: gnuplot is not installed)\n", j->csv);
   return 0;
 }
