@@ -118,6 +118,8 @@ typedef struct master {
       cv_lcd_figure L_r, L_v, cr, area, vl;
       double L_a;
     } p[CV_LCD_MAX_PANELS];
+    int have_light;       /* the rounds carried the light level (lcdwork.c) */
+    double light[3];      /* outdoor horizontal, eye horizontal, eye vertical illuminance */
   } lread;
   /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
   cv_mailbox **rep_mb;

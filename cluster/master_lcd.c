@@ -16,6 +16,7 @@
 #include "io/exr.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/light_level.h"
 #include "lcd/readability.h"
 #include "master_internal.h"
 
@@ -278,12 +279,52 @@ void lcd_readability_update(master *m) {
     m->lread.cr_min = rd.cr_min;
     cv_lcd_readability_free(&rd);
   }
+  m->lread.have_light = cv_lcd_accum_light(acc, m->lread.light);
   m->lread.valid = 1;
   m->lread.key = key;
   m->lread.rounds = rounds;
   m->lread.frame = frame;
   /* its age: since the frame whose head and lighting it is of started */
   m->lread.t = frame < m->cap && m->frame_t[frame] > 0 ? m->frame_t[frame] : cv_service_now();
+}
+
+/* The calibration of the service's light: the drive's (every state of a
+ * drive has the same; docs/readability.md, "Absolute light or no verdict"). */
+static void lcd_calibration(const master *m, cv_lcd_calib *cal) {
+  cv_drive_state ds;
+  cv_light_spec spec;
+  char origin[CV_PATHLEN + 16];
+  cv_drive_eval(m->s->drive, 0, &ds);
+  cv_drive_to_light_spec(m->s->drive, &ds, &spec);
+  snprintf(origin, sizeof origin, "drive %s",
+           m->s->o.drive_path[0] ? m->s->o.drive_path : "(built-in default)");
+  cv_lcd_calibration(&spec, origin, cal);
+}
+
+/* The light level and its source (lx when calibrated). */
+static void light_metrics(master *m, cv_metrics_line *ml, const cv_lcd_calib *cal) {
+  cv_metrics_bool(ml, "calibrated", cal->absolute);
+  cv_metrics_bool(ml, "light_assumed", cal->assumed);
+  cv_metrics_string(ml, "light_source", cal->source);
+  cv_metrics_string(ml, "illuminance_unit", cal->absolute ? "lx" : "relative");
+  if (!m->lread.have_light) return;
+  cv_metrics_double(ml, "outdoor_horizontal_illuminance", m->lread.light[0]);
+  cv_metrics_double(ml, "eye_horizontal_illuminance", m->lread.light[1]);
+  cv_metrics_double(ml, "eye_vertical_illuminance", m->lread.light[2]);
+}
+
+/* Panel i's verdict from its stored figures: "uncalibrated" without
+ * absolute light (light_level.h). */
+static const char *panel_verdict(const master *m, int i, int absolute) {
+  cv_lcd_read_params rp;
+  cv_lcd_read_params_default(&rp);
+  rp.cr_min = m->lread.cr_min;
+  cv_lcd_readability rd;
+  memset(&rd, 0, sizeof rd);
+  rd.cr_mean = m->lread.p[i].cr;
+  rd.frac_ok = m->lread.p[i].area;
+  rd.vl = m->lread.p[i].vl;
+  return cv_lcd_verdict_name(cv_lcd_verdict(&rd, &rp, absolute, NULL, 0));
 }
 
 /* One panel's figures (cd/m2, ratios, shares; docs/metrics.md). */
@@ -313,12 +354,17 @@ void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_bool(ml, "current", m->lread.key == m->lcd_key);
   cv_metrics_double(ml, "cr_min", m->lread.cr_min);
   cv_metrics_bool(ml, "veil_included", m->lread.veil);
+  cv_lcd_calib cal;
+  lcd_calibration(m, &cal);
+  light_metrics(m, ml, &cal);
   /* the first panel's figures here too (one-panel scenes read them here) */
   panel_metrics(m, ml, 0);
+  cv_metrics_string(ml, "verdict", panel_verdict(m, 0, cal.absolute));
   cv_metrics_object_begin(ml, "panels");
   for (int i = 0; i < m->s->lcd_layout.n; i++) {
     cv_metrics_object_begin(ml, m->s->lcd.panels[i].name);
     panel_metrics(m, ml, i);
+    cv_metrics_string(ml, "verdict", panel_verdict(m, i, cal.absolute));
     cv_metrics_object_end(ml);
   }
   cv_metrics_object_end(ml);
