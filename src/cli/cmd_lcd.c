@@ -868,7 +868,7 @@ static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
   for (int i = 0; i < np; i++)
     if (cross[i] > 0)
       fprintf(g, "set arrow from %g, graph 0 to %g, graph 1 nohead dt 2 lc rgb '%s'\n", cross[i],
-              cross[i], col[i]);
+              cross[i], col[i % CV_LCD_MAX_PANELS]);
   fprintf(g, "plot ");
   for (int i = 0; i < np; i++) {
     const int c = 2 + cols * i + 4; /* the panel's CR column (1-based) */
@@ -990,7 +990,26 @@ static int lcd_sweep(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_pa
   return rc;
 }
 
+/* A .prt's own panels: the lcd block `cave bake` wrote next to it
+ * (<scene.prt>.lcd.json, lcd_config.h), or a line saying it has none.
+ * Returns 0, or the exit status with the message printed. */
+static int prt_lcd_block(const char *prt, cv_lcd_config *lc) {
+  cv_err err;
+  cv_err_clear(&err);
+  uint64_t hash;
+  int found;
+  char from[CV_PATH_MAX];
+  if (cv_prt_read_input_hash(prt, &hash, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  if (cv_lcd_sidecar_load(prt, hash, lc, &found, from, sizeof from, &err))
+    return cli_fail("lcd", 1, "%s", err.msg);
+  if (found) printf("lcd panels: %s's lcd block (%s, baked from %s)\n", prt, lc->source, from);
+  else printf("lcd panels: %s has no lcd block (bake it from a scene config with one, or give "
+              "--lcd-config): one default panel on the lcd triangles\n", prt);
+  return 0;
+}
+
 int cmd_lcd(int argc, char **argv) {
+  int rc0;
   lcd_opts o;
   const int parsed = parse_opts(argc, argv, &o);
   if (parsed >= 0) return parsed;
@@ -1016,6 +1035,7 @@ int cmd_lcd(int argc, char **argv) {
   /* the scene config's "lcd" block, then --lcd-config, then the options */
   if (cli_has_ext(o.in, ".json") && cv_lcd_config_load_scene(o.in, &lc, &err))
     return cli_fail("lcd", 1, "%s", err.msg);
+  if (!cli_has_ext(o.in, ".json") && (rc0 = prt_lcd_block(o.in, &lc))) return rc0;
   if (o.cfg_path && cv_lcd_config_load(o.cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
   if (o.spp > 0) lc.spp = o.spp;
   if (o.rounds > 0) lc.rounds = o.rounds;
