@@ -260,6 +260,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_string(ml, "hardware_swap_sync", "none");
     cv_metrics_string(ml, "share_lighting", s->o.share_lighting == CV_SHARE_HOST ? "host"
                                             : (s->o.share_lighting == CV_SHARE_HOST_NOW ? "host-now" : "off"));
+    lcd_ready_metrics(m, ml);
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
       char k[16];

@@ -232,6 +232,10 @@ void lcd_reduce_finish(master *m);
 void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name);
 /* Recomputes the readability figures when the estimate gained rounds. */
 void lcd_readability_update(master *m);
+/* The ready line's lcd_panels: where the LCD panels come from (the scene
+ * config, the lcd block baked with the .prt, or the defaults when the .prt
+ * has none; master_lcd.c). */
+void lcd_ready_metrics(master *m, cv_metrics_line *ml);
 /* The readability object `name` of a metrics line (last valid estimate,
  * its key and age), nothing before the first estimate. */
 void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name);

@@ -397,3 +397,17 @@ void lcd_write(master *m, const char *stem) {
   cv_image_destroy(img);
 }
 
+
+void lcd_ready_metrics(master *m, cv_metrics_line *ml) {
+  const cv_service *s = m->s;
+  if (!s->o.lcd) return;
+  char txt[2 * CV_PATHLEN + 96];
+  if (s->o.scene_config[0])
+    snprintf(txt, sizeof txt, "scene config %s", s->o.scene_config);
+  else if (s->lcd.source[0])
+    snprintf(txt, sizeof txt, "%s (the lcd block baked with %s)", s->lcd.source, s->o.scene_path);
+  else
+    snprintf(txt, sizeof txt, "defaults: %s has no lcd block", s->o.scene_path);
+  cv_metrics_string(ml, "lcd_panels", txt);
+  if (!s->o.quiet) printf("cave run: ready: LCD panels: %s\n", txt);
+}
