@@ -184,6 +184,36 @@ print("(run / lcd, %d rounds) " % s["rounds"] + "; ".join(out))
 sys.exit(0 if ok else 1)
 PY
 
+# --- the scene's panels travel with the bake (issue 34): `cave run --scene
+# two.prt` without --scene-config uses two.json's panels (the lcd block `cave
+# bake` wrote next to two.prt: the same cabin and bake as scene.prt, so the
+# same image as l11's); a .prt without a block says so in the ready line; the
+# forest map is unscaled: every figure is marked uncalibrated, no verdict ---
+"$CAVE" bake two.json -o two.prt --bands 3 --rays 32 --bounces 1 --quiet >/dev/null 2>&1 \
+  || bad "bake two.json"
+L2=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation)
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]/scene.prt/two.prt}" "${L2[@]}" -o lp >/dev/null 2>lp.txt; rc=$?
+python3 - lp/metrics.jsonl r11/metrics.jsonl <<'PY' >lp_check.txt && cmp -s l11/lcd.exr lp/lcd.exr \
+  && ok "cave run --scene two.prt uses its baked panels: $(cat lp_check.txt)" \
+  || bad "cave run --scene two.prt: rc $rc $(cat lp_check.txt) $(tail -2 lp.txt)"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]
+ready, summ = lines[0], lines[-1]
+r0 = json.loads(open(sys.argv[2]).readline())
+s = summ["lcd_readability"]
+ok = (ready["type"] == "ready" and "two.prt.lcd.json" in ready["lcd_panels"]
+      and "has no lcd block" in r0["lcd_panels"] and set(s["panels"]) == {"centre", "cluster"}
+      and s["calibrated"] is False and s["illuminance_unit"] == "relative"
+      and "uncalibrated" in s["light_source"] and s["outdoor_horizontal_illuminance"] > 0
+      and s["eye_horizontal_illuminance"] > 0 and s["eye_vertical_illuminance"] > 0
+      and all(p["verdict"] == "uncalibrated" for p in s["panels"].values()))
+print("ready: %s; scene.prt: %s; panels %s, verdicts %s, outdoor %.4g, eye %.4g / %.4g (%s)" % (
+    ready["lcd_panels"], r0["lcd_panels"], sorted(s["panels"]),
+    [p["verdict"] for p in s["panels"].values()], s["outdoor_horizontal_illuminance"],
+    s["eye_horizontal_illuminance"], s["eye_vertical_illuminance"], s["illuminance_unit"]))
+sys.exit(0 if ok else 1)
+PY
+
 # --- readability during a drive: every frame a new key (the car turns), yet
 # the frames carry lcd.readability from rounds of earlier snapshots ----------
 cat > turn.json <<'JSON'
