@@ -22,6 +22,7 @@
 #include "io/png.h"
 #include "io/tonemap_simple.h"
 #include "lcd/gather.h"
+#include "lcd/heatmap.h"
 #include "lcd/lcd_config.h"
 #include "lcd/light_level.h"
 #include "lcd/panels.h"
@@ -176,16 +177,30 @@ static int write_sidecar(const char *path, const cv_lcd_accum *acc, const cv_lcd
   return cv_outfile_commit(&o, err);
 }
 
-/* Writes the CR heat map (panel over a colour bar). */
+/* Writes the CR heat map figure (lcd/heatmap.h): the panel's name, figures
+ * and verdict, and the light level in the title. */
 static int write_heatmap(const char *path, const cv_lcd_readability *rd, const char *name,
                          const cv_lcd_read_params *q, const lcd_light_info *li, cv_err *err) {
-  (void)name, (void)q, (void)li;
-  const int bar = rd->h / 12 > 8 ? rd->h / 12 : 8;
-  uint8_t *px = malloc((size_t)rd->w * (size_t)(rd->h + bar) * 3);
-  if (!px) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  int st = cv_lcd_heatmap_rgb(rd, bar, px);
-  if (st) cv_err_set(err, st, "%s: out of memory", path);
-  else st = cv_png_write(path, rd->w, rd->h + bar, 3, px, err);
+  char l[CV_LCD_HEATMAP_LINES][200], why[160];
+  const cv_lcd_verdict_kind v = cv_lcd_verdict(rd, q, li->cal.absolute, why, sizeof why);
+  snprintf(l[0], sizeof l[0], "panel %s: CR %.3g +- %.2g; %.1f%% of the area meets %g:1; VL %.3g",
+           name, rd->cr_mean.value, rd->cr_mean.se, 100 * rd->frac_ok.value, q->cr_min, rd->vl.value);
+  if (v == CV_LCD_UNCALIBRATED) snprintf(l[1], sizeof l[1], "no verdict: uncalibrated light");
+  else snprintf(l[1], sizeof l[1], "%s: %s%s", cv_lcd_verdict_name(v), why,
+                li->cal.assumed ? " (assumed light level)" : "");
+  if (li->cal.absolute)
+    snprintf(l[2], sizeof l[2], "light %.0f lx outdoors (horizontal); at the eye %.0f lx horizontal, "
+             "%.0f lx vertical", li->il.outdoor_h, li->il.eye_h, li->il.eye_v);
+  else
+    snprintf(l[2], sizeof l[2], "light UNCALIBRATED: relative units (outdoors %.3g): no verdict",
+             li->il.outdoor_h);
+  snprintf(l[3], sizeof l[3], "%.119s", li->cal.source);
+  const char *lines[CV_LCD_HEATMAP_LINES] = {l[0], l[1], l[2], l[3]};
+  uint8_t *px = NULL;
+  int W, H;
+  int st = cv_lcd_heatmap_figure(rd, lines, CV_LCD_HEATMAP_LINES, &px, &W, &H);
+  if (st) return cv_err_set(err, st, "%s: %s", path, cv_status_str(st));
+  st = cv_png_write(path, W, H, 3, px, err);
   free(px);
   return st;
 }

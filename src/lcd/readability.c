@@ -283,6 +283,8 @@ int cv_lcd_readability_compute_scaled(const cv_lcd_accum *acc, const cv_lcd_read
   out->spp = (uint64_t)n;
   out->cr_min = p->cr_min;
   out->cr_worst = worst;
+  out->white = W;
+  out->black = B;
   out->L_r.value = sy / N;
   out->L_r.se = sqrt(sse) / N;
   out->L_v = *lv;
@@ -312,7 +314,7 @@ int cv_lcd_readability_compute_scaled(const cv_lcd_accum *acc, const cv_lcd_read
 
 /* --- heat map ------------------------------------------------------------------ */
 
-static void viridis(double t, uint8_t rgb[3]) {
+void cv_lcd_viridis(double t, uint8_t rgb[3]) {
   static const double a[5][3] = {
       {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
   t = t < 0 ? 0 : (t > 1 ? 1 : t);
@@ -339,14 +341,14 @@ int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px) {
       if (y > 0) edge |= (sm[i - (size_t)w] >= r->cr_min) != ok;
       if (y + 1 < h) edge |= (sm[i + (size_t)w] >= r->cr_min) != ok;
       if (edge) o[0] = o[1] = o[2] = 255;
-      else viridis(cr_pos(r->cr[i]), o);
+      else cv_lcd_viridis(cr_pos(r->cr[i]), o);
     }
   const int mark = w > 1 ? (int)lrint(cr_pos(r->cr_min) * (w - 1)) : 0;
   for (int y = 0; y < bar_h; y++)
     for (int x = 0; x < w; x++) {
       uint8_t *o = px + 3 * ((size_t)(h + y) * (size_t)w + (size_t)x);
       const double t = w > 1 ? (double)x / (w - 1) : 0;
-      viridis(t, o);
+      cv_lcd_viridis(t, o);
       /* ticks at CR = 1, 2, ..., 10 in the bar's top third (black) */
       for (int c = 1; c <= 10 && y < bar_h / 3; c++)
         if (x == (int)lrint(log10((double)c) * (w - 1))) o[0] = o[1] = o[2] = 0;

@@ -120,6 +120,7 @@ typedef struct cv_lcd_readability {
   double dL_threshold; /* dL_t(L_a) */
   double cr_worst;     /* smallest texel CR (no error attached) */
   double cr_min;       /* the requirement used */
+  double white, black; /* L_on, L_off used (cd/m^2) */
   uint64_t spp;        /* samples per texel behind the estimate */
 } cv_lcd_readability;
 
@@ -156,5 +157,7 @@ void cv_lcd_readability_free(cv_lcd_readability *r);
  * bar's cr_min position marked white.  px: w * (h + bar_h) * 3 bytes, row 0
  * at the top.  Returns CV_OK. */
 int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px);
+/* The heat maps' colour of t in [0, 1] (clamped): viridis, 8-bit RGB. */
+void cv_lcd_viridis(double t, uint8_t rgb[3]);
 
 #endif
