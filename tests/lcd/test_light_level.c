@@ -12,13 +12,16 @@
  *    computed here by an independent quadrature) within 1%, and the
  *    figures at that level have CR 3 within 1%;
  *  - bad sweeps (LO > HI, N = 0 or 1, negative, junk) are refused with a
- *    one-line reason. */
+ *    one-line reason;
+ *  - the heat map figure: title text, the panel magnified to >= 480 pixels
+ *    inside a black outline, the colour bar with the requirement white. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <cmocka.h>
@@ -26,6 +29,7 @@
 #include "lcd/accum.h"
 #include "lcd/brdf.h"
 #include "lcd/gather.h"
+#include "lcd/heatmap.h"
 #include "lcd/light_level.h"
 #include "lcd/readability.h"
 #include "lcd/sweep.h"
@@ -295,11 +299,55 @@ static void test_eye_illuminance(void **state) {
   cv_brdf_destroy(b);
 }
 
+static void test_heatmap_figure(void **state) {
+  (void)state;
+  cv_lcd_readability r;
+  memset(&r, 0, sizeof r);
+  r.w = 40, r.h = 24, r.cr_min = 3, r.white = 500, r.black = 1;
+  const size_t n = (size_t)r.w * r.h;
+  r.lr = calloc(n, sizeof(float));
+  r.cr = calloc(n, sizeof(float));
+  r.cr_smooth = calloc(n, sizeof(float));
+  for (int y = 0; y < r.h; y++)
+    for (int x = 0; x < r.w; x++) { /* CR from 1.5 (left) to 8 (right) */
+      const size_t i = (size_t)y * r.w + x;
+      r.cr[i] = r.cr_smooth[i] = (float)(1.5 + 6.5 * x / (r.w - 1));
+      r.lr[i] = (float)((r.white - r.cr[i] * r.black) / (r.cr[i] - 1));
+    }
+  const char *lines[2] = {"panel centre: CR 3.2", "light 20000 lx"};
+  uint8_t *px = NULL;
+  int W = 0, H = 0;
+  assert_int_equal(cv_lcd_heatmap_figure(&r, lines, 2, &px, &W, &H), CV_OK);
+  print_message("heat map figure %d x %d\n", W, H);
+  assert_true(W >= 480 + 4 && H > 24 * 12);
+  /* the title is drawn (black pixels in its first text row), the rest of the
+   * margin white */
+  int black = 0;
+  for (int y = 12; y < 12 + 14; y++)
+    for (int x = 0; x < W; x++) black += px[3 * ((size_t)y * W + x)] == 0;
+  assert_true(black > 50);
+  assert_int_equal(px[0], 255);
+  /* the panel, magnified 12 x, centred, inside the outline */
+  const int pw = 40 * 12, x0 = (W - pw) / 2, y0 = 12 + 2 * (14 + 6) + 6 + 2;
+  assert_int_equal(px[3 * ((size_t)(y0 - 1) * W + x0 + 10)], 0);      /* the outline */
+  const uint8_t *left = px + 3 * ((size_t)(y0 + 200) * W + x0 + 2);    /* CR 1.5: violet-blue */
+  const uint8_t *right = px + 3 * ((size_t)(y0 + 200) * W + x0 + pw - 3); /* CR 8: yellow-green */
+  assert_true(left[2] > left[1] && right[1] > right[2]);
+  cv_lcd_readability_free(&r);
+  free(px);
+  /* one line of text is 6 pixels per character and scale */
+  uint8_t img[3 * 100 * 20];
+  memset(img, 255, sizeof img);
+  const uint8_t k[3] = {0, 0, 0};
+  assert_int_equal(cv_lcd_draw_text(img, 100, 20, 1, 1, 1, "CR 3:1", k), 36);
+  assert_int_equal(cv_lcd_heatmap_figure(&r, lines, 2, &px, &W, &H), CV_ERR_INVALID); /* freed */
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_calibration),       cmocka_unit_test(test_verdict),
       cmocka_unit_test(test_sweep_parse),       cmocka_unit_test(test_sweep_closed_form),
-      cmocka_unit_test(test_eye_illuminance),
+      cmocka_unit_test(test_eye_illuminance),   cmocka_unit_test(test_heatmap_figure),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
