@@ -41,7 +41,10 @@ static void help(FILE *f) {
           "                [--sampling brdf|cosine|mis] [--content FILE] [--luminance CD]\n"
           "                [--lcd-config FILE] [--prt FILE] [--seed S] [--threads N]\n"
           "                [--black CD] [--cr-min R] [--age YEARS] [--pigment P]\n"
-          "                [--adaptation CD] [--glare-spc N] [--heatmap FILE.png] -o panel.exr [--png]\n"
+          "                [--adaptation CD] [--glare-spc N] [--area-min S] [--vl-min V]\n"
+          "                [--heatmap FILE.png] -o panel.exr [--png]\n"
+          "       cave lcd <scene.prt | scene.json> --eye x,y,z LIGHT --illuminance-sweep LO:HI[:N]\n"
+          "                [options] -o sweep.csv\n"
           "       cave lcd <scene.prt | scene.json> --drive DRIVE.json (--head-path FILE | --eye x,y,z)\n"
           "                [--cave CAVE.json | --scene-offset x,y,z] [--dt S] [options] -o series.csv\n\n"
           "Final gather on the LCD panel (the scene's triangles tagged lcd): for every texel the\n"
@@ -73,6 +76,8 @@ static void help(FILE *f) {
           "                    every panel's own value\n"
           "  --seed S          sample sequence seed, 0..4294967295 (default lcd.seed: 1)\n"
           "  --prt FILE        with a scene.json: the baked PRT to use (else baked here)\n"
+          "                    (a scene.prt alone: the lcd block `cave bake` wrote next to it,\n"
+          "                    scene.prt.lcd.json, gives the panels; without one, one default panel)\n"
           "  --png             also write a tone-mapped PNG next to the EXR\n"
           "Readability (docs/readability.md; each figure with its standard error):\n"
           "  --black CD        panel black luminance in cd/m^2, 0..1e6 (default 0.002 x white)\n"
@@ -83,6 +88,20 @@ static void help(FILE *f) {
           "  --adaptation CD   adaptation luminance for the visibility level, 0..1e6 (default: the\n"
           "                    panel background seen, black + reflection + veil)\n"
           "  --heatmap FILE    contrast-ratio heat map PNG (default panel.cr.png)\n"
+          "  --area-min S      verdict: share of the panel area that must meet --cr-min, 0..1\n"
+          "                    (default 0.95)\n"
+          "  --vl-min V        verdict: smallest visibility level, 0..1e6 (default 5)\n"
+          "Absolute light or no verdict: READABLE / UNREADABLE (CR, area share and VL all\n"
+          "pass) only when the light is absolute: --illuminance LUX (auto: an ASSUMED level of a\n"
+          "blender-data map), --sky, --env-constant (taken as cd/m^2), or a scene or drive\n"
+          "config's \"illuminance\" or \"absolute\": true.  A map in its own units is marked\n"
+          "uncalibrated everywhere and gets no verdict.  The illuminance outdoors and at the eye\n"
+          "(horizontal, vertical facing ahead) and its source are printed and in the sidecar.\n"
+          "  --illuminance-sweep LO:HI[:N]  the figures at N levels (default 21, log spaced) of\n"
+          "                    the outdoor horizontal illuminance LO..HI lux (0 < LO < HI <= 1e7,\n"
+          "                    N 2..1000) from one render (the light's shape and the sun's\n"
+          "                    position as given, its level scaled): sweep.csv, sweep.png, and\n"
+          "                    per panel the lux where the mean CR falls to --cr-min\n"
           "A whole drive, offline (no MPI):\n"
           "  --drive FILE      drive file (configs/drives/): lighting and car attitude over time\n"
           "  --head-path FILE  recorded head path (t x y z gx gy gz, CAVE frame); the eye is\n"
@@ -100,7 +119,8 @@ static void help(FILE *f) {
           "per panel prefixed <name>.  `cave run --scene-config` uses the same model.\n"
           "\nexamples:\n"
           "  cave lcd scene.prt --eye -0.37,1.1,0.3 --env forest.exr --illuminance auto -o panel.exr --png\n"
-          "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n");
+          "  cave lcd configs/scenes/default.json --eye -0.37,1.1,0.3 --rounds 4 -o panel.exr\n"
+          "  cave lcd scene.prt --eye -0.37,1.02,0 --sky 3,20,180 --illuminance-sweep 1000:200000 -o sweep.csv\n");
 }
 
 /* s as a JSON string (quotes, backslashes and control characters escaped). */
@@ -864,10 +884,10 @@ static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
   const int np = lc->n_panels, cols = 11;
   fprintf(g,
           "set terminal pngcairo size 1000,500 font ',10'\nset output '%s'\n"
-          "set datafile separator ','\nset key bottom left\nset grid\nset logscale x\n"
-          "set xlabel 'outdoor horizontal illuminance (lx)'\nset ylabel 'contrast ratio'\n"
+          "set datafile separator ','\nset key top right box opaque\nset grid\nset logscale xy\n"
+          "set xlabel 'outdoor horizontal illuminance (lx)'\nset ylabel 'contrast ratio (log scale)'\n"
           "set y2label 'share of the panel area meeting %g:1'\nset y2range [0:1.05]\n"
-          "set ytics nomirror\nset y2tics 0.2\nset yrange [0:*]\nset xrange [%g:%g]\n"
+          "set ytics nomirror\nset y2tics 0.2\nset yrange [1:*]\nset xrange [%g:%g]\n"
           "set format x '%%.0f'\n"
           "set title 'LCD readability against the light level (eye %.3f %.3f %.3f m, the sun as "
           "given): CR falls to %g:1 at",
@@ -1035,6 +1055,7 @@ int cmd_lcd(int argc, char **argv) {
   if (o.head_s && !o.drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
   if (o.drive_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", o.out);
   if (o.sweep_s && o.drive_s) return cli_fail("lcd", 2, "--illuminance-sweep: not with --drive (a sweep is of one pose and sun position)");
+  if (o.sweep_s && (o.png || o.heat_s)) return cli_fail("lcd", 2, "--illuminance-sweep: writes sweep.csv and its plot, not %s (run without the sweep for the panel's images)", o.png ? "--png" : "--heatmap");
   if (o.sweep_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --illuminance-sweep the sweep is written as .csv, got '%s'", o.out);
   if (!o.drive_s && !o.sweep_s && !cli_has_ext(o.out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o.out);
   if (o.cave_s) {
