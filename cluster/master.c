@@ -651,6 +651,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     lcd_reduce_metrics(m, ml, "allreduce");
     lcd_readability_update(m);
     lcd_readability_metrics(m, ml, "readability");
+    lcd_drive_tally(m, f, fs->time, m->wall_clock ? fs->dt : s->o.dt, (fs->flags & CV_FS_HOLD) != 0);
     cv_metrics_object_end(ml);
   }
   if (m->disp) {
@@ -775,6 +776,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
     lcd_reduce_metrics(m, ml, "lcd_allreduce");
     lcd_readability_update(m);
     lcd_readability_metrics(m, ml, "lcd_readability");
+    lcd_drive_summary(m, ml, "lcd_drive");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
   cv_metrics_write(ml, m->mf);

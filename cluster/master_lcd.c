@@ -411,3 +411,55 @@ void lcd_ready_metrics(master *m, cv_metrics_line *ml) {
   cv_metrics_string(ml, "lcd_panels", txt);
   if (!s->o.quiet) printf("cave run: ready: LCD panels: %s\n", txt);
 }
+
+void lcd_drive_tally(master *m, uint32_t frame, double t, double dt_s, int held) {
+  if (held) return;
+  if (m->ldrive.frames == 0)
+    for (int i = 0; i < CV_LCD_MAX_PANELS; i++) m->ldrive.p[i].cr_min = INFINITY;
+  m->ldrive.frames++;
+  m->ldrive.time += dt_s;
+  if (!m->lread.valid) return;
+  m->ldrive.with_figure++;
+  if (m->lread.frame + 2 >= frame) m->ldrive.fresh++;
+  for (int i = 0; i < m->s->lcd_layout.n; i++) {
+    const double cr = m->lread.p[i].cr.value;
+    if (cr < m->ldrive.p[i].cr_min) {
+      m->ldrive.p[i].cr_min = cr;
+      m->ldrive.p[i].cr_min_frame = frame;
+      m->ldrive.p[i].cr_min_of = m->lread.frame;
+      m->ldrive.p[i].cr_min_t = t;
+    }
+    if (cr < m->lread.cr_min) {
+      m->ldrive.p[i].below++;
+      m->ldrive.p[i].below_s += dt_s;
+    }
+  }
+}
+
+void lcd_drive_summary(master *m, cv_metrics_line *ml, const char *name) {
+  if (m->ldrive.frames == 0) return;
+  cv_lcd_calib cal;
+  lcd_calibration(m, &cal);
+  cv_metrics_object_begin(ml, name);
+  cv_metrics_uint(ml, "frames", m->ldrive.frames);
+  cv_metrics_uint(ml, "frames_with_figures", m->ldrive.with_figure);
+  cv_metrics_uint(ml, "frames_with_figures_at_most_2_old", m->ldrive.fresh);
+  cv_metrics_double(ml, "time_s", m->ldrive.time);
+  cv_metrics_bool(ml, "calibrated", cal.absolute);
+  cv_metrics_double(ml, "cr_min", m->lread.valid ? m->lread.cr_min : m->s->lcd.cr_min);
+  cv_metrics_object_begin(ml, "panels");
+  for (int i = 0; i < m->s->lcd_layout.n && m->ldrive.with_figure > 0; i++) {
+    cv_metrics_object_begin(ml, m->s->lcd.panels[i].name);
+    cv_metrics_double(ml, "contrast_ratio_min", m->ldrive.p[i].cr_min);
+    cv_metrics_uint(ml, "contrast_ratio_min_frame", m->ldrive.p[i].cr_min_frame);
+    cv_metrics_double(ml, "contrast_ratio_min_t", m->ldrive.p[i].cr_min_t);
+    cv_metrics_uint(ml, "contrast_ratio_min_of_frame", m->ldrive.p[i].cr_min_of);
+    cv_metrics_uint(ml, "frames_below_cr_min", m->ldrive.p[i].below);
+    cv_metrics_double(ml, "time_below_cr_min_s", m->ldrive.p[i].below_s);
+    cv_metrics_double(ml, "time_share_below_cr_min",
+                      m->ldrive.time > 0 ? m->ldrive.p[i].below_s / m->ldrive.time : 0);
+    cv_metrics_object_end(ml);
+  }
+  cv_metrics_object_end(ml);
+  cv_metrics_object_end(ml);
+}

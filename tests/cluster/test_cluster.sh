@@ -240,6 +240,36 @@ ok = len(keys) >= 8 and len(with_r) >= 2 and all(
 sys.exit(0 if ok else 1)
 PY
 
+# --- the whole drive in the summary (issue 34): per panel the lowest CR over
+# the drive's frames equals the lowest on their metrics lines, with its frame
+# and time, and the frames below 3:1; held frames (--lcd-wait) are left out --
+python3 - turn/metrics.jsonl l11/metrics.jsonl <<'PY' >ldrive.txt && ok "summary lcd_drive: $(cat ldrive.txt)" || bad "summary lcd_drive: $(cat ldrive.txt)"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]
+frames = [l for l in lines if l.get("type") == "frame"]
+d = lines[-1]["lcd_drive"]
+ok = d["frames"] == len(frames) == 16 and d["calibrated"] is False
+with_r = [l for l in frames if "readability" in l["lcd"]]
+ok = ok and d["frames_with_figures"] == len(with_r)
+ok = ok and d["frames_with_figures_at_most_2_old"] == sum(1 for l in with_r if l["frame"] - l["lcd"]["readability"]["frame"] <= 2)
+out = []
+for name, p in d["panels"].items():
+    crs = [(l["lcd"]["readability"]["panels"][name]["contrast_ratio"], l["frame"], l["t"]) for l in with_r]
+    lo = min(crs)
+    below = sum(1 for c in crs if c[0] < d["cr_min"])
+    ok = ok and p["contrast_ratio_min"] == lo[0] and p["contrast_ratio_min_frame"] == lo[1] \
+        and abs(p["contrast_ratio_min_t"] - lo[2]) < 1e-9 and p["frames_below_cr_min"] == below \
+        and 0 <= p["time_share_below_cr_min"] <= 1
+    out.append("%s min CR %.6g at frame %d (t %.2f s) = the lines' min, %d frames below %g" % (
+        name, p["contrast_ratio_min"], p["contrast_ratio_min_frame"], p["contrast_ratio_min_t"],
+        p["frames_below_cr_min"], d["cr_min"]))
+h = [json.loads(l) for l in open(sys.argv[2])][-1]
+ok = ok and h["held_frames"] > 0 and h["lcd_drive"]["frames"] == 2
+print("%d of %d frames with figures (%d at most 2 frames old); %s; --lcd-wait: %d held frames left out" % (
+    d["frames_with_figures"], d["frames"], d["frames_with_figures_at_most_2_old"], "; ".join(out), h["held_frames"]))
+sys.exit(0 if ok else 1)
+PY
+
 # --- a stopped gather rank does not stall the frames -----------------------
 # (stopped 8 s: below --gather-timeout, so stalled, not dead; dead_gather.sh
 # kills one)
