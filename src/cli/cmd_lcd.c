@@ -1025,6 +1025,79 @@ static int lcd_sweep(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_pa
   return rc;
 }
 
+/* The baked scene: the .prt given, or with a scene.json its --prt or a bake
+ * here (the panels and the eye checked against the mesh first); a
+ * scene.json's own lighting when none was given.  Returns 0 with *p, or the
+ * exit status with the message printed. */
+static int load_scene(lcd_opts *o, const cv_lcd_config *lc, cv_prt **p) {
+  int rc = 0;
+  cv_err err;
+  cv_err_clear(&err);
+  cv_scene_config cfg;
+  cv_scene_config_default(&cfg);
+  cv_mesh *m = NULL;
+  cv_tracer *tr = NULL;
+  if (cli_has_ext(o->in, ".json")) {
+    if (cv_scene_config_load(o->in, &cfg, &err)) {
+      rc = cli_fail("lcd", 1, "%s", err.msg);
+      goto done;
+    }
+    if (!o->have_light && cfg.light.kind != CV_LIGHT_NONE) {
+      double y = o->spec.yaw_deg, pi = o->spec.pitch_deg, r = o->spec.roll_deg;
+      o->spec = cfg.light;
+      if (y != 0) o->spec.yaw_deg = y;
+      if (pi != 0) o->spec.pitch_deg = pi;
+      if (r != 0) o->spec.roll_deg = r;
+      o->have_light = 1;
+      snprintf(o->light_origin, sizeof o->light_origin, "scene config %s", o->in);
+    }
+    if (o->prt_path) {
+      if (cv_prt_read(o->prt_path, p, &err)) {
+        rc = cli_fail("lcd", 1, "%s", err.msg);
+        goto done;
+      }
+    } else {
+      if (cli_load_scene_mesh(&cfg, stdout, &m, &err) || cv_tracer_create(m, &tr, &err)) {
+        rc = cli_fail("lcd", 1, "%s", err.msg);
+        goto done;
+      }
+      /* the panels against the scene before the bake: a panel outside it
+       * fails at once */
+      cv_lcd_layout L0;
+      if (cv_lcd_layout_make(lc, m, &L0, &err)) {
+        rc = cli_fail("lcd", 1, "%s", err.msg);
+        goto done;
+      }
+      if (o->have_eye && !o->head_s && (rc = check_eye(o->eye, &L0, lc, m))) goto done;
+      rc = 0;
+      cv_bake_params bp = {.bands = cfg.bands ? cfg.bands : 5, .rays = cfg.rays ? cfg.rays : 1024,
+                           .bounces = cfg.bounces, .seed = cfg.seed, .spread = (float)cfg.spread,
+                           .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = 1};
+      printf("bake: %d bands, %d rays, %d bounces (use --prt FILE from `cave bake` to skip this)\n",
+             bp.bands, bp.rays, bp.bounces);
+      fflush(stdout);
+      cv_tracer_set_spread(tr, bp.spread);
+      cv_tracer_set_window_sampling(tr, !bp.cosine_only);
+      if (cv_prt_bake_tracer(tr, &bp, p, NULL, &err)) {
+        rc = cli_fail("lcd", 1, "%s", err.msg);
+        goto done;
+      }
+      cv_tracer_destroy(tr);
+      tr = NULL;
+      cv_mesh_destroy(m);
+      m = NULL;
+    }
+  } else if (cv_prt_read(o->in, p, &err)) {
+    rc = cli_fail("lcd", 1, "%s", err.msg);
+    goto done;
+  }
+done:
+  cv_tracer_destroy(tr);
+  cv_mesh_destroy(m);
+  cv_scene_config_free(&cfg);
+  return rc;
+}
+
 /* A .prt's own panels: the lcd block `cave bake` wrote next to it
  * (<scene.prt>.lcd.json, lcd_config.h), or a line saying it has none.
  * Returns 0, or the exit status with the message printed. */
@@ -1043,81 +1116,89 @@ static int prt_lcd_block(const char *prt, cv_lcd_config *lc) {
   return 0;
 }
 
-int cmd_lcd(int argc, char **argv) {
+/* The checks of the command line and the LCD model: the defaults, the
+ * scene config's (or the .prt's baked) lcd block, --lcd-config, then the
+ * options; every output checked before any work.  Returns -1 to go on,
+ * else the exit status with the message printed. */
+static int lcd_setup(lcd_opts *o, cv_lcd_config *lc) {
   int rc0;
-  lcd_opts o;
-  const int parsed = parse_opts(argc, argv, &o);
-  if (parsed >= 0) return parsed;
-  if (!o.in || !o.out || (!o.have_eye && !(o.drive_s && o.head_s))) {
+  cv_err err;
+  cv_err_clear(&err);
+  if (!o->in || !o->out || (!o->have_eye && !(o->drive_s && o->head_s))) {
     cli_print_usage(help);
     return cli_fail("lcd", 2, "an input (.prt or .json), --eye x,y,z (or --drive with --head-path) and -o FILE are required");
   }
-  if (o.head_s && !o.drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
-  if (o.drive_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", o.out);
-  if (o.sweep_s && o.drive_s) return cli_fail("lcd", 2, "--illuminance-sweep: not with --drive (a sweep is of one pose and sun position)");
-  if (o.sweep_s && (o.png || o.heat_s)) return cli_fail("lcd", 2, "--illuminance-sweep: writes sweep.csv and its plot, not %s (run without the sweep for the panel's images)", o.png ? "--png" : "--heatmap");
-  if (o.sweep_s && !cli_has_ext(o.out, ".csv")) return cli_fail("lcd", 2, "-o: with --illuminance-sweep the sweep is written as .csv, got '%s'", o.out);
-  if (!o.drive_s && !o.sweep_s && !cli_has_ext(o.out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o.out);
-  if (o.cave_s) {
+  if (o->head_s && !o->drive_s) return cli_fail("lcd", 2, "--head-path: needs --drive");
+  if (o->drive_s && !cli_has_ext(o->out, ".csv")) return cli_fail("lcd", 2, "-o: with --drive the series is written as .csv, got '%s'", o->out);
+  if (o->sweep_s && o->drive_s) return cli_fail("lcd", 2, "--illuminance-sweep: not with --drive (a sweep is of one pose and sun position)");
+  if (o->sweep_s && (o->png || o->heat_s)) return cli_fail("lcd", 2, "--illuminance-sweep: writes sweep.csv and its plot, not %s (run without the sweep for the panel's images)", o->png ? "--png" : "--heatmap");
+  if (o->sweep_s && !cli_has_ext(o->out, ".csv")) return cli_fail("lcd", 2, "-o: with --illuminance-sweep the sweep is written as .csv, got '%s'", o->out);
+  if (!o->drive_s && !o->sweep_s && !cli_has_ext(o->out, ".exr")) return cli_fail("lcd", 2, "-o: the panel is written as .exr, got '%s'", o->out);
+  if (o->cave_s) {
     cv_cave cave;
     cv_err cerr;
-    if (cv_cave_load(o.cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
-    memcpy(o.offset, cave.scene_offset, sizeof o.offset);
+    if (cv_cave_load(o->cave_s, &cave, &cerr)) return cli_fail("lcd", 1, "--cave: %s", cerr.msg);
+    memcpy(o->offset, cave.scene_offset, sizeof o->offset);
   }
-  cv_err err;
-  cv_err_clear(&err);
-  cv_lcd_config lc;
-  cv_lcd_config_default(&lc);
+  cv_lcd_config_default(lc);
   /* the scene config's "lcd" block, then --lcd-config, then the options */
-  if (cli_has_ext(o.in, ".json") && cv_lcd_config_load_scene(o.in, &lc, &err))
+  if (cli_has_ext(o->in, ".json") && cv_lcd_config_load_scene(o->in, lc, &err))
     return cli_fail("lcd", 1, "%s", err.msg);
-  if (!cli_has_ext(o.in, ".json") && (rc0 = prt_lcd_block(o.in, &lc))) return rc0;
-  if (o.cfg_path && cv_lcd_config_load(o.cfg_path, &lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  if (o.spp > 0) lc.spp = o.spp;
-  if (o.rounds > 0) lc.rounds = o.rounds;
-  if (o.size_s && cli_parse_size(o.size_s, 16384, &lc.width, &lc.height))
-    return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", o.size_s);
-  if (o.brdf_s) snprintf(lc.brdf, sizeof lc.brdf, "%s", o.brdf_s);
-  if (o.content_s) {
-    FILE *cf = fopen(o.content_s, "rb");
-    if (!cf) return cli_fail("lcd", 1, "--content: %s: cannot open", o.content_s);
+  if (!cli_has_ext(o->in, ".json") && (rc0 = prt_lcd_block(o->in, lc))) return rc0;
+  if (o->cfg_path && cv_lcd_config_load(o->cfg_path, lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  if (o->spp > 0) lc->spp = o->spp;
+  if (o->rounds > 0) lc->rounds = o->rounds;
+  if (o->size_s && cli_parse_size(o->size_s, 16384, &lc->width, &lc->height))
+    return cli_fail("lcd", 2, "--size: expected WxH (1..16384), got '%s'", o->size_s);
+  if (o->brdf_s) snprintf(lc->brdf, sizeof lc->brdf, "%s", o->brdf_s);
+  if (o->content_s) {
+    FILE *cf = fopen(o->content_s, "rb");
+    if (!cf) return cli_fail("lcd", 1, "--content: %s: cannot open", o->content_s);
     fclose(cf);
-    snprintf(lc.content, sizeof lc.content, "%s", o.content_s);
+    snprintf(lc->content, sizeof lc->content, "%s", o->content_s);
   }
   /* an option overrides the block and every panel's own value (docs/scene-config.md) */
-  cv_lcd_config_override(&lc, (o.size_s ? CV_LCD_SET_SIZE : 0u) | (o.brdf_s ? CV_LCD_SET_BRDF : 0u) |
-                                  (o.content_s ? CV_LCD_SET_CONTENT : 0u) |
-                                  (o.lum >= 0 ? CV_LCD_SET_WHITE : 0u) |
-                                  (o.black >= 0 ? CV_LCD_SET_BLACK : 0u));
-  if (o.lum >= 0) lc.content_luminance = o.lum;
-  if (o.seed >= 0) lc.seed = (uint32_t)o.seed;
-  if (o.sampling) lc.brdf_fraction = !strcmp(o.sampling, "brdf") ? 1.0 : !strcmp(o.sampling, "cosine") ? 0.0 : 0.9;
-  if (o.threads > 0) omp_set_num_threads(o.threads);
-  if (o.black >= 0) lc.black_luminance = o.black;
-  if (o.cr_min >= 1) lc.cr_min = o.cr_min;
-  if (o.age >= 0) lc.age = o.age;
-  if (o.pigment >= 0) lc.pigment = o.pigment;
-  if (cv_lcd_config_panels(&lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
-  o.rp.white = lc.panels[0].content_luminance;
-  o.rp.black = lc.panels[0].black_luminance;
-  o.rp.cr_min = lc.cr_min;
-  o.vp.age = lc.age;
-  o.vp.pigment = lc.pigment;
-  if (o.area_min >= 0) o.rp.area_min = o.area_min;
-  if (o.vl_min >= 0) o.rp.vl_min = o.vl_min;
-  for (int i = 0; i < lc.n_panels; i++) {
-    const cv_lcd_read_params q = panel_rp(&o.rp, &lc, i);
+  cv_lcd_config_override(lc, (o->size_s ? CV_LCD_SET_SIZE : 0u) | (o->brdf_s ? CV_LCD_SET_BRDF : 0u) |
+                                  (o->content_s ? CV_LCD_SET_CONTENT : 0u) |
+                                  (o->lum >= 0 ? CV_LCD_SET_WHITE : 0u) |
+                                  (o->black >= 0 ? CV_LCD_SET_BLACK : 0u));
+  if (o->lum >= 0) lc->content_luminance = o->lum;
+  if (o->seed >= 0) lc->seed = (uint32_t)o->seed;
+  if (o->sampling) lc->brdf_fraction = !strcmp(o->sampling, "brdf") ? 1.0 : !strcmp(o->sampling, "cosine") ? 0.0 : 0.9;
+  if (o->threads > 0) omp_set_num_threads(o->threads);
+  if (o->black >= 0) lc->black_luminance = o->black;
+  if (o->cr_min >= 1) lc->cr_min = o->cr_min;
+  if (o->age >= 0) lc->age = o->age;
+  if (o->pigment >= 0) lc->pigment = o->pigment;
+  if (cv_lcd_config_panels(lc, &err)) return cli_fail("lcd", 1, "%s", err.msg);
+  o->rp.white = lc->panels[0].content_luminance;
+  o->rp.black = lc->panels[0].black_luminance;
+  o->rp.cr_min = lc->cr_min;
+  o->vp.age = lc->age;
+  o->vp.pigment = lc->pigment;
+  if (o->area_min >= 0) o->rp.area_min = o->area_min;
+  if (o->vl_min >= 0) o->rp.vl_min = o->vl_min;
+  for (int i = 0; i < lc->n_panels; i++) {
+    const cv_lcd_read_params q = panel_rp(&o->rp, lc, i);
     if (cv_lcd_read_params_check(&q, &err))
-      return cli_fail("lcd", 2, "panel '%s': %s", lc.panels[i].name, err.msg);
+      return cli_fail("lcd", 2, "panel '%s': %s", lc->panels[i].name, err.msg);
   }
-  if (o.heat_s && !cli_has_ext(o.heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", o.heat_s);
+  if (o->heat_s && !cli_has_ext(o->heat_s, ".png")) return cli_fail("lcd", 2, "--heatmap: expected a .png file, got '%s'", o->heat_s);
   /* every output before any work: a bad one fails here, not after the rounds */
-  const int ost = check_outputs(&o, &lc);
-  if (ost) return ost;
+  const int ost = check_outputs(o, lc);
+  return ost ? ost : -1;
+}
 
+int cmd_lcd(int argc, char **argv) {
+  lcd_opts o;
+  const int parsed = parse_opts(argc, argv, &o);
+  if (parsed >= 0) return parsed;
+  cv_lcd_config lc;
+  const int set = lcd_setup(&o, &lc);
+  if (set >= 0) return set;
+  cv_err err;
+  cv_err_clear(&err);
   int rc = 1;
-  cv_scene_config cfg;
-  cv_scene_config_default(&cfg);
   cv_prt *p = NULL;
   cv_mesh *m = NULL;
   cv_tracer *tr = NULL;
@@ -1133,60 +1214,8 @@ int cmd_lcd(int argc, char **argv) {
   /* The BRDFs first: a bad file fails before any long work. */
   const int bst = check_brdfs(&lc);
   if (bst) return bst;
-  if (cli_has_ext(o.in, ".json")) {
-    if (cv_scene_config_load(o.in, &cfg, &err)) {
-      rc = cli_fail("lcd", 1, "%s", err.msg);
-      goto done;
-    }
-    if (!o.have_light && cfg.light.kind != CV_LIGHT_NONE) {
-      double y = o.spec.yaw_deg, pi = o.spec.pitch_deg, r = o.spec.roll_deg;
-      o.spec = cfg.light;
-      if (y != 0) o.spec.yaw_deg = y;
-      if (pi != 0) o.spec.pitch_deg = pi;
-      if (r != 0) o.spec.roll_deg = r;
-      o.have_light = 1;
-      snprintf(o.light_origin, sizeof o.light_origin, "scene config %s", o.in);
-    }
-    if (o.prt_path) {
-      if (cv_prt_read(o.prt_path, &p, &err)) {
-        rc = cli_fail("lcd", 1, "%s", err.msg);
-        goto done;
-      }
-    } else {
-      if (cli_load_scene_mesh(&cfg, stdout, &m, &err) || cv_tracer_create(m, &tr, &err)) {
-        rc = cli_fail("lcd", 1, "%s", err.msg);
-        goto done;
-      }
-      /* the panels against the scene before the bake: a panel outside it
-       * fails at once */
-      cv_lcd_layout L0;
-      if (cv_lcd_layout_make(&lc, m, &L0, &err)) {
-        rc = cli_fail("lcd", 1, "%s", err.msg);
-        goto done;
-      }
-      if (o.have_eye && !o.head_s && (rc = check_eye(o.eye, &L0, &lc, m))) goto done;
-      rc = 1;
-      cv_bake_params bp = {.bands = cfg.bands ? cfg.bands : 5, .rays = cfg.rays ? cfg.rays : 1024,
-                           .bounces = cfg.bounces, .seed = cfg.seed, .spread = (float)cfg.spread,
-                           .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = 1};
-      printf("bake: %d bands, %d rays, %d bounces (use --prt FILE from `cave bake` to skip this)\n",
-             bp.bands, bp.rays, bp.bounces);
-      fflush(stdout);
-      cv_tracer_set_spread(tr, bp.spread);
-      cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-      if (cv_prt_bake_tracer(tr, &bp, &p, NULL, &err)) {
-        rc = cli_fail("lcd", 1, "%s", err.msg);
-        goto done;
-      }
-      cv_tracer_destroy(tr);
-      tr = NULL;
-      cv_mesh_destroy(m);
-      m = NULL;
-    }
-  } else if (cv_prt_read(o.in, &p, &err)) {
-    rc = cli_fail("lcd", 1, "%s", err.msg);
-    goto done;
-  }
+  if ((rc = load_scene(&o, &lc, &p))) goto done;
+  rc = 1;
   if (!o.drive_s && (!o.have_light || o.spec.kind == CV_LIGHT_NONE)) {
     rc = cli_fail("lcd", 2, "no lighting: give --env, --env-constant or --sky");
     goto done;
@@ -1298,6 +1327,5 @@ done:
   cv_tracer_destroy(tr);
   cv_mesh_destroy(m);
   cv_prt_destroy(p);
-  cv_scene_config_free(&cfg);
   return rc;
 }
