@@ -491,7 +491,7 @@ static void lcd_model(cv_service *s, int scene_ok, problems *pb) {
   for (int i = 0; i < c->n_panels; i++) {
     const char *b = c->panels[i].brdf;
     if (strncmp(b, "builtin:", 8) && !file_readable(b))
-      problem(pb, "%s: lcd.panels[%d].brdf: %s: cannot open: %s", o->scene_config, i, b, strerror(errno));
+      problem(pb, "%s: lcd.panels[%d].brdf: %s: cannot open: %s", c->source[0] ? c->source : o->scene_config, i, b, strerror(errno));
   }
   o->lcd_spp = c->spp;
   o->lcd_tolerance = c->eye_tolerance;
