@@ -66,7 +66,7 @@ static double jitter(uint64_t x) {
   return (double)(x >> 11) * 0x1p-53;
 }
 
-#define STRATA 32
+#define STRATA 128
 
 /* Illuminance on the plane with unit normal n at eye: cosine-weighted
  * stratified directions (E = pi mean L), the strata's spread as the error

@@ -50,7 +50,7 @@ typedef struct cv_lcd_illum {
  * sun's Y irradiance times its elevation's sine.  >= 0. */
 double cv_lcd_outdoor_illuminance(const cv_lcd_light *l);
 
-/* All three at `eye` (car frame): 32 x 32 stratified cosine-weighted rays
+/* All three at `eye` (car frame): 128 x 128 stratified cosine-weighted rays
  * per plane (deterministic jitter), plus the sun when the eye sees it.  g is
  * any panel's gather of the scene (for its tracer).  Thread-safe. */
 void cv_lcd_illuminance(const cv_lcd_gather *g, const cv_lcd_light *l, const float eye[3],

@@ -264,7 +264,7 @@ static void test_eye_illuminance(void **state) {
   const double sd[3] = {0, sin(el), -cos(el)}, sE[3] = {100, 100, 100}; /* ahead, 30 deg up */
   cv_lcd_light *l;
   assert_int_equal(cv_lcd_light_create(env, NULL, m->nv, 1, sd, sE, &l), CV_OK);
-  const float eye[3] = {0, 0.5f, 0.3f}; /* the panel is below and behind: not seen */
+  const float eye[3] = {0, 0.5f, 0.3f}; /* the panel, below, hides 0.1% of the vertical's view */
   cv_lcd_illum il;
   cv_lcd_illuminance(g, l, eye, &il);
   const double Eh = M_PI * L + 100 * sin(el), Ev = M_PI * L + 100 * cos(el);
