@@ -19,6 +19,7 @@
 
 #include "lcd/brdf.h"
 #include "lcd/gather.h"
+#include "lcd/light_level.h"
 #include "lcd/panels.h"
 #include "light/envmap_cache.h"
 #include "lcdwork.h"
@@ -43,6 +44,7 @@ struct cv_lcd_worker {
   cv_lcd_veil_params vp;
   cv_lcd_figure veil[CV_LCD_MAX_PANELS]; /* of the current key (traced once per key) */
   int have_veil;
+  double light[3]; /* the key's light level (light_level.h), carried like the veils */
   cv_envmap_cache *maps; /* the drive's env maps, decoded once (the worker thread's) */
   /* state shared with the owner (mutex) */
   pthread_mutex_t mu;
@@ -125,6 +127,7 @@ static void render_round(cv_lcd_worker *w, const cv_lcd_light *ll, const cv_lcd_
   if (st == CV_OK) st = cv_lcd_panels_round(w->ps, ll, &w->p, round, acc);
   for (int i = 0; st == CV_OK && w->have_veil && i < w->s->lcd_layout.n; i++)
     st = cv_lcd_accum_set_veil(acc, i, w->veil[i].value, w->veil[i].se);
+  if (st == CV_OK) st = cv_lcd_accum_set_light(acc, w->light);
   if (st != CV_OK) {
     cv_lcd_accum_destroy(acc);
     char m[64];
@@ -265,6 +268,10 @@ static void *worker_main(void *arg) {
        * contributor stores the same values in its rounds) */
       double sun_deg[CV_LCD_MAX_PANELS];
       w->have_veil = cv_lcd_panels_veils(w->ps, ll, w->p.eye, &w->vp, w->veil, sun_deg) == CV_OK;
+      /* and its light level: outdoors and at the key's eye */
+      cv_lcd_illum il;
+      cv_lcd_illuminance(w->ps->g[0], ll, w->p.eye, &il);
+      w->light[0] = il.outdoor_h, w->light[1] = il.eye_h, w->light[2] = il.eye_v;
     }
     pthread_mutex_lock(&w->mu);
     if (new_key) { /* its rounds start over */

@@ -59,3 +59,16 @@ echo "frames: $nf rendered: $FRAMES of the drive, $((nf > FRAMES ? nf - FRAMES :
 echo "images (every 12th frame and the last, one per wall-eye and frame): $(ls "$OUT"/frame*.exr 2>/dev/null | wc -l) EXR," \
   "$(ls "$OUT"/frame*.png 2>/dev/null | grep -vc uncompensated) PNG, $(ls "$OUT"/frame*_uncompensated.png 2>/dev/null | wc -l) uncompensated PNG"
 echo "summary: $(tail -1 "$OUT/metrics.jsonl")"
+# the readability over the drive (the summary's lcd_drive, docs/metrics.md)
+python3 - "$OUT/metrics.jsonl" <<'PY' || true
+import json, sys
+d = [json.loads(l) for l in open(sys.argv[1])][-1].get("lcd_drive")
+if d:
+    print("LCD over the drive (%s): figures in %d of %d drive frames, %d of them at most 2 frames old" % (
+        "absolute light" if d["calibrated"] else "UNCALIBRATED light: no verdict", d["frames_with_figures"],
+        d["frames"], d["frames_with_figures_at_most_2_old"]))
+    for n, p in d.get("panels", {}).items():
+        print("  %s: lowest CR %.3g at frame %d (t %.1f s); below %g:1 in %d frames, %.0f%% of the drive time" % (
+            n, p["contrast_ratio_min"], p["contrast_ratio_min_frame"], p["contrast_ratio_min_t"], d["cr_min"],
+            p["frames_below_cr_min"], 100 * p["time_share_below_cr_min"]))
+PY

@@ -234,6 +234,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
     cv_metrics_string(ml, "share_lighting", cv_share_lighting_name(s->o.share_lighting));
+    lcd_ready_metrics(m, ml);
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
       char k[16];
@@ -578,6 +579,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     lcd_reduce_metrics(m, ml, "allreduce");
     lcd_readability_update(m);
     lcd_readability_metrics(m, ml, "readability");
+    lcd_drive_tally(m, f, fs->time, m->wall_clock ? fs->dt : s->o.dt, (fs->flags & CV_FS_HOLD) != 0);
     cv_metrics_object_end(ml);
   }
   if (m->disp) master_comp_metrics(m, ml, (t->tc1 - t->tc0) * 1e3);
@@ -700,6 +702,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
     lcd_reduce_metrics(m, ml, "lcd_allreduce");
     lcd_readability_update(m);
     lcd_readability_metrics(m, ml, "lcd_readability");
+    lcd_drive_summary(m, ml, "lcd_drive");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
   cv_metrics_write(ml, m->mf);

@@ -134,7 +134,21 @@ typedef struct master {
       cv_lcd_figure L_r, L_v, cr, area, vl;
       double L_a;
     } p[CV_LCD_MAX_PANELS];
+    int have_light;       /* the rounds carried the light level (lcdwork.c) */
+    double light[3];      /* outdoor horizontal, eye horizontal, eye vertical illuminance */
   } lread;
+  /* the readability over the drive's frames, as their metrics lines had it
+   * (master_lcd.c: lcd_drive_tally, the summary's lcd_drive) */
+  struct {
+    uint32_t frames, with_figure, fresh; /* drive frames; with a figure; at most 2 frames old */
+    double time;                         /* drive time the frames stand for (s) */
+    struct {
+      double cr_min, cr_min_t;           /* lowest mean CR, the time of its frame */
+      uint32_t cr_min_frame, cr_min_of;  /* that frame, the frame its figure is of */
+      uint32_t below;                    /* frames below cr_min */
+      double below_s;                    /* their time (s) */
+    } p[CV_LCD_MAX_PANELS];
+  } ldrive;
   /* render ranks (index i = rank - 1) and wall-eyes (k = 2 wall + eye) */
   cv_mailbox **rep_mb;
   uint64_t late_reports;
@@ -254,9 +268,20 @@ void lcd_reduce_finish(master *m);
 void lcd_reduce_metrics(master *m, cv_metrics_line *ml, const char *name);
 /* Recomputes the readability figures when the estimate gained rounds. */
 void lcd_readability_update(master *m);
+/* The ready line's lcd_panels: where the LCD panels come from (the scene
+ * config, the lcd block baked with the .prt, or the defaults when the .prt
+ * has none; master_lcd.c). */
+void lcd_ready_metrics(master *m, cv_metrics_line *ml);
 /* The readability object `name` of a metrics line (last valid estimate,
  * its key and age), nothing before the first estimate. */
 void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name);
+/* After a frame's line: counts the figures it carried into m->ldrive (held
+ * frames after the drive are left out; dt_s: the time the frame stands for). */
+void lcd_drive_tally(master *m, uint32_t frame, double t, double dt_s, int held);
+/* The summary's object `name`: per panel the lowest mean CR over the drive's
+ * frames, its frame and time, the frames and the share of drive time below
+ * cr_min; the frames with a figure and with one at most 2 frames old. */
+void lcd_drive_summary(master *m, cv_metrics_line *ml, const char *name);
 
 /* master_desktop.c */
 /* Opens the preview window (a no-op without --present desktop) sized for

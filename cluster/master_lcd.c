@@ -16,6 +16,7 @@
 #include "io/exr.h"
 #include "lcd/gather.h"
 #include "lcd/lcd_config.h"
+#include "lcd/light_level.h"
 #include "lcd/readability.h"
 #include "master_internal.h"
 
@@ -278,12 +279,52 @@ void lcd_readability_update(master *m) {
     m->lread.cr_min = rd.cr_min;
     cv_lcd_readability_free(&rd);
   }
+  m->lread.have_light = cv_lcd_accum_light(acc, m->lread.light);
   m->lread.valid = 1;
   m->lread.key = key;
   m->lread.rounds = rounds;
   m->lread.frame = frame;
   /* its age: since the frame whose head and lighting it is of started */
   m->lread.t = frame < m->cap && m->frame_t[frame] > 0 ? m->frame_t[frame] : cv_service_now();
+}
+
+/* The calibration of the service's light: the drive's (every state of a
+ * drive has the same; docs/readability.md, "Absolute light or no verdict"). */
+static void lcd_calibration(const master *m, cv_lcd_calib *cal) {
+  cv_drive_state ds;
+  cv_light_spec spec;
+  char origin[CV_PATHLEN + 16];
+  cv_drive_eval(m->s->drive, 0, &ds);
+  cv_drive_to_light_spec(m->s->drive, &ds, &spec);
+  snprintf(origin, sizeof origin, "drive %s",
+           m->s->o.drive_path[0] ? m->s->o.drive_path : "(built-in default)");
+  cv_lcd_calibration(&spec, origin, cal);
+}
+
+/* The light level and its source (lx when calibrated). */
+static void light_metrics(master *m, cv_metrics_line *ml, const cv_lcd_calib *cal) {
+  cv_metrics_bool(ml, "calibrated", cal->absolute);
+  cv_metrics_bool(ml, "light_assumed", cal->assumed);
+  cv_metrics_string(ml, "light_source", cal->source);
+  cv_metrics_string(ml, "illuminance_unit", cal->absolute ? "lx" : "relative");
+  if (!m->lread.have_light) return;
+  cv_metrics_double(ml, "outdoor_horizontal_illuminance", m->lread.light[0]);
+  cv_metrics_double(ml, "eye_horizontal_illuminance", m->lread.light[1]);
+  cv_metrics_double(ml, "eye_vertical_illuminance", m->lread.light[2]);
+}
+
+/* Panel i's verdict from its stored figures: "uncalibrated" without
+ * absolute light (light_level.h). */
+static const char *panel_verdict(const master *m, int i, int absolute) {
+  cv_lcd_read_params rp;
+  cv_lcd_read_params_default(&rp);
+  rp.cr_min = m->lread.cr_min;
+  cv_lcd_readability rd;
+  memset(&rd, 0, sizeof rd);
+  rd.cr_mean = m->lread.p[i].cr;
+  rd.frac_ok = m->lread.p[i].area;
+  rd.vl = m->lread.p[i].vl;
+  return cv_lcd_verdict_name(cv_lcd_verdict(&rd, &rp, absolute, NULL, 0));
 }
 
 /* One panel's figures (cd/m2, ratios, shares; docs/metrics.md). */
@@ -313,12 +354,17 @@ void lcd_readability_metrics(master *m, cv_metrics_line *ml, const char *name) {
   cv_metrics_bool(ml, "current", m->lread.key == m->lcd_key);
   cv_metrics_double(ml, "cr_min", m->lread.cr_min);
   cv_metrics_bool(ml, "veil_included", m->lread.veil);
+  cv_lcd_calib cal;
+  lcd_calibration(m, &cal);
+  light_metrics(m, ml, &cal);
   /* the first panel's figures here too (one-panel scenes read them here) */
   panel_metrics(m, ml, 0);
+  cv_metrics_string(ml, "verdict", panel_verdict(m, 0, cal.absolute));
   cv_metrics_object_begin(ml, "panels");
   for (int i = 0; i < m->s->lcd_layout.n; i++) {
     cv_metrics_object_begin(ml, m->s->lcd.panels[i].name);
     panel_metrics(m, ml, i);
+    cv_metrics_string(ml, "verdict", panel_verdict(m, i, cal.absolute));
     cv_metrics_object_end(ml);
   }
   cv_metrics_object_end(ml);
@@ -351,3 +397,69 @@ void lcd_write(master *m, const char *stem) {
   cv_image_destroy(img);
 }
 
+
+void lcd_ready_metrics(master *m, cv_metrics_line *ml) {
+  const cv_service *s = m->s;
+  if (!s->o.lcd) return;
+  char txt[2 * CV_PATHLEN + 96];
+  if (s->o.scene_config[0])
+    snprintf(txt, sizeof txt, "scene config %s", s->o.scene_config);
+  else if (s->lcd.source[0])
+    snprintf(txt, sizeof txt, "%s (the lcd block baked with %s)", s->lcd.source, s->o.scene_path);
+  else
+    snprintf(txt, sizeof txt, "defaults: %s has no lcd block", s->o.scene_path);
+  cv_metrics_string(ml, "lcd_panels", txt);
+  if (!s->o.quiet) printf("cave run: ready: LCD panels: %s\n", txt);
+}
+
+void lcd_drive_tally(master *m, uint32_t frame, double t, double dt_s, int held) {
+  if (held) return;
+  if (m->ldrive.frames == 0)
+    for (int i = 0; i < CV_LCD_MAX_PANELS; i++) m->ldrive.p[i].cr_min = INFINITY;
+  m->ldrive.frames++;
+  m->ldrive.time += dt_s;
+  if (!m->lread.valid) return;
+  m->ldrive.with_figure++;
+  if (m->lread.frame + 2 >= frame) m->ldrive.fresh++;
+  for (int i = 0; i < m->s->lcd_layout.n; i++) {
+    const double cr = m->lread.p[i].cr.value;
+    if (cr < m->ldrive.p[i].cr_min) {
+      m->ldrive.p[i].cr_min = cr;
+      m->ldrive.p[i].cr_min_frame = frame;
+      m->ldrive.p[i].cr_min_of = m->lread.frame;
+      m->ldrive.p[i].cr_min_t = t;
+    }
+    if (cr < m->lread.cr_min) {
+      m->ldrive.p[i].below++;
+      m->ldrive.p[i].below_s += dt_s;
+    }
+  }
+}
+
+void lcd_drive_summary(master *m, cv_metrics_line *ml, const char *name) {
+  if (m->ldrive.frames == 0) return;
+  cv_lcd_calib cal;
+  lcd_calibration(m, &cal);
+  cv_metrics_object_begin(ml, name);
+  cv_metrics_uint(ml, "frames", m->ldrive.frames);
+  cv_metrics_uint(ml, "frames_with_figures", m->ldrive.with_figure);
+  cv_metrics_uint(ml, "frames_with_figures_at_most_2_old", m->ldrive.fresh);
+  cv_metrics_double(ml, "time_s", m->ldrive.time);
+  cv_metrics_bool(ml, "calibrated", cal.absolute);
+  cv_metrics_double(ml, "cr_min", m->lread.valid ? m->lread.cr_min : m->s->lcd.cr_min);
+  cv_metrics_object_begin(ml, "panels");
+  for (int i = 0; i < m->s->lcd_layout.n && m->ldrive.with_figure > 0; i++) {
+    cv_metrics_object_begin(ml, m->s->lcd.panels[i].name);
+    cv_metrics_double(ml, "contrast_ratio_min", m->ldrive.p[i].cr_min);
+    cv_metrics_uint(ml, "contrast_ratio_min_frame", m->ldrive.p[i].cr_min_frame);
+    cv_metrics_double(ml, "contrast_ratio_min_t", m->ldrive.p[i].cr_min_t);
+    cv_metrics_uint(ml, "contrast_ratio_min_of_frame", m->ldrive.p[i].cr_min_of);
+    cv_metrics_uint(ml, "frames_below_cr_min", m->ldrive.p[i].below);
+    cv_metrics_double(ml, "time_below_cr_min_s", m->ldrive.p[i].below_s);
+    cv_metrics_double(ml, "time_share_below_cr_min",
+                      m->ldrive.time > 0 ? m->ldrive.p[i].below_s / m->ldrive.time : 0);
+    cv_metrics_object_end(ml);
+  }
+  cv_metrics_object_end(ml);
+  cv_metrics_object_end(ml);
+}

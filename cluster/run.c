@@ -496,6 +496,15 @@ static void lcd_model(cv_service *s, int scene_ok, problems *pb) {
       problem(pb, "--scene-config: %s", err.msg);
       return;
     }
+  } else if (o->scene_path[0] && file_readable(o->scene_path)) {
+    /* the lcd block baked with the .prt (lcd_config.h), when there is one */
+    uint64_t hash;
+    int found;
+    if (cv_prt_read_input_hash(o->scene_path, &hash, &err) == CV_OK &&
+        cv_lcd_sidecar_load(o->scene_path, hash, c, &found, NULL, 0, &err)) {
+      problem(pb, "--scene: %s", err.msg);
+      return;
+    }
   }
   if (o->lcd_w > 0) c->width = o->lcd_w, c->height = o->lcd_h;
   if (o->lcd_spp > 0) c->spp = o->lcd_spp;
@@ -514,7 +523,7 @@ static void lcd_model(cv_service *s, int scene_ok, problems *pb) {
   for (int i = 0; i < c->n_panels; i++) {
     const char *b = c->panels[i].brdf;
     if (strncmp(b, "builtin:", 8) && !file_readable(b))
-      problem(pb, "%s: lcd.panels[%d].brdf: %s: cannot open: %s", o->scene_config, i, b, strerror(errno));
+      problem(pb, "%s: lcd.panels[%d].brdf: %s: cannot open: %s", c->source[0] ? c->source : o->scene_config, i, b, strerror(errno));
   }
   o->lcd_spp = c->spp;
   o->lcd_tolerance = c->eye_tolerance;
@@ -687,7 +696,9 @@ static void print_layout(const cv_service *s, int ranks) {
   }
   if (s->n_gather) printf("  ranks %d-%d: gather-only\n", 1 + s->n_render, ranks - 1);
   if (s->o.lcd && s->lcd_layout.n > 0) { /* the LCD model (docs/readability.md) */
-    printf("  LCD (%s):", s->o.scene_config[0] ? s->o.scene_config : "defaults");
+    printf("  LCD (%s%s):", s->o.scene_config[0] ? s->o.scene_config
+                            : s->lcd.source[0] ? s->lcd.source : "defaults: ",
+           s->o.scene_config[0] || s->lcd.source[0] ? "" : "the .prt has no lcd block");
     for (int i = 0; i < s->lcd_layout.n; i++)
       printf("%s %s %dx%d", i ? "," : "", s->lcd.panels[i].name, s->lcd_layout.w[i], s->lcd_layout.h[i]);
     printf(" texels, %d spp per round, eye tolerance %g m\n", s->o.lcd_spp, s->o.lcd_tolerance);

@@ -8,6 +8,7 @@
 #include <omp.h>
 
 #include "cli/cli.h"
+#include "lcd/lcd_config.h"
 #include "prt/auto_view.h"
 #include "prt/auto.h"
 #include "prt/bake.h"
@@ -161,6 +162,28 @@ static int parse_opts(int argc, char **argv, bake_opts *o) {
     }
   }
   return -1;
+}
+
+/* The scene config's "lcd" block next to the .prt (<out>.lcd.json,
+ * lcd_config.h), so that `cave lcd out.prt` and `cave run --scene out.prt`
+ * use the scene's panels; without a block, a sidecar of an earlier bake is
+ * removed.  Returns the exit status (message printed). */
+static int bake_lcd_block(const char *in, const char *out, uint64_t hash) {
+  cv_err err;
+  cv_err_clear(&err);
+  int written, removed;
+  char side[CV_PATH_MAX + 16];
+  cv_lcd_sidecar_path(out, side, sizeof side);
+  if (cv_lcd_sidecar_write(cli_has_ext(in, ".json") ? in : NULL, out, hash, &written, &removed, &err))
+    return cli_fail("bake", 1, "%s", err.msg);
+  if (written)
+    printf("wrote %s (the scene config's lcd block: cave lcd and cave run use its panels with %s)\n",
+           side, out);
+  else
+    printf("lcd: %s has no lcd block%s: cave lcd and cave run use one default panel on the lcd "
+           "triangles (docs/readability.md)\n", strcmp(in, "default") ? in : "the built-in scene",
+           removed ? " (removed the earlier bake's lcd block)" : "");
+  return 0;
 }
 
 int cmd_bake(int argc, char **argv) {
@@ -362,7 +385,7 @@ int cmd_bake(int argc, char **argv) {
   if (!o.force && cv_prt_read_input_hash(o.out, &have, NULL) == CV_OK && have == want) {
     printf("%s is up to date (input hash %016llx); use --force to bake again\n", o.out,
            (unsigned long long)want);
-    rc = 0;
+    rc = bake_lcd_block(o.in, o.out, want);
     goto done;
   }
   if (!tr && cv_tracer_create(m, &tr, &err)) {
@@ -399,7 +422,7 @@ int cmd_bake(int argc, char **argv) {
     goto done;
   }
   printf("wrote %s (input hash %016llx)\n", o.out, (unsigned long long)prt->meta.input_hash);
-  rc = 0;
+  rc = bake_lcd_block(o.in, o.out, prt->meta.input_hash);
 done:
   cv_prt_destroy(prt);
   cv_tracer_destroy(tr);

@@ -330,7 +330,8 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
   const cJSON *o = json;
   ctx x = {file, err};
   static const char *const keys[] = {"env", "weights", "scale", "illuminance", "sun", "sky",
-                                     "constant", "yaw_deg", "pitch_deg", "roll_deg", NULL};
+                                     "constant", "yaw_deg", "pitch_deg", "roll_deg", "absolute",
+                                     NULL};
   int st = only_keys(&x, o, "lighting", keys);
   if (st) return st;
   const cJSON *env = cJSON_GetObjectItemCaseSensitive(o, "env");
@@ -389,6 +390,13 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
     } else if (lux && (st = get_num(&x, o, "illuminance", "lighting", 1e-6, 1e7, &l->illuminance))) {
       return fail(&x, "lighting.illuminance", "expected lux in [1e-6, 1e7] or \"auto\"%s", "");
     }
+    const cJSON *abs_ = cJSON_GetObjectItemCaseSensitive(o, "absolute");
+    if (abs_ && !cJSON_IsBool(abs_))
+      return fail(&x, "lighting.absolute", "expected true or false%s", "");
+    if (abs_ && lux)
+      return fail(&x, "lighting.absolute", "not together with \"illuminance\" (which already "
+                  "calibrates)%s", "");
+    l->absolute = cJSON_IsTrue(abs_);
   } else if (sky) {
     l->kind = CV_LIGHT_SKY;
     static const char *const skeys[] = {"turbidity", "sun_elevation_deg", "sun_azimuth_deg",
@@ -406,6 +414,9 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
   }
   if (l->kind != CV_LIGHT_ENV && cJSON_GetObjectItemCaseSensitive(o, "illuminance"))
     return fail(&x, "lighting.illuminance", "only for \"env\" maps (the sky is absolute)%s", "");
+  if (l->kind != CV_LIGHT_ENV && cJSON_GetObjectItemCaseSensitive(o, "absolute"))
+    return fail(&x, "lighting.absolute", "only for \"env\" maps (the sky and a constant are "
+                "in cd/m^2)%s", "");
   if ((st = get_num(&x, o, "yaw_deg", "lighting", -360, 360, &l->yaw_deg))) return st;
   if ((st = get_num(&x, o, "pitch_deg", "lighting", -90, 90, &l->pitch_deg))) return st;
   return get_num(&x, o, "roll_deg", "lighting", -180, 180, &l->roll_deg);

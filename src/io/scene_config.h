@@ -30,6 +30,8 @@ typedef struct cv_light_spec {
                                    illuminance (light/calibrate.h); 0 = not calibrated
                                    (scale applies), CV_ILLUMINANCE_AUTO = each
                                    blender-data map at its documented default */
+  int absolute;                 /* env maps: the config declares the maps times scale in
+                                   cd/m^2 ("absolute": true; docs/readability.md) */
   int extract_sun;              /* env maps: split a sun out when one is found (default 1) */
   double turbidity;             /* sky, 2..10 (default 3) */
   double sun_elevation_deg;     /* sky (default 35) */

@@ -97,6 +97,22 @@ int cv_lcd_accum_veil(const cv_lcd_accum *a, int slot, double *value, double *se
   return 1;
 }
 
+int cv_lcd_accum_set_light(cv_lcd_accum *a, const double E[3]) {
+  if (!a || a->data[CV_LCD_ACC_ROUNDS] != 1) return CV_ERR_INVALID;
+  for (int k = 0; k < 3; k++)
+    if (!(E[k] >= 0) || !(E[k] < 0x1p38)) return CV_ERR_INVALID;
+  for (int k = 0; k < 3; k++) a->data[CV_LCD_ACC_LIGHT + k] = (int64_t)llround(E[k] / CV_LCD_VEIL_UNIT);
+  a->data[CV_LCD_ACC_LIGHTS] = 1;
+  return CV_OK;
+}
+
+int cv_lcd_accum_light(const cv_lcd_accum *a, double E[3]) {
+  const int64_t n = a->data[CV_LCD_ACC_LIGHTS];
+  for (int k = 0; k < 3; k++)
+    E[k] = n > 0 ? (double)a->data[CV_LCD_ACC_LIGHT + k] * CV_LCD_VEIL_UNIT / (double)n : 0;
+  return n > 0;
+}
+
 int cv_lcd_accum_error(const cv_lcd_accum *a, cv_lcd_error *e) {
   memset(e, 0, sizeof *e);
   int64_t n = a->data[CV_LCD_ACC_SPP];

@@ -48,6 +48,13 @@ enum {
 #define CV_LCD_ACC_VEIL_SLOTS 8
 _Static_assert(CV_LCD_ACC_VEIL + 2 * CV_LCD_ACC_VEIL_SLOTS <= CV_LCD_ACC_HEADER,
                "the veil slots fit the header");
+/* The light words after the veils: rounds that carry the light level
+ * (cv_lcd_accum_set_light), then the outdoor horizontal illuminance, the
+ * eye's horizontal and vertical illuminance (light_level.h), in
+ * CV_LCD_VEIL_UNIT, summed like the veils. */
+#define CV_LCD_ACC_LIGHTS (CV_LCD_ACC_VEIL + 2 * CV_LCD_ACC_VEIL_SLOTS)
+#define CV_LCD_ACC_LIGHT (CV_LCD_ACC_LIGHTS + 1)
+_Static_assert(CV_LCD_ACC_LIGHT + 3 <= CV_LCD_ACC_HEADER, "the light words fit the header");
 
 /* The veil words: every round of one key carries the same veil (a pure
  * function of the key's eye and lighting), so their sum over rounds divided
@@ -125,6 +132,13 @@ int cv_lcd_accum_set_veil(cv_lcd_accum *a, int slot, double value, double se);
 /* The veil of `slot` in a sum of rounds (their mean): returns 1, or 0 (and
  * 0, 0) when no round carried veils. */
 int cv_lcd_accum_veil(const cv_lcd_accum *a, int slot, double *value, double *se);
+/* The light level of a round (E[0] outdoor horizontal, E[1] eye horizontal,
+ * E[2] eye vertical illuminance; each in 0..2^38), in a buffer holding ONE
+ * round, as cv_lcd_accum_set_veil.  CV_ERR_INVALID otherwise. */
+int cv_lcd_accum_set_light(cv_lcd_accum *a, const double E[3]);
+/* The light level the rounds carried (their mean): 1, or 0 with E zero
+ * when none carried one. */
+int cv_lcd_accum_light(const cv_lcd_accum *a, double E[3]);
 
 /* Binary save/restore of a buffer (magic "CVLCDACC", version 2; sizes,
  * clamp, then the int64 array, little-endian), for resuming progressive

@@ -27,6 +27,7 @@
 #define CV_LCD_LCD_CONFIG_H
 
 #include <stdint.h>
+#include <stddef.h>
 
 #include "core/status.h"
 #include "io/scene_config.h"
@@ -108,6 +109,32 @@ enum {
  * bits.  Call after the options set the block, before
  * cv_lcd_config_panels. */
 void cv_lcd_config_override(cv_lcd_config *c, unsigned what);
+
+/* --- the lcd block baked with a scene (lcd_sidecar.c) -----------------------
+ * `cave bake scene.json -o scene.prt` writes the scene config's "lcd" block
+ * next to the .prt, as <scene.prt>.lcd.json:
+ *   { "prt_input_hash": "<16 hex digits: the .prt's input hash>",
+ *     "scene_config": "<absolute path of the scene config>",
+ *     "lcd": { ...the block, brdf and content paths made absolute... } }
+ * so that `cave lcd scene.prt` and `cave run --scene scene.prt` use the
+ * scene's panels without the scene config. */
+
+/* <prt>.lcd.json into out (n bytes). */
+void cv_lcd_sidecar_path(const char *prt, char *out, size_t n);
+/* Writes the sidecar of prt_path from scene_json's "lcd" block (*written
+ * 1), or, when the config has none (scene_json NULL: a mesh file or the
+ * built-in scene), removes a sidecar left by an earlier bake (*written 0,
+ * *removed 1 when there was one).  Errors name the file: CV_ERR_IO,
+ * CV_ERR_CONFIG, CV_ERR_NOMEM. */
+int cv_lcd_sidecar_write(const char *scene_json, const char *prt_path, uint64_t prt_hash,
+                         int *written, int *removed, cv_err *err);
+/* Loads the sidecar of prt_path into c (as cv_lcd_config_load_scene; c's
+ * source becomes the sidecar's path) when there is one (*found 1).  A
+ * sidecar of another bake (its prt_input_hash is not prt_hash) is an error
+ * naming both hashes, never used silently.  *scene_config (may be NULL,
+ * n bytes) gets the scene config it was baked from. */
+int cv_lcd_sidecar_load(const char *prt_path, uint64_t prt_hash, cv_lcd_config *c, int *found,
+                        char *scene_config, size_t n, cv_err *err);
 
 /* The ranges every reader of the settings checks, the same in the config
  * and on the command line. */

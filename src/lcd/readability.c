@@ -134,6 +134,8 @@ void cv_lcd_read_params_default(cv_lcd_read_params *p) {
   p->black = 0.5;
   p->cr_min = 3;
   p->adaptation = 0;
+  p->area_min = 0.95;
+  p->vl_min = 5;
 }
 
 int cv_lcd_read_params_check(const cv_lcd_read_params *p, cv_err *err) {
@@ -147,6 +149,10 @@ int cv_lcd_read_params_check(const cv_lcd_read_params *p, cv_err *err) {
                       p->white, p->black);
   if (!(p->cr_min >= 1) || !isfinite(p->cr_min))
     return cv_err_set(err, CV_ERR_INVALID, "cr_min: %g: expected a ratio >= 1", p->cr_min);
+  if (!(p->area_min >= 0 && p->area_min <= 1))
+    return cv_err_set(err, CV_ERR_INVALID, "area_min: %g: expected a share in 0..1", p->area_min);
+  if (!(p->vl_min >= 0) || !isfinite(p->vl_min))
+    return cv_err_set(err, CV_ERR_INVALID, "vl_min: %g: expected a visibility level >= 0", p->vl_min);
   if (!(p->adaptation >= 0) || !isfinite(p->adaptation))
     return cv_err_set(err, CV_ERR_INVALID, "adaptation: %g: expected cd/m^2 >= 0 (0 = automatic)",
                       p->adaptation);
@@ -194,9 +200,17 @@ static double vl_of(double W, double B, double La) { return (W - B) / cv_tvi_fer
 
 int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
                                const cv_lcd_figure *lv, cv_lcd_readability *out, cv_err *err) {
+  return cv_lcd_readability_compute_scaled(acc, p, lv, 1.0, out, err);
+}
+
+int cv_lcd_readability_compute_scaled(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
+                                      const cv_lcd_figure *lv, double k,
+                                      cv_lcd_readability *out, cv_err *err) {
   memset(out, 0, sizeof *out);
   int st = cv_lcd_read_params_check(p, err);
   if (st) return st;
+  if (!(k > 0) || !isfinite(k))
+    return cv_err_set(err, CV_ERR_INVALID, "light scale: %g: expected a finite factor > 0", k);
   if (!lv || !isfinite(lv->value) || lv->value < 0 || !isfinite(lv->se) || lv->se < 0)
     return cv_err_set(err, CV_ERR_INVALID, "veiling luminance: expected a finite value >= 0");
   const int64_t n = acc->data[CV_LCD_ACC_SPP];
@@ -225,9 +239,9 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
       const size_t i = (size_t)y * (size_t)acc->w + (size_t)x;
       const int64_t *q = acc->data + cv_lcd_acc_rgb(acc, x, y);
       const int64_t *q2 = acc->data + cv_lcd_acc_m2(acc, x, y);
-      const double m = (0.2126 * (double)q[0] + 0.7152 * (double)q[1] + 0.0722 * (double)q[2]) *
+      const double m = k * (0.2126 * (double)q[0] + 0.7152 * (double)q[1] + 0.0722 * (double)q[2]) *
                        acc->unit / (double)n;
-      const double m2 = ((double)q2[0] * 0x1p40 + (double)q2[1]) * acc->unit * acc->unit / (double)n;
+      const double m2 = k * k * ((double)q2[0] * 0x1p40 + (double)q2[1]) * acc->unit * acc->unit / (double)n;
       double vs = m2 - m * m; /* variance of one sample */
       if (!(vs > 0)) vs = 0;
       const double se2 = vs / (double)n;
@@ -269,6 +283,8 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
   out->spp = (uint64_t)n;
   out->cr_min = p->cr_min;
   out->cr_worst = worst;
+  out->white = W;
+  out->black = B;
   out->L_r.value = sy / N;
   out->L_r.se = sqrt(sse) / N;
   out->L_v = *lv;
@@ -298,7 +314,7 @@ int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params
 
 /* --- heat map ------------------------------------------------------------------ */
 
-static void viridis(double t, uint8_t rgb[3]) {
+void cv_lcd_viridis(double t, uint8_t rgb[3]) {
   static const double a[5][3] = {
       {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
   t = t < 0 ? 0 : (t > 1 ? 1 : t);
@@ -325,14 +341,14 @@ int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px) {
       if (y > 0) edge |= (sm[i - (size_t)w] >= r->cr_min) != ok;
       if (y + 1 < h) edge |= (sm[i + (size_t)w] >= r->cr_min) != ok;
       if (edge) o[0] = o[1] = o[2] = 255;
-      else viridis(cr_pos(r->cr[i]), o);
+      else cv_lcd_viridis(cr_pos(r->cr[i]), o);
     }
   const int mark = w > 1 ? (int)lrint(cr_pos(r->cr_min) * (w - 1)) : 0;
   for (int y = 0; y < bar_h; y++)
     for (int x = 0; x < w; x++) {
       uint8_t *o = px + 3 * ((size_t)(h + y) * (size_t)w + (size_t)x);
       const double t = w > 1 ? (double)x / (w - 1) : 0;
-      viridis(t, o);
+      cv_lcd_viridis(t, o);
       /* ticks at CR = 1, 2, ..., 10 in the bar's top third (black) */
       for (int c = 1; c <= 10 && y < bar_h / 3; c++)
         if (x == (int)lrint(log10((double)c) * (w - 1))) o[0] = o[1] = o[2] = 0;

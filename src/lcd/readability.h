@@ -94,6 +94,8 @@ typedef struct cv_lcd_read_params {
   double black;        /* L_off: content black luminance, cd/m^2 (0.5) */
   double cr_min;       /* required contrast ratio (3, ISO 15008) */
   double adaptation;   /* L_a, cd/m^2; 0: the background seen, L_off + L_r + L_v */
+  double area_min;     /* verdict: share of the area that must meet cr_min (0.95) */
+  double vl_min;       /* verdict: smallest visibility level (5) */
 } cv_lcd_read_params;
 
 void cv_lcd_read_params_default(cv_lcd_read_params *p);
@@ -118,6 +120,7 @@ typedef struct cv_lcd_readability {
   double dL_threshold; /* dL_t(L_a) */
   double cr_worst;     /* smallest texel CR (no error attached) */
   double cr_min;       /* the requirement used */
+  double white, black; /* L_on, L_off used (cd/m^2) */
   uint64_t spp;        /* samples per texel behind the estimate */
 } cv_lcd_readability;
 
@@ -137,6 +140,13 @@ typedef struct cv_lcd_readability {
  * CV_ERR_NOMEM. */
 int cv_lcd_readability_compute(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
                                const cv_lcd_figure *lv, cv_lcd_readability *out, cv_err *err);
+/* The same with the reflection scaled by k > 0 (each texel's L_r and its
+ * error times k; the veil lv is used as given): the figures under the same
+ * lighting at k times its level (the gather is linear in the light), for
+ * the illuminance sweep.  CV_ERR_INVALID for k not finite or <= 0. */
+int cv_lcd_readability_compute_scaled(const cv_lcd_accum *acc, const cv_lcd_read_params *p,
+                                      const cv_lcd_figure *lv, double k,
+                                      cv_lcd_readability *out, cv_err *err);
 void cv_lcd_readability_free(cv_lcd_readability *r);
 
 /* Heat map of the CR map as 8-bit RGB: the panel (w x h) above a colour bar
@@ -147,5 +157,7 @@ void cv_lcd_readability_free(cv_lcd_readability *r);
  * bar's cr_min position marked white.  px: w * (h + bar_h) * 3 bytes, row 0
  * at the top.  Returns CV_OK. */
 int cv_lcd_heatmap_rgb(const cv_lcd_readability *r, int bar_h, uint8_t *px);
+/* The heat maps' colour of t in [0, 1] (clamped): viridis, 8-bit RGB. */
+void cv_lcd_viridis(double t, uint8_t rgb[3]);
 
 #endif

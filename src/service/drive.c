@@ -31,6 +31,7 @@ struct cv_drive {
   char maps[CV_MAX_ENV_MAPS][CV_PATH_MAX];
   double scale, ground_albedo;
   double illuminance; /* lux, CV_ILLUMINANCE_AUTO, or 0 (scale applies) */
+  int absolute;       /* "absolute": true: the maps times scale are in cd/m^2 */
   int n_keys;
   key *keys;
 };
@@ -191,7 +192,8 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
 
 static const char *const top_fields[] = {"description", "loop",          "maps",
                                          "sky",         "scale",         "ground_albedo",
-                                         "keyframes",   "illuminance",   NULL};
+                                         "keyframes",   "illuminance",   "absolute",
+                                         NULL};
 
 /* Checks the JSON text; when out is non-NULL and there is no problem,
  * builds the drive. */
@@ -235,6 +237,8 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
       cv_problem(x, CV_ERR_CONFIG, "scale", "only for map drives (the sky has its own radiance)");
     if (cJSON_GetObjectItemCaseSensitive(root, "illuminance"))
       cv_problem(x, CV_ERR_CONFIG, "illuminance", "only for map drives (the sky is absolute)");
+    if (cJSON_GetObjectItemCaseSensitive(root, "absolute"))
+      cv_problem(x, CV_ERR_CONFIG, "absolute", "only for map drives (the sky is in cd/m^2)");
     opt_num(x, root, "", "ground_albedo", 0.0, 1.0, &d->ground_albedo);
   } else {
     if (cJSON_GetObjectItemCaseSensitive(root, "ground_albedo"))
@@ -251,6 +255,9 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
       cv_problem(x, CV_ERR_CONFIG, "illuminance", "expected lux or \"auto\"");
     else if (lux)
       opt_num(x, root, "", "illuminance", 1e-6, 1e7, &d->illuminance);
+    opt_bool(x, root, "absolute", &d->absolute);
+    if (lux && d->absolute)
+      cv_problem(x, CV_ERR_CONFIG, "absolute", "not together with \"illuminance\" (which already calibrates)");
     if (!maps) {
       cv_problem(x, CV_ERR_CONFIG, "maps",
               "missing (expected a list of environment maps, or \"sky\": true)");
@@ -484,6 +491,7 @@ void cv_drive_to_light_spec(const cv_drive *d, const cv_drive_state *s, cv_light
   out->kind = CV_LIGHT_ENV;
   out->scale = d->scale;
   out->illuminance = d->illuminance;
+  out->absolute = d->absolute;
   int n = s->n_maps < d->n_maps ? s->n_maps : d->n_maps;
   for (int i = 0; i < n; i++) {
     if (!(s->weights[i] > 0)) continue;

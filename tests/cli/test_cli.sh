@@ -477,5 +477,49 @@ expect_error "lcd: no eye" "--eye" $CAVE lcd a.prt --env-constant 1,1,1 -o y.exr
 expect_error "lcd: no lighting" "no lighting" $CAVE lcd a.prt "${EYE[@]}" -o y.exr
 [ ! -e y.exr ] && [ ! -e y.exr.json ] && ok "lcd: no output left by failures" || bad "lcd: a failure left output"
 
+# --- lcd: absolute light or no verdict, the sweep, the scene's panels (issue 34) ---
+expect_ok "lcd relative map" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --size 40x24 --spp 4 -o unc.exr
+grep -q "^light: UNCALIBRATED" out.txt && grep -q "uncalibrated: no verdict" out.txt \
+  && grep -q "\[uncalibrated light\]" out.txt && ! grep -q "READABLE" out.txt \
+  && grep -q '"absolute": false' unc.exr.json && grep -q '"verdict": "uncalibrated"' unc.exr.json \
+  && grep -q '"unit": "relative"' unc.exr.json \
+  && ok "lcd: relative light marked uncalibrated, no READABLE/UNREADABLE" || { bad "lcd: uncalibrated mark"; cat out.txt; }
+expect_ok "lcd calibrated map" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --illuminance 20000 --size 40x24 --spp 4 -o cal.exr
+grep -Eq "^lcd lcd: (READABLE|UNREADABLE) " out.txt && grep -q '"absolute": true' cal.exr.json \
+  && grep -q '"source": "command line: illuminance 20000 lx"' cal.exr.json && grep -q '"unit": "lx"' cal.exr.json \
+  && grep -Eq '"eye_horizontal_illuminance": [0-9]' cal.exr.json && grep -Eq '"eye_vertical_illuminance": [0-9]' cal.exr.json \
+  && grep -Eq '"outdoor_horizontal_illuminance": (199|200)[0-9][0-9]' cal.exr.json \
+  && ok "lcd: --illuminance gives a verdict, the sidecar has the lux and their source" || { bad "lcd: calibrated light"; cat out.txt cal.exr.json; }
+expect_ok "lcd sky" $CAVE lcd a.prt "${EYE[@]}" --sky 3,20,180 --size 40x24 --spp 4 -o sky.exr
+grep -q '"verdict": "\(READABLE\|UNREADABLE\)"' sky.exr.json && ok "lcd: the sky is absolute" || bad "lcd: sky verdict"
+expect_ok "lcd sweep" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --size 40x24 --spp 4 --illuminance-sweep 100:1e6:9 -o sw.csv
+[ "$(wc -l <sw.csv)" -eq 10 ] && head -1 sw.csv | grep -q "^E_lx,L_r,L_r_se,L_v,L_v_se,CR,CR_se,area_meeting,area_meeting_se,VL,VL_se,readable$" \
+  && grep -Eq "^sweep lcd: the mean CR falls to 3:1 at [0-9.e+]+ \+- " out.txt \
+  && awk -F, 'NR > 2 && $6 >= c { bad = 1 } NR > 1 { c = $6 } END { exit bad }' sw.csv \
+  && ok "lcd sweep: 9 levels, CR falling with the light, the 3:1 crossing printed" || { bad "lcd sweep"; cat out.txt sw.csv; }
+if command -v gnuplot >/dev/null; then [ -s sw.png ] && ok "lcd sweep: plot" || bad "lcd sweep: no plot"; fi
+for s in 5:1 10:20:0 -5:10 0:10 10:20:1 abc; do
+  expect_error "lcd: bad sweep $s" "^cave lcd: --illuminance-sweep: .*$s" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --illuminance-sweep "$s" -o y.csv
+  [ "$(wc -l <err.txt)" -eq 1 ] || bad "lcd: bad sweep $s: more than one line"
+done
+expect_error "lcd: sweep with a drive" "--illuminance-sweep: not with --drive" $CAVE lcd a.prt --drive rise.json "${EYE[@]}" --illuminance-sweep 10:20 -o y.csv
+expect_error "lcd: sweep to an EXR" "-o: with --illuminance-sweep" $CAVE lcd a.prt "${EYE[@]}" --env good.exr --illuminance-sweep 10:20 -o y.exr
+[ ! -e y.csv ] && ok "lcd: no sweep CSV left by failures" || bad "lcd: a failed sweep left a CSV"
+# the scene's lcd block travels with the bake: <prt>.lcd.json
+expect_ok "bake with an lcd block" $CAVE bake twop.json -o twop.prt "${B[@]}"
+[ -s twop.prt.lcd.json ] && grep -q '"prt_input_hash"' twop.prt.lcd.json && grep -q '"cluster"' twop.prt.lcd.json \
+  && ok "bake: the lcd block next to the .prt" || bad "bake: no lcd block sidecar"
+expect_ok "lcd on the .prt alone" $CAVE lcd twop.prt "${EYE[@]}" --sky 3,20,180 -o tpp.exr
+grep -q "^lcd panels: twop.prt's lcd block" out.txt && grep -q "lcd centre: CR" out.txt && grep -q "lcd cluster: CR" out.txt \
+  && [ -s tpp.cluster.exr.json ] && ok "lcd: a .prt's own panels (centre and cluster)" || { bad "lcd: .prt panels"; cat out.txt; }
+expect_ok "lcd on a .prt without a block" $CAVE lcd a.prt "${EYE[@]}" --sky 3,20,180 --size 40x24 --spp 2 -o nob.exr
+grep -q "a.prt has no lcd block" out.txt && ok "lcd: a .prt without a block says so" || bad "lcd: no 'has no lcd block'"
+# (the same cabin and settings: a.prt has twop.prt's input hash; another bake's differs)
+sed 's/"prt_input_hash":[^,]*,/"prt_input_hash": "0123456789abcdef",/' twop.prt.lcd.json >a.prt.lcd.json
+expect_error "lcd: the lcd block of another bake" "a.prt.lcd.json: prt_input_hash: .*another bake" $CAVE lcd a.prt "${EYE[@]}" --sky 3,20,180 -o y.exr
+expect_ok "bake without a block" $CAVE bake default -o a.prt "${B[@]}"
+[ ! -e a.prt.lcd.json ] && grep -q "removed the earlier bake's lcd block" out.txt \
+  && ok "bake: a stale lcd block is removed" || bad "bake: stale lcd block kept"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -65,6 +65,7 @@ SAMPLES = {
             {"mesh": {"path": R01, "units": "cm", "up": "z", "transform": {"rotate_deg": [0, 90, 0]}},
              "materials": [{"name": "*", "albedo": [0.5, 0.5, 0.5]}]},
             {"lighting": {"env": "forest.exr", "illuminance": "auto"}, "prt": {"bands": "auto"}},
+            {"lighting": {"env": "forest.exr", "scale": 10000, "absolute": True}},
             {"mesh": {"source": "cabin", "tess": 1}, "lighting": {"sky": {"turbidity": 4}},
              "lcd": {"resolution": [200, 150], "cr_min": 3, "age": 60}},
             {"mesh": {"source": "cabin", "tess": 1},
@@ -86,6 +87,9 @@ SAMPLES = {
             {"lighting": {"sky": {}, "illuminance": 100}},
             {"lighting": {"env": "forest.exr", "sky": {}}},
             {"lighting": {"env": "forest.exr", "illuminance": "bright"}},
+            {"lighting": {"env": "forest.exr", "illuminance": 100, "absolute": True}},
+            {"lighting": {"sky": {}, "absolute": True}},
+            {"lighting": {"env": "forest.exr", "absolute": 1}},
             {"colour": 1},
             {"lcd": {"resolution": [400, 0]}},
             {"lcd": {"cr_min": 0.5}},
@@ -104,6 +108,7 @@ SAMPLES = {
     },
     "drive": {
         "valid": [{"maps": ["forest.exr"], "illuminance": "auto", "keyframes": [{"t": 0}]},
+                  {"maps": ["forest.exr"], "scale": 10000, "absolute": True, "keyframes": [{"t": 0}]},
                   {"sky": True, "keyframes": [{"t": 0, "turbidity": 3}]}],
         "invalid": [
             {"maps": ["forest.exr"], "scale": 2, "illuminance": 5, "keyframes": [{"t": 0}]},
@@ -113,6 +118,9 @@ SAMPLES = {
             {"sky": True, "keyframes": [{"t": 0, "weights": [1]}]},
             {"maps": ["forest.exr"], "keyframes": [{"t": 0}], "speed": 1},
             {"sky": True, "illuminance": "auto", "keyframes": [{"t": 0}]},
+            {"sky": True, "absolute": True, "keyframes": [{"t": 0}]},
+            {"maps": ["forest.exr"], "illuminance": 5, "absolute": True, "keyframes": [{"t": 0}]},
+            {"maps": ["forest.exr"], "absolute": "yes", "keyframes": [{"t": 0}]},
         ],
     },
 }

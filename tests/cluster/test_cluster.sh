@@ -184,6 +184,36 @@ print("(run / lcd, %d rounds) " % s["rounds"] + "; ".join(out))
 sys.exit(0 if ok else 1)
 PY
 
+# --- the scene's panels travel with the bake (issue 34): `cave run --scene
+# two.prt` without --scene-config uses two.json's panels (the lcd block `cave
+# bake` wrote next to two.prt: the same cabin and bake as scene.prt, so the
+# same image as l11's); a .prt without a block says so in the ready line; the
+# forest map is unscaled: every figure is marked uncalibrated, no verdict ---
+"$CAVE" bake two.json -o two.prt --bands 3 --rays 32 --bounces 1 --quiet >/dev/null 2>&1 \
+  || bad "bake two.json"
+L2=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation)
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]/scene.prt/two.prt}" "${L2[@]}" -o lp >/dev/null 2>lp.txt; rc=$?
+python3 - lp/metrics.jsonl r11/metrics.jsonl <<'PY' >lp_check.txt && cmp -s l11/lcd.exr lp/lcd.exr \
+  && ok "cave run --scene two.prt uses its baked panels: $(cat lp_check.txt)" \
+  || bad "cave run --scene two.prt: rc $rc $(cat lp_check.txt) $(tail -2 lp.txt)"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]
+ready, summ = lines[0], lines[-1]
+r0 = json.loads(open(sys.argv[2]).readline())
+s = summ["lcd_readability"]
+ok = (ready["type"] == "ready" and "two.prt.lcd.json" in ready["lcd_panels"]
+      and "has no lcd block" in r0["lcd_panels"] and set(s["panels"]) == {"centre", "cluster"}
+      and s["calibrated"] is False and s["illuminance_unit"] == "relative"
+      and "uncalibrated" in s["light_source"] and s["outdoor_horizontal_illuminance"] > 0
+      and s["eye_horizontal_illuminance"] > 0 and s["eye_vertical_illuminance"] > 0
+      and all(p["verdict"] == "uncalibrated" for p in s["panels"].values()))
+print("ready: %s; scene.prt: %s; panels %s, verdicts %s, outdoor %.4g, eye %.4g / %.4g (%s)" % (
+    ready["lcd_panels"], r0["lcd_panels"], sorted(s["panels"]),
+    [p["verdict"] for p in s["panels"].values()], s["outdoor_horizontal_illuminance"],
+    s["eye_horizontal_illuminance"], s["eye_vertical_illuminance"], s["illuminance_unit"]))
+sys.exit(0 if ok else 1)
+PY
+
 # --- readability during a drive: every frame a new key (the car turns), yet
 # the frames carry lcd.readability from rounds of earlier snapshots ----------
 cat > turn.json <<'JSON'
@@ -207,6 +237,36 @@ if with_r:
 open(d + "/drive_check.txt", "w").write(msg)
 ok = len(keys) >= 8 and len(with_r) >= 2 and all(
     l["lcd"]["readability"]["frame"] <= l["frame"] and l["lcd"]["readability"]["age_s"] >= 0 for l in with_r)
+sys.exit(0 if ok else 1)
+PY
+
+# --- the whole drive in the summary (issue 34): per panel the lowest CR over
+# the drive's frames equals the lowest on their metrics lines, with its frame
+# and time, and the frames below 3:1; held frames (--lcd-wait) are left out --
+python3 - turn/metrics.jsonl l11/metrics.jsonl <<'PY' >ldrive.txt && ok "summary lcd_drive: $(cat ldrive.txt)" || bad "summary lcd_drive: $(cat ldrive.txt)"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]
+frames = [l for l in lines if l.get("type") == "frame"]
+d = lines[-1]["lcd_drive"]
+ok = d["frames"] == len(frames) == 16 and d["calibrated"] is False
+with_r = [l for l in frames if "readability" in l["lcd"]]
+ok = ok and d["frames_with_figures"] == len(with_r)
+ok = ok and d["frames_with_figures_at_most_2_old"] == sum(1 for l in with_r if l["frame"] - l["lcd"]["readability"]["frame"] <= 2)
+out = []
+for name, p in d["panels"].items():
+    crs = [(l["lcd"]["readability"]["panels"][name]["contrast_ratio"], l["frame"], l["t"]) for l in with_r]
+    lo = min(crs)
+    below = sum(1 for c in crs if c[0] < d["cr_min"])
+    ok = ok and p["contrast_ratio_min"] == lo[0] and p["contrast_ratio_min_frame"] == lo[1] \
+        and abs(p["contrast_ratio_min_t"] - lo[2]) < 1e-9 and p["frames_below_cr_min"] == below \
+        and 0 <= p["time_share_below_cr_min"] <= 1
+    out.append("%s min CR %.6g at frame %d (t %.2f s) = the lines' min, %d frames below %g" % (
+        name, p["contrast_ratio_min"], p["contrast_ratio_min_frame"], p["contrast_ratio_min_t"],
+        p["frames_below_cr_min"], d["cr_min"]))
+h = [json.loads(l) for l in open(sys.argv[2])][-1]
+ok = ok and h["held_frames"] > 0 and h["lcd_drive"]["frames"] == 2
+print("%d of %d frames with figures (%d at most 2 frames old); %s; --lcd-wait: %d held frames left out" % (
+    d["frames_with_figures"], d["frames"], d["frames_with_figures_at_most_2_old"], "; ".join(out), h["held_frames"]))
 sys.exit(0 if ok else 1)
 PY
 
