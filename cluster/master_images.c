@@ -42,10 +42,11 @@ int master_images_setup(master *m, cv_err *err) {
   }
   cv_rec709_lut_init(&m->lut);
   m->viewer_rms = m->viewer_rms_unc = NAN;
-  /* the image thread: two written frames may wait for it */
+  /* the image thread (normal priority: the viewer metric must keep up): three written
+   * frames may wait for it */
   pthread_mutex_init(&m->img_mu, NULL);
   m->img_mu_on = 1;
-  return cv_filewriter_create(2, &m->fw, err);
+  return cv_filewriter_create(3, 0, &m->fw, err);
 }
 
 void master_images_free(master *m) {

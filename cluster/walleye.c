@@ -279,8 +279,9 @@ static int walleye_setup(walleye *we, cv_err *err) {
       st = eye_setup(we, &we->ev[we->n_eyes++], e, np, err);
       if (st) return st;
     }
-  /* files only when asked (--present files): two frames of this output's eyes may wait */
-  if ((s->o.present & CV_PRESENT_FILES) && (st = cv_filewriter_create(2 * we->n_eyes, &we->fw, err))) return st;
+  /* files only when asked (--present files): two frames of this output's eyes may wait,
+   * written by a thread at nice 10 (io/filewriter.c), so writing does not lengthen frames */
+  if ((s->o.present & CV_PRESENT_FILES) && (st = cv_filewriter_create(2 * we->n_eyes, 1, &we->fw, err))) return st;
   we->corr_frame = we->pend_frame = we->prev_corr = 0xffffffffu;
   we->prev_gpu = -1;
   if ((st = choose_post(we, err))) return st;

@@ -23,10 +23,13 @@ typedef struct cv_write_job {
   void *job;
 } cv_write_job;
 
-/* A writer whose queue holds at most cap jobs.  *out owned by the caller
- * (cv_filewriter_destroy).  Errors: CV_ERR_INVALID (cap < 1), CV_ERR_NOMEM,
- * CV_ERR_BACKEND (no thread). */
-int cv_filewriter_create(int cap, cv_filewriter **out, cv_err *err);
+/* A writer whose queue holds at most cap jobs; idle: its thread runs at
+ * SCHED_IDLE (Linux), only on cores the process's other threads and the
+ * host's other processes leave idle, so its work does not lengthen frames
+ * (the queue then fills sooner: drops are counted).  *out owned by the
+ * caller (cv_filewriter_destroy).  Errors: CV_ERR_INVALID (cap < 1),
+ * CV_ERR_NOMEM, CV_ERR_BACKEND (no thread). */
+int cv_filewriter_create(int cap, int idle, cv_filewriter **out, cv_err *err);
 /* Queues j: 0, or -1 when the queue is full (j.done called: dropped). */
 int cv_filewriter_submit(cv_filewriter *w, cv_write_job j);
 /* Counts so far: jobs written, failed (the first failure's message in
