@@ -933,11 +933,10 @@ static void render_eyes(walleye *we, const cv_frame_state *fs, uint64_t state_ha
     for (int k = 0; k < we->n_eyes; k++) post_eye(we, &we->ev[k], k + 1 < we->n_eyes);
 }
 
-/* One frame: relight, the eyes, the correction, present, files; the frame
- * path's figures kept for the next report.  Returns 0 (files fail in the
- * writer thread: counted, said at the end). */
-static int run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0) {
-  cv_service *s = we->s;
+/* One frame: relight, the eyes, the correction, present, files (written by
+ * the writer thread: failures counted, said at the end); the frame path's
+ * figures kept for the next report. */
+static void run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash, double t0) {
   const double c0 = thread_cpu_ms();
   we->cpu_gl = we->cpu_skip = 0;
   if (we->lw) cv_lcd_worker_post(we->lw, fs);
@@ -963,8 +962,6 @@ static int run_frame(walleye *we, const cv_frame_state *fs, uint64_t state_hash,
       send_images(we, &we->ev[k], fs);
     }
   }
-  (void)s;
-  return 0;
 }
 
 /* The writer's queue written out, its thread ended; a file that could not
@@ -1020,7 +1017,7 @@ int cv_walleye_run(cv_service *s) {
       measure_frame(we, &fs, state_hash, t0);
       continue;
     }
-    if (run_frame(we, &fs, state_hash, t0)) rc = 1;
+    run_frame(we, &fs, state_hash, t0);
     /* the host's leader: the next frame's lighting while the others render */
     if (we->have_light) cv_lightshare_prefetch(&we->ls, s, we->r, we->mix, &fs, we->light_key);
     idle(we);

@@ -48,30 +48,26 @@ typedef struct run_out {
   uint64_t read, up;
 } run_out;
 
-static void stamp(double *w, double *p) {
-  *w = bench_now_ms();
-  *p = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
-}
 
 /* One eye's frame end by path `gpu`; returns 0 or the failing status. */
 static int one(cv_renderer *r, int gpu, const cv_render_view *v, const cv_drago_consts *dc, cv_image *disp,
                cv_image *lum, cv_image *out, uint8_t *codes, int P, const double *delta_d, const float *delta_f,
                double *patch, cv_rec709_lut *lut, double t[S_N], double *outside) {
   cv_err err;
-  double w0, p0, w1, p1, w2, p2, w3, p3;
+  double p0, p1, p2, p3;
   double mx;
   uint64_t bad;
   *outside = 0;
-  stamp(&w0, &p0);
+  p0 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
   int st = gpu ? cv_renderer_shade_gpu(r, v, dc, NULL, lum, &mx, &bad, NULL, &err)
                : cv_renderer_shade_stats(r, v, dc, 0, disp, NULL, lum, &mx, &bad, NULL, &err);
-  stamp(&w1, &p1);
+  p1 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
   if (st) return fprintf(stderr, "shade: %s\n", err.msg), st;
   const double c1 = cpu_ms(CLOCK_THREAD_CPUTIME_ID);
   if (gpu) st = cv_renderer_patch_means(r, patch, &err);
   else cv_downsample_to_patches(disp, P, P, NULL, NULL, patch);
   if (!gpu) *outside += cpu_ms(CLOCK_THREAD_CPUTIME_ID) - c1;
-  stamp(&w2, &p2);
+  p2 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
   const double c2 = cpu_ms(CLOCK_THREAD_CPUTIME_ID);
   if (gpu) {
     st = st ? st : cv_renderer_post(r, 0, 0, delta_f, &err);
@@ -83,17 +79,14 @@ static int one(cv_renderer *r, int gpu, const cv_render_view *v, const cv_drago_
   cv_renderer_gpu_timer_begin(r); /* a no-op query: the GL queue drained */
   cv_renderer_gpu_timer_end(r);
   cv_renderer_gpu_timer_result(r);
-  stamp(&w3, &p3);
+  p3 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
   if (st) return fprintf(stderr, "post: %s\n", err.msg), st;
   t[S_SHADE] = p1 - p0, t[S_PATCH] = p2 - p1, t[S_POST] = p3 - p2;
-  (void)w0, (void)w1, (void)w2, (void)w3;
   return 0;
 }
 
 static int measure(cv_renderer *r, int gpu, int size, int P, int reps, run_out *o, uint8_t *codes_out) {
-  const float *e = NULL;
   double pa[3] = {-0.8, 0.4, -0.6}, pb[3] = {0.8, 0.4, -0.6}, pc[3] = {-0.8, 1.6, -0.6}, eye[3] = {0.0, 1.0, 0.3};
-  (void)e;
   cv_render_view v;
   memset(&v, 0, sizeof v);
   if (cv_offaxis_compute(pa, pb, pc, eye, 0.02, 20, &v.proj)) return 1;
@@ -119,7 +112,7 @@ static int measure(cv_renderer *r, int gpu, int size, int P, int reps, run_out *
   uint64_t r0 = 0, u0 = 0, r1, u1;
   for (int k = -1; !st && k < reps; k++) { /* k = -1: warm-up (tables, targets) */
     if (k == 0) cv_renderer_io(r, &r0, &u0);
-    double t[S_N], outside, w0 = bench_now_ms(), p0 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
+    double t[S_N] = {0}, outside = 0, w0 = bench_now_ms(), p0 = cpu_ms(CLOCK_PROCESS_CPUTIME_ID);
     st = one(r, gpu, &v, &dc, disp, lum, out, codes, P, dd, df, patch, &lut, t, &outside);
     if (k < 0) continue;
     o->wall[k] = bench_now_ms() - w0;

@@ -8,30 +8,7 @@
 # Usage: test_cluster.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
 set -uo pipefail
 CAVE="$1"; WORK="$2"; SRC="$3"; MPIEXEC="${4:-mpirun}"
-rm -rf "$WORK"; mkdir -p "$WORK"; cd "$WORK"
-pass=0; fail=0
-ok()  { echo "ok: $*"; pass=$((pass + 1)); }
-bad() { echo "FAIL: $*"; fail=$((fail + 1)); }
-# One thread per rank: 11+ ranks share 2 cores.
-export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-export OMPI_MCA_rmaps_base_oversubscribe=1
-# Keep Open MPI's plugins loaded so sanitizer reports name them (lsan.supp).
-export OMPI_MCA_mca_base_component_disable_dlclose=1
-MPI=("$MPIEXEC" --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS
-     -x OMPI_MCA_mca_base_component_disable_dlclose)
-# Under the sanitizers, LeakSanitizer is off for the MPI runs (AddressSanitizer
-# and UBSan stay on): Open MPI and Mesa free nothing at exit from plugins they
-# have unloaded, so those stacks cannot be attributed or suppressed, and full
-# unwinding (fast_unwind_on_malloc=0) deadlocks in libgcc's unwinder against
-# llvmpipe's threads.  The roles' own allocations are freed on every path.
-[ -n "${ASAN_OPTIONS:-}" ] && export ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0"
-for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS; do [ -n "${!v:-}" ] && MPI+=(-x "$v"); done
-CFG="$SRC/configs/caves/cave5.json"
-
-# A small bake: few rays (transfer accuracy does not matter here).
-"$CAVE" bake default -o scene.prt --tess 1 --bands 3 --rays 32 --bounces 1 --quiet >/dev/null \
-  || { echo "FAIL: bake"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/mpi_common.sh"
 cat > still.json <<'JSON'
 {"description": "standing still under forest", "loop": true, "maps": ["forest.exr"],
  "keyframes": [{"t": 0, "yaw": 30, "weights": [1]}, {"t": 10, "yaw": 30}]}

@@ -14,22 +14,7 @@
 # Usage: test_lighting_share.sh CAVE WORKDIR SOURCE_DIR [MPIEXEC]
 set -uo pipefail
 CAVE="$1"; WORK="$2"; SRC="$3"; MPIEXEC="${4:-mpirun}"
-rm -rf "$WORK"; mkdir -p "$WORK"; cd "$WORK"
-pass=0; fail=0
-ok()  { echo "ok: $*"; pass=$((pass + 1)); }
-bad() { echo "FAIL: $*"; fail=$((fail + 1)); }
-export OMP_NUM_THREADS=1 LP_NUM_THREADS=1
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-export OMPI_MCA_rmaps_base_oversubscribe=1
-export OMPI_MCA_mca_base_component_disable_dlclose=1
-MPI=("$MPIEXEC" --oversubscribe -x OMP_NUM_THREADS -x LP_NUM_THREADS
-     -x OMPI_MCA_mca_base_component_disable_dlclose)
-[ -n "${ASAN_OPTIONS:-}" ] && export ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0"
-for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS; do [ -n "${!v:-}" ] && MPI+=(-x "$v"); done
-CFG="$SRC/configs/caves/cave5.json"
-
-"$CAVE" bake default -o scene.prt --tess 1 --bands 3 --rays 32 --bounces 1 --quiet >/dev/null \
-  || { echo "FAIL: bake"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/mpi_common.sh"
 COMMON=(--scene scene.prt --size 48 --drive "$SRC/configs/drives/sky.json" --dt 0.2 --frames 5
         --write-every 1 --no-lcd --patches 8 --timeout-ms 60000 --compensation-ms 60000 --quiet)
 # (--compensation-ms: no time slot, so the solves and images do not depend on the load)
