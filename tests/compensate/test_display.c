@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -65,11 +66,13 @@ static void test_cave5(void **state) {
     /* every normal points into the cube, along a wall axis */
     assert_true(facing(p, centre) > 0);
     double m = fmax(fabs(p->n[0]), fmax(fabs(p->n[1]), fabs(p->n[2])));
-    assert_true(fabs(m - 1) < 1e-12);
+    assert_near(m, 1, 1e-12);
     area[p->surface] += p->area;
-    assert_true(fabs(d->refl[3 * i] - 0.8f) < 1e-7 && d->proj[i] == 1.0f && d->env[3 * i] == 0);
+    assert_near(d->refl[3 * i], 0.8f, 1e-7);
+    assert_true(d->proj[i] == 1.0f);
+    assert_true(d->env[3 * i] == 0);
   }
-  for (int k = 0; k < 5; k++) assert_true(fabs(area[k] - 9.0) < 1e-9);
+  for (int k = 0; k < 5; k++) assert_near(area[k], 9.0, 1e-9);
   /* numbering: index = offset + v * nu + u, v = 0 at the bottom */
   int front = cv_display_find_surface(d, "front");
   assert_int_equal(front, 0);
@@ -94,7 +97,7 @@ static void test_two_sided_wall(void **state) {
   const cv_patch *a = &d->patches[0], *b = &d->patches[d->n_patches - 1];
   printf("  two-sided wall: normals (%.3f %.3f %.3f) and (%.3f %.3f %.3f), reflectance %.3f\n",
          a->n[0], a->n[1], a->n[2], b->n[0], b->n[1], b->n[2], d->surfaces[0].reflectance[0]);
-  assert_true(fabs(dot3(a->n, b->n)) < 1e-12); /* 90 degrees */
+  assert_near(dot3(a->n, b->n), 0, 1e-12); /* 90 degrees */
   assert_true(d->has_viewer);
   for (size_t i = 0; i < d->n_patches; i++) assert_true(facing(&d->patches[i], d->viewer) > 0);
   /* the two walls meet: left's lower-right corner = right's lower-left */
@@ -102,7 +105,7 @@ static void test_two_sided_wall(void **state) {
   /* the walls face each other: inside the L */
   double area = 0;
   for (size_t i = 0; i < d->n_patches; i++) area += d->patches[i].area;
-  assert_true(fabs(area - 12.0) < 1e-9);
+  assert_near(area, 12.0, 1e-9);
   cv_display_destroy(d);
 }
 
@@ -124,7 +127,8 @@ static void test_cylinder(void **state) {
   assert_true(area < exact && area > exact * (1 - 1e-3));
   /* angle 0 is straight ahead (-Z), +90 deg is +X */
   const cv_patch *mid = &d->patches[cv_display_patch_index(d, 0, s->nu / 2, 0)];
-  assert_true(mid->q[0][2] < -1.99 && fabs(mid->q[0][0]) < 1e-9);
+  assert_true(mid->q[0][2] < -1.99);
+  assert_near(mid->q[0][0], 0, 1e-9);
   assert_true(d->patches[cv_display_patch_index(d, 0, s->nu - 1, 0)].c[0] > 1.9);
   assert_true(d->patches[cv_display_patch_index(d, 0, 0, s->nv - 1)].c[1] > 2.3);
   cv_display_destroy(d);
@@ -142,7 +146,7 @@ static void test_dome(void **state) {
     /* the four corners are coplanar (isosceles trapezoid) */
     for (int k = 0; k < 4; k++) {
       double w[3] = {p->q[k][0] - p->c[0], p->q[k][1] - p->c[1], p->q[k][2] - p->c[2]};
-      assert_true(fabs(dot3(w, p->n)) < 1e-12);
+      assert_near(dot3(w, p->n), 0, 1e-12);
     }
     area += p->area;
     fmin_ = fmin(fmin_, d->proj[i]);
@@ -153,7 +157,8 @@ static void test_dome(void **state) {
   printf("  dome: %zu patches, area %.4f m^2 of %.4f; projector factors in [%.3f, %.3f]\n",
          d->n_patches, area, exact, fmin_, fmax_);
   assert_true(area < exact && area > 0.99 * exact);
-  assert_true(fabs(fmax_ - 1) < 1e-6 && fmin_ > 0);
+  assert_near(fmax_, 1, 1e-6);
+  assert_true(fmin_ > 0);
   cv_display_destroy(d);
 }
 
@@ -179,10 +184,11 @@ static void test_lobe_norm(void **state) {
     else
       ref = -1;
     printf("  lobe_norm c=%g tilt=%g: %.8f (reference %.8f)\n", c, cases[k][1], got, ref);
-    if (ref > 0) assert_true(fabs(got / ref - 1) < 1e-5);
+    if (ref > 0) assert_near(got / ref, 1, 1e-5);
     /* tilt rotates the emission axis towards +v (up here) */
     const cv_patch *p = &d->patches[0];
-    assert_true(fabs(p->nt[1] - sin(t)) < 1e-12 && fabs(p->nt[2] - cos(t)) < 1e-12);
+    assert_near(p->nt[1], sin(t), 1e-12);
+    assert_near(p->nt[2], cos(t), 1e-12);
     cv_display_destroy(d);
   }
 }

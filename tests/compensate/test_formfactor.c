@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -81,7 +82,7 @@ static void test_point_polygon_closed_form(void **state) {
     const double q[4][3] = {{-a, -a, h}, {-a, a, h}, {a, a, h}, {a, -a, h}};
     double f = cv_ff_point_polygon(x, n, q, 4), ref = square_on_axis(a, h);
     printf("  square 2a=%g at h=%g: contour %.12f closed form %.12f\n", 2 * a, h, f, ref);
-    assert_true(fabs(f - ref) < 1e-9);
+    assert_near(f, ref, 1e-9);
     /* reversed winding = seen from behind: negative */
     const double r[4][3] = {{-a, -a, h}, {a, -a, h}, {a, a, h}, {-a, a, h}};
     assert_true(cv_ff_point_polygon(x, n, r, 4) < 0);
@@ -91,7 +92,7 @@ static void test_point_polygon_closed_form(void **state) {
   const double q[4][3] = {{0, 0, h}, {0, b, h}, {a, b, h}, {a, 0, h}};
   double f = cv_ff_point_polygon(x, n, q, 4), ref = corner_rect(a, b, h);
   printf("  corner rectangle %gx%g at %g: %.12f vs %.12f\n", a, b, h, f, ref);
-  assert_true(fabs(f - ref) < 1e-9);
+  assert_near(f, ref, 1e-9);
 }
 
 /* A rectangle straddling the receiver's plane: only the part in front
@@ -113,8 +114,8 @@ static void test_point_polygon_clipping(void **state) {
     }
   printf("  straddling rectangle: clipped %.10f, upper half %.10f, brute force %.10f\n", ff, fh,
          brute);
-  assert_true(fabs(ff - fh) < 1e-12);
-  assert_true(fabs(ff - brute) < 1e-6);
+  assert_near(ff, fh, 1e-12);
+  assert_near(ff, brute, 1e-6);
   /* unclipped, the contour integral would give a different (wrong) value */
   assert_true(ff > 0);
 }
@@ -137,14 +138,14 @@ static void test_perpendicular_squares(void **state) {
   printf("  perpendicular unit squares sharing an edge: F = %.7f (exact %.7f, rel. err %.2e); "
          "point-to-point %.5f (%+.0f%%)\n",
          f01, exact, f01 / exact - 1, pp, 100 * (pp / exact - 1));
-  assert_true(fabs(f01 / exact - 1) < 1e-3);
-  assert_true(fabs(f10 / exact - 1) < 1e-3);
+  assert_near(f01 / exact, 1, 1e-3);
+  assert_near(f10 / exact, 1, 1e-3);
   /* the paper's point-to-point formula is ~60% off next to the corner */
   assert_true(pp / exact > 1.5);
   cv_ff_report rep;
   cv_ffmatrix *F = build(d, 0, 0, CV_FF_VIS_AUTO, &rep);
   assert_int_equal(rep.visibility_traced, 0);
-  assert_true(fabs(entry(F, 1, 0) - f01) < 1e-7);
+  assert_near(entry(F, 1, 0), f01, 1e-7);
   cv_ffmatrix_destroy(F);
   cv_display_destroy(d);
 }
@@ -166,7 +167,7 @@ static void test_corner_point_to_point(void **state) {
   double ours = cv_ff_patch_pair(d, j, i), pp = cv_ff_point_to_point(&d->patches[j], &d->patches[i]);
   printf("  edge-adjacent patches: ours %.5f, point-to-point %.5f (%+.0f%%)\n", ours, pp,
          100 * (pp / ours - 1));
-  assert_true(fabs(ours / 0.2000437761 - 1) < 1e-3); /* same shape as the unit squares */
+  assert_near(ours / 0.2000437761, 1, 1e-3); /* same shape as the unit squares */
   assert_true(pp / ours > 1.5);
   /* total floor -> wall, area weighted: equals the unit-square value */
   double tot = 0, tot_pp = 0;
@@ -177,7 +178,7 @@ static void test_corner_point_to_point(void **state) {
     }
   printf("  floor -> wall from 8x8 patches: ours %.6f, point-to-point %.6f (exact 0.200044)\n",
          tot, tot_pp);
-  assert_true(fabs(tot / 0.2000437761 - 1) < 1e-3);
+  assert_near(tot / 0.2000437761, 1, 1e-3);
   cv_display_destroy(d);
 }
 
@@ -194,7 +195,7 @@ static void test_parallel_squares(void **state) {
   double f = cv_ff_patch_pair(d, 0, 1);
   printf("  parallel unit squares 1 m apart: F = %.7f (exact %.7f, rel. err %.2e)\n", f, exact,
          f / exact - 1);
-  assert_true(fabs(f / exact - 1) < 5e-3);
+  assert_near(f / exact, 1, 5e-3);
   cv_display_destroy(d);
 }
 
@@ -256,16 +257,17 @@ static void test_closed_cube(void **state) {
          rep.seconds);
   assert_int_equal(rep.visibility_traced, 0);
   assert_int_equal(rep.clamped_pairs, 0);
-  assert_true(fabs(rmin - 1) < 1e-3 && fabs(rmax - 1) < 1e-3);
+  assert_near(rmin, 1, 1e-3);
+  assert_near(rmax, 1, 1e-3);
   assert_true(rmax <= 1 + 1e-6 && cmax <= 1 + 1e-6);
-  assert_true(fabs(cmin - 1) < 1e-3);
+  assert_near(cmin, 1, 1e-3);
   /* reciprocity A_i F_ij = A_j F_ji; here all areas are equal */
   size_t pairs[][2] = {{0, 17}, {5, 40}, {3, 90}, {12, 66}, {30, 31}};
   for (size_t k = 0; k < 5; k++) {
     size_t i = pairs[k][0], j = pairs[k][1];
     double a = d->patches[i].area * entry(F, j, i), b = d->patches[j].area * entry(F, i, j);
     if (a == 0 && b == 0) continue;
-    assert_true(fabs(a - b) <= 1e-6 * fmax(a, b));
+    assert_near(a, b, 1e-6 * fmax(a, b));
   }
   cv_ffmatrix_destroy(F);
   cv_display_destroy(d);
@@ -328,8 +330,10 @@ static void test_light_directing(void **state) {
   printf("  senders on a wall tilted 25 deg: sums [%.5f, %.5f]; on a floor with cos^4: "
          "[%.5f, %.5f]\n",
          wmin, wmax, fmn, fmx);
-  assert_true(fabs(wmin - 1) < 1e-4 && fabs(wmax - 1) < 1e-4);
-  assert_true(fabs(fmn - 1) < 1e-4 && fabs(fmx - 1) < 1e-4);
+  assert_near(wmin, 1, 1e-4);
+  assert_near(wmax, 1, 1e-4);
+  assert_near(fmn, 1, 1e-4);
+  assert_near(fmx, 1, 1e-4);
   /* the front wall's axis is tilted up: it sends more to the ceiling than
    * to the floor (equal without tilt, by symmetry) */
   double to_ceil = 0, to_floor = 0;
@@ -390,8 +394,8 @@ static void test_sparsification(void **state) {
   }
   printf("  measured from the matrices: max dropped %.4f, total %.4f\n", worst,
          (tot0 - tot1) / tot0);
-  assert_true(fabs(worst - r1.dropped_max) < 1e-5);
-  assert_true(fabs((tot0 - tot1) / tot0 - r1.dropped_total) < 1e-5);
+  assert_near(worst, r1.dropped_max, 1e-5);
+  assert_near((tot0 - tot1) / tot0, r1.dropped_total, 1e-5);
   cv_ffmatrix_destroy(F0);
   cv_ffmatrix_destroy(F1);
   cv_ffmatrix_destroy(F2);
@@ -444,7 +448,7 @@ static void test_visibility(void **state) {
   printf("  half partition: visible pair %.5f (unoccluded %.5f), blocked pair %.5f (unoccluded "
          "%.5f)\n",
          entry(Fr, c1, f1), entry(Fn, c1, f1), entry(Fr, c0, f0), entry(Fn, c0, f0));
-  assert_true(fabs(entry(Fr, c1, f1) - entry(Fn, c1, f1)) < 1e-7);
+  assert_near(entry(Fr, c1, f1), entry(Fn, c1, f1), 1e-7);
   assert_true(entry(Fr, c0, f0) == 0);
   cv_ffmatrix_destroy(Fr);
   cv_ffmatrix_destroy(Fn);
@@ -471,7 +475,7 @@ static void test_projector_factors(void **state) {
   for (int k = 0; k < 4; k++) {
     printf("  projector factor patch %d: %.6f (expected %.6f)\n", k, d->proj[k],
            0.8 * ref[k] / ref[0]);
-    assert_true(fabs(d->proj[k] - 0.8 * ref[k] / ref[0]) < 1e-6);
+    assert_near(d->proj[k], 0.8 * ref[k] / ref[0], 1e-6);
   }
   cv_scatter_system sys;
   cv_display_scatter_system(d, NULL, &sys);

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "compensate/display.h"
 #include "compensate/formfactor.h"
@@ -105,7 +106,7 @@ static void test_product_within_bound(void **state) {
   for (size_t p = 0; p < 3 * n; p++) g2[p] = 0.25;
   double share = cv_hmatrix_gather_add_active(h, act, x, g2);
   assert_true(share > 0 && share <= 1);
-  for (size_t p = 0; p < 3 * n; p++) assert_true(fabs(g2[p] - 0.25 - ge[p]) < 1e-12);
+  for (size_t p = 0; p < 3 * n; p++) assert_near(g2[p] - 0.25, ge[p], 1e-12);
   /* Deterministic: the same product twice is bit-identical. */
   cv_hmatrix_gather(h, x, g);
   cv_hmatrix_gather(h, x, g2);
@@ -270,7 +271,7 @@ static void check_direct(cv_display *d, const char *name, double tol) {
     double e = 0;
     cv_hmatrix_row_values(h, i, g);
     for (size_t j = 0; j < n; j++) e += fabs(g[j] - G[i * n + j]);
-    assert_true(fabs(e - rerr[i]) <= 1e-9 + 1e-6 * rerr[i]);
+    assert_near(e, rerr[i], 1e-9 + 1e-6 * rerr[i]);
   }
   const double *est = cv_hmatrix_row_error(h);
   const double *hs = cv_hmatrix_row_sum(h);
@@ -347,7 +348,7 @@ static void test_solve_direct_only(void **state) {
          cv_scatter_workspace_rho(wd), cv_scatter_workspace_rho(wp));
   assert_string_equal(m.storage, "block low-rank (direct)");
   assert_true(m.error_bound > 0 && m.error_bound < 1e-3);
-  assert_true(fabs(cv_scatter_workspace_rho(wd) - cv_scatter_workspace_rho(wp)) < 2e-3);
+  assert_near(cv_scatter_workspace_rho(wd), cv_scatter_workspace_rho(wp), 2e-3);
   float *T = malloc(3 * n * sizeof *T), *Id = malloc(3 * n * sizeof *Id),
         *Ip = malloc(3 * n * sizeof *Ip);
   for (size_t i = 0; i < n; i++) {

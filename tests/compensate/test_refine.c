@@ -12,6 +12,7 @@
 #include <stdlib.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "compensate/display.h"
 #include "compensate/formfactor.h"
@@ -116,7 +117,7 @@ static void test_seams_found(void **state) {
   for (int i = 0; i < 8; i++) assert_true(S->edge_u[i + 1] > S->edge_u[i]);
   assert_true(S->edge_u[0] == 0.0 && S->edge_u[8] == 1.0);
   /* v is not a seam: uniform */
-  for (int i = 0; i <= 8; i++) assert_true(fabs(S->edge_v[i] - i / 8.0) < 1e-12);
+  for (int i = 0; i <= 8; i++) assert_near(S->edge_v[i], i / 8.0, 1e-12);
   cv_display_destroy(d);
 }
 
@@ -167,10 +168,8 @@ static void test_seam_estimate(void **state) {
   assert_int_equal(nr, 2);
   for (size_t k = 0; k < 2; k++)
     for (int i = 0; i <= 12; i++) {
-      assert_true(fabs(cv_display_surface_at(grad, k)->edge_u[i] -
-                       cv_display_surface_at(json, k)->edge_u[i]) < 1e-12);
-      assert_true(fabs(cv_display_surface_at(grad, k)->edge_v[i] -
-                       cv_display_surface_at(json, k)->edge_v[i]) < 1e-12);
+      assert_near(cv_display_surface_at(grad, k)->edge_u[i], cv_display_surface_at(json, k)->edge_u[i], 1e-12);
+      assert_near(cv_display_surface_at(grad, k)->edge_v[i], cv_display_surface_at(json, k)->edge_v[i], 1e-12);
     }
   for (size_t i = 0; i < cv_display_patch_count(grad); i++)
     assert_true(cv_display_patch(grad, i)->c[0] == cv_display_patch(json, i)->c[0]);
@@ -223,12 +222,12 @@ static void test_graded_resampling(void **state) {
       for (int c = 0; c < 3; c++) cv_image_at(img, x, y)[c] = (float)((x + 0.5) / 600);
   double P[18];
   assert_int_equal(cv_downsample_to_patches(img, nu, nv, eu, ev, P), 0);
-  for (int u = 0; u < nu; u++) assert_true(fabs(P[3 * u] - 0.5 * (eu[u] + eu[u + 1])) < 1e-6);
+  for (int u = 0; u < nu; u++) assert_near(P[3 * u], 0.5 * (eu[u] + eu[u + 1]), 1e-6);
   assert_int_equal(cv_upsample_from_patches(P, nu, nv, eu, ev, up), 0);
   for (int x = 0; x < 600; x++) {
     double t = (x + 0.5) / 600;
     if (t < 0.025 || t > 0.85) continue; /* beyond the outer centres: clamped */
-    assert_true(fabs(cv_image_at(up, x, 1)[0] - t) < 1e-5);
+    assert_near(cv_image_at(up, x, 1)[0], t, 1e-5);
   }
   cv_image_destroy(img);
   cv_image_destroy(up);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "compensate/resample.h"
 #include "core/overlaps.h"
@@ -38,9 +39,9 @@ static void test_downsample(void **state) {
     for (int u = 0; u < nu; u++) {
       const double *p = P + 3 * (v * nu + u);
       /* mean of x/w over the patch's pixel centres, ~ (u + 0.5)/nu - 0.5/w */
-      assert_true(fabs(p[0] - ((u + 0.5) / nu - 0.5 / 100)) < 2e-3);
-      assert_true(fabs(p[1] - ((v + 0.5) / nv - 0.5 / 60)) < 2e-3);
-      assert_true(fabs(p[2] - 0.5) < 1e-12);
+      assert_near(p[0], ((u + 0.5) / nu - 0.5 / 100), 2e-3);
+      assert_near(p[1], ((v + 0.5) / nv - 0.5 / 60), 2e-3);
+      assert_near(p[2], 0.5, 1e-12);
     }
   cv_image_destroy(img);
 }
@@ -63,10 +64,10 @@ static void test_upsample_linear(void **state) {
   for (int y = 5; y < 55; y++)
     for (int x = 5; x < 75; x++) {
       const float *p = cv_image_at(out, x, y);
-      assert_true(fabs(p[0] - (x + 0.5) / 80) < 1e-5);
-      assert_true(fabs(p[1] - ((60 - 1 - y) + 0.5) / 60) < 1e-5);
+      assert_near(p[0], (x + 0.5) / 80, 1e-5);
+      assert_near(p[1], ((60 - 1 - y) + 0.5) / 60, 1e-5);
     }
-  for (size_t i = 2; i < (size_t)80 * 60 * 3; i += 3) assert_true(fabs(out->px[i] - 0.25) < 1e-6);
+  for (size_t i = 2; i < (size_t)80 * 60 * 3; i += 3) assert_near(out->px[i], 0.25, 1e-6);
   cv_image_destroy(out);
 }
 
@@ -81,7 +82,7 @@ static void test_equation7(void **state) {
   double P[3 * 48];
   cv_downsample_to_patches(I0, nu, nv, NULL, NULL, P);
   assert_int_equal(cv_apply_patch_correction(I0, P, nu, nv, NULL, NULL, out), 0);
-  for (size_t i = 0; i < (size_t)64 * 48 * 3; i++) assert_true(fabs(out->px[i] - I0->px[i]) < 1e-6);
+  for (size_t i = 0; i < (size_t)64 * 48 * 3; i++) assert_near(out->px[i], I0->px[i], 1e-6);
   for (int k = 0; k < 3 * 48; k++) P[k] -= 0.1; /* the solve lowered every patch by 0.1 */
   uint64_t clamped = cv_apply_patch_correction(I0, P, nu, nv, NULL, NULL, out);
   size_t expect = 0;
@@ -91,7 +92,7 @@ static void test_equation7(void **state) {
       expect++;
       assert_true(out->px[i] == 0.0f);
     } else {
-      assert_true(fabs(out->px[i] - want) < 1e-6);
+      assert_near(out->px[i], want, 1e-6);
     }
   }
   assert_int_equal(clamped, expect);

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "compensate/solve.h"
 #include "compensate/system.h"
@@ -186,8 +187,8 @@ static void test_physics_two_patch(void **state) {
     const double D1 = (double)t.proj[1] * M1 * I[3 + c] + (double)t.env[3 + c] * M1;
     const double k01 = M0 * (double)0.3f, k10 = M1 * (double)0.2f, det = 1 - k01 * k10;
     const double B0 = (D0 + k01 * D1) / det, B1 = (D1 + k10 * D0) / det;
-    assert_true(fabs(B[c] - B0) <= 1e-10 * fabs(B0) + 1e-15);
-    assert_true(fabs(B[3 + c] - B1) <= 1e-10 * fabs(B1) + 1e-15);
+    assert_near(B[c], B0, 1e-10 * fabs(B0) + 1e-15);
+    assert_near(B[3 + c], B1, 1e-10 * fabs(B1) + 1e-15);
   }
   float bad[6];
   memcpy(bad, I, sizeof bad);
@@ -207,17 +208,17 @@ static void test_spectral_radius(void **state) {
     if (r > want) want = r;
   }
   const double got = cv_scatter_spectral_radius(&t.s, 200);
-  assert_true(fabs(got - want) < 1e-8);
+  assert_near(got, want, 1e-8);
   tsys_free(&t);
 
   /* Closed box, column sums of the gather matrix 1: rho(K) = max reflectance. */
   const float refl[3] = {0.8f, 0.7f, 0.6f};
   build_box(&t, 4, 0x3f, refl, 0);
   const double rb = cv_scatter_spectral_radius(&t.s, 300);
-  assert_true(fabs(rb - (double)0.8f) < 1e-6);
+  assert_near(rb, (double)0.8f, 1e-6);
   cv_scatter_workspace *w = NULL;
   assert_int_equal(cv_scatter_workspace_create(&t.s, &w, NULL), CV_OK);
-  assert_true(fabs(cv_scatter_workspace_rho(w) - (double)0.8f) < 1e-6);
+  assert_near(cv_scatter_workspace_rho(w), (double)0.8f, 1e-6);
   cv_scatter_workspace_destroy(w);
 
   /* K^T is the adjoint of K: <K x, y> = <x, K^T y>. */
@@ -237,7 +238,7 @@ static void test_spectral_radius(void **state) {
     r += x[p] * KTy[p];
     nrm += fabs(Kx[p] * y[p]);
   }
-  assert_true(fabs(l - r) <= 1e-12 * nrm);
+  assert_near(l, r, 1e-12 * nrm);
   free(x);
   free(y);
   free(Kx);
@@ -285,7 +286,7 @@ static void test_exact_and_auto(void **state) {
   assert_int_equal(st.solver, CV_SCATTER_EXACT);
   assert_int_equal(st.iterations, 1);
   assert_true(st.products == 1);
-  for (size_t p = 0; p < n3; p++) assert_true(fabs(Ia[p] - I[p]) < 1e-6);
+  for (size_t p = 0; p < n3; p++) assert_near(Ia[p], I[p], 1e-6);
   free(R);
   free(I);
   free(Ia);
@@ -336,7 +337,7 @@ static void test_jacobi_levels(void **state) {
   print_message("jacobi H=7, exit at < 1 patch changed by 1/255: %d passes\n", st.iterations);
   assert_int_equal(st.exit, CV_SCATTER_EXIT_CONVERGED);
   assert_true(st.iterations <= 10);
-  for (size_t p = 0; p < n3; p++) assert_true(fabs((double)I[p] - Iex[p]) < 2.0 / 255);
+  for (size_t p = 0; p < n3; p++) assert_near((double)I[p], Iex[p], 2.0 / 255);
   /* Time slot: exits after the first pass. */
   o.threshold = 0;
   o.time_ms = 1e-9;
@@ -386,7 +387,7 @@ static void test_jacobi_refuses_closed_box(void **state) {
   assert_int_equal(cv_scatter_physics(&t.s, I, B, 1e-10, NULL), CV_OK);
   for (size_t p = 0; p < n3; p++) {
     assert_true(I[p] >= 0 && I[p] <= 1);
-    if (I[p] > 0 && I[p] < 1) assert_true(fabs(B[p] - R[p]) <= 1.0 / 255);
+    if (I[p] > 0 && I[p] < 1) assert_near(B[p], R[p], 1.0 / 255);
   }
   print_message("closed box rho %.3f: bounded %d sweeps, %zu clipped, residual %.2e\n", st.rho,
                 st.iterations, st.clipped_channels, st.residual);
@@ -454,7 +455,7 @@ static void test_bounded_cave_band(void **state) {
   assert_true(rb < rn);
   assert_true(rb < 0.92 * rn); /* the figure: at least 8% below naive clipping */
   /* The solver's own error estimate is good to its residual bound. */
-  assert_true(fabs(sb.rms_error - rb) <= sb.residual + 1e-9);
+  assert_near(sb.rms_error, rb, sb.residual + 1e-9);
 
   /* Jacobi refuses here; auto gives the bounded result. */
   o.solver = CV_SCATTER_JACOBI;
@@ -462,7 +463,7 @@ static void test_bounded_cave_band(void **state) {
   o.solver = CV_SCATTER_AUTO;
   assert_int_equal(cv_scatter_solve(w, R, &o, Ia, &sa, NULL), CV_OK);
   assert_int_equal(sa.solver, CV_SCATTER_BOUNDED);
-  for (size_t p = 0; p < n3; p++) assert_true(fabs(Ia[p] - Ib[p]) < 1e-6);
+  for (size_t p = 0; p < n3; p++) assert_near(Ia[p], Ib[p], 1e-6);
 
   /* Warm start from the previous frame: fewer products, same answer. */
   o.warm_start = 1;
@@ -470,7 +471,7 @@ static void test_bounded_cave_band(void **state) {
   print_message("warm start: %d sweeps, %.2f products (cold %d, %.2f)\n", sa.iterations,
                 sa.products, sb.iterations, sb.products);
   assert_true(sa.products <= sb.products);
-  for (size_t p = 0; p < n3; p++) assert_true(fabs(Ia[p] - Ib[p]) < 4.0 / 255);
+  for (size_t p = 0; p < n3; p++) assert_near(Ia[p], Ib[p], 4.0 / 255);
 
   free(R);
   free(Ib);
@@ -508,8 +509,7 @@ static void test_half_storage(void **state) {
   for (int k = 0; k < 2; k++) {
     cv_scatter_workspace *wh = NULL;
     assert_int_equal(cv_scatter_workspace_create_ex(&t.s, flags[k], &wh, NULL), CV_OK);
-    assert_true(fabs(cv_scatter_workspace_rho(wh) - cv_scatter_workspace_rho(wf)) <
-                1e-3 * cv_scatter_workspace_rho(wf));
+    assert_near(cv_scatter_workspace_rho(wh), cv_scatter_workspace_rho(wf), 1e-3 * cv_scatter_workspace_rho(wf));
     o.solver = CV_SCATTER_BOUNDED;
     assert_int_equal(cv_scatter_solve(wh, R, &o, Ih, &sh, NULL), CV_OK);
     assert_int_equal(sh.exit, CV_SCATTER_EXIT_CONVERGED);
@@ -532,7 +532,7 @@ static void test_half_storage(void **state) {
     assert_int_equal(cv_scatter_physics(&t.s, Ih, B, 1e-10, NULL), CV_OK);
     const double q = cv_scatter_workspace_norm_inf(wh);
     for (size_t p = 0; p < n3; p++)
-      assert_true(fabs(B[p] - Rs[p]) <= ldexp(q * 0.55, -11) / (1 - q) + 1e-6);
+      assert_near(B[p], Rs[p], ldexp(q * 0.55, -11) / (1 - q) + 1e-6);
     free(Rs);
     cv_scatter_workspace_destroy(wh);
   }
@@ -614,7 +614,7 @@ static void test_stereo_average(void **state) {
   assert_int_equal(ss.stereo, 1);
   assert_int_equal(sa.stereo, 0);
   assert_int_equal(ss.clipped_channels, sa.clipped_channels);
-  for (size_t p = 0; p < n3; p++) assert_true(fabs(Is[p] - Ia[p]) < 1e-5);
+  for (size_t p = 0; p < n3; p++) assert_near(Is[p], Ia[p], 1e-5);
   free(L);
   free(Rr);
   free(A);

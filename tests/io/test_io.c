@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <math.h>
 #include <openexr.h>
 #include <stdio.h>
@@ -517,7 +518,7 @@ static void test_exr_reference_files(void **state) {
     }
   printf("dwaa reference: mean %.9g (C++ 1.52600799), max rel err vs source %.3g, hash %s\n", sum / 209, e,
          cv_hash64(img->px, sizeof(float) * 19 * 11 * 3) == 0xf8c3c3f7cf63831aull ? "bit-exact" : "differs");
-  assert_true(fabs(sum / 209 - 1.52600799) < 1e-5 * 1.52600799);
+  assert_near(sum / 209, 1.52600799, 1e-5 * 1.52600799);
   assert_true(e < 0.1); /* DWA default quality is lossy: 1.4% measured here */
   cv_image_destroy(img);
 }
@@ -730,7 +731,7 @@ static void test_exr_blender_maps(void **state) {
     assert_string_equal(info.used, "R,G,B");
     assert_true(mx > 1.0); /* HDR */
     for (int k = 0; k < 3; ++k)
-      assert_true(fabs(sum[k] / (double)n - k_maps[m].mean[k]) <= 1e-4 * k_maps[m].mean[k]);
+      assert_near(sum[k] / (double)n, k_maps[m].mean[k], 1e-4 * k_maps[m].mean[k]);
     assert_true(llabs((long long)info.negative_clamped - k_maps[m].negatives) <= 5);
     cv_image_destroy(img);
   }
@@ -805,8 +806,8 @@ static void test_preview_tonemap(void **state) {
   /* auto exposure: Lavg = exp(mean log(1e-4 + Y)) over the ramp */
   double s = 0;
   for (int i = 0; i < n; ++i) s += log(1e-4 + pow(10.0, -6.0 + 12.0 * i / (n - 1)));
-  assert_true(fabs(st.log_avg_luminance - exp(s / n)) < 1e-9 * exp(s / n));
-  assert_true(fabs(st.exposure - 0.18 / exp(s / n)) < 1e-9 * st.exposure);
+  assert_near(st.log_avg_luminance, exp(s / n), 1e-9 * exp(s / n));
+  assert_near(st.exposure, 0.18 / exp(s / n), 1e-9 * st.exposure);
 
   /* closed form: gray Y = 1, k = 1: L/(1+L) = 0.5 -> sRGB 0.7353569 -> 187.5 -> 188 */
   cv_image *one = NULL;
@@ -819,9 +820,9 @@ static void test_preview_tonemap(void **state) {
   /* auto exposure of a constant image maps it to 0.18/(1e-4+v) * v */
   one->px[0] = 3.0f;
   assert_int_equal(cv_preview_to_srgb8(one, -1.0, o3, &st), CV_OK);
-  assert_true(fabs(st.exposure - 0.18 / (3.0 + 1e-4)) < 1e-12);
+  assert_near(st.exposure, 0.18 / (3.0 + 1e-4), 1e-12);
   double L = st.exposure * 3.0, expect = 255.0 * cv_srgb_encode(L / (1 + L));
-  assert_true(fabs(o3[0] - expect) <= 0.5 + 1e-9);
+  assert_near(o3[0], expect, 0.5 + 1e-9);
 
   /* saturated red: chroma kept, channel clamped and counted */
   cv_image *red = NULL;

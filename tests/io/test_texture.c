@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <jpeglib.h>
 
 #include "io/png.h"
@@ -86,7 +87,7 @@ static void test_jpeg_read(void **state) {
   cv_image_destroy(t);
   assert_int_equal(cv_texture_load(p2, &t, &err), CV_OK);
   for (int i = 0; i < 64; i++)
-    for (int c = 0; c < 3; c++) assert_true(fabs(t->px[3 * i + c] - lin(77 / 255.0)) < 2e-3);
+    for (int c = 0; c < 3; c++) assert_near(t->px[3 * i + c], lin(77 / 255.0), 2e-3);
   cv_image_destroy(t);
 }
 
@@ -161,8 +162,8 @@ static void test_match_mean(void **state) {
   const float albedo[3] = {0.2f, 0.25f, 0.3f}; /* means were 0.4, 0.5, 0 */
   cv_texture_match_mean(t, albedo);
   for (int i = 0; i < 4; i++) {
-    assert_true(fabs(t->px[3 * i] - v[3 * i] * 0.5) < 1e-7);
-    assert_true(fabs(t->px[3 * i + 1] - v[3 * i + 1] * 0.5) < 1e-7);
+    assert_near(t->px[3 * i], v[3 * i] * 0.5, 1e-7);
+    assert_near(t->px[3 * i + 1], v[3 * i + 1] * 0.5, 1e-7);
     assert_true(t->px[3 * i + 2] == 0.0f); /* a zero mean is left */
   }
   cv_image_destroy(t);
@@ -210,7 +211,10 @@ static void test_embedded(void **state) {
   free(copy);
   cv_image *t;
   assert_int_equal(cv_texture_load(out, &t, &err), CV_OK);
-  assert_true(t->w == 2 && t->h == 2 && fabs(t->px[0] - 1) < 1e-6 && t->px[1] == 0);
+  assert_true(t->w == 2);
+  assert_true(t->h == 2);
+  assert_near(t->px[0], 1, 1e-6);
+  assert_true(t->px[1] == 0);
   cv_image_destroy(t);
   assert_int_equal(cv_texture_embedded_file(&sc, "*0", out2, sizeof out2, &err), 1);
   assert_string_equal(out, out2); /* the same texture, the same file */
@@ -220,7 +224,8 @@ static void test_embedded(void **state) {
   assert_string_equal(out, out2);
   assert_int_equal(cv_texture_load(out, &t, &err), CV_OK);
   assert_true(t->w == 2 && t->h == 1);
-  assert_true(fabs(t->px[0] - lin(30 / 255.0)) < 1e-6 && fabs(t->px[5] - lin(40 / 255.0)) < 1e-6);
+  assert_near(t->px[0], lin(30 / 255.0), 1e-6);
+  assert_near(t->px[5], lin(40 / 255.0), 1e-6);
   cv_image_destroy(t);
   /* not embedded; a bad index */
   assert_int_equal(cv_texture_embedded_file(&sc, "other.png", out, sizeof out, &err), 0);

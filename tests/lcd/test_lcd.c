@@ -31,6 +31,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "lcd/accum.h"
 #include "lcd/brdf.h"
@@ -162,7 +163,7 @@ static void test_lambert_constant(void **state) {
                   strat[k], worst, mean[0], a[0] * 1 + a[0] / M_PI * E[0] * cs);
     for (int c = 0; c < 3; c++) {
       double want = a[c] * (c + 1) + a[c] / M_PI * E[c] * cs;
-      assert_true(fabs(mean[c] / want - 1) < tol[k]);
+      assert_near(mean[c] / want, 1, tol[k]);
     }
     /* cosine sampling is exact per sample but for the sun's term: its one
      * direction per round, drawn in the solar disc (half angle alpha), has
@@ -359,12 +360,13 @@ static void test_sampling_pdf_chi2(void **state) {
     for (int i = 0; i < N; i++) {
       float u[2] = {(float)rnd(), (float)rnd()}, wi[3], th, ph, pdf, f[3];
       assert_true(cv_brdf_sample(s, k, t, u, wi, &th, &ph, &pdf, f));
-      assert_true(wi[2] >= 0 && fabsf(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2] - 1) < 1e-5f);
+      assert_true(wi[2] >= 0);
+      assert_near(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2], 1, 1e-5f);
       float p2 = cv_brdf_pdf(s, k, t, th, ph);
       if (fabsf(p2 / pdf - 1) > 1e-4f) mismatch++;
       float fe[3];
       cv_brdf_eval(b, th, to, ph, fe);
-      assert_true(fabsf(f[1] - fe[1]) <= 1e-4f * fe[1] + 1e-9f); /* f returned = the table's */
+      assert_near(f[1], fe[1], 1e-4f * fe[1] + 1e-9f); /* f returned = the table's */
       int bt = (int)(th / D / 5), bp = (int)(ph / D / 10);
       if (bt > BT - 1) bt = BT - 1;
       if (bp > BP - 1) bp = BP - 1;
@@ -385,7 +387,7 @@ static void test_sampling_pdf_chi2(void **state) {
                   "%d pdf mismatches; pdf vs f cos/albedo within %.1f%%\n",
                   views[v], integ, chi2, dof, crit, nin, fchi2, fdof, fcrit, mismatch,
                   100 * worst_ratio);
-    assert_true(fabs(integ - 1) < 1e-3);
+    assert_near(integ, 1, 1e-3);
     assert_true(chi2 < crit);
     assert_true(nin > 1000 && fchi2 < fcrit);
     assert_true(mismatch < N / 1000);
@@ -461,7 +463,7 @@ static void test_window_mis(void **state) {
                   100.0 * acc->data[CV_LCD_ACC_ENV] / (double)(acc->data[CV_LCD_ACC_ENV] + acc->data[CV_LCD_ACC_HITS]),
                   (long long)acc->data[CV_LCD_ACC_LOST]);
     assert_true(acc->data[CV_LCD_ACC_ENV] > 0 && acc->data[CV_LCD_ACC_LOST] == 0);
-    assert_true(fabs(mean - 1) < 2e-3);
+    assert_near(mean, 1, 2e-3);
     assert_true(worst < 0.1);
     cv_image_destroy(img);
     cv_lcd_accum_destroy(acc);
@@ -707,12 +709,12 @@ static void test_determinism(void **state) {
   scene_make(&s, m, b);
   /* the frame read from the LCD triangles is the generator's */
   for (int k = 0; k < 3; k++) {
-    assert_true(fabsf(s.panel.center[k] - info.lcd.center[k]) < 1e-4f);
-    assert_true(fabsf(s.panel.normal[k] - info.lcd.normal[k]) < 1e-4f);
-    assert_true(fabsf(s.panel.u[k] - info.lcd.u[k]) < 1e-4f);
+    assert_near(s.panel.center[k], info.lcd.center[k], 1e-4f);
+    assert_near(s.panel.normal[k], info.lcd.normal[k], 1e-4f);
+    assert_near(s.panel.u[k], info.lcd.u[k], 1e-4f);
   }
-  assert_true(fabsf(s.panel.size[0] - info.lcd.size[0]) < 1e-4f);
-  assert_true(fabsf(s.panel.size[1] - info.lcd.size[1]) < 1e-4f);
+  assert_near(s.panel.size[0], info.lcd.size[0], 1e-4f);
+  assert_near(s.panel.size[1], info.lcd.size[1], 1e-4f);
   float *vrad = malloc(3 * m->nv * sizeof(float));
   for (size_t i = 0; i < 3 * m->nv; i++) vrad[i] = (float)(0.05 + 0.1 * rnd());
   cv_envmap *env = env_from(128, env_sky);
@@ -874,7 +876,8 @@ static void test_keys_progress(void **state) {
   assert_true(cv_lcd_key_compare(&a, &c) == -cv_lcd_key_compare(&c, &a));
   float q[3];
   cv_lcd_key_eye(&a, 0.005, q);
-  assert_true(fabsf(q[0] + 0.370f) < 1e-6f && fabsf(q[1] - 1.020f) < 1e-6f);
+  assert_near(q[0], -0.370f, 1e-6f);
+  assert_near(q[1], 1.020f, 1e-6f);
   const float bad[3] = {NAN, 0, 0};
   assert_int_equal(cv_lcd_key_make(bad, 0.005, 1, 1, &d), CV_ERR_INVALID);
   assert_int_equal(cv_lcd_key_make(e1, 0, 1, 1, &d), CV_ERR_INVALID);
@@ -941,7 +944,7 @@ static void test_merl_roundtrip(void **state) {
     for (int ii = 0; ii < 91; ii += 5)
       for (int ip = 0; ip < 181; ip += 11) {
         const float *e = cv_brdf_at(b, io, ii, ip);
-        assert_true(fabsf(e[0] - (float)(0.3 / M_PI)) < 1e-6f);
+        assert_near(e[0], (float)(0.3 / M_PI), 1e-6f);
         /* independent theta_half index: the half vector of w_i and w_o */
         double ti = ii * M_PI / 180, to = io * M_PI / 180, ph = ip * M_PI / 180;
         double h[3] = {sin(ti) * cos(ph) + sin(to), sin(ti) * sin(ph), cos(ti) + cos(to)};
@@ -952,9 +955,9 @@ static void test_merl_roundtrip(void **state) {
         if (fabs(x - floor(x + 0.5)) < 1e-6) continue; /* on an index boundary */
         int ih = (int)x;
         if (ih > 89) ih = 89;
-        assert_true(fabsf(e[1] - (float)(0.01 + 0.002 * ih)) < 1e-6f);
+        assert_near(e[1], (float)(0.01 + 0.002 * ih), 1e-6f);
         if (ih == 89) assert_true(e[2] == 0.0f);
-        else assert_true(fabsf(e[2] - 0.05f) < 1e-6f);
+        else assert_near(e[2], 0.05f, 1e-6f);
         checked++;
       }
   assert_true(checked > 1000);
@@ -1003,7 +1006,7 @@ static void test_bad_files(void **state) {
   cv_err err;
   assert_int_equal(cv_brdf_load(TMP("good.brdf"), &b, &rep, &err), CV_OK);
   assert_int_equal(b->n_theta, 10);
-  assert_true(fabs(rep.albedo_max - 0.1 * M_PI) < 1e-4); /* a constant f has albedo pi f */
+  assert_near(rep.albedo_max, 0.1 * M_PI, 1e-4); /* a constant f has albedo pi f */
   assert_int_equal(rep.albedo_violations, 0);
   cv_brdf_destroy(b);
   /* entry (theta_o 20, theta_i 30, phi_d 40 degrees), channel G */
@@ -1052,7 +1055,7 @@ static void test_bad_files(void **state) {
   write_table(TMP("bright.brdf"), nt, np, 3, v, n, 1);
   assert_int_equal(cv_brdf_load(TMP("bright.brdf"), &b, &rep, &err), CV_OK);
   assert_int_equal(rep.albedo_violations, nt);
-  assert_true(fabs(rep.albedo_max - 0.5 * M_PI) < 1e-3);
+  assert_near(rep.albedo_max, 0.5 * M_PI, 1e-3);
   assert_true(rep.first_violation_deg == 0);
   cv_brdf_destroy(b);
   free(v);
@@ -1075,7 +1078,7 @@ static void test_antiglare(void **state) {
   assert_int_equal(rep.albedo_violations, 0);
   /* at normal incidence the lobes are whole: rd + rs + rh (1-degree
    * quadrature of a 1-degree Gaussian: 2%) */
-  assert_true(fabs(alb[0] / (p.rd + p.rs + p.rh) - 1) < 0.02);
+  assert_near(alb[0] / (p.rd + p.rs + p.rh), 1, 0.02);
   /* a round trip through the table file keeps every value */
   assert_int_equal(cv_brdf_write(TMP("ag.brdf"), b, &err), CV_OK);
   cv_brdf *c;

@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "lcd/accum.h"
 #include "lcd/brdf.h"
@@ -145,7 +146,7 @@ static void test_sweep_parse(void **state) {
   assert_true(lo == 1000 && hi == 100000 && n == 21);
   assert_int_equal(cv_lcd_sweep_parse("10:20:5", &lo, &hi, &n, why, sizeof why), CV_OK);
   assert_int_equal(n, 5);
-  assert_true(fabs(cv_lcd_sweep_level(10, 20, 5, 2) - sqrt(200)) < 1e-9);
+  assert_near(cv_lcd_sweep_level(10, 20, 5, 2), sqrt(200), 1e-9);
   static const char *const bad[] = {"5:1",  "10:20:0", "10:20:1", "-5:10",   "0:10", "10:-20",
                                     "abc",  "10",      "10:",     ":10",     "10:20:x",
                                     "10:20:2.5", "10:20:1001", "10:2e7", "nan:10", ""};
@@ -188,7 +189,7 @@ static void test_sweep_closed_form(void **state) {
   /* the reference level: the lighting's horizontal illuminance, pi L */
   const double E_ref = cv_lcd_outdoor_illuminance(l);
   print_message("outdoor illuminance %.6f (pi L = %.6f)\n", E_ref, M_PI * L);
-  assert_true(fabs(E_ref / (M_PI * L) - 1) < 1e-3);
+  assert_near(E_ref / (M_PI * L), 1, 1e-3);
   cv_lcd_params par;
   cv_lcd_params_default(&par);
   par.w = 16, par.h = 10, par.spp = 16;
@@ -206,19 +207,19 @@ static void test_sweep_closed_form(void **state) {
   cv_lcd_readability ref;
   assert_int_equal(cv_lcd_readability_compute(acc, &rp, &lv, &ref, &err), CV_OK);
   print_message("L_r %.6f (rho L = %.6f), L_v %.6f\n", ref.L_r.value, rho * L, lv.value);
-  assert_true(fabs(ref.L_r.value / (rho * L) - 1) < 1e-3);
+  assert_near(ref.L_r.value / (rho * L), 1, 1e-3);
   /* closed form: (W + (rho + G) E / pi) = c (B + (rho + G) E / pi) */
   const double want = M_PI * (rp.white - rp.cr_min * rp.black) / ((rp.cr_min - 1) * (rho + G));
   double E_star, se;
   assert_int_equal(cv_lcd_sweep_crossing(&ref, &rp, E_ref, &E_star, &se), 1);
   print_message("3:1 crossing %.2f lx +- %.2g, closed form %.2f lx (G = %.5f)\n", E_star, se,
                 want, G);
-  assert_true(fabs(E_star / want - 1) < 0.01);
+  assert_near(E_star / want, 1, 0.01);
   /* the figures at that level: CR 3, and the grid crossing of a sweep */
   cv_lcd_readability at;
   assert_int_equal(cv_lcd_sweep_figures(acc, &rp, &lv, E_ref, E_star, &at, &err), CV_OK);
-  assert_true(fabs(at.cr_mean.value / 3 - 1) < 0.01);
-  assert_true(fabs(at.L_r.value / (rho * E_star / M_PI) - 1) < 0.01);
+  assert_near(at.cr_mean.value / 3, 1, 0.01);
+  assert_near(at.L_r.value / (rho * E_star / M_PI), 1, 0.01);
   cv_lcd_readability_free(&at);
   enum { N = 41 };
   double E[N], cr[N], Ex;
@@ -231,7 +232,7 @@ static void test_sweep_closed_form(void **state) {
   }
   assert_int_equal(cv_lcd_sweep_grid_crossing(E, cr, 3, N, &Ex), 1);
   print_message("grid crossing %.2f lx\n", Ex);
-  assert_true(fabs(Ex / want - 1) < 0.01);
+  assert_near(Ex / want, 1, 0.01);
   /* a bad level is refused, never NaN */
   assert_int_equal(cv_lcd_sweep_figures(acc, &rp, &lv, E_ref, -1, &at, &err), CV_ERR_INVALID);
   assert_int_equal(cv_lcd_sweep_figures(acc, &rp, &lv, 0, 10, &at, &err), CV_ERR_INVALID);
@@ -270,9 +271,9 @@ static void test_eye_illuminance(void **state) {
   const double Eh = M_PI * L + 100 * sin(el), Ev = M_PI * L + 100 * cos(el);
   print_message("outdoor %.4f, eye h %.4f +- %.2g (want %.4f), v %.4f +- %.2g (want %.4f)\n",
                 il.outdoor_h, il.eye_h, il.eye_h_se, Eh, il.eye_v, il.eye_v_se, Ev);
-  assert_true(fabs(il.outdoor_h / Eh - 1) < 0.01);
-  assert_true(fabs(il.eye_h / Eh - 1) < 0.01);
-  assert_true(fabs(il.eye_v / Ev - 1) < 0.01);
+  assert_near(il.outdoor_h / Eh, 1, 0.01);
+  assert_near(il.eye_h / Eh, 1, 0.01);
+  assert_near(il.eye_v / Ev, 1, 0.01);
   assert_true(isfinite(il.eye_h_se) && isfinite(il.eye_v_se));
   /* the light words of a round carry it; their mean over rounds is it again */
   cv_lcd_accum *a, *b2;
@@ -286,7 +287,7 @@ static void test_eye_illuminance(void **state) {
   assert_int_equal(cv_lcd_accum_set_light(b2, E3), CV_OK);
   assert_int_equal(cv_lcd_accum_add(a, b2), CV_OK);
   assert_int_equal(cv_lcd_accum_light(a, got), 1);
-  for (int k = 0; k < 3; k++) assert_true(fabs(got[k] - E3[k]) < 1e-6);
+  for (int k = 0; k < 3; k++) assert_near(got[k], E3[k], 1e-6);
   const double badE[3] = {-1, 0, 0};
   assert_int_equal(cv_lcd_accum_set_light(b2, badE), CV_ERR_INVALID);
   cv_lcd_accum_destroy(a);

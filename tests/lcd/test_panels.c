@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "lcd/accum.h"
 #include "lcd/lcd_config.h"
@@ -58,9 +59,10 @@ static void test_veil_words(void **state) {
   assert_int_equal(cv_lcd_accum_veil(a, 0, &v1, &se1), 1);
   assert_int_equal(cv_lcd_accum_veil(sum, 0, &v, &se), 1);
   assert_true(v == v1 && se == se1); /* the mean of equal words is the word */
-  assert_true(fabs(v - 33.6312) < 1e-7);
+  assert_near(v, 33.6312, 1e-7);
   assert_int_equal(cv_lcd_accum_veil(sum, 1, &v, &se), 1);
-  assert_true(fabs(v - 511.25) < 1e-7 && fabs(se - 0.05) < 1e-7);
+  assert_near(v, 511.25, 1e-7);
+  assert_near(se, 0.05, 1e-7);
   cv_lcd_accum_destroy(a);
   cv_lcd_accum_destroy(sum);
 }
@@ -88,7 +90,8 @@ static void test_config(void **state) {
                              " {\"name\": \"cluster\", \"black_luminance\": 2, \"corners\": " CLUSTER "}]}}",
                              &c, &err), CV_OK);
   assert_int_equal(c.n_panels, 2);
-  assert_true(c.panels[0].content_luminance == 400 && fabs(c.panels[0].black_luminance - 0.8) < 1e-12);
+  assert_true(c.panels[0].content_luminance == 400);
+  assert_near(c.panels[0].black_luminance, 0.8, 1e-12);
   assert_true(c.panels[1].content_luminance == 400 && c.panels[1].black_luminance == 2);
   assert_true(c.panels[1].has_corners && !c.panels[0].has_corners);
   /* errors name the key */

@@ -23,6 +23,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "lcd/accum.h"
 #include "lcd/brdf.h"
@@ -36,9 +37,9 @@
 static void test_glare_equation(void **state) {
   (void)state;
   /* hand-computed: 10/th^3 + (5/th^2 + 0.1 p/th)(1 + (A/62.5)^4) + 0.0025 p */
-  assert_true(fabs(cv_cie_glare(10, 25, 0.5) - 0.067658) < 1e-9);
-  assert_true(fabs(cv_cie_glare(1, 70, 1.0) - 23.127448736) < 1e-8);
-  assert_true(fabs(cv_cie_glare(30, 40, 0) - 0.006857993481) < 1e-11);
+  assert_near(cv_cie_glare(10, 25, 0.5), 0.067658, 1e-9);
+  assert_near(cv_cie_glare(1, 70, 1.0), 23.127448736, 1e-8);
+  assert_near(cv_cie_glare(30, 40, 0), 0.006857993481, 1e-11);
   assert_true(cv_cie_glare(0.05, 40, 0.5) == 0);
   assert_true(cv_cie_glare(120, 40, 0.5) == 0);
   /* age raises the veil; older eyes scatter more */
@@ -48,9 +49,9 @@ static void test_glare_equation(void **state) {
 static void test_tvi(void **state) {
   (void)state;
   /* photopic: log dL = log La - 1.255 */
-  assert_true(fabs(cv_tvi_ferwerda(100) - 5.559042572704) < 1e-9);
+  assert_near(cv_tvi_ferwerda(100), 5.559042572704, 1e-9);
   /* scotopic: the rods, (0.405 log La + 1.6)^2.18 - 2.86 at La = 1e-3 */
-  assert_true(fabs(cv_tvi_ferwerda(1e-3) / 0.00184003383618 - 1) < 1e-9);
+  assert_near(cv_tvi_ferwerda(1e-3) / 0.00184003383618, 1, 1e-9);
   /* monotone over 12 decades, no jump above 2% at the branch ends */
   double prev = cv_tvi_ferwerda(1e-6);
   for (double x = -6; x <= 6; x += 0.01) {
@@ -139,7 +140,7 @@ static void test_matte_panel(void **state) {
   assert_true(rgb[0] == 0 && rgb[1] == 0 && rgb[2] == 0);
   const float up[3] = {0, 1, 0};
   assert_int_equal(cv_lcd_eye_radiance(g, l, p.eye, up, rgb), 0);
-  assert_true(fabs(rgb[1] - L) < 1e-3 * L);
+  assert_near(rgb[1], L, 1e-3 * L);
   assert_int_equal(cv_lcd_sun_visible(g, l, p.eye), 0); /* this light has no sun */
   {
     cv_lcd_light *ls;
@@ -164,7 +165,7 @@ static void test_matte_panel(void **state) {
   const double lv_ref = veil_const_quadrature(L, vp.age, vp.pigment);
   print_message("constant surround L=%g: L_v %.4f +- %.4f, quadrature %.4f\n", L, lv.value, lv.se,
                 lv_ref);
-  assert_true(fabs(lv.value / lv_ref - 1) < 0.005);
+  assert_near(lv.value / lv_ref, 1, 0.005);
 
   cv_lcd_read_params rp;
   cv_lcd_read_params_default(&rp);
@@ -175,8 +176,8 @@ static void test_matte_panel(void **state) {
                 "VL %.2f, frac %.3f\n",
                 rho, rd.L_r.value, rd.L_r.se, lr, rd.cr_mean.value, rd.cr_mean.se, cr,
                 rd.vl.value, rd.frac_ok.value);
-  assert_true(fabs(rd.L_r.value / lr - 1) < 0.01);
-  assert_true(fabs(rd.cr_mean.value / cr - 1) < 0.01);
+  assert_near(rd.L_r.value / lr, 1, 0.01);
+  assert_near(rd.cr_mean.value / cr, 1, 0.01);
   assert_true(rd.L_r.se >= 0 && rd.L_r.se < 0.01 * lr);
   assert_true(rd.spp == 128);
   /* every texel above 3:1 here (CR about 8) */
@@ -184,7 +185,7 @@ static void test_matte_panel(void **state) {
   assert_true(rd.cr_worst > 3);
   /* VL: (L_on - L_off) / dL_t at the background L_off + L_r + L_v */
   const double vl = (rp.white - rp.black) / cv_tvi_ferwerda(rp.black + rd.L_r.value + lv.value);
-  assert_true(fabs(rd.vl.value / vl - 1) < 1e-9);
+  assert_near(rd.vl.value / vl, 1, 1e-9);
   cv_lcd_readability_free(&rd);
 
   /* a requirement above the panel's CR: no texel meets it */
@@ -233,14 +234,16 @@ static void test_small_source(void **state) {
     assert_int_equal(cv_lcd_veil(gaze, &vp, disc_lum, &s, NULL, 0, &lv), CV_OK);
     print_message("disc at %g deg, E %g lx, seed %u: L_v %.5f +- %.5f, equation %.5f (%+.2f%%)\n",
                   th, E_gl, seed, lv.value, lv.se, want, 100 * (lv.value / want - 1));
-    assert_true(fabs(lv.value / want - 1) < 0.02);
-    assert_true(lv.se > 0 && fabs(lv.value - want) < 4 * lv.se + 0.01 * want);
+    assert_near(lv.value / want, 1, 0.02);
+    assert_true(lv.se > 0);
+    assert_near(lv.value, want, 4 * lv.se + 0.01 * want);
   }
 
   /* the same illuminance from a point source: exact */
   cv_lcd_point_source ps = {{s.c[0], s.c[1], s.c[2]}, E_gl / cos(t)};
   assert_int_equal(cv_lcd_veil(gaze, &vp, NULL, NULL, &ps, 1, &lv), CV_OK);
-  assert_true(fabs(lv.value / want - 1) < 1e-9 && lv.se == 0);
+  assert_near(lv.value / want, 1, 1e-9);
+  assert_true(lv.se == 0);
   /* behind the driver (beyond 100 degrees): no veil */
   cv_lcd_point_source back = {{0, 0, 1}, 1e5};
   assert_int_equal(cv_lcd_veil(gaze, &vp, NULL, NULL, &back, 1, &lv), CV_OK);
@@ -318,14 +321,14 @@ static void test_content_aspect(void **state) {
     for (int x = 0; x < 50; x++) {
       const float *q = cv_image_at(img, x, y);
       const double want = x < 5 || x >= 45 ? 1 : 400;
-      assert_true(fabs(q[1] - want) < 1e-3 * want);
+      assert_near(q[1], want, 1e-3 * want);
     }
   cv_image_destroy(img);
   /* a 5:3 image fills it; a taller one gets bars at the top and bottom */
   assert_int_equal(cv_png_write(path, 3, 4, 1, px, &err), CV_OK);
   assert_int_equal(cv_lcd_content_load(path, 50, 30, 5.0 / 3.0, 400, 1, &img, &err), CV_OK);
-  assert_true(fabs(cv_image_at(img, 25, 0)[0] - 400) < 0.4); /* full height */
-  assert_true(fabs(cv_image_at(img, 2, 15)[0] - 1) < 1e-3);  /* 3:4 -> 22.5 texels wide */
+  assert_near(cv_image_at(img, 25, 0)[0], 400, 0.4); /* full height */
+  assert_near(cv_image_at(img, 2, 15)[0], 1, 1e-3);  /* 3:4 -> 22.5 texels wide */
   cv_image_destroy(img);
   /* white below black, missing file: errors */
   assert_int_equal(cv_lcd_content_load(path, 50, 30, 5.0 / 3.0, 1, 2, &img, &err), CV_ERR_INVALID);

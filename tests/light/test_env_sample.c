@@ -12,6 +12,7 @@
 #include <stdlib.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "core/status.h"
 #include "light/env_sample.h"
@@ -55,7 +56,7 @@ static void test_cell_probabilities(void **state) {
       const float *p = e->img->px + 3 * ((size_t)y * w + x);
       tot += cv_luminance(p[0], p[1], p[2]) * cell_sa(y, w, h);
     }
-  assert_true(fabs(s->total - tot) < 1e-5 * tot);
+  assert_near(s->total, tot, 1e-5 * tot);
   for (int y = 0; y < h; y++)
     for (int x = 0; x < w; x++) {
       const float *p = e->img->px + 3 * ((size_t)y * w + x);
@@ -68,7 +69,7 @@ static void test_cell_probabilities(void **state) {
     }
   print_message("cell probabilities: worst absolute error %.3g, sum %.9f\n", worst, sum);
   assert_true(worst < 1e-6);
-  assert_true(fabs(sum - 1) < 1e-6);
+  assert_near(sum, 1, 1e-6);
   cv_env_sampler_destroy(s);
   cv_envmap_destroy(e);
 }
@@ -173,7 +174,7 @@ static void test_sampling_histogram(void **state) {
   for (int i = 0; i < N; i++) {
     float u[2] = {rng_float(&rs), rng_float(&rs)}, d[3], pdf;
     assert_int_equal(cv_env_sampler_sample(s, u, d, &pdf), 1);
-    assert_true(fabsf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - 1) < 1e-5f);
+    assert_near(d[0] * d[0] + d[1] * d[1] + d[2] * d[2], 1, 1e-5f);
     const float q = cv_env_sampler_pdf(s, d);
     worst_pdf = fmax(worst_pdf, fabs(q - pdf) / pdf);
     /* the cell the direction lies in, in double */
@@ -244,7 +245,7 @@ static void test_pdf_normalised(void **state) {
   }
   const double integral = acc * 4 * M_PI / ((double)nt * np);
   print_message("integral of the density over the sphere: %.6f\n", integral);
-  assert_true(fabs(integral - 1) < 2e-3);
+  assert_near(integral, 1, 2e-3);
   cv_env_sampler_destroy(s);
   cv_envmap_destroy(e);
 }

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "core/image.h"
 #include "core/status.h"
@@ -72,10 +73,10 @@ static void test_sky_zenith(void **state) {
     printf("  T=%g elev %g: zenith Y %.6f kcd/m2 (expected %.6f), x %.6f y %.6f\n", T,
            cases[k].el, info.zenith_xyY[2] / 1000.0, cases[k].Y, info.zenith_xyY[0],
            info.zenith_xyY[1]);
-    assert_true(fabs(Yf - cases[k].Y) < 1e-12);
-    assert_true(fabs(info.zenith_xyY[2] / 1000.0 - cases[k].Y) < 1e-9 * cases[k].Y);
-    assert_true(fabs(info.zenith_xyY[0] - cases[k].x) < 1e-12);
-    assert_true(fabs(info.zenith_xyY[1] - cases[k].y) < 1e-12);
+    assert_near(Yf, cases[k].Y, 1e-12);
+    assert_near(info.zenith_xyY[2] / 1000.0, cases[k].Y, 1e-9 * cases[k].Y);
+    assert_near(info.zenith_xyY[0], cases[k].x, 1e-12);
+    assert_near(info.zenith_xyY[1], cases[k].y, 1e-12);
 
     /* Perez ratio at the zenith is 1: radiance there has the zenith
      * luminance (tol 1e-4: 7-digit colour matrices) */
@@ -84,10 +85,10 @@ static void test_sky_zenith(void **state) {
     assert_int_equal(cv_sky_radiance(sky, up, rgb), 0);
     const double ratio = lum709(rgb) / info.zenith_xyY[2];
     printf("  Y(zenith)/Y_z = %.8f (tol 1e-4)\n", ratio);
-    assert_true(fabs(ratio - 1.0) < 1e-4);
+    assert_near(ratio, 1.0, 1e-4);
     /* and the Perez function itself */
     const double c[5] = {-1.1, -0.3, 5.3, -2.5, 0.3};
-    assert_true(fabs(cv_perez(c, 0.0, 0.0) - (1 - 1.1 * exp(-0.3)) * (1 + 5.3 + 0.3)) < 1e-12);
+    assert_near(cv_perez(c, 0.0, 0.0), (1 - 1.1 * exp(-0.3)) * (1 + 5.3 + 0.3), 1e-12);
     cv_sky_destroy(sky);
   }
 }
@@ -146,7 +147,7 @@ static void test_sun_light(void **state) {
          lum709(rgb), info.sun_xyz[1], rgb[0], rgb[1], rgb[2], info.sky_horizontal_lux,
          lum709(info.ground_rgb));
   assert_true(info.sun_xyz[1] > 50e3 && info.sun_xyz[1] < 110e3);
-  assert_true(fabs(lum709(rgb) - info.sun_xyz[1]) < 1e-3 * info.sun_xyz[1]);
+  assert_near(lum709(rgb), info.sun_xyz[1], 1e-3 * info.sun_xyz[1]);
   assert_true(sa == CV_SUN_SOLID_ANGLE);
   assert_true(angle_deg(dir, sd) < 1e-9);
   /* the sun at noon is near white: no channel below half of the largest */
@@ -158,7 +159,7 @@ static void test_sun_light(void **state) {
   /* ground = albedo (E_sky + E_sun sin(el)) / pi */
   for (int c = 0; c < 3; c++) {
     const double e = 0.2 * (info.sky_horizontal_rgb[c] + rgb[c] * sd[1]) / M_PI;
-    assert_true(fabs(info.ground_rgb[c] - e) < 1e-9 * e);
+    assert_near(info.ground_rgb[c], e, 1e-9 * e);
   }
   const double down[3] = {0.3, -0.9, 0.1};
   double g[3];
@@ -184,7 +185,7 @@ static void test_sun_light(void **state) {
   printf("  dome illuminance: quadrature %.1f lux, lat-long sum %.1f lux; brightest sky pixel %.0f "
          "cd/m2 (sun disc %.3g cd/m2 not drawn); %ld channels clamped\n",
          info.sky_horizontal_lux, Eh, maxL, info.sun_xyz[1] / CV_SUN_SOLID_ANGLE, ncl);
-  assert_true(fabs(Eh - info.sky_horizontal_lux) < 0.01 * info.sky_horizontal_lux);
+  assert_near(Eh, info.sky_horizontal_lux, 0.01 * info.sky_horizontal_lux);
   assert_true(maxL < 0.01 * info.sun_xyz[1] / CV_SUN_SOLID_ANGLE);
   cv_image_destroy(img);
   cv_sky_destroy(sky);
@@ -273,14 +274,14 @@ static void test_envmap_basic(void **state) {
       float rgb[3];
       cv_envmap_lookup(env, df, rgb);
       const float *p = cv_image_at(env->img, x, y);
-      for (int c = 0; c < 3; c++) assert_true(fabsf(rgb[c] - p[c]) < 1e-4f * fabsf(p[c]) + 1e-5f);
+      for (int c = 0; c < 3; c++) assert_near(rgb[c], p[c], 1e-4f * fabsf(p[c]) + 1e-5f);
     }
   /* across the seam behind the car (u = 0 = 1) the lookup is continuous */
   float a[3], b[3];
   const float l[3] = {-1e-4f, 0.2f, 0.98f}, r[3] = {1e-4f, 0.2f, 0.98f};
   cv_envmap_lookup(env, l, a);
   cv_envmap_lookup(env, r, b);
-  for (int c = 0; c < 3; c++) assert_true(fabsf(a[c] - b[c]) < 1e-3f);
+  for (int c = 0; c < 3; c++) assert_near(a[c], b[c], 1e-3f);
   /* degenerate direction: black */
   const float z[3] = {0, 0, 0};
   cv_envmap_lookup(env, z, a);
@@ -358,15 +359,18 @@ static void test_car_rotation(void **state) {
   const double fwd[3] = {0, 0, -1}, right[3] = {1, 0, 0}, up[3] = {0, 1, 0};
   cv_car_rotation(90.0, 0.0, 0.0, R); /* yaw left: the nose points to -X */
   mat_vec(R, fwd, o);
-  assert_true(fabs(o[0] + 1.0) < 1e-12 && fabs(o[1]) < 1e-12 && fabs(o[2]) < 1e-12);
+  assert_near(o[0], -1.0, 1e-12);
+  assert_near(o[1], 0, 1e-12);
+  assert_near(o[2], 0, 1e-12);
   cv_car_rotation(0.0, 10.0, 0.0, R); /* pitch: the nose goes up */
   mat_vec(R, fwd, o);
-  assert_true(fabs(o[1] - sin(rad(10))) < 1e-12 && o[2] < 0);
+  assert_near(o[1], sin(rad(10)), 1e-12);
+  assert_true(o[2] < 0);
   cv_car_rotation(0.0, 0.0, 10.0, R); /* roll: the right side goes down */
   mat_vec(R, right, o);
-  assert_true(fabs(o[1] + sin(rad(10))) < 1e-12);
+  assert_near(o[1], -(sin(rad(10))), 1e-12);
   mat_vec(R, fwd, o);
-  assert_true(fabs(o[2] + 1.0) < 1e-12);
+  assert_near(o[2], -1.0, 1e-12);
   /* order: roll, then pitch, then yaw */
   double Ry[9], Rp[9], Rr[9], T[9], C[9];
   cv_car_rotation(30.0, 0.0, 0.0, Ry);
@@ -383,9 +387,9 @@ static void test_car_rotation(void **state) {
       C[3 * i + j] = 0;
       for (int k = 0; k < 3; k++) C[3 * i + j] += Ry[3 * i + k] * T[3 * k + j];
     }
-  for (int k = 0; k < 9; k++) assert_true(fabs(C[k] - R[k]) < 1e-12);
+  for (int k = 0; k < 9; k++) assert_near(C[k], R[k], 1e-12);
   mat_vec(R, up, o);
-  assert_true(fabs(o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - 1.0) < 1e-12);
+  assert_near(o[0] * o[0] + o[1] * o[1] + o[2] * o[2], 1.0, 1e-12);
 }
 
 static void test_envmap_rotate(void **state) {
@@ -500,7 +504,7 @@ static void test_sun_synthetic(void **state) {
          "2%%)\n",
          ang, E, exact, 100.0 * (E - exact) / exact);
   assert_true(ang < 1.0);
-  assert_true(fabs(E - exact) < 0.02 * exact);
+  assert_near(E, exact, 0.02 * exact);
   /* residual: no pixel above sky + 1%, and residual + sun = original */
   double maxr = 0.0, e_orig = 0.0, e_res = 0.0;
   for (int y = 0; y < h; y++) {
@@ -515,7 +519,7 @@ static void test_sun_synthetic(void **state) {
   printf("  residual max %.5f (tol 1.01); energy original %.4f = residual %.4f + sun %.4f\n", maxr,
          e_orig, e_res, info.rgb[1]);
   assert_true(maxr <= 1.01);
-  assert_true(fabs(e_orig - (e_res + info.rgb[1])) < 1e-5 * e_orig);
+  assert_near(e_orig, (e_res + info.rgb[1]), 1e-5 * e_orig);
   assert_true(info.solid_angle < 0.01 && info.energy_fraction > 0.9);
   cv_envmap_destroy(res);
   cv_envmap_destroy(env);
@@ -528,7 +532,8 @@ static void test_sun_synthetic(void **state) {
   E = info.rgb[1];
   printf("  sun across the seam at 80 deg: direction error %.3f deg, energy %.2f%%\n",
          angle_deg(info.dir, sd), 100.0 * (E - exact) / exact);
-  assert_true(angle_deg(info.dir, sd) < 1.0 && fabs(E - exact) < 0.02 * exact);
+  assert_true(angle_deg(info.dir, sd) < 1.0);
+  assert_near(E, exact, 0.02 * exact);
   cv_envmap_destroy(env);
 }
 

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "core/status.h"
 #include "light/envmap.h"
@@ -164,7 +165,7 @@ static void test_sun_survey(void **state) {
         }
       }
       const double es = cv_luminance(info.rgb[0], info.rgb[1], info.rgb[2]);
-      assert_true(fabs(eo - (er + es)) < 1e-4 * eo);
+      assert_near(eo, (er + es), 1e-4 * eo);
     }
     cv_envmap_destroy(res);
     cv_envmap_destroy(env);

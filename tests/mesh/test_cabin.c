@@ -12,6 +12,7 @@
 #include <time.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
@@ -122,7 +123,7 @@ static void check_shell(int tess) {
   double vol = mc_signed_volume(m, info.shell_tri_begin, info.shell_tri_end);
   double expect = -2.88 * 1.45;
   printf("  tess %d shell signed volume %.6f (closed form %.6f)\n", tess, vol, expect);
-  assert_true(fabs(vol - expect) < 1e-5 * fabs(expect));
+  assert_near(vol, expect, 1e-5 * fabs(expect));
   /* the shell part without the window triangles is open */
   for (size_t t = info.shell_tri_begin; t < info.shell_tri_end; t++)
     if (m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) {
@@ -151,12 +152,13 @@ static void test_shell_closed_inward(void **state) {
   assert_int_equal(bu + bd, 0);
   double vol = mc_signed_volume(m, info.shell_tri_begin, info.shell_tri_end);
   double expect = -2.88 * (3.0 / 2.6) * (1.3 / 1.2) * 1.6;
-  assert_true(fabs(vol - expect) < 1e-5 * fabs(expect));
-  assert_true(fabs(mc_area_flags(m, CV_MAT_LCD) - 0.024) < 1e-6);
+  assert_near(vol, expect, 1e-5 * fabs(expect));
+  assert_near(mc_area_flags(m, CV_MAT_LCD), 0.024, 1e-6);
   float lo[3], hi[3];
   cv_mesh_bounds(m, lo, hi);
-  assert_true(fabsf(hi[0] - 0.8f) < 1e-6f && fabsf(hi[1] - 1.3f) < 1e-6f &&
-              fabsf(hi[2] - 1.5f) < 1e-6f);
+  assert_near(hi[0], 0.8f, 1e-6f);
+  assert_near(hi[1], 1.3f, 1e-6f);
+  assert_near(hi[2], 1.5f, 1e-6f);
   cv_mesh_destroy(m);
 }
 
@@ -227,19 +229,19 @@ static void test_tags(void **state) {
   double ws_expect = (1.45 - 0.14) * 0.82 * sqrt(0.75 * 0.75 + 0.4 * 0.4);
   printf("  windshield glass %.6f m^2 (closed form %.6f), all windows %.4f m^2\n", ws, ws_expect,
          mc_area_flags(m, CV_MAT_WINDOW));
-  assert_true(fabs(ws - ws_expect) < 1e-5);
+  assert_near(ws, ws_expect, 1e-5);
   /* left/right symmetry */
-  assert_true(fabs(mc_area_named(m, "window_front_left") - mc_area_named(m, "window_front_right")) <
-              1e-6);
+  assert_near(mc_area_named(m, "window_front_left"), mc_area_named(m, "window_front_right"), 1e-6);
 
   int nlcd = 0;
   for (size_t i = 0; i < m->nm; i++) nlcd += (m->mats[i].flags & CV_MAT_LCD) != 0;
   assert_int_equal(nlcd, 1);
   double a = mc_area_flags(m, CV_MAT_LCD);
   printf("  lcd area %.8f m^2 (0.024 expected)\n", a);
-  assert_true(fabs(a - 0.20 * 0.12) < 1e-6);
+  assert_near(a, 0.20 * 0.12, 1e-6);
   const cv_cabin_lcd *L = &info.lcd;
-  assert_true(fabs(L->size[0] - 0.20f) < 1e-7 && fabs(L->size[1] - 0.12f) < 1e-7);
+  assert_near(L->size[0], 0.20f, 1e-7);
+  assert_near(L->size[1], 0.12f, 1e-7);
   double ext[2][2] = {{1, -1}, {1, -1}};
   for (size_t t = 0; t < m->nt; t++) {
     if (!(m->mats[m->tri_mat[t]].flags & CV_MAT_LCD)) continue;
@@ -253,18 +255,20 @@ static void test_tags(void **state) {
       double du = d[0] * L->u[0] + d[1] * L->u[1] + d[2] * L->u[2];
       double dv = d[0] * L->v[0] + d[1] * L->v[1] + d[2] * L->v[2];
       double dn = d[0] * L->normal[0] + d[1] * L->normal[1] + d[2] * L->normal[2];
-      assert_true(fabs(dn) < 1e-5);
+      assert_near(dn, 0, 1e-5);
       if (du < ext[0][0]) ext[0][0] = du;
       if (du > ext[0][1]) ext[0][1] = du;
       if (dv < ext[1][0]) ext[1][0] = dv;
       if (dv > ext[1][1]) ext[1][1] = dv;
     }
   }
-  assert_true(fabs(ext[0][0] + 0.10) < 1e-5 && fabs(ext[0][1] - 0.10) < 1e-5);
-  assert_true(fabs(ext[1][0] + 0.06) < 1e-5 && fabs(ext[1][1] - 0.06) < 1e-5);
+  assert_near(ext[0][0], -0.10, 1e-5);
+  assert_near(ext[0][1], 0.10, 1e-5);
+  assert_near(ext[1][0], -0.06, 1e-5);
+  assert_near(ext[1][1], 0.06, 1e-5);
   /* frame is orthonormal, faces the eye */
   double uv = L->u[0] * L->v[0] + L->u[1] * L->v[1] + L->u[2] * L->v[2];
-  assert_true(fabs(uv) < 1e-6);
+  assert_near(uv, 0, 1e-6);
   double e[3] = {info.eye[0] - L->center[0], info.eye[1] - L->center[1], info.eye[2] - L->center[2]};
   assert_true(e[0] * L->normal[0] + e[1] * L->normal[1] + e[2] * L->normal[2] > 0);
   /* eye inside the cabin, driver on the left */
@@ -287,9 +291,9 @@ static void test_inside_shell(void **state) {
    * (-0.55,1.2); rear-window line through (1.3,0.8) and (0.85,1.2). */
   for (size_t v = 0; v < m->nv; v++) {
     const float *p = m->pos + 3 * v;
-    assert_true(fabs(p[0]) <= 0.725 + eps);
+    assert_near(p[0], 0, 0.725 + eps);
     assert_true(p[1] >= -eps && p[1] <= 1.2 + eps);
-    assert_true(fabs(p[2]) <= 1.3 + eps);
+    assert_near(p[2], 0, 1.3 + eps);
     double ws = (p[1] - 0.8) * 0.75 - (p[2] + 1.3) * 0.4;  /* <= 0 behind windshield */
     double rw = (p[1] - 0.8) * 0.45 - (1.3 - p[2]) * 0.4;  /* <= 0 in front of rear window */
     assert_true(ws <= eps);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "mesh/clean.h"
 #include "mesh_check.h"
@@ -154,7 +155,7 @@ static void test_crack(void **state) {
   /* area is preserved up to the crack strip (g x 1) */
   double area = 0;
   for (size_t t = 0; t < m->nt; t++) area += mc_tri_area(m, t);
-  assert_true(fabs(area - 2.0) < 2 * w);
+  assert_near(area, 2.0, 2 * w);
   cv_mesh_destroy(m);
 
   m = crack_mesh(2.0 * w);
@@ -189,8 +190,8 @@ static void test_crack_uv(void **state) {
   for (size_t t = 0; t < m->nt; t++)
     for (int k = 0; k < 3; k++) {
       const float *p = m->pos + 3 * m->tri[3 * t + k];
-      assert_true(fabs(m->tri_uv[6 * t + 2 * k] - p[0] / 2) < w);
-      assert_true(fabs(m->tri_uv[6 * t + 2 * k + 1] - p[1]) < w);
+      assert_near(m->tri_uv[6 * t + 2 * k], p[0] / 2, w);
+      assert_near(m->tri_uv[6 * t + 2 * k + 1], p[1], w);
     }
   cv_mesh *c;
   assert_int_equal(cv_mesh_clone(m, &c), CV_OK);
@@ -224,7 +225,7 @@ static void test_sliver(void **state) {
   cv_clean_report r = clean_ok(m);
   assert_int_equal(r.slivers, 1);
   assert_int_equal(r.worst_tri, 0);
-  assert_true(fabs(r.worst_aspect - 5000.0) < 5.0);
+  assert_near(r.worst_aspect, 5000.0, 5.0);
   assert_int_equal(m->nt, 2);
   cv_mesh_destroy(m);
 }

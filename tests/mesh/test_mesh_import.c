@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "io/mesh_import.h"
 #include "io/png.h"
@@ -84,19 +85,21 @@ static void test_obj_mtl(void **state) {
   assert_int_equal(m->nm, 4); /* "unused" and assimp's default are not kept */
   const cv_material *seat = mat_named(m, "seat"), *win = mat_named(m, "Window_Front"),
                     *lcd = mat_named(m, "LCD_main"), *hot = mat_named(m, "hot");
-  assert_true(fabsf(seat->albedo[0] - 0.4f) < 1e-6f && fabsf(seat->albedo[1] - 0.35f) < 1e-6f &&
-              fabsf(seat->albedo[2] - 0.3f) < 1e-6f);
+  assert_near(seat->albedo[0], 0.4f, 1e-6f);
+  assert_near(seat->albedo[1], 0.35f, 1e-6f);
+  assert_near(seat->albedo[2], 0.3f, 1e-6f);
   assert_int_equal(seat->flags, 0);
   assert_int_equal(win->flags, CV_MAT_WINDOW);
   assert_int_equal(lcd->flags, CV_MAT_LCD);
-  assert_true(fabsf(lcd->albedo[2] - 0.04f) < 1e-6f);
-  assert_true(hot->albedo[0] == 1.0f && fabsf(hot->albedo[1] - 0.5f) < 1e-6f &&
-              hot->albedo[2] == 0.0f);
+  assert_near(lcd->albedo[2], 0.04f, 1e-6f);
+  assert_true(hot->albedo[0] == 1.0f);
+  assert_near(hot->albedo[1], 0.5f, 1e-6f);
+  assert_true(hot->albedo[2] == 0.0f);
   assert_int_equal(s.albedo_clamped, 2);
   assert_int_equal(tris_with(m, "seat"), 2);
   assert_int_equal(tris_with(m, "hot"), 1);
   /* the quad's two triangles cover the unit square */
-  assert_true(fabs(mc_area_named(m, "seat") - 1.0) < 1e-6);
+  assert_near(mc_area_named(m, "seat"), 1.0, 1e-6);
   assert_int_equal(cv_mesh_validate(m, NULL), CV_OK);
   cv_mesh_destroy(m);
 
@@ -166,7 +169,7 @@ static void test_ply(void **state) {
   for (size_t t = 0; t < m->nt; t++) area += mc_tri_area(m, t);
   /* unit square + triangle (0,0,0) (1,0,0) (0.5,0.5,1): 0.5 * |(1,0,0) x (0.5,0.5,1)| */
   double expect = 1.0 + 0.5 * sqrt(1.0 + 0.25);
-  assert_true(fabs(area - expect) < 1e-6);
+  assert_near(area, expect, 1e-6);
   assert_int_equal(cv_mesh_validate(m, NULL), CV_OK);
   cv_mesh_destroy(m);
 }
@@ -212,11 +215,11 @@ static void check_gltf_mesh(const cv_mesh *m) {
   assert_int_equal(m->nm, 1);
   assert_string_equal(m->mats[0].name, "window_glass");
   assert_int_equal(m->mats[0].flags, CV_MAT_WINDOW);
-  assert_true(fabsf(m->mats[0].albedo[0] - 0.2f) < 1e-6f);
-  assert_true(fabsf(m->mats[0].albedo[1] - 0.4f) < 1e-6f);
-  assert_true(fabsf(m->mats[0].albedo[2] - 0.6f) < 1e-6f);
+  assert_near(m->mats[0].albedo[0], 0.2f, 1e-6f);
+  assert_near(m->mats[0].albedo[1], 0.4f, 1e-6f);
+  assert_near(m->mats[0].albedo[2], 0.6f, 1e-6f);
   for (size_t v = 0; v < m->nv; v++) assert_true(m->pos[3 * v + 2] == -2.0f); /* node transform */
-  assert_true(fabs(mc_area_flags(m, CV_MAT_WINDOW) - 1.0) < 1e-6);
+  assert_near(mc_area_flags(m, CV_MAT_WINDOW), 1.0, 1e-6);
 }
 
 static void test_gltf(void **state) {
@@ -282,7 +285,7 @@ static void test_texture_mean(void **state) {
   const double g = lin(128 / 255.0), mean = (1.0 + g) / 4.0; /* every channel */
   const double kd[3] = {0.5, 0.8, 1.0};
   const cv_material *a = mat_named(m, "painted");
-  for (int k = 0; k < 3; k++) assert_true(fabs(a->albedo[k] - kd[k] * mean) < 1e-6);
+  for (int k = 0; k < 3; k++) assert_near(a->albedo[k], kd[k] * mean, 1e-6);
   assert_true(mat_named(m, "lost")->albedo[0] == 0.3f);
   /* the texture path (found) and the corner UVs are kept */
   assert_non_null(m->mat_tex);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "light/envmap.h"
 #include "prt/lightmix.h"
@@ -55,8 +56,8 @@ static void test_one_map(void **state) {
   assert_int_equal(a.has_sun, b.has_sun);
   if (a.has_sun)
     for (int i = 0; i < 3; i++) {
-      assert_true(fabs(a.sun_dir[i] - b.sun_dir[i]) < 1e-12);
-      assert_true(fabs(a.sun_E[i] - b.sun_E[i]) <= 1e-12 * fabs(b.sun_E[i]) + 1e-15);
+      assert_near(a.sun_dir[i], b.sun_dir[i], 1e-12);
+      assert_near(a.sun_E[i], b.sun_E[i], 1e-12 * fabs(b.sun_E[i]) + 1e-15);
     }
   /* Background: the same lookup at every texel centre. */
   cv_image *bg;
@@ -100,12 +101,12 @@ static void test_blend(void **state) {
   const double ea = energy(&a), eb = energy(&b);
   printf("  forest 0.3 + sunset 0.7, yaw 120: energy %.5g (mixer) vs %.5g (blend first): %+.3f%%\n",
          ea, eb, 100 * (ea - eb) / eb);
-  assert_true(fabs(ea - eb) <= 0.02 * eb);
+  assert_near(ea, eb, 0.02 * eb);
   /* Weights are normalised: (3, 7) is the same as (0.3, 0.7). */
   cv_lighting c;
   const double w2[2] = {3, 7};
   assert_int_equal(cv_lightmix_lighting(m, w2, 120, 0, 0, &c), CV_OK);
-  for (int k = 0; k < 75; k++) assert_true(fabs(c.sh[k] - a.sh[k]) <= 1e-12 * fabs(a.sh[0]));
+  for (int k = 0; k < 75; k++) assert_near(c.sh[k], a.sh[k], 1e-12 * fabs(a.sh[0]));
   const double bad1[2] = {-1, 2}, bad2[2] = {0, 0}, bad3[2] = {NAN, 1};
   assert_int_equal(cv_lightmix_lighting(m, bad1, 0, 0, 0, &c), CV_ERR_INVALID);
   assert_int_equal(cv_lightmix_lighting(m, bad2, 0, 0, 0, &c), CV_ERR_INVALID);

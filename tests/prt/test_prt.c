@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "prt/auto.h"
 #include "prt/bake.h"
@@ -164,7 +165,7 @@ static void test_textured_quad(void **state) {
   assert_true(worst < 0.01);
   assert_int_equal(cv_prt_fold_texture_means(prt, rad), CV_OK);
   for (size_t v = 0; v < prt->nv; v++)
-    for (int c = 0; c < 3; c++) assert_true(fabs(rad[3 * v + c] / (mean[c] * L) - 1) < 0.01);
+    for (int c = 0; c < 3; c++) assert_near(rad[3 * v + c] / (mean[c] * L), 1, 0.01);
   free(rad);
   /* version 1 files (no textures) are still read; version 1 with the texture
    * flag is refused */
@@ -211,7 +212,7 @@ static void test_unshadowed_plane(void **state) {
   assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
   for (size_t v = 0; v < prt->nv; v++)
     for (int c = 0; c < 3; c++)
-      assert_true(fabs(rad[3 * v + c] / (2.0 * alb[c]) - 1) < 0.005);
+      assert_near(rad[3 * v + c] / (2.0 * alb[c]), 1, 0.005);
   /* Linear sky: irradiance pi*(1 + k*2/3) on an up-facing plane. */
   project_linear_sky(0.5, &l);
   assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
@@ -281,7 +282,7 @@ static void test_tail(void **state) {
   double r[3];
   assert_int_equal(cv_prt_tail_ratio(tr, 2, b0, prev, r), 0);
   printf("tail ratio in the furnace (a = %.1f): %.4f %.4f %.4f\n", a, r[0], r[1], r[2]);
-  for (int c = 0; c < 3; c++) assert_true(fabs(r[c] / a - 1) < 0.01);
+  for (int c = 0; c < 3; c++) assert_near(r[c] / a, 1, 0.01);
   free(prev), free(ti), free(b0);
   cv_tracer_destroy(tr);
   cv_mesh_destroy(m);
@@ -302,8 +303,8 @@ static void test_tail(void **state) {
   }
   printf("open box, sum of ti DC: 8 bounces %.5f, 2 bounces %.5f (%.2f%%), 2 + tail %.5f (%.2f%%)\n",
          dc[0], dc[1], 100 * (dc[1] / dc[0] - 1), dc[2], 100 * (dc[2] / dc[0] - 1));
-  assert_true(fabs(dc[2] / dc[0] - 1) < 0.01);
-  assert_true(fabs(dc[2] / dc[0] - 1) < 0.5 * fabs(dc[1] / dc[0] - 1));
+  assert_near(dc[2] / dc[0], 1, 0.01);
+  assert_near(dc[2] / dc[0], 1, 0.5 * fabs(dc[1] / dc[0] - 1));
   /* bounces = 0: the tail has nothing to extend (no ti). */
   cv_bake_params p0 = {.bands = 2, .rays = 16, .bounces = 0, .seed = 5,
                        .spread = CV_BAKE_DEFAULT_SPREAD, .tail = 1, .quiet = 1};
@@ -374,7 +375,8 @@ static void test_open_box_vs_brute_force(void **state) {
   constant_light(1.0, 2, &l);
   assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
   uint32_t centre = (uint32_t)((n / 2) * (n + 1) + n / 2); /* floor grid comes first */
-  assert_true(fabsf(m->pos[3 * centre] - 0.5f) < 1e-6f && m->pos[3 * centre + 1] == 0.0f);
+  assert_near(m->pos[3 * centre], 0.5f, 1e-6f);
+  assert_true(m->pos[3 * centre + 1] == 0.0f);
   uint64_t s = 0x9E3779B97F4A7C15ULL;
   const int N = 200000;
   double sum = 0, sum2 = 0;
@@ -390,7 +392,7 @@ static void test_open_box_vs_brute_force(void **state) {
   double got = rad[3 * centre];
   printf("open box floor centre: PRT %.5f, brute force %.5f +- %.5f (%.2f%%)\n", got, ref, se,
          100 * (got / ref - 1));
-  assert_true(fabs(got / ref - 1) < 0.02);
+  assert_near(got / ref, 1, 0.02);
   free(rad);
   cv_prt_destroy(prt);
   cv_tracer_destroy(tr);
@@ -445,7 +447,7 @@ static void test_duplicate_and_degenerate(void **state) {
   cv_lighting l;
   constant_light(1.0, 2, &l);
   assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
-  for (size_t v = 0; v < prt->nv; v++) assert_true(fabs(rad[3 * v] / 0.4 - 1) < 0.005);
+  for (size_t v = 0; v < prt->nv; v++) assert_near(rad[3 * v] / 0.4, 1, 0.005);
   free(rad);
   cv_prt_destroy(prt);
   cv_mesh_destroy(m);
@@ -536,7 +538,7 @@ static void test_sun_direct(void **state) {
   assert_int_equal(cv_prt_relight(prt, &l, tr, 16, rad, NULL), CV_OK);
   for (size_t v = 0; v < prt->nv; v++)
     for (int c = 0; c < 3; c++)
-      assert_true(fabs(rad[3 * v + c] - alb[c] * 1000 * 0.5 / M_PI) < 1e-3 * 1000 * alb[c]);
+      assert_near(rad[3 * v + c], alb[c] * 1000 * 0.5 / M_PI, 1e-3 * 1000 * alb[c]);
   /* Sun below the plane: nothing. */
   l.sun_dir[1] = -0.5;
   assert_int_equal(cv_prt_relight(prt, &l, tr, 16, rad, NULL), CV_OK);
@@ -578,7 +580,7 @@ static void test_cie_overcast(void **state) {
   assert_int_equal(cv_prt_relight(prt, &l, NULL, 0, rad, NULL), CV_OK);
   for (int v = 0; v < 9; v++) {
     double e = rad[3 * v] / (0.5 * 7.0 / 9.0) - 1;
-    assert_true(fabs(e) < 0.01);
+    assert_near(e, 0, 0.01);
   }
   cv_prt_destroy(prt);
   cv_mesh_destroy(m);
@@ -669,7 +671,7 @@ static void test_window_mis(void **state) {
          "(mean coefficient 0 differs by %.3f%%)\n",
          100 * sqrt(e_mis / r2), 100 * sqrt(e_cos / r2), 100 * sqrt(e_hi / r2),
          100 * (s_hi / s_ref - 1));
-  assert_true(fabs(s_hi / s_ref - 1) < 0.003); /* same expectation */
+  assert_near(s_hi / s_ref, 1, 0.003); /* same expectation */
   assert_true(sqrt(e_hi / r2) < 0.02);
   assert_true(e_mis < 0.5 * e_cos);            /* at least 2x lower variance */
   free(verts);
@@ -719,7 +721,7 @@ static void test_bounce_records(void **state) {
     for (int i = 0; i < REC; i++) mx = fmaxf(mx, fabsf(val[v][i]));
     cv_bounce_records_get(r, (size_t)v, back);
     for (int i = 0; i < REC; i++) {
-      assert_true(fabsf(back[i] - val[v][i]) <= mx * 0x1p-12f);
+      assert_near(back[i], val[v][i], mx * 0x1p-12f);
       if (val[v][i] == 0.0f) assert_true(back[i] == 0.0f);
       else assert_true(back[i] == 0.0f || (back[i] > 0) == (val[v][i] > 0));
     }
@@ -748,7 +750,7 @@ static void test_bounce_records_denormal(void **state) {
     for (int i = 1; i < REC; i++) {
       const double want = nearbyint((double)val[i] * 0x1p24) * 0x1p-24; /* ties to even */
       if (fabs(val[i]) < 0x1p-14) assert_true(back[i] == (float)want);
-      else assert_true(fabsf(back[i] - val[i]) <= 0x1p-25f);
+      else assert_near(back[i], val[i], 0x1p-25f);
     }
   }
   cv_bounce_records_destroy(r);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "rt/rt.h"
 
@@ -40,7 +41,7 @@ static void test_hits_and_windows(void **state) {
   float o[3] = {0, 1, 0}, down[3] = {0, -1, 0}, up[3] = {0, 1, 0};
   cv_hit h;
   assert_int_equal(cv_rt_intersect(rt, o, down, 0, INFINITY, &h), 1);
-  assert_true(fabsf(h.t - 1.0f) < 1e-5f);
+  assert_near(h.t, 1.0f, 1e-5f);
   assert_true(m->tri_mat[h.tri] == op);
   /* The window does not block ... */
   assert_int_equal(cv_rt_intersect(rt, o, up, 0, INFINITY, &h), 0);

@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "io/exr.h"
 #include "mesh/clean.h"
@@ -137,7 +138,7 @@ static void test_furnace(void **state) {
     render_mean(s, l, &cam, &p, mean);
     printf("furnace a = %.1f, bounces %d: %.5f, series %.5f (%.3f%%)\n", a, B, mean[0], expect,
            100 * (mean[0] / expect - 1));
-    for (int c = 0; c < 3; c++) assert_true(fabs(mean[c] / expect - 1) < 0.01);
+    for (int c = 0; c < 3; c++) assert_near(mean[c] / expect, 1, 0.01);
   }
   cv_ref_light_destroy(l);
   cv_ref_scene_destroy(s);
@@ -162,7 +163,7 @@ static void test_plane_constant_sky(void **state) {
   render_mean(s, l, &cam, &p, mean);
   for (int c = 0; c < 3; c++) {
     printf("plane, constant sky, channel %d: %.5f, expected %.5f\n", c, mean[c], alb[c] * L[c]);
-    assert_true(fabs(mean[c] / (alb[c] * L[c]) - 1) < 0.01);
+    assert_near(mean[c] / (alb[c] * L[c]), 1, 0.01);
   }
   cv_ref_light_destroy(l);
   cv_ref_scene_destroy(s);
@@ -212,7 +213,7 @@ static void test_plane_hot_map(void **state) {
   for (int c = 0; c < 3; c++) {
     printf("plane, map with a hot pixel, channel %d: %.5f, quadrature %.5f (%.3f%%)\n", c,
            mean[c], expect[c], 100 * (mean[c] / expect[c] - 1));
-    assert_true(fabs(mean[c] / expect[c] - 1) < 0.01);
+    assert_near(mean[c] / expect[c], 1, 0.01);
   }
   cv_ref_light_destroy(l);
   cv_envmap_destroy(env);
@@ -240,7 +241,7 @@ static void test_plane_sun(void **state) {
   for (int c = 0; c < 3; c++) {
     double e = alb[c] / M_PI * E[c] * sin(el);
     printf("plane under a sun, channel %d: %.6f, expected %.6f\n", c, mean[c], e);
-    assert_true(fabs(mean[c] / e - 1) < 1e-5);
+    assert_near(mean[c] / e, 1, 1e-5);
   }
   cv_ref_light_destroy(l);
   cv_envmap_destroy(black);
@@ -265,7 +266,8 @@ static void test_open_box_vs_bake(void **state) {
   for (int c = 0; c < 3; c++) lt.sh[c] = sqrt(4 * M_PI);
   assert_int_equal(cv_prt_relight(prt, &lt, NULL, 0, rad, NULL), CV_OK);
   uint32_t centre = (uint32_t)((n / 2) * (n + 1) + n / 2);
-  assert_true(fabsf(prt->pos[3 * centre] - 0.5f) < 1e-6f && prt->pos[3 * centre + 1] == 0.0f);
+  assert_near(prt->pos[3 * centre], 0.5f, 1e-6f);
+  assert_true(prt->pos[3 * centre + 1] == 0.0f);
   double bake = rad[3 * centre];
   /* The reference: a ray straight down onto the floor centre. */
   cv_ref_scene *s;
@@ -280,7 +282,7 @@ static void test_open_box_vs_bake(void **state) {
   printf("open box floor centre, 2 bounces: reference %.5f +- %.5f, bake %.5f (%.2f%%)\n", mean[0],
          se[0], bake, 100 * (bake / mean[0] - 1));
   assert_true(se[0] < 0.004 * mean[0]);
-  assert_true(fabs(bake / mean[0] - 1) < 0.02);
+  assert_near(bake / mean[0], 1, 0.02);
   /* All bounces: strictly more light than two. */
   double all[3];
   p.bounces = -1;
@@ -426,7 +428,7 @@ static void test_split_lights(void **state) {
   double lost = (l0.sh[0] - l1.sh[0]) * sqrt(4 * M_PI), carried = 0;
   for (int k = 0; k < ne; k++) carried += ex[k].E[0];
   printf("split: %d lights carry %.5f, SH lost %.5f\n", ne, carried, lost);
-  assert_true(fabs(carried / lost - 1) < 1e-3);
+  assert_near(carried / lost, 1, 1e-3);
   assert_int_equal(cv_prt_relight_ex(prt, &l1, ex, ne, tr, 64, rad2, NULL), CV_OK);
   double split = rad2[3 * centre];
   /* The reference at the same point, the same bounce count. */
@@ -443,8 +445,8 @@ static void test_split_lights(void **state) {
   printf("floor centre: reference %.5f +- %.5f; PRT 3 bands %.5f (%.2f%%), with %d split "
          "lights %.5f (%.2f%%)\n", ref[0], se[0], plain, 100 * (plain / ref[0] - 1), ne, split,
          100 * (split / ref[0] - 1));
-  assert_true(fabs(split / ref[0] - 1) < fabs(plain / ref[0] - 1));
-  assert_true(fabs(split / ref[0] - 1) < 0.03);
+  assert_near(split / ref[0], 1, fabs(plain / ref[0] - 1));
+  assert_near(split / ref[0], 1, 0.03);
   cv_ref_scene_destroy(rs);
   cv_ref_light_destroy(rl);
   free(rad);
@@ -495,7 +497,7 @@ static void test_material_boundary_albedo(void **state) {
   for (size_t t = 0; t < prt->nt; t++) {
     if (prt->tri_mat[t] != ml) continue;
     for (int k = 0; k < 3; k++)
-      assert_true(fabs(rad[3 * prt->tri[3 * t + k]] / (2.0 * 0.03) - 1) < 0.01);
+      assert_near(rad[3 * prt->tri[3 * t + k]] / (2.0 * 0.03), 1, 0.01);
   }
   free(rad);
   cv_prt_destroy(prt);

@@ -31,6 +31,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "mesh/cabin.h"
 #include "prt/bake.h"
@@ -367,8 +368,8 @@ static void test_gl_sun(void **state) {
          ngeom, nsun, 100 * (yg / yc - 1), 100 * (sg / sc - 1), rel[ngeom / 2],
          rel[(int)(0.9 * ngeom)]);
   assert_true(ngeom > n / 4 && nsun > n / 50);
-  assert_true(fabs(yg / yc - 1) < 0.05);
-  assert_true(fabs(sg / sc - 1) < 0.05);
+  assert_near(yg / yc, 1, 0.05);
+  assert_near(sg / sc, 1, 0.05);
   assert_true(rel[ngeom / 2] < 0.02);
   /* The sun split (triangles facing away from the sun drawn without the
    * sun's code) changes no pixel: the same frame from a renderer without
@@ -716,7 +717,7 @@ static void test_sun_matrices_fit(void **state) {
            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
     assert_int_equal(size[lng], res);
     assert_true(size[1 - lng] >= 2 && size[1 - lng] <= res);
-    assert_true(fabs(r->light.shadow.k[0] / r->light.shadow.k[1] - 1) < 1e-5); /* square texels */
+    assert_near(r->light.shadow.k[0] / r->light.shadow.k[1], 1, 1e-5); /* square texels */
     for (int a = 0; a < 2; a++) /* inside: texel centres at integers, edges at -0.5, n - 0.5 */
       assert_true(lo[a] >= -0.5 && hi[a] <= size[a] - 0.5);
     assert_true(lo[2] >= 0 && hi[2] <= 1);
@@ -1050,7 +1051,7 @@ static void drago_ramp(int exact) {
           for (int c = 0; c < 3; c++) {
             double want = cpu_out->px[3 * q + c], e = fabs(g[c] - want);
             if (ti == 0 && !tr)
-              assert_true(fabs(cv_drago_map(&dc, values[q]) - want) < 1e-6); /* map = image, grey */
+              assert_near(cv_drago_map(&dc, values[q]), want, 1e-6); /* map = image, grey */
             worst[tr] = fmax(worst[tr], e);
             if (e > 1e-5)
               printf("value %g tint %d lwa %g ch %d transfer %d: GPU %.8f CPU %.8f\n", values[q], ti,
@@ -1063,7 +1064,7 @@ static void drago_ramp(int exact) {
             worst8 = fmax(worst8, e8);
             assert_true(e8 <= (cv_renderer_is_software(r8) ? 0.5 + 255e-5 : 1.0));
             double hv = values[q] * tints[ti][c];
-            assert_true(fabs(h[c] - hv) <= 1e-6 * hv + 1e-30);
+            assert_near(h[c], hv, 1e-6 * hv + 1e-30);
           }
         }
       }
@@ -1176,7 +1177,7 @@ static void test_panel(void **state) {
   OK(cv_renderer_luminance(r, &v, lm, NULL, &err));
   OK(cv_renderer_shade(r, &v, &dc, 1, disp, hdr, NULL, &err));
   const float *mid = cv_image_at(hdr, res / 2, res / 2);
-  for (int c = 0; c < 3; c++) assert_true(fabs(mid[c] - rgb[c]) < 1e-5 * rgb[c]);
+  for (int c = 0; c < 3; c++) assert_near(mid[c], rgb[c], 1e-5 * rgb[c]);
   assert_true(worst < 1e-5);
   cv_image_destroy(hdr);
   cv_image_destroy(disp);
@@ -1245,8 +1246,8 @@ static void test_luminance_pass(void **state) {
   printf("128x128 luminance pass vs 512x512 HDR box-filtered: log-average %.5g vs %.5g (%.3f%%), "
          "mean %.5g vs %.5g (%.3f%%), max %.5g vs %.5g\n",
          ga, gb, 100 * (ga / gb - 1), ma / n, mb / n, 100 * (ma / mb - 1), maxa, maxb);
-  assert_true(fabs(ga / gb - 1) < 0.01);
-  assert_true(fabs(ma / mb - 1) < 0.01);
+  assert_near(ga / gb, 1, 0.01);
+  assert_near(ma / mb, 1, 0.01);
   assert_true(maxa <= maxb * (1 + 1e-6));
   /* (3) what `cave run` uses instead of the pass: cv_lum_downsample of the
    * HDR frame is that 4x4 box filter (1e-5 relative per pixel), its log-
@@ -1270,8 +1271,8 @@ static void test_luminance_pass(void **state) {
          "log-average %.5g vs the pass's %.5g (%.3f%%), max %.5g (frame %.5g), %llu invalid\n",
          worst_box, gd, ga, 100 * (gd / ga - 1), my, maxb, (unsigned long long)nbad);
   assert_true(worst_box < 1e-5);
-  assert_true(fabs(gd / ga - 1) < 0.01);
-  assert_true(fabs(my - maxb) <= 1e-6 * maxb);
+  assert_near(gd / ga, 1, 0.01);
+  assert_near(my, maxb, 1e-6 * maxb);
   assert_int_equal(nbad, 0);
   cv_image_destroy(dl);
   cv_image_destroy(lm);
@@ -1309,7 +1310,7 @@ static void lum_stats_compare(const cv_image *hdr, const cv_image *gpu, double g
          what, gpu->w, gpu->h, hdr->w, hdr->h, worst, gmax, cmax, (unsigned long long)gbad,
          (unsigned long long)cbad, nan_both);
   assert_true(worst < 1e-5);
-  assert_true(fabs(gmax - cmax) <= 1e-6 * cmax);
+  assert_near(gmax, cmax, 1e-6 * cmax);
   assert_int_equal(gbad, cbad);
   cv_image_destroy(cpu);
 }

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "rt/rt.h"
 
@@ -162,7 +163,7 @@ static void test_packets_match_single(void **state) {
   uint8_t f;
   assert_int_equal(cv_rt_intersect_packet(rt, 1, o, d, NULL, 0, 0.5f, 1, &h, &f), 0);
   assert_int_equal(cv_rt_intersect_packet(rt, 1, o, d, NULL, 0, 1.5f, 1, &h, &f), 1);
-  assert_true(fabsf(h.t - 1) < 1e-5f);
+  assert_near(h.t, 1, 1e-5f);
   /* bad sizes */
   assert_int_equal(cv_rt_intersect_packet(rt, 0, o, d, NULL, 0, INFINITY, 0, &h, &f), -1);
   assert_int_equal(cv_rt_intersect_packet(rt, CV_RT_PACKET_MAX + 1, o, d, NULL, 0, INFINITY, 0, &h, &f), -1);

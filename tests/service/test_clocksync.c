@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "service/clocksync.h"
 #include "test_service.h"
@@ -22,13 +23,13 @@ static void test_offset_closed_form(void **state) {
   double o, u;
   cv_clock_sample s = probe(100.0, 0.0375, 2e-4, 5e-5, 2e-4);
   assert_int_equal(cv_clock_offset(&s, &o, &u), CV_OK);
-  assert_true(fabs(o - 0.0375) < 1e-12); /* symmetric delays: exact */
-  assert_true(fabs(u - 2e-4) < 1e-12);   /* half of the 4e-4 on the wire */
+  assert_near(o, 0.0375, 1e-12); /* symmetric delays: exact */
+  assert_near(u, 2e-4, 1e-12);   /* half of the 4e-4 on the wire */
   /* Asymmetric delays: off by half the asymmetry, inside the bound. */
   s = probe(100.0, -0.25, 9e-4, 1e-4, 1e-4);
   assert_int_equal(cv_clock_offset(&s, &o, &u), CV_OK);
-  assert_true(fabs(o - (-0.25 + 4e-4)) < 1e-12);
-  assert_true(fabs(o - (-0.25)) <= u + 1e-15);
+  assert_near(o, (-0.25 + 4e-4), 1e-12);
+  assert_near(o, (-0.25), u + 1e-15);
   /* Impossible and non-finite samples. */
   cv_clock_sample bad = {1.0, 5.0, 4.0, 2.0};
   assert_int_equal(cv_clock_offset(&bad, &o, &u), CV_ERR_RANGE);
@@ -53,15 +54,15 @@ static void test_estimator(void **state) {
     cv_clock_est_add(&e, &s);
   }
   assert_int_equal(cv_clock_est_get(&e, 1.9, &o, &u), 1);
-  assert_true(fabs(u - 2e-5) < 1e-12);
-  assert_true(fabs(o - off) < 1e-12);
+  assert_near(u, 2e-5, 1e-12);
+  assert_near(o, off, 1e-12);
   /* Ageing: 10 s later nothing is left in the 2 s window. */
   assert_int_equal(cv_clock_est_get(&e, 12.0, &o, &u), 0);
   /* A drifted clock: new samples replace the old estimate. */
   cv_clock_sample s2 = probe(20.0, off + 1e-3, 3e-4, 1e-5, 3e-4);
   cv_clock_est_add(&e, &s2);
   assert_int_equal(cv_clock_est_get(&e, 20.5, &o, &u), 1);
-  assert_true(fabs(o - (off + 1e-3)) < 1e-12);
+  assert_near(o, (off + 1e-3), 1e-12);
   cv_clock_sample bad = {5.0, 1.0, 0.5, 6.0};
   cv_clock_est_add(&e, &bad);
   assert_int_equal((int)e.rejected, 1);
@@ -75,13 +76,17 @@ static void test_predict(void **state) {
   const double a0 = 0, a1 = 0.3 * M_PI / 180;
   const double g0[3] = {sin(a0), 0, -cos(a0)}, g1[3] = {sin(a1), 0, -cos(a1)};
   double dt = cv_head_predict(p0, g0, 1.00, p1, g1, 1.01, 1.05, 0.1, p, g);
-  assert_true(fabs(dt - 0.04) < 1e-12);
-  assert_true(fabs(p[0] - 0.025) < 1e-12 && fabs(p[1] - 1.2) < 1e-12);
+  assert_near(dt, 0.04, 1e-12);
+  assert_near(p[0], 0.025, 1e-12);
+  assert_near(p[1], 1.2, 1e-12);
   const double a = 1.5 * M_PI / 180; /* 30 deg/s for 0.05 s */
-  assert_true(fabs(g[0] - sin(a)) < 1e-9 && fabs(g[2] + cos(a)) < 1e-9 && fabs(g[1]) < 1e-12);
+  assert_near(g[0], sin(a), 1e-9);
+  assert_near(g[2], -(cos(a)), 1e-9);
+  assert_near(g[1], 0, 1e-12);
   /* Horizon: a stale tracker is extrapolated at most 0.1 s. */
   dt = cv_head_predict(p0, g0, 1.00, p1, g1, 1.01, 9.0, 0.1, p, g);
-  assert_true(fabs(dt - 0.1) < 1e-12 && fabs(p[0] - 0.055) < 1e-12);
+  assert_near(dt, 0.1, 1e-12);
+  assert_near(p[0], 0.055, 1e-12);
   /* One sample, or a target in the past: the newest pose. */
   dt = cv_head_predict(p1, g1, 1.01, p1, g1, 1.01, 1.05, 0.1, p, g);
   assert_true(dt == 0 && p[0] == p1[0] && g[0] == g1[0]);
@@ -89,7 +94,8 @@ static void test_predict(void **state) {
   assert_true(dt == 0 && p[0] == p1[0]);
   /* Standing still stays still; NaN target holds. */
   dt = cv_head_predict(p1, g1, 1.0, p1, g1, 1.01, 1.05, 0.1, p, g);
-  assert_true(p[0] == p1[0] && fabs(g[0] - g1[0]) < 1e-15);
+  assert_true(p[0] == p1[0]);
+  assert_near(g[0], g1[0], 1e-15);
   dt = cv_head_predict(p0, g0, 1.0, p1, g1, 1.01, NAN, 0.1, p, g);
   assert_true(dt == 0 && isfinite(p[0]));
 }

@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -52,23 +53,28 @@ static void test_drive_parse_eval(void **state) {
    * halfway between (1,0,0) and (0.5,0.5,0) = (0.75, 0.25, 0). */
   cv_drive_eval(d, 2.0, &s);
   assert_true(s.t == 2.0 && s.n_maps == 3 && !s.is_sky);
-  assert_true(fabs(s.yaw_deg - 45) < 1e-12 && s.pitch_deg == 10 && s.roll_deg == 0);
-  assert_true(fabs(s.weights[0] - 0.75) < 1e-12 && fabs(s.weights[1] - 0.25) < 1e-12 &&
-              s.weights[2] == 0);
+  assert_near(s.yaw_deg, 45, 1e-12);
+  assert_true(s.pitch_deg == 10);
+  assert_true(s.roll_deg == 0);
+  assert_near(s.weights[0], 0.75, 1e-12);
+  assert_near(s.weights[1], 0.25, 1e-12);
+  assert_true(s.weights[2] == 0);
   /* Key 2 carries key 1's weights (0.5, 0.5, 0) and pitch 10. */
   cv_drive_eval(d, 6.0, &s);
   assert_true(s.yaw_deg == 350 && s.roll_deg == -4 && s.pitch_deg == 10);
-  assert_true(fabs(s.weights[0] - 0.5) < 1e-12 && fabs(s.weights[1] - 0.5) < 1e-12);
+  assert_near(s.weights[0], 0.5, 1e-12);
+  assert_near(s.weights[1], 0.5, 1e-12);
   /* 90 -> 350 along the shorter arc is -100 degrees: at t = 5, 40. */
   cv_drive_eval(d, 5.0, &s);
-  assert_true(fabs(s.yaw_deg - 40) < 1e-12);
-  assert_true(fabs(s.roll_deg + 2) < 1e-12);
+  assert_near(s.yaw_deg, 40, 1e-12);
+  assert_near(s.roll_deg, -2, 1e-12);
   /* 350 -> 10 passes through 0 (= 360), not 180. */
   cv_drive_eval(d, 7.0, &s);
-  assert_true(fabs(s.yaw_deg - 360) < 1e-12);
-  assert_true(fabs(s.weights[0] - 0.25) < 1e-12 && fabs(s.weights[2] - 0.5) < 1e-12);
+  assert_near(s.yaw_deg, 360, 1e-12);
+  assert_near(s.weights[0], 0.25, 1e-12);
+  assert_near(s.weights[2], 0.5, 1e-12);
   double sum = s.weights[0] + s.weights[1] + s.weights[2];
-  assert_true(fabs(sum - 1) < 1e-15);
+  assert_near(sum, 1, 1e-15);
   /* Hold the ends (no loop). */
   cv_drive_eval(d, -3, &s);
   assert_true(s.yaw_deg == 0 && s.weights[0] == 1 && s.t == -3);
@@ -85,9 +91,11 @@ static void test_drive_parse_eval(void **state) {
   assert_int_equal(l.n_env, 2);
   assert_string_equal(l.env[0], CAVE_BLENDER_WORLD_DIR "/forest.exr");
   assert_string_equal(l.env[1], CAVE_BLENDER_WORLD_DIR "/city.exr");
-  assert_true(fabs(l.weight[0] - 0.75) < 1e-12 && fabs(l.weight[1] - 0.25) < 1e-12);
+  assert_near(l.weight[0], 0.75, 1e-12);
+  assert_near(l.weight[1], 0.25, 1e-12);
   assert_true(l.scale == 2.5 && l.extract_sun == 1);
-  assert_true(fabs(l.yaw_deg - 45) < 1e-12 && l.pitch_deg == 10);
+  assert_near(l.yaw_deg, 45, 1e-12);
+  assert_true(l.pitch_deg == 10);
   cv_drive_eval(d, 8.0, &s);
   cv_drive_to_light_spec(d, &s, &l);
   assert_int_equal(l.n_env, 1);
@@ -107,23 +115,26 @@ static void test_drive_loop_and_sky(void **state) {
   cv_drive_state s, s2;
   cv_drive_eval(d, 2.5, &s);
   assert_true(s.is_sky && s.n_maps == 0);
-  assert_true(fabs(s.turbidity - 3) < 1e-12 && fabs(s.sun_elevation_deg - 22.5) < 1e-12);
-  assert_true(fabs(s.sun_azimuth_deg - 360) < 1e-12); /* 350 -> 30 across north: +40 */
+  assert_near(s.turbidity, 3, 1e-12);
+  assert_near(s.sun_elevation_deg, 22.5, 1e-12);
+  assert_near(s.sun_azimuth_deg, 360, 1e-12); /* 350 -> 30 across north: +40 */
   /* 0 -> 180 is ambiguous (exactly half a turn): wrap180 picks -180. */
-  assert_true(fabs(fabs(s.yaw_deg) - 45) < 1e-12);
+  assert_near(fabs(s.yaw_deg), 45, 1e-12);
   /* Loop: t + k * duration gives the same state (up to fmod rounding). */
   cv_drive_eval(d, 32.5, &s2);
-  assert_true(fabs(s2.sun_elevation_deg - s.sun_elevation_deg) < 1e-9);
+  assert_near(s2.sun_elevation_deg, s.sun_elevation_deg, 1e-9);
   cv_drive_eval(d, -7.5, &s2);
-  assert_true(fabs(s2.sun_elevation_deg - s.sun_elevation_deg) < 1e-9);
+  assert_near(s2.sun_elevation_deg, s.sun_elevation_deg, 1e-9);
   cv_drive_eval(d, 10.0, &s2); /* t = duration wraps to the first key */
   assert_true(s2.sun_elevation_deg == 10 && s2.turbidity == 2);
   cv_light_spec l;
   cv_drive_eval(d, 5.0, &s);
   cv_drive_to_light_spec(d, &s, &l);
   assert_int_equal(l.kind, CV_LIGHT_SKY);
-  assert_true(fabs(l.turbidity - 4) < 1e-12 && fabs(l.sun_elevation_deg - 35) < 1e-12);
-  assert_true(fabs(l.sun_azimuth_deg - 370) < 1e-12 && l.ground_albedo == 0.3);
+  assert_near(l.turbidity, 4, 1e-12);
+  assert_near(l.sun_elevation_deg, 35, 1e-12);
+  assert_near(l.sun_azimuth_deg, 370, 1e-12);
+  assert_true(l.ground_albedo == 0.3);
   assert_true(l.extract_sun == 1 && l.n_env == 0);
   cv_drive_destroy(d);
 
@@ -350,7 +361,7 @@ static void test_shipped_drives(void **state) {
   if (cv_drive_load(CV_SOURCE_DIR "/configs/drives/default.json", &d, &err))
     fail_msg("%s", err.msg);
   assert_true(cv_drive_loops(d) && !cv_drive_is_sky(d));
-  assert_true(fabs(cv_drive_duration(d) - 20) < 1e-12);
+  assert_near(cv_drive_duration(d), 20, 1e-12);
   assert_true(cv_drive_n_maps(d) >= 3 && cv_drive_n_maps(d) <= 4);
   for (int i = 0; i < cv_drive_n_maps(d); i++)
     assert_non_null(strstr(cv_drive_map_path(d, i), CAVE_BLENDER_WORLD_DIR));
@@ -358,14 +369,14 @@ static void test_shipped_drives(void **state) {
   const double yaw_at[5] = {0, 90, 180, 270, 360};
   for (int k = 0; k < 4; k++) {
     cv_drive_eval(d, 5.0 * k, &s);
-    assert_true(fabs(s.yaw_deg - yaw_at[k]) < 1e-9);
+    assert_near(s.yaw_deg, yaw_at[k], 1e-9);
   }
   /* Seamless loop: just before 20 s the state is close to t = 0. */
   cv_drive_state a, b;
   cv_drive_eval(d, 19.999, &a);
   cv_drive_eval(d, 0, &b);
-  assert_true(fabs(fmod(a.yaw_deg - b.yaw_deg + 540, 360) - 180) < 0.1);
-  assert_true(fabs(a.weights[0] - b.weights[0]) < 1e-3);
+  assert_near(fmod(a.yaw_deg - b.yaw_deg + 540, 360), 180, 0.1);
+  assert_near(a.weights[0], b.weights[0], 1e-3);
   cv_drive_destroy(d);
 
   if (cv_drive_load(CV_SOURCE_DIR "/configs/drives/sky.json", &d, &err)) fail_msg("%s", err.msg);
@@ -376,7 +387,8 @@ static void test_shipped_drives(void **state) {
     lo = fmin(lo, s.sun_elevation_deg);
     hi = fmax(hi, s.sun_elevation_deg);
   }
-  assert_true(fabs(lo - 10) < 1e-9 && fabs(hi - 60) < 1e-9);
+  assert_near(lo, 10, 1e-9);
+  assert_near(hi, 60, 1e-9);
   cv_drive_destroy(d);
 }
 

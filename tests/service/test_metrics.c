@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -59,7 +60,7 @@ static void test_line_parses(void **state) {
   cJSON *j = cJSON_Parse(line);
   assert_non_null(j);
   assert_int_equal((int)cJSON_GetObjectItem(j, "frame")->valuedouble, -12);
-  assert_true(fabs(cJSON_GetObjectItem(j, "pi")->valuedouble - 3.14159265) < 1e-8);
+  assert_near(cJSON_GetObjectItem(j, "pi")->valuedouble, 3.14159265, 1e-8);
   assert_true(cJSON_IsNull(cJSON_GetObjectItem(j, "nan")));
   assert_true(cJSON_IsNull(cJSON_GetObjectItem(j, "ninf")));
   assert_true(cJSON_IsTrue(cJSON_GetObjectItem(j, "ok")));
@@ -140,7 +141,7 @@ static void test_percentiles(void **state) {
   size_t skipped = 99;
   assert_int_equal(cv_percentiles(v, 10, ps, 5, got, &skipped), CV_OK);
   assert_int_equal(skipped, 0);
-  for (int k = 0; k < 5; k++) assert_true(fabs(got[k] - want[k]) < 1e-12);
+  for (int k = 0; k < 5; k++) assert_near(got[k], want[k], 1e-12);
   /* Order independence, bit for bit. */
   double rev[10], g2[5];
   for (int i = 0; i < 10; i++) rev[i] = v[9 - i];
@@ -160,9 +161,9 @@ static void test_percentiles(void **state) {
   double *t = malloc(1000 * sizeof *t);
   for (int i = 0; i < 1000; i++) t[(i * 7919) % 1000] = (i + 1) * 1e-3;
   assert_int_equal(cv_percentile(t, 1000, 99, &p, NULL), CV_OK);
-  assert_true(fabs(p - 0.99001) < 1e-12);
+  assert_near(p, 0.99001, 1e-12);
   assert_int_equal(cv_percentile(t, 1000, 50, &p, NULL), CV_OK);
-  assert_true(fabs(p - 0.5005) < 1e-12);
+  assert_near(p, 0.5005, 1e-12);
   free(t);
   /* Errors. */
   assert_int_equal(cv_percentile(w, 0, 50, &p, NULL), CV_ERR_EMPTY);

@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include <arpa/inet.h>
 #include <math.h>
@@ -42,14 +43,17 @@ static void test_head_path_eval(void **state) {
   cv_head_pose h;
   cv_head_path_eval(p, 0.25, 0, &h);
   assert_true(h.valid && h.t == 0.25);
-  assert_true(fabs(h.pos[0] - 0.25) < 1e-15 && fabs(h.pos[1] - 1.2) < 1e-15);
-  assert_true(fabs(h.gaze[2] + 1) < 1e-15);
+  assert_near(h.pos[0], 0.25, 1e-15);
+  assert_near(h.pos[1], 1.2, 1e-15);
+  assert_near(h.gaze[2], -1, 1e-15);
   /* Between samples 1 and 2 at t = 2: f = 0.5, pos (1, 1.4, -1); gaze
    * nlerp((0,0,-1), (1,0,0)) = (1, 0, -1)/sqrt(2). */
   cv_head_path_eval(p, 2.0, 0, &h);
-  assert_true(fabs(h.pos[0] - 1) < 1e-15 && fabs(h.pos[1] - 1.4) < 1e-15 &&
-              fabs(h.pos[2] + 1) < 1e-15);
-  assert_true(fabs(h.gaze[0] - M_SQRT1_2) < 1e-15 && fabs(h.gaze[2] + M_SQRT1_2) < 1e-15);
+  assert_near(h.pos[0], 1, 1e-15);
+  assert_near(h.pos[1], 1.4, 1e-15);
+  assert_near(h.pos[2], -1, 1e-15);
+  assert_near(h.gaze[0], M_SQRT1_2, 1e-15);
+  assert_near(h.gaze[2], -M_SQRT1_2, 1e-15);
   /* Hold the ends. */
   cv_head_path_eval(p, -5, 0, &h);
   assert_true(h.pos[0] == 0 && h.gaze[2] == -1);
@@ -59,10 +63,11 @@ static void test_head_path_eval(void **state) {
   cv_head_pose a, b;
   cv_head_path_eval(p, 3.25, 1, &a);
   cv_head_path_eval(p, 0.25, 1, &b);
-  assert_true(fabs(a.pos[0] - b.pos[0]) < 1e-12);
+  assert_near(a.pos[0], b.pos[0], 1e-12);
   cv_head_path_eval(p, -0.5, 1, &a);
   cv_head_path_eval(p, 2.5, 1, &b);
-  assert_true(fabs(a.pos[2] - b.pos[2]) < 1e-12 && fabs(a.gaze[0] - b.gaze[0]) < 1e-12);
+  assert_near(a.pos[2], b.pos[2], 1e-12);
+  assert_near(a.gaze[0], b.gaze[0], 1e-12);
   /* NaN time: the first sample. */
   cv_head_path_eval(p, NAN, 1, &a);
   assert_true(a.pos[0] == 0 && isfinite(a.gaze[2]));
@@ -71,7 +76,8 @@ static void test_head_path_eval(void **state) {
   /* Opposite gazes halfway: no NaN, the nearer sample's gaze. */
   assert_int_equal(cv_head_path_parse("0 0 0 0 0 0 -1\n1 0 0 0 0 0 1\n", "opp", &p, &err), CV_OK);
   cv_head_path_eval(p, 0.5, 0, &a);
-  assert_true(isfinite(a.gaze[2]) && fabs(fabs(a.gaze[2]) - 1) < 1e-15);
+  assert_true(isfinite(a.gaze[2]));
+  assert_near(fabs(a.gaze[2]), 1, 1e-15);
   cv_head_path_eval(p, 0.25, 0, &a);
   assert_true(a.gaze[2] == -1);
   cv_head_path_destroy(p);
@@ -121,16 +127,18 @@ static void test_default_head_path(void **state) {
   const char *file = CV_SOURCE_DIR "/configs/heads/default.txt";
   if (cv_head_path_load(file, &p, &err)) fail_msg("%s", err.msg);
   assert_true(cv_head_path_count(p) > 500);
-  assert_true(fabs(cv_head_path_duration(p) - 20.0) < 1e-9);
+  assert_near(cv_head_path_duration(p), 20.0, 1e-9);
   /* Inside the 3 m CAVE near (0, 1.2, 0), looking mostly at the front wall,
    * with glances left (gaze x < -0.5), right (x > 0.5) and down (y < -0.4). */
   int front = 0, n = 0, left = 0, right = 0, down = 0;
   for (double t = 0; t < 20; t += 0.01, n++) {
     cv_head_pose h;
     cv_head_path_eval(p, t, 1, &h);
-    assert_true(fabs(h.pos[0]) < 0.2 && fabs(h.pos[1] - 1.2) < 0.1 && fabs(h.pos[2]) < 0.2);
+    assert_near(h.pos[0], 0, 0.2);
+    assert_near(h.pos[1], 1.2, 0.1);
+    assert_near(h.pos[2], 0, 0.2);
     double g = sqrt(h.gaze[0] * h.gaze[0] + h.gaze[1] * h.gaze[1] + h.gaze[2] * h.gaze[2]);
-    assert_true(fabs(g - 1) < 1e-9);
+    assert_near(g, 1, 1e-9);
     front += h.gaze[2] < -0.95;
     left += h.gaze[0] < -0.5;
     right += h.gaze[0] > 0.5;
@@ -142,7 +150,8 @@ static void test_default_head_path(void **state) {
   cv_head_pose a, b;
   cv_head_path_eval(p, 19.999, 1, &a);
   cv_head_path_eval(p, 0, 1, &b);
-  assert_true(fabs(a.pos[0] - b.pos[0]) < 1e-3 && fabs(a.gaze[1] - b.gaze[1]) < 1e-3);
+  assert_near(a.pos[0], b.pos[0], 1e-3);
+  assert_near(a.gaze[1], b.gaze[1], 1e-3);
   cv_head_path_destroy(p);
 }
 
@@ -164,7 +173,8 @@ static void test_dtrack_good(void **state) {
   cv_err err;
   assert_int_equal(cv_dtrack_parse(good, strlen(good), &f, &err), CV_OK);
   assert_int_equal(f.frame, 21753);
-  assert_true(f.has_ts && fabs(f.ts - 39596.024) < 1e-9);
+  assert_true(f.has_ts);
+  assert_near(f.ts, 39596.024, 1e-9);
   assert_int_equal(f.n_bodies, 2);
   assert_int_equal(f.body[0].id, 1);
   assert_true(f.body[0].quality == 1.0 && f.body[0].pos_mm[2] == -50.5);
@@ -176,16 +186,20 @@ static void test_dtrack_good(void **state) {
    * = (-1, 0, 0): the head turned 90 degrees left. */
   cv_head_pose h;
   assert_int_equal(cv_dtrack_head_pose(&f, 1, NULL, &h), CV_OK);
-  assert_true(fabs(h.pos[0] - 0.1) < 1e-12 && fabs(h.pos[1] - 1.2) < 1e-12 &&
-              fabs(h.pos[2] + 0.0505) < 1e-12);
-  assert_true(fabs(h.gaze[0] + 1) < 1e-12 && fabs(h.gaze[1]) < 1e-12 && fabs(h.gaze[2]) < 1e-12);
+  assert_near(h.pos[0], 0.1, 1e-12);
+  assert_near(h.pos[1], 1.2, 1e-12);
+  assert_near(h.pos[2], -0.0505, 1e-12);
+  assert_near(h.gaze[0], -1, 1e-12);
+  assert_near(h.gaze[1], 0, 1e-12);
+  assert_near(h.gaze[2], 0, 1e-12);
   assert_true(h.valid && h.t == f.ts);
   /* Another forward axis: local +X -> column 0 = (0, 0, -1). */
   const double fx[3] = {2, 0, 0};
   assert_int_equal(cv_dtrack_head_pose(&f, 1, fx, &h), CV_OK);
-  assert_true(fabs(h.gaze[2] + 1) < 1e-12);
+  assert_near(h.gaze[2], -1, 1e-12);
   assert_int_equal(cv_dtrack_head_pose(&f, 7, NULL, &h), CV_OK);
-  assert_true(fabs(h.pos[0] + 1.5) < 1e-12 && h.gaze[2] == -1);
+  assert_near(h.pos[0], -1.5, 1e-12);
+  assert_true(h.gaze[2] == -1);
   assert_int_equal(cv_dtrack_head_pose(&f, 3, NULL, &h), CV_ERR_NOT_FOUND);
   const double zero[3] = {0, 0, 0};
   assert_int_equal(cv_dtrack_head_pose(&f, 1, zero, &h), CV_ERR_INVALID);
@@ -309,7 +323,9 @@ static void test_udp_round_trip(void **state) {
   send_to(port, "fr 1\n6d 1 [1 1.0][0 1200 0 0 0 0][1 0 0 0 1 0 0 0 1]\n");
   send_to(port, "fr 2\n6d 1 [1 1.0][500 1200 0 0 0 0][1 0 0 0 1 0 0 0 1]\n");
   assert_int_equal(poll_wait(r, 1.0, &h, &s, 2), 1);
-  assert_true(h.valid && fabs(h.pos[0] - 0.5) < 1e-12 && fabs(h.pos[1] - 1.2) < 1e-12);
+  assert_true(h.valid);
+  assert_near(h.pos[0], 0.5, 1e-12);
+  assert_near(h.pos[1], 1.2, 1e-12);
   assert_true(h.t == 1.0 && s.last_rx_time == 1.0);
   assert_true(s.packets == 2 && s.malformed == 0 && s.no_body == 0);
 
@@ -319,17 +335,23 @@ static void test_udp_round_trip(void **state) {
   send_to(port, "fr 5\n6d 1 [9 1.0][0 0 0 0 0 0][1 0 0 0 1 0 0 0 1]");
   assert_int_equal(poll_wait(r, 2.0, &h, &s, 5), 0);
   assert_true(s.packets == 5 && s.malformed == 2 && s.no_body == 1);
-  assert_true(h.valid && fabs(h.pos[0] - 0.5) < 1e-12 && s.last_rx_time == 1.0);
+  assert_true(h.valid);
+  assert_near(h.pos[0], 0.5, 1e-12);
+  assert_true(s.last_rx_time == 1.0);
 
   /* A silent tracker holds the last pose. */
   assert_int_equal(cv_dtrack_receiver_poll(r, 3.0, &h, &s), 0);
-  assert_true(h.valid && fabs(h.pos[0] - 0.5) < 1e-12 && h.t == 1.0);
+  assert_true(h.valid);
+  assert_near(h.pos[0], 0.5, 1e-12);
+  assert_true(h.t == 1.0);
   assert_true(s.packets == 5);
 
   /* A good packet after the bad ones is taken. */
   send_to(port, "fr 6\nts 1.5\n6d 1 [1 1.0][-250 1100 100 0 0 0][1 0 0 0 1 0 0 0 1]\n");
   assert_int_equal(poll_wait(r, 4.0, &h, &s, 6), 1);
-  assert_true(fabs(h.pos[0] + 0.25) < 1e-12 && fabs(h.pos[2] - 0.1) < 1e-12 && h.t == 4.0);
+  assert_near(h.pos[0], -0.25, 1e-12);
+  assert_near(h.pos[2], 0.1, 1e-12);
+  assert_true(h.t == 4.0);
 
   /* A second receiver on the same port fails with the address in the message. */
   cv_dtrack_receiver *r2 = NULL;
@@ -358,7 +380,9 @@ static void test_head_nav(void **state) {
   /* right x4, up x2 (gaze along -z: right is +x) */
   in.right = 4, in.up = 2;
   assert_int_equal(cv_head_nav_apply(&n, &in, 9.0), 1);
-  assert_true(fabs(n.pose.pos[0] - 0.2) < 1e-12 && fabs(n.pose.pos[1] - 1.3) < 1e-12 && n.pose.pos[2] == 0);
+  assert_near(n.pose.pos[0], 0.2, 1e-12);
+  assert_near(n.pose.pos[1], 1.3, 1e-12);
+  assert_true(n.pose.pos[2] == 0);
   assert_true(n.pose.t == 9.0 && n.inputs == 1);
   /* the box: 100 steps right stop at hi; against the side nothing changes */
   memset(&in, 0, sizeof in);
@@ -372,13 +396,15 @@ static void test_head_nav(void **state) {
   memset(&in, 0, sizeof in);
   in.drag_x = 360, in.forward = -2;
   assert_int_equal(cv_head_nav_apply(&n, &in, 10.0), 1);
-  assert_true(fabs(n.pose.gaze[0] - 1) < 1e-12 && fabs(n.pose.gaze[2]) < 1e-12);
-  assert_true(fabs(n.pose.pos[0] - 1.3) < 1e-12 && fabs(n.pose.pos[2]) < 1e-12);
+  assert_near(n.pose.gaze[0], 1, 1e-12);
+  assert_near(n.pose.gaze[2], 0, 1e-12);
+  assert_near(n.pose.pos[0], 1.3, 1e-12);
+  assert_near(n.pose.pos[2], 0, 1e-12);
   /* pitch is held within 85 degrees; dragging up looks up */
   memset(&in, 0, sizeof in);
   in.drag_y = -10000;
   cv_head_nav_apply(&n, &in, 11.0);
-  assert_true(fabs(n.pose.gaze[1] - sin(85 * 3.14159265358979323846 / 180)) < 1e-12);
+  assert_near(n.pose.gaze[1], sin(85 * 3.14159265358979323846 / 180), 1e-12);
   /* reset: home pose and gaze exactly */
   memset(&in, 0, sizeof in);
   in.reset = 1;

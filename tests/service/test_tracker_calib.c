@@ -18,10 +18,11 @@
 #include <unistd.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "service/tracker_calib.h"
 
-#define NEAR(a, b) assert_true(fabs((a) - (b)) < 1e-9)
+#define NEAR(a, b) assert_near(a, b, 1e-9)
 
 /* A room rotated 90 degrees about +Y from the CAVE and shifted 1 m along +Z;
  * glasses 10 cm above and 8 cm behind the eyes' midpoint; IPD 64 mm. */
@@ -80,7 +81,8 @@ static void test_eyes(void **state) {
   NEAR(h.center[0], -0.58), NEAR(h.center[1], 1.4), NEAR(h.center[2], 0);
   NEAR(h.eye[0][0], -0.58), NEAR(h.eye[0][1], 1.4), NEAR(h.eye[0][2], 0.032);
   NEAR(h.eye[1][0], -0.58), NEAR(h.eye[1][1], 1.4), NEAR(h.eye[1][2], -0.032);
-  assert_true(fabs(h.yaw_deg + 90) < 1e-9 && fabs(h.roll_deg) < 1e-9);
+  assert_near(h.yaw_deg, -90, 1e-9);
+  assert_near(h.roll_deg, 0, 1e-9);
   /* units: the same numbers in cm are 10x further */
   c.unit_m = 0.01;
   assert_int_equal(cv_tracker_head(&c, &f, &h), CV_OK);
@@ -106,11 +108,12 @@ static void test_roll(void **state) {
   assert_int_equal(cv_dtrack_parse(buf, strlen(buf), &f, &e), CV_OK);
   cv_tracked_head h;
   assert_int_equal(cv_tracker_head(&c, &f, &h), CV_OK);
-  assert_true(fabs(h.roll_deg - 30) < 1e-6);
-  assert_true(fabs(h.yaw_deg) < 1e-6 && fabs(h.pitch_deg) < 1e-6);
+  assert_near(h.roll_deg, 30, 1e-6);
+  assert_near(h.yaw_deg, 0, 1e-6);
+  assert_near(h.pitch_deg, 0, 1e-6);
   /* the right eye is lower by ipd sin(30) */
-  assert_true(fabs((h.eye[0][1] - h.eye[1][1]) - 0.064 * sin(a)) < 1e-9);
-  assert_true(fabs(h.eye[1][0] - h.eye[0][0] - 0.064 * cos(a)) < 1e-9);
+  assert_near((h.eye[0][1] - h.eye[1][1]), 0.064 * sin(a), 1e-9);
+  assert_near(h.eye[1][0] - h.eye[0][0], 0.064 * cos(a), 1e-9);
 }
 
 static void send_to(const char *group, int port, const char *pkt) {

@@ -16,6 +16,7 @@
 #include <time.h>
 
 #include <cmocka.h>
+#include "cv_test_near.h"
 
 #include "core/image.h"
 #include "core/status.h"
@@ -141,13 +142,13 @@ static void test_basis_reference(void **state) {
   double y[9];
   cv_sh_eval_d(3, d, y);
   const double k1 = sqrt(3.0 / (4.0 * M_PI));
-  assert_true(fabs(y[0] - 0.5 / sqrt(M_PI)) < 1e-15);
-  assert_true(fabs(y[1] - k1 * d[1]) < 1e-15);
-  assert_true(fabs(y[2] - k1 * d[2]) < 1e-15);
-  assert_true(fabs(y[3] - k1 * d[0]) < 1e-15);
-  assert_true(fabs(y[4] - 0.5 * sqrt(15.0 / M_PI) * d[0] * d[1]) < 1e-15);
-  assert_true(fabs(y[6] - 0.25 * sqrt(5.0 / M_PI) * (3 * d[2] * d[2] - 1)) < 1e-15);
-  assert_true(fabs(y[8] - 0.25 * sqrt(15.0 / M_PI) * (d[0] * d[0] - d[1] * d[1])) < 1e-15);
+  assert_near(y[0], 0.5 / sqrt(M_PI), 1e-15);
+  assert_near(y[1], k1 * d[1], 1e-15);
+  assert_near(y[2], k1 * d[2], 1e-15);
+  assert_near(y[3], k1 * d[0], 1e-15);
+  assert_near(y[4], 0.5 * sqrt(15.0 / M_PI) * d[0] * d[1], 1e-15);
+  assert_near(y[6], 0.25 * sqrt(5.0 / M_PI) * (3 * d[2] * d[2] - 1), 1e-15);
+  assert_near(y[8], 0.25 * sqrt(15.0 / M_PI) * (d[0] * d[0] - d[1] * d[1]), 1e-15);
 
   /* speed of the hot path (printed, not asserted) */
   float yf[CV_SH_MAX_COEFFS];
@@ -199,8 +200,8 @@ static void test_orthonormality(void **state) {
     s += gw[k];
     s4 += gw[k] * pow(gx[k], 4);
   }
-  assert_true(fabs(s - 2.0) < 1e-14);
-  assert_true(fabs(s4 - 0.4) < 1e-14);
+  assert_near(s, 2.0, 1e-14);
+  assert_near(s4, 0.4, 1e-14);
 }
 
 /* ---- projection --------------------------------------------------------- */
@@ -272,7 +273,7 @@ static void test_project_constant(void **state) {
   for (int i = 0; i < 16 * 8; i++) g->px[i] = 3.0f;
   double cg[3 * 4];
   assert_int_equal(cv_sh_project_latlong(g, 2, cg), CV_OK);
-  for (int ch = 0; ch < 3; ch++) assert_true(fabs(cg[ch] - 3.0 * sqrt(4 * M_PI)) < 1e-12);
+  for (int ch = 0; ch < 3; ch++) assert_near(cg[ch], 3.0 * sqrt(4 * M_PI), 1e-12);
   cv_image_destroy(g);
 
   /* errors */
@@ -343,7 +344,7 @@ static void test_cosine_lobe(void **state) {
   /* closed values */
   const double expect[9] = {M_PI, 2 * M_PI / 3, M_PI / 4, 0, -M_PI / 24, 0, M_PI / 64, 0,
                             -M_PI / 128};
-  for (int l = 0; l < 9; l++) assert_true(fabs(cv_sh_cosine_lobe_factor(l) - expect[l]) < 1e-15);
+  for (int l = 0; l < 9; l++) assert_near(cv_sh_cosine_lobe_factor(l), expect[l], 1e-15);
   /* independent: A_l = 2 pi int_0^1 t P_l(t) dt by 64-node Gauss-Legendre on
    * [0, 1] (exact: polynomial of degree l + 1) */
   double gx[64], gw[64];
@@ -354,7 +355,7 @@ static void test_cosine_lobe(void **state) {
       const double t = 0.5 * (gx[k] + 1.0);
       s += 0.5 * gw[k] * t * assoc_legendre(l, 0, t);
     }
-    assert_true(fabs(2 * M_PI * s - cv_sh_cosine_lobe_factor(l)) < 1e-13);
+    assert_near(2 * M_PI * s, cv_sh_cosine_lobe_factor(l), 1e-13);
   }
 
   /* The lobe max(d.z, 0) projects to A_l y_l0(+Z) = A_l sqrt((2l+1)/4pi),
@@ -503,7 +504,7 @@ static void test_rotation_algebra(void **state) {
   double c[64], o[64];
   for (int i = 0; i < 64; i++) c[i] = rnd() - 0.5;
   cv_sh_rotate(ri, c, o, 1);
-  for (int i = 0; i < 64; i++) assert_true(fabs(o[i] - c[i]) < 1e-15);
+  for (int i = 0; i < 64; i++) assert_near(o[i], c[i], 1e-15);
   cv_sh_rotation_destroy(ri);
 
   /* errors: reflection, non-orthonormal, NaN, bad n */
@@ -555,8 +556,8 @@ static void test_window(void **state) {
   printf("  30-degree cap, n=8: most negative value none %.4f, Hann %.4f, Lanczos %.4f\n", mn_none,
          mn_hann, mn_lanc);
   assert_true(mn_none < -0.02);                 /* truncation rings */
-  assert_true(fabs(mn_hann) < 0.25 * fabs(mn_none));
-  assert_true(fabs(mn_lanc) < 0.5 * fabs(mn_none));
+  assert_near(mn_hann, 0, 0.25 * fabs(mn_none));
+  assert_near(mn_lanc, 0, 0.5 * fabs(mn_none));
   assert_true(ch[0] == c0 && cl[0] == c0);      /* mean kept */
 
   /* clamped cosine at n=3 and n=8 */
@@ -568,12 +569,12 @@ static void test_window(void **state) {
   const double lob_hann = expansion_min(8, cc);
   printf("  clamped cosine, n=8: most negative value none %.5f, Hann %.5f\n", lob_none, lob_hann);
   assert_true(lob_none < 0.0);
-  assert_true(fabs(lob_hann) < fabs(lob_none));
+  assert_near(lob_hann, 0, fabs(lob_none));
 
   /* weights */
   assert_true(cv_sh_window_weight(8, 0, CV_SH_WINDOW_HANN) == 1.0);
-  assert_true(fabs(cv_sh_window_weight(4, 2, CV_SH_WINDOW_HANN) - 0.5) < 1e-15);
-  assert_true(fabs(cv_sh_window_weight(4, 2, CV_SH_WINDOW_LANCZOS) - 2.0 / M_PI) < 1e-15);
+  assert_near(cv_sh_window_weight(4, 2, CV_SH_WINDOW_HANN), 0.5, 1e-15);
+  assert_near(cv_sh_window_weight(4, 2, CV_SH_WINDOW_LANCZOS), 2.0 / M_PI, 1e-15);
   assert_true(cv_sh_window_weight(4, 3, CV_SH_WINDOW_NONE) == 1.0);
 }
 
@@ -583,11 +584,12 @@ static void test_latlong_mapping(void **state) {
   double u, v;
   const double front[3] = {0, 0, -1}, right[3] = {1, 0, 0}, up[3] = {0, 1, 0}, back[3] = {0, 0, 1};
   cv_latlong_uv(front, &u, &v);
-  assert_true(fabs(u - 0.5) < 1e-15 && fabs(v - 0.5) < 1e-15);
+  assert_near(u, 0.5, 1e-15);
+  assert_near(v, 0.5, 1e-15);
   cv_latlong_uv(right, &u, &v);
-  assert_true(fabs(u - 0.75) < 1e-15);
+  assert_near(u, 0.75, 1e-15);
   cv_latlong_uv(up, &u, &v);
-  assert_true(fabs(v) < 1e-15);
+  assert_near(v, 0, 1e-15);
   cv_latlong_uv(back, &u, &v);
   assert_true(u >= 0.0 && u < 1.0);
   /* round trip */
@@ -596,12 +598,12 @@ static void test_latlong_mapping(void **state) {
     rnd_dir(d);
     cv_latlong_uv(d, &u, &v);
     cv_latlong_dir(u, v, e);
-    for (int k = 0; k < 3; k++) assert_true(fabs(d[k] - e[k]) < 1e-12);
+    for (int k = 0; k < 3; k++) assert_near(d[k], e[k], 1e-12);
   }
   /* row weights sum to 4 pi */
   double s = 0.0;
   for (int y = 0; y < 37; y++) s += 53 * cv_latlong_pixel_solid_angle(y, 53, 37);
-  assert_true(fabs(s - 4 * M_PI) < 1e-12);
+  assert_near(s, 4 * M_PI, 1e-12);
 }
 
 

@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -54,7 +55,7 @@ static void test_drago_reference(void **state) {
     assert_true(e <= 1e-5);
   }
   printf("drago reference vector: max |error| %.2g (tolerance 1e-5)\n", worst);
-  assert_true(fabs(c.p_exp - log(0.85) / log(0.5)) < 1e-6);
+  assert_near(c.p_exp, log(0.85) / log(0.5), 1e-6);
 }
 
 static void test_drago_invariants(void **state) {
@@ -64,7 +65,7 @@ static void test_drago_invariants(void **state) {
     double lwa = 0.37, lwmax = lwa * ratios[k];
     cv_drago_consts c = consts(0.85, 100, lwa, lwmax);
     assert_true(cv_drago_map(&c, 0.0) == 0.0);
-    assert_true(fabs(cv_drago_map(&c, lwmax) - 1.0) < 1e-6);
+    assert_near(cv_drago_map(&c, lwmax), 1.0, 1e-6);
     /* monotone (non-decreasing) on a fine log grid over (0, Lwmax] and beyond */
     double prev = 0.0;
     for (int i = 0; i <= 4000; i++) {
@@ -84,13 +85,13 @@ static void test_drago_invariants(void **state) {
       cv_drago_consts cs = consts(0.85, 100, lwa * s[j], lwmax * s[j]);
       for (int i = 0; i <= 50; i++) {
         double lw = lwmax * pow(10.0, -6.0 + 6.0 * i / 50.0);
-        assert_true(fabs(cv_drago_map(&cs, lw * s[j]) - cv_drago_map(&c, lw)) < 1e-6);
+        assert_near(cv_drago_map(&cs, lw * s[j]), cv_drago_map(&c, lw), 1e-6);
       }
     }
   }
   /* a dimmer display: the curve tops out at Ldmax/100, still monotone */
   cv_drago_consts c = consts(0.85, 50, 1.0, 1e6);
-  assert_true(fabs(cv_drago_map(&c, 1e6) - 0.5) < 1e-6);
+  assert_near(cv_drago_map(&c, 1e6), 0.5, 1e-6);
   double prev = 0;
   for (int i = 0; i <= 4000; i++) {
     double v = cv_drago_map(&c, pow(10.0, -3.0 + 10.0 * i / 4000.0));
@@ -105,9 +106,9 @@ static void test_transfer(void **state) {
   double right_branch = 1.099 * pow(0.012, 0.9 / 2.2) - 0.099;
   printf("rec709 transfer at 0.012: linear %.6f, power branch %.6f, jump %.2g\n", lo,
          right_branch, right_branch - lo);
-  assert_true(fabs(lo - 0.081) < 1e-12);
-  assert_true(fabs(hi - lo) < 1e-4); /* the published constants meet to 2e-5 */
-  assert_true(fabs(cv_rec709_transfer(1.0) - 1.0) < 1e-12);
+  assert_near(lo, 0.081, 1e-12);
+  assert_near(hi, lo, 1e-4); /* the published constants meet to 2e-5 */
+  assert_near(cv_rec709_transfer(1.0), 1.0, 1e-12);
   assert_true(cv_rec709_transfer(0.0) == 0.0);
   assert_true(cv_rec709_transfer(NAN) == 0.0);
   assert_true(cv_rec709_transfer(-1.0) == 0.0);
@@ -203,7 +204,7 @@ static void test_invalid_pixels(void **state) {
     assert_true(cv_image_at(out, 4, 4)[c] == 0.0f);
     assert_true(cv_image_at(out, 5, 5)[c] == 0.0f);
   }
-  assert_true(fabs(cv_image_at(out, 6, 6)[1] - 1.0f) < 1e-6);
+  assert_near(cv_image_at(out, 6, 6)[1], 1.0f, 1e-6);
   /* foveal: invalid pixels inside the cone are excluded and counted */
   float lum[16 * 16];
   for (int i = 0; i < 256; i++) lum[i] = 1.0f;
@@ -242,7 +243,7 @@ static void test_lone_bright_pixel(void **state) {
   assert_int_equal(cv_drago_image(img, &d, 1, out, &bad), CV_OK);
   assert_int_equal(bad, 0);
   for (size_t i = 0; i < (size_t)3e6; i++) assert_true(isfinite(out->px[i]) && out->px[i] >= 0 && out->px[i] <= 1);
-  assert_true(fabs(cv_image_at(out, 500, 500)[0] - 1.0f) < 1e-5);
+  assert_near(cv_image_at(out, 500, 500)[0], 1.0f, 1e-5);
   assert_true(cv_image_at(out, 0, 0)[0] > 0.0f && cv_image_at(out, 0, 0)[0] < 1.0f);
   cv_image_destroy(img);
   cv_image_destroy(out);
@@ -307,7 +308,7 @@ static void test_adapt_time_constant(void **state) {
          1 - exp(-1));
   rel_close(fc, 1 - exp(-1), 1e-12, "cone 63.2%");
   rel_close(fr, 1 - exp(-1), 1e-12, "rod 63.2%");
-  assert_true(fabs(fc - 0.632) < 5e-4);
+  assert_near(fc, 0.632, 5e-4);
   /* steady state: lwa = G (1 + G tau/K) of the governing receptor class
    * (adapt.h), within 0.5% of G in photopic and scotopic light, within 20%
    * where rods hand over to cones (1e-3..1e-2 cd/m2) */
@@ -386,7 +387,7 @@ static void test_adapt_jump_and_errors(void **state) {
   assert_true(isfinite(dark) && dark > 1e-3 * 10);
   /* ... and approaches the scene after many minutes */
   for (int f = 0; f < 3600; f++) assert_int_equal(cv_adapt_step(&s, &p, 1e-3, 1.0), CV_OK);
-  assert_true(fabs(cv_adapt_lwa(&s) / 1.025e-3 - 1) < 0.01);
+  assert_near(cv_adapt_lwa(&s) / 1.025e-3, 1, 0.01);
   /* bad input leaves the state unchanged */
   cv_adapt_state before = s;
   const double bad_g[4] = {NAN, INFINITY, -1.0, -INFINITY};
@@ -469,7 +470,7 @@ static void test_foveal_disc(void **state) {
          100 * (st.weight / omega - 1));
   assert_true(r_sel <= R + 1e-6 && R <= r_unsel + 1e-6);
   assert_true(R - r_sel <= pitch && r_unsel - R <= pitch);
-  assert_true(fabs(st.weight / omega - 1) < 0.02);
+  assert_near(st.weight / omega, 1, 0.02);
   free(lum);
 }
 

@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include "cv_test_near.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -59,16 +60,17 @@ static void test_load_shipped(void **state) {
     for (int k = 0; k < 3; k++) pcen[k] = w->pa[k] + 0.5 * (e1[k] + e2[k]);
     for (int k = 0; k < 3; k++) to[k] = centre[k] - pcen[k];
     double nl = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    assert_true(fabs(nl - 9.0) < 1e-12);
-    assert_true(fabs((n[0] * to[0] + n[1] * to[1] + n[2] * to[2]) / nl - 1.5) < 1e-12);
+    assert_near(nl, 9.0, 1e-12);
+    assert_near((n[0] * to[0] + n[1] * to[1] + n[2] * to[2]) / nl, 1.5, 1e-12);
   }
-  assert_true(fabs(c.eye_separation - 0.064) < 1e-15);
+  assert_near(c.eye_separation, 0.064, 1e-15);
   assert_int_equal(c.supersample, 1);
   assert_int_equal(c.lum_res, 128);
-  assert_true(fabs(c.head[1] - 1.2) < 1e-15 && fabs(c.gaze[2] + 1) < 1e-15);
+  assert_near(c.head[1], 1.2, 1e-15);
+  assert_near(c.gaze[2], -1, 1e-15);
   /* the head lands on the default cabin's driver eye */
   const double driver[3] = {-0.37, 1.02, 0};
-  for (int k = 0; k < 3; k++) assert_true(fabs(c.head[k] + c.scene_offset[k] - driver[k]) < 1e-12);
+  for (int k = 0; k < 3; k++) assert_near(c.head[k] + c.scene_offset[k], driver[k], 1e-12);
   assert_int_equal(cv_cave_check_eye(&c, c.head, &err), CV_OK);
 
   st = cv_cave_load(CAVES "/two-sided-wall.json", &c, &err);
@@ -78,10 +80,13 @@ static void test_load_shipped(void **state) {
   assert_string_equal(c.walls[0].name, "front");
   assert_string_equal(c.walls[1].name, "left");
   /* defaults */
-  assert_true(fabs(c.near - 0.05) < 1e-15 && fabs(c.far - 50) < 1e-15);
-  assert_true(fabs(c.drago_bias - 0.85) < 1e-15 && fabs(c.drago_ldmax - 100) < 1e-15);
-  assert_true(fabs(c.t0_cone - 0.08) < 1e-15 && fabs(c.tau_rod - 400) < 1e-15);
-  assert_true(fabs(c.foveal_deg - 10) < 1e-15);
+  assert_near(c.near, 0.05, 1e-15);
+  assert_near(c.far, 50, 1e-15);
+  assert_near(c.drago_bias, 0.85, 1e-15);
+  assert_near(c.drago_ldmax, 100, 1e-15);
+  assert_near(c.t0_cone, 0.08, 1e-15);
+  assert_near(c.tau_rod, 400, 1e-15);
+  assert_near(c.foveal_deg, 10, 1e-15);
 }
 
 #define FRONT "{\"name\": \"front\", \"pa\": [-1.5, 0, -1.5], \"pb\": [1.5, 0, -1.5], \"pc\": [-1.5, 3, -1.5], \"res\": [64, 64]}"
@@ -193,7 +198,9 @@ static void test_outputs_default_and_layout(void **state) {
     }
   assert_int_equal(cv_cave_rank_role(&c, 0).role, CV_ROLE_MASTER);
   assert_int_equal(cv_cave_rank_role(&c, 11).role, CV_ROLE_GATHER);
-  assert_true(c.rate == 60 && c.screen_patches == 24 && fabs(c.screen_reflectance - 0.8) < 1e-12);
+  assert_true(c.rate == 60);
+  assert_true(c.screen_patches == 24);
+  assert_near(c.screen_reflectance, 0.8, 1e-12);
   /* packed stereo: one rank, both eyes */
   const char *ok = "{" TWO_WALLS ", \"outputs\": ["
                    "{\"wall\": \"left\", \"eye\": \"both\", \"stereo\": \"side-by-side\", \"gpu\": 1, \"host\": \"n2\", \"display\": \":0.1\", \"fullscreen\": true},"
@@ -313,13 +320,17 @@ static void test_symmetric_and_errors(void **state) {
   const double pe[3] = {0, 1.5, 0.7};
   cv_offaxis o;
   assert_int_equal(cv_offaxis_compute(PA, PB, PC, pe, 0.1, 20, &o), CV_OK);
-  assert_true(fabs(o.l + o.r) < 1e-12 && fabs(o.b + o.t) < 1e-12);
+  assert_near(o.l, -o.r, 1e-12);
+  assert_near(o.b, -o.t, 1e-12);
   assert_true(o.r > 0 && o.t > 0);
   /* l = -1.5 n / d with d = 2.2 */
-  assert_true(fabs(o.r - 1.5 * 0.1 / 2.2) < 1e-12);
-  assert_true(fabs(o.vn[2] - 1) < 1e-15 && fabs(o.vr[0] - 1) < 1e-15 && fabs(o.vu[1] - 1) < 1e-15);
+  assert_near(o.r, 1.5 * 0.1 / 2.2, 1e-12);
+  assert_near(o.vn[2], 1, 1e-15);
+  assert_near(o.vr[0], 1, 1e-15);
+  assert_near(o.vu[1], 1, 1e-15);
   /* on the normal, the view is the plain look-at: view matrix = translation */
-  assert_true(fabs(o.view[14] + 0.7) < 1e-7 && fabs(o.view[13] + 1.5) < 1e-7);
+  assert_near(o.view[14], -0.7, 1e-7);
+  assert_near(o.view[13], -1.5, 1e-7);
   /* errors */
   const double on[3] = {0.3, 1.0, -1.5}, behind[3] = {0, 1.5, -2};
   assert_int_equal(cv_offaxis_compute(PA, PB, PC, on, 0.1, 20, &o), CV_ERR_INVALID);
@@ -361,21 +372,26 @@ static void test_head_eyes(void **state) {
   const double head[3] = {0, 1.2, 0}, g[3] = {0, 0, -1};
   double l[3], r[3];
   cv_head_eyes(head, g, 0.064, l, r);
-  assert_true(fabs(l[0] + 0.032) < 1e-15 && fabs(r[0] - 0.032) < 1e-15);
-  assert_true(fabs(l[1] - 1.2) < 1e-15 && fabs(r[2]) < 1e-15);
+  assert_near(l[0], -0.032, 1e-15);
+  assert_near(r[0], 0.032, 1e-15);
+  assert_near(l[1], 1.2, 1e-15);
+  assert_near(r[2], 0, 1e-15);
   /* looking left (-X): the right eye is towards -Z... (gaze x up = (0,0,-1)) */
   const double gl[3] = {-2, 0, 0};
   cv_head_eyes(head, gl, 0.064, l, r);
-  assert_true(fabs(r[2] + 0.032) < 1e-15 && fabs(l[2] - 0.032) < 1e-15);
+  assert_near(r[2], -0.032, 1e-15);
+  assert_near(l[2], 0.032, 1e-15);
   /* tilted gaze: still unit separation, horizontal */
   const double gt[3] = {0.3, -0.8, -1};
   cv_head_eyes(head, gt, 0.064, l, r);
   double d = sqrt(pow(r[0] - l[0], 2) + pow(r[1] - l[1], 2) + pow(r[2] - l[2], 2));
-  assert_true(fabs(d - 0.064) < 1e-12 && fabs(r[1] - l[1]) < 1e-15);
+  assert_near(d, 0.064, 1e-12);
+  assert_near(r[1], l[1], 1e-15);
   /* vertical gaze falls back to +X */
   const double gv[3] = {0, -1, 0};
   cv_head_eyes(head, gv, 0.064, l, r);
-  assert_true(fabs(r[0] - 0.032) < 1e-15 && isfinite(l[0]));
+  assert_near(r[0], 0.032, 1e-15);
+  assert_true(isfinite(l[0]));
 }
 
 /* --size N (cave render and cave run): the longer side N, the aspect kept. */
