@@ -10,290 +10,14 @@
 #include "core/hash.h"
 #include "core/progress.h"
 #include "core/sobol.h"
+#include "prt/tracer_internal.h"
 #include "sh/sh.h"
-
-/* gcc only, as src/compensate/solve.c: clang 14 (the fuzz build) rejects
- * __builtin_cpu_supports("f16c"). */
-#if defined(__GNUC__) && !defined(__clang__) && (defined(__x86_64__) || defined(__i386__))
-#include <immintrin.h>
-#define CV_BAKE_X86_SIMD 1
-#endif
 
 /* One hit of the bounce pass and the function that adds it to the sums
  * (defined with the bounce pass below). */
 typedef struct bounce_hit bounce_hit;
 typedef void (*bounce_add_fn)(const bounce_hit *h, size_t rec, int nc, double *acc,
                               double *accr);
-
-struct cv_tracer {
-  cv_mesh *m;
-  cv_rt *rt;
-  float *tri_n;        /* 3*nt unit geometric normals */
-  size_t *fan_off;     /* nv+1, CSR offsets into fan_tri/fan_cdf */
-  uint32_t *fan_tri;   /* triangle index << 2 | corner of v in it */
-  float *fan_cdf;      /* cumulative area fraction within the fan */
-  cv_sobol_tab sobol;  /* shared read-only by all threads */
-  float spread;        /* fraction of the fan that ray origins cover */
-  /* Window importance sampling (direct pass): the window triangles grouped
-   * by material (one group per opening), by area within each group. */
-  size_t nwin;
-  uint32_t *win_tri;   /* mesh triangle indices, grouped */
-  float *win_cdf;      /* cumulative area fraction within the triangle's group */
-  double win_area;     /* total window area, m^2 */
-  int ngroup;
-  struct win_group {
-    size_t begin, end; /* range in win_tri */
-    double area, centroid[3], normal[3];
-  } *groups;
-  int *tri_group;      /* nt: group of a window triangle, -1 otherwise */
-  int window_mis;      /* 1: MIS of cosine and window sampling when nwin > 0 */
-  bounce_add_fn bounce_add; /* the bounce pass's hit sums (AVX2 or portable) */
-};
-
-void cv_tracer_destroy(cv_tracer *tr) {
-  if (!tr) return;
-  cv_rt_destroy(tr->rt);
-  cv_mesh_destroy(tr->m);
-  free(tr->tri_n);
-  free(tr->fan_off);
-  free(tr->fan_tri);
-  free(tr->fan_cdf);
-  free(tr->win_tri);
-  free(tr->win_cdf);
-  free(tr->groups);
-  free(tr->tri_group);
-  free(tr);
-}
-
-static int is_window(const cv_mesh *m, size_t t) {
-  return (m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) != 0;
-}
-
-int cv_tracer_create(const cv_mesh *m, cv_tracer **out, cv_err *err) {
-  *out = NULL;
-  cv_tracer *tr = calloc(1, sizeof *tr);
-  if (!tr) return cv_err_set(err, CV_ERR_NOMEM, "out of memory");
-  int st = cv_mesh_clone(m, &tr->m);
-  if (!st) st = cv_rt_create(m, &tr->rt, err);
-  if (st) {
-    cv_tracer_destroy(tr);
-    return st == CV_ERR_NOMEM ? cv_err_set(err, st, "out of memory") : st;
-  }
-  size_t nv = m->nv, nt = m->nt;
-  cv_sobol_tab_init(&tr->sobol);
-  tr->spread = CV_BAKE_DEFAULT_SPREAD;
-  cv_tracer_set_simd(tr, 1);
-  tr->tri_n = malloc(3 * nt * sizeof(float));
-  tr->fan_off = calloc(nv + 1, sizeof(size_t));
-  double *area = malloc(nt * sizeof(double));
-  if (!tr->tri_n || !tr->fan_off || !area) goto nomem;
-  size_t total = 0;
-  for (size_t t = 0; t < nt; t++) {
-    float n[3];
-    cv_mesh_tri_normal(m, t, n);
-    double l = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-    area[t] = 0.5 * l;
-    for (int k = 0; k < 3; k++) tr->tri_n[3 * t + k] = l > 0 ? (float)(n[k] / l) : 0.0f;
-    if (is_window(m, t) || l <= 0) continue;
-    for (int j = 0; j < 3; j++) tr->fan_off[m->tri[3 * t + j] + 1]++;
-    total += 3;
-  }
-  for (size_t v = 0; v < nv; v++) tr->fan_off[v + 1] += tr->fan_off[v];
-  tr->fan_tri = malloc((total + 1) * sizeof(uint32_t));
-  tr->fan_cdf = malloc((total + 1) * sizeof(float));
-  size_t *fill = malloc((nv + 1) * sizeof(size_t));
-  if (!tr->fan_tri || !tr->fan_cdf || !fill) {
-    free(fill);
-    goto nomem;
-  }
-  memcpy(fill, tr->fan_off, (nv + 1) * sizeof(size_t));
-  for (size_t t = 0; t < nt; t++) {
-    if (is_window(m, t) || area[t] <= 0) continue;
-    for (uint32_t j = 0; j < 3; j++) {
-      uint32_t v = m->tri[3 * t + j];
-      tr->fan_tri[fill[v]++] = (uint32_t)(t << 2) | j;
-    }
-  }
-  free(fill);
-  for (size_t v = 0; v < nv; v++) {
-    double sum = 0;
-    for (size_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) sum += area[tr->fan_tri[k] >> 2];
-    double acc = 0;
-    for (size_t k = tr->fan_off[v]; k < tr->fan_off[v + 1]; k++) {
-      acc += area[tr->fan_tri[k] >> 2];
-      tr->fan_cdf[k] = (float)(acc / sum);
-    }
-    if (tr->fan_off[v + 1] > tr->fan_off[v]) tr->fan_cdf[tr->fan_off[v + 1] - 1] = 1.0f;
-  }
-  /* Window triangles grouped by material, by area within each group. */
-  tr->window_mis = 1;
-  tr->win_tri = malloc((nt + 1) * sizeof(uint32_t));
-  tr->win_cdf = malloc((nt + 1) * sizeof(float));
-  tr->groups = calloc(m->nm + 1, sizeof *tr->groups);
-  tr->tri_group = malloc((nt + 1) * sizeof(int));
-  if (!tr->win_tri || !tr->win_cdf || !tr->groups || !tr->tri_group) goto nomem;
-  for (size_t t = 0; t < nt; t++) tr->tri_group[t] = -1;
-  for (size_t mi = 0; mi < m->nm; mi++) {
-    if (!(m->mats[mi].flags & CV_MAT_WINDOW)) continue;
-    struct win_group *g = &tr->groups[tr->ngroup];
-    memset(g, 0, sizeof *g);
-    g->begin = tr->nwin;
-    for (size_t t = 0; t < nt; t++) {
-      if (m->tri_mat[t] != mi || !(area[t] > 0)) continue;
-      const uint32_t *tv = m->tri + 3 * t;
-      for (int k = 0; k < 3; k++) {
-        double c = ((double)m->pos[3 * tv[0] + k] + m->pos[3 * tv[1] + k] + m->pos[3 * tv[2] + k]) / 3;
-        g->centroid[k] += area[t] * c;
-        g->normal[k] += area[t] * tr->tri_n[3 * t + k];
-      }
-      g->area += area[t];
-      tr->win_tri[tr->nwin] = (uint32_t)t;
-      tr->win_cdf[tr->nwin++] = (float)g->area;
-      tr->tri_group[t] = tr->ngroup;
-    }
-    g->end = tr->nwin;
-    if (g->end == g->begin) continue;
-    double nl = 0;
-    for (int k = 0; k < 3; k++) {
-      g->centroid[k] /= g->area;
-      nl += g->normal[k] * g->normal[k];
-    }
-    for (int k = 0; k < 3; k++) g->normal[k] = nl > 0 ? g->normal[k] / sqrt(nl) : 0;
-    for (size_t k = g->begin; k < g->end; k++) tr->win_cdf[k] = (float)(tr->win_cdf[k] / g->area);
-    tr->win_cdf[g->end - 1] = 1.0f;
-    tr->win_area += g->area;
-    tr->ngroup++;
-  }
-  free(area);
-  *out = tr;
-  return CV_OK;
-nomem:
-  free(area);
-  cv_tracer_destroy(tr);
-  return cv_err_set(err, CV_ERR_NOMEM, "out of memory building vertex fans");
-}
-
-const cv_rt *cv_tracer_rt(const cv_tracer *tr) { return tr->rt; }
-
-int cv_tracer_set_spread(cv_tracer *tr, float spread) {
-  if (!(spread >= 0.0f && spread <= 1.0f)) return CV_ERR_RANGE;
-  tr->spread = spread;
-  return CV_OK;
-}
-
-float cv_tracer_spread(const cv_tracer *tr) { return tr->spread; }
-
-void cv_tracer_set_window_sampling(cv_tracer *tr, int on) { tr->window_mis = !!on; }
-int cv_tracer_window_sampling(const cv_tracer *tr) { return tr->window_mis && tr->nwin > 0; }
-
-const cv_mesh *cv_tracer_mesh(const cv_tracer *tr) { return tr->m; }
-
-size_t cv_tracer_vertex_count(const cv_tracer *tr) { return tr->m->nv; }
-
-uint32_t cv_tracer_bake_vertex(const cv_tracer *tr, size_t i) { return (uint32_t)i; }
-
-int cv_tracer_fan_size(const cv_tracer *tr, uint32_t v) {
-  return (int)(tr->fan_off[v + 1] - tr->fan_off[v]);
-}
-
-/* Cosine-weighted direction about unit n from (u0, u1): Shirley-Chiu
- * concentric disk (keeps the Sobol stratification), lifted to the hemisphere;
- * orthonormal basis after Duff et al. 2017. */
-static void cosine_dir(const float n[3], float u0, float u1, float d[3]) {
-  float a = 2.0f * u0 - 1.0f, b = 2.0f * u1 - 1.0f, r, phi;
-  if (a == 0.0f && b == 0.0f) {
-    r = 0.0f;
-    phi = 0.0f;
-  } else if (fabsf(a) > fabsf(b)) {
-    r = a;
-    phi = (float)M_PI_4 * (b / a);
-  } else {
-    r = b;
-    phi = (float)M_PI_2 - (float)M_PI_4 * (a / b);
-  }
-  float x = r * cosf(phi), y = r * sinf(phi);
-  float z = sqrtf(fmaxf(0.0f, 1.0f - x * x - y * y));
-  float sign = copysignf(1.0f, n[2]);
-  float aa = -1.0f / (sign + n[2]), bb = n[0] * n[1] * aa;
-  float t[3] = {1.0f + sign * n[0] * n[0] * aa, sign * bb, -sign * n[0]};
-  float s[3] = {bb, sign + n[1] * n[1] * aa, -n[1]};
-  /* t, s, n orthonormal and x^2 + y^2 + z^2 = 1: d is unit to rounding. */
-  for (int k = 0; k < 3; k++) d[k] = x * t[k] + y * s[k] + z * n[k];
-}
-
-/* Picks fan triangle and point for sample u (6 dims: u[2], u[3], u[5] place
- * the point, u[4] picks the triangle); returns the triangle. */
-static uint32_t fan_point(const cv_tracer *tr, uint32_t v, const float *u, float p[3]) {
-  size_t lo = tr->fan_off[v], hi = tr->fan_off[v + 1] - 1;
-  while (lo < hi) { /* first entry with cdf > u4 */
-    size_t mid = (lo + hi) / 2;
-    if (tr->fan_cdf[mid] > u[4]) hi = mid;
-    else lo = mid + 1;
-  }
-  uint32_t t = tr->fan_tri[lo] >> 2, c = tr->fan_tri[lo] & 3u;
-  /* Point density proportional to v's barycentric b_v (the hat function):
-   * barycentrics ~ Dirichlet(2,1,1).  With three uniforms sorted
-   * s0 <= s1 <= s2, the spacings (s0, s1-s0, s2-s1, 1-s2) are
-   * Dirichlet(1,1,1,1); merging the first two gives (s1, s2-s1, 1-s2). */
-  float a = u[2], b = u[3], c2 = u[5], tmp;
-  if (a > b) { tmp = a; a = b; b = tmp; }
-  if (b > c2) { tmp = b; b = c2; c2 = tmp; }
-  if (a > b) { tmp = a; a = b; b = tmp; }
-  float bv = b, b1 = c2 - b, b2 = 1.0f - c2;
-  const uint32_t *tv = tr->m->tri + 3 * t;
-  const float *P0 = tr->m->pos + 3 * tv[c], *P1 = tr->m->pos + 3 * tv[(c + 1) % 3],
-              *P2 = tr->m->pos + 3 * tv[(c + 2) % 3];
-  /* Shrink towards v by the spread (1 = the whole hat, as in the paper). */
-  const float lam = tr->spread;
-  bv = 1.0f - lam * (1.0f - bv);
-  b1 *= lam;
-  b2 *= lam;
-  for (int k = 0; k < 3; k++) p[k] = bv * P0[k] + b1 * P1[k] + b2 * P2[k];
-  return t;
-}
-
-/* Per-vertex sequence state: two independently shuffled Owen-scrambled
- * Sobol chunks ("padding", Burley 2020 section 4): a 2-D chunk for the
- * direction and a 4-D chunk for the starting point (triangle choice and three
- * barycentric uniforms).  Each chunk keeps the good low-dimensional
- * stratification that one 6-D point would lose. */
-typedef struct {
-  uint32_t sa, d[7];
-} vseq;
-
-static inline void vseq_init(vseq *q, uint32_t seed, uint32_t v) {
-  uint32_t vs = cv_hash_combine(seed, v);
-  q->sa = cv_hash_combine(vs, 0xD1u);
-  cv_sobol_dim_seeds(q->sa, 7, q->d);
-}
-
-/* u[0..1] direction, u[2], u[3], u[5] barycentric uniforms, u[4] triangle,
- * u[6] (when ndims = 7) the sampling strategy of the direct pass. */
-static inline void vseq_sample(const cv_sobol_tab *tab, const vseq *q, uint32_t j, int ndims,
-                               float *u) {
-  cv_sobol_owen_tab(tab, j, q->sa, q->d, ndims, u);
-}
-
-static inline uint32_t sample_ray(const cv_tracer *tr, uint32_t v, uint32_t j, const vseq *q,
-                                  float org[3], float dir[3]) {
-  float u[6], p[3];
-  vseq_sample(&tr->sobol, q, j, 6, u);
-  uint32_t t = fan_point(tr, v, u, p);
-  const float *n = tr->tri_n + 3 * t;
-  cosine_dir(n, u[0], u[1], dir);
-  cv_rt_offset_origin(p, n, org);
-  return t;
-}
-
-int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed, float org[3],
-                     float dir[3], uint32_t *tri) {
-  if (tr->fan_off[v + 1] == tr->fan_off[v]) return 0;
-  vseq q;
-  vseq_init(&q, seed, v);
-  uint32_t t = sample_ray(tr, v, j, &q, org, dir);
-  if (tri) *tri = t;
-  return 1;
-}
 
 /* Mixing of the two strategies in the direct pass: a pilot of PILOT_RAYS
  * cosine rays (own seed, not part of the estimate, so the estimator stays
@@ -307,52 +31,6 @@ int cv_tracer_sample(const cv_tracer *tr, uint32_t v, uint32_t j, uint32_t seed,
 #define PILOT_RAYS 32
 #define MAX_WINDOW_FRACTION 0.75f
 #define F_COS 0.3f
-
-/* Per-vertex choice of an opening: probabilities proportional to a rough
- * estimate of each opening's contribution seen from p with normal n
- * (area x cosines / distance^2, as for many-light selection), plus a small
- * floor so no opening that might be visible is starved.  Any choice is
- * unbiased because the pdf below uses these same probabilities. */
-static int window_probs(const cv_tracer *tr, const float p[3], const float n[3], double *prob) {
-  double sum = 0;
-  for (int g = 0; g < tr->ngroup; g++) {
-    const struct win_group *G = &tr->groups[g];
-    double d[3], d2 = 0;
-    for (int k = 0; k < 3; k++) {
-      d[k] = G->centroid[k] - p[k];
-      d2 += d[k] * d[k];
-    }
-    double dl = sqrt(d2) + 1e-9;
-    double co = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / dl;
-    double cq = fabs(G->normal[0] * d[0] + G->normal[1] * d[1] + G->normal[2] * d[2]) / dl;
-    /* a large opening close by can be in front even when its centroid is not */
-    double reach = sqrt(G->area);
-    double front = co > 0 ? co : (dl < 2 * reach ? 0.25 : 0.0);
-    prob[g] = G->area * (front + 0.05) * (cq + 0.1) / (d2 + G->area);
-    sum += prob[g];
-  }
-  if (!(sum > 0)) return 0;
-  for (int g = 0; g < tr->ngroup; g++) prob[g] /= sum;
-  return 1;
-}
-
-/* Uniform point on opening g from (u0, u1): the triangle by area within the
- * group, then u0 rescaled within its CDF bucket and the square-root mapping. */
-static void window_point(const cv_tracer *tr, int g, float u0, float u1, float q[3]) {
-  size_t lo = tr->groups[g].begin, hi = tr->groups[g].end - 1, first = lo;
-  while (lo < hi) {
-    size_t mid = (lo + hi) / 2;
-    if (tr->win_cdf[mid] > u0) hi = mid;
-    else lo = mid + 1;
-  }
-  float c0 = lo > first ? tr->win_cdf[lo - 1] : 0.0f, w = tr->win_cdf[lo] - c0;
-  float r = w > 0 ? (u0 - c0) / w : 0.5f;
-  r = r < 0 ? 0 : (r > 1 ? 1 : r);
-  const uint32_t *tv = tr->m->tri + 3 * tr->win_tri[lo];
-  const float *A = tr->m->pos + 3 * tv[0], *B = tr->m->pos + 3 * tv[1], *C = tr->m->pos + 3 * tv[2];
-  float su = sqrtf(r), b0 = 1.0f - su, b1 = u1 * su, b2 = 1.0f - b0 - b1;
-  for (int k = 0; k < 3; k++) q[k] = b0 * A[k] + b1 * B[k] + b2 * C[k];
-}
 
 /* Direct pass for one vertex: acc[i] estimates (1/pi) * integral of
  * y_i(w) V(w) max(n.w, 0) dw; alb = mean albedo of the sampled triangles.
@@ -700,20 +378,14 @@ __attribute__((target("avx2,f16c"))) static void bounce_add_avx2(const bounce_hi
 }
 #endif
 
-/* The sums the CPU runs best, or the portable ones when simd == 0. */
+/* The tracer's sums: AVX2 when cv_tracer_set_simd chose them, else portable. */
 static bounce_add_fn bounce_add_pick(int simd) {
 #ifdef CV_BAKE_X86_SIMD
-  if (simd && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c"))
-    return bounce_add_avx2;
+  if (simd) return bounce_add_avx2; /* the CPU's support checked by cv_tracer_set_simd */
 #else
   (void)simd;
 #endif
   return bounce_add_portable;
-}
-
-int cv_tracer_set_simd(cv_tracer *tr, int on) {
-  tr->bounce_add = bounce_add_pick(on);
-  return tr->bounce_add != bounce_add_portable;
 }
 
 /* Bounce pass for one vertex: acc[c*nc+i] = mean of albedo_c(t) * prev(q)[c][i].
@@ -772,7 +444,7 @@ static void bounce_locate(const cv_tracer *tr, const cv_bounce_records *R, bounc
 /* Stage 3: the packet's hits added to the sums, in ray order. */
 static void bounce_sum(const cv_tracer *tr, const cv_bounce_records *R, int nc,
                        const bounce_packet *pk, double *acc, double *accr) {
-  const bounce_add_fn add = tr->bounce_add;
+  const bounce_add_fn add = bounce_add_pick(tr->simd);
   const cv_mesh *m = tr->m;
   for (int b = 0; b < pk->n; b++) {
     if (pk->prim[b] == CV_RT_NO_HIT) continue;
