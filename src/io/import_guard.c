@@ -22,15 +22,6 @@ typedef struct reply {
   uint32_t has_uv, has_tex; /* corner UVs (6*nt floats) and texture paths (nm x CV_TEX_PATH_MAX) follow */
 } reply;
 
-void cv_import_limits_default(cv_import_opts *o) {
-  long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-  double ram_mb = (pages > 0 && page > 0) ? (double)pages * (double)page / 1048576.0 : 0;
-  o->limit_seconds = cv_child_env_limit("CAVE_IMPORT_TIMEOUT", CV_IMPORT_DEFAULT_SECONDS);
-  double mb = ram_mb * 0.75;
-  if (mb <= 0 || mb > CV_IMPORT_DEFAULT_MEMORY_MB) mb = CV_IMPORT_DEFAULT_MEMORY_MB;
-  o->limit_memory_mb = cv_child_env_limit("CAVE_IMPORT_MEMORY_MB", mb);
-}
-
 typedef struct import_job {
   const char *path;
   const cv_import_opts *opts;
@@ -188,4 +179,8 @@ int cv_mesh_import_ex(const char *path, const cv_import_opts *opts, cv_mesh **ou
   }
   cv_child_result_free(&res);
   return st;
+}
+
+int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err) {
+  return cv_mesh_import_ex(path, opts, out, NULL, err);
 }

@@ -1,6 +1,7 @@
 /* Mesh import through assimp's C API (see mesh_import.h). */
 #include "io/mesh_import.h"
 
+#include "io/child_guard.h"
 #include "io/texture.h"
 #include "io/texture_embed.h"
 
@@ -16,6 +17,17 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+
+/* The limits: from CAVE_IMPORT_TIMEOUT / CAVE_IMPORT_MEMORY_MB, else the
+ * defaults (memory: 3/4 of the RAM, at most CV_IMPORT_DEFAULT_MEMORY_MB). */
+void cv_import_limits_default(cv_import_opts *o) {
+  long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  double ram_mb = (pages > 0 && page > 0) ? (double)pages * (double)page / 1048576.0 : 0;
+  o->limit_seconds = cv_child_env_limit("CAVE_IMPORT_TIMEOUT", CV_IMPORT_DEFAULT_SECONDS);
+  double mb = ram_mb * 0.75;
+  if (mb <= 0 || mb > CV_IMPORT_DEFAULT_MEMORY_MB) mb = CV_IMPORT_DEFAULT_MEMORY_MB;
+  o->limit_memory_mb = cv_child_env_limit("CAVE_IMPORT_MEMORY_MB", mb);
+}
 
 void cv_import_opts_default(cv_import_opts *o) {
   memset(o, 0, sizeof *o);
@@ -302,10 +314,6 @@ static void read_frame(const char *path, const struct aiScene *sc, cv_file_frame
 }
 
 /* ---------------- import ---------------- */
-int cv_mesh_import(const char *path, const cv_import_opts *opts, cv_mesh **out, cv_err *err) {
-  return cv_mesh_import_ex(path, opts, out, NULL, err);
-}
-
 int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh **out,
                           cv_import_stats *stats, cv_err *err) {
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "mesh import: out is NULL");
