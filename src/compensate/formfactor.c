@@ -675,6 +675,264 @@ double cv_ff_kernel_gather(const cv_ff_kernel *k, size_t i, size_t j) {
   return f > 0 ? f * (pj->area / pi->area) : 0.0;
 }
 
+/* Pass 1, one row: the senders j > i of patch i (both directions of each
+ * pair) into ur, using the scratch tc/ta/tb (n entries each).  Returns 1
+ * when out of memory. */
+static int upper_row_fill(const cv_display *d, const cv_ff_kernel *kern, size_t i, uint32_t *tc,
+                          float *ta, float *tb, upper_row *ur) {
+  const int trace = kern->trace;
+  const vis_ctx *vis = trace ? &kern->vis : NULL;
+  const unsigned char *skip = kern->skip;
+  const size_t ns = d->n_surfaces;
+  const cv_patch *pi = &d->patches[i];
+  const int li = is_lambert(&d->surfaces[pi->surface]);
+  size_t m = 0;
+  for (size_t k = 0; k < ns; k++) {
+    if (skip[pi->surface * ns + k]) continue;
+    const cv_display_surface *sk = &d->surfaces[k];
+    size_t j0 = sk->offset, j1 = sk->offset + (size_t)sk->nu * sk->nv;
+    if (j1 <= i + 1) continue;
+    if (j0 < i + 1) j0 = i + 1;
+    const int lk = is_lambert(sk);
+    for (size_t j = j0; j < j1; j++) {
+      double fji, fij;
+      if (li && lk) {
+        fji = pair_value(d, j, i, vis, &ur->st);
+        fij = fji * d->patches[j].area / pi->area; /* reciprocity */
+      } else {
+        fji = pair_value(d, j, i, vis, &ur->st);
+        fij = pair_value(d, i, j, vis, &ur->st);
+      }
+      if (fji > 0 || fij > 0) {
+        tc[m] = (uint32_t)j;
+        ta[m] = (float)fji;
+        tb[m++] = (float)fij;
+      }
+    }
+  }
+  ur->col = malloc((m ? m : 1) * sizeof *ur->col);
+  ur->a = malloc((m ? m : 1) * sizeof *ur->a);
+  ur->b = malloc((m ? m : 1) * sizeof *ur->b);
+  if (!ur->col || !ur->a || !ur->b) return 1;
+  memcpy(ur->col, tc, m * sizeof *tc);
+  memcpy(ur->a, ta, m * sizeof *ta);
+  memcpy(ur->b, tb, m * sizeof *tb);
+  ur->cnt = m;
+  return 0;
+}
+
+/* Pass 1: every unordered pair once (row i, senders j > i), both
+ * directions.  Rows are independent: the result does not depend on the
+ * schedule.  Returns 1 when out of memory. */
+static int pass_upper(const cv_display *d, const cv_ff_kernel *kern, int quiet, upper_row *up) {
+  const size_t n = d->n_patches;
+  cv_progress *prog = NULL;
+  if (n >= 2048)
+    cv_progress_create_ex("form factors", (uint64_t)n * (n - 1) / 2,
+                          quiet ? CV_PROGRESS_QUIET : 0, NULL, &prog);
+  int nomem = 0;
+#pragma omp parallel
+  {
+    uint32_t *tc = malloc(n * sizeof *tc);
+    float *ta = malloc(n * sizeof *ta), *tb = malloc(n * sizeof *tb);
+    if (!tc || !ta || !tb) {
+#pragma omp atomic write
+      nomem = 1;
+    }
+    if (kern->trace) cv_rt_thread_init();
+#pragma omp for schedule(dynamic, 4)
+    for (size_t i = 0; i < n; i++) {
+      if (!tc || !ta || !tb) continue;
+      if (upper_row_fill(d, kern, i, tc, ta, tb, &up[i])) {
+#pragma omp atomic write
+        nomem = 1;
+        continue;
+      }
+      cv_progress_add(prog, n - 1 - i);
+    }
+    free(tc);
+    free(ta);
+    free(tb);
+  }
+  cv_progress_finish(prog);
+  cv_progress_destroy(prog);
+  return nomem;
+}
+
+/* Pass 2: the full gather rows (lower part = transposed upper lists),
+ * columns ascending; zero entries are not stored.  off (n + 1) gets the row
+ * offsets, *fcol / *fval the entries (*nnz_full of them).  Returns 1 when
+ * out of memory. */
+static int pass_gather_rows(const cv_display *d, const upper_row *up, size_t *off, uint32_t **fcol_out,
+                            float **fval_out, size_t *nnz_full) {
+  const size_t n = d->n_patches;
+  for (size_t i = 0; i < n; i++)
+    for (size_t k = 0; k < up[i].cnt; k++) {
+      off[i] += up[i].a[k] > 0;
+      off[up[i].col[k]] += up[i].b[k] > 0;
+    }
+  *nnz_full = 0;
+  for (size_t i = 0; i < n; i++) {
+    size_t c = off[i];
+    off[i] = *nnz_full;
+    *nnz_full += c;
+  }
+  off[n] = *nnz_full;
+  uint32_t *fcol = *fcol_out = malloc((*nnz_full + 1) * sizeof *fcol);
+  float *fval = *fval_out = malloc((*nnz_full + 1) * sizeof *fval);
+  size_t *fill = malloc((n + 1) * sizeof *fill);
+  if (!fcol || !fval || !fill) {
+    free(fill);
+    return 1;
+  }
+  memcpy(fill, off, (n + 1) * sizeof *fill);
+  /* lower entries first (k < i, in ascending k), then the upper list */
+  for (size_t k = 0; k < n; k++) {
+    const upper_row *ur = &up[k];
+    for (size_t e = 0; e < ur->cnt; e++) {
+      size_t i = ur->col[e];
+      /* Row r gathers the light sender c puts on r per unit of r's area:
+       * G_rc = (A_c / A_r) F_{c->r} (sender c's own lobe), which is
+       * F_{r->c} for Lambertian patches by reciprocity. */
+      if (ur->b[e] > 0) {
+        fcol[fill[i]] = (uint32_t)k;
+        fval[fill[i]++] = (float)(ur->b[e] * (d->patches[k].area / d->patches[i].area));
+      }
+    }
+    for (size_t e = 0; e < ur->cnt; e++)
+      if (ur->a[e] > 0) {
+        fcol[fill[k]] = ur->col[e];
+        fval[fill[k]++] = (float)(ur->a[e] * (d->patches[ur->col[e]].area / d->patches[k].area));
+      }
+  }
+  /* the upper entries of row k were appended after all its lower
+   * entries only if every lower entry came first: true, because the
+   * lower entries of row k come from rows < k, processed earlier. */
+  free(fill);
+  return 0;
+}
+
+/* Pass 1's statistics into r, and its rows freed. */
+static void upper_rows_free(upper_row *up, size_t n, cv_ff_report *r) {
+  for (size_t i = 0; i < n; i++) {
+    r->point_evals += up[i].st.evals;
+    r->rays += up[i].st.rays;
+    r->refined_pairs += up[i].st.refined;
+    r->clamped_pairs += up[i].st.clamped;
+    free(up[i].col);
+    free(up[i].a);
+    free(up[i].b);
+  }
+  free(up);
+}
+
+/* Pass 3, one row: keeps the entries of row [b, e) at or above the cut
+ * (rel_threshold of the row's energy, raised while the dropped energy fits
+ * drop_budget), compacting the row in place; sum, dropped energy and kept
+ * count out.  sorted: scratch of e - b entries. */
+static void sparsify_row(const cv_ff_params *p, size_t b, size_t e, uint32_t *fcol, float *fval,
+                         float *sorted, double *rsum, double *rdrop, size_t *kept) {
+  double sum = 0;
+  for (size_t k = b; k < e; k++) sum += fval[k];
+  double cut = p->rel_threshold * sum;
+  if (p->drop_budget > 0 && e > b) {
+    size_t q = 0;
+    double below = 0;
+    for (size_t k = b; k < e; k++) {
+      if (fval[k] < cut)
+        below += fval[k];
+      else
+        sorted[q++] = fval[k];
+    }
+    qsort(sorted, q, sizeof *sorted, cmp_float);
+    double budget = p->drop_budget * sum - below, acc = 0;
+    size_t k = 0;
+    while (k < q && acc + sorted[k] <= budget) acc += sorted[k++];
+    if (k > 0 && k < q) cut = fmax(cut, sorted[k]);
+  }
+  size_t w = b;
+  double dropped = 0;
+  for (size_t k = b; k < e; k++) {
+    if (fval[k] >= cut) {
+      fcol[w] = fcol[k];
+      fval[w++] = fval[k];
+    } else {
+      dropped += fval[k];
+    }
+  }
+  *rsum = sum;
+  *rdrop = dropped;
+  *kept = w - b;
+}
+
+/* Pass 3: sparsify each row relative to its energy.  Returns 1 when out of
+ * memory. */
+static int pass_sparsify(const cv_ff_params *p, size_t n, const size_t *off, uint32_t *fcol,
+                         float *fval, double *rsum, double *rdrop, size_t *kept) {
+  int nomem = 0;
+#pragma omp parallel
+  {
+    float *sorted = malloc((n + 1) * sizeof *sorted);
+    if (!sorted) {
+#pragma omp atomic write
+      nomem = 1;
+    }
+#pragma omp for schedule(dynamic, 16)
+    for (size_t i = 0; i < n; i++) {
+      if (!sorted) continue;
+      sparsify_row(p, off[i], off[i + 1], fcol, fval, sorted, &rsum[i], &rdrop[i], &kept[i]);
+    }
+    free(sorted);
+  }
+  return nomem;
+}
+
+/* The kept entries of every row into F (allocated here), and the row and
+ * column sums and dropped shares into r. */
+static int assemble(size_t n, const size_t *off, const uint32_t *fcol, const float *fval,
+                    const size_t *kept, const double *rsum, const double *rdrop, cv_ffmatrix **out,
+                    cv_ff_report *r) {
+  size_t nnz = 0;
+  for (size_t i = 0; i < n; i++) nnz += kept[i];
+  cv_ffmatrix *F = NULL;
+  int st = cv_ffmatrix_alloc(n, nnz, &F);
+  double *colsum = st ? NULL : calloc(n, sizeof *colsum);
+  if (!st && !colsum) st = CV_ERR_NOMEM;
+  if (st) {
+    cv_ffmatrix_destroy(F);
+    return st;
+  }
+  size_t o = 0, with_energy = 0;
+  double tot = 0, tot_drop = 0, drop_sum = 0;
+  r->row_sum_min = INFINITY;
+  for (size_t i = 0; i < n; i++) {
+    F->row_off[i] = o;
+    memcpy(F->col + o, fcol + off[i], kept[i] * sizeof *fcol);
+    memcpy(F->val + o, fval + off[i], kept[i] * sizeof *fval);
+    for (size_t k = o; k < o + kept[i]; k++) colsum[F->col[k]] += F->val[k];
+    o += kept[i];
+    r->row_sum_min = fmin(r->row_sum_min, rsum[i]);
+    r->row_sum_max = fmax(r->row_sum_max, rsum[i]);
+    r->row_sum_mean += rsum[i] / (double)n;
+    tot += rsum[i];
+    tot_drop += rdrop[i];
+    if (rsum[i] > 0) {
+      double frac = rdrop[i] / rsum[i];
+      r->dropped_max = fmax(r->dropped_max, frac);
+      drop_sum += frac;
+      with_energy++;
+    }
+  }
+  F->row_off[n] = o;
+  for (size_t j = 0; j < n; j++) r->col_sum_max = fmax(r->col_sum_max, colsum[j]);
+  r->dropped_mean = with_energy ? drop_sum / (double)with_energy : 0;
+  r->dropped_total = tot > 0 ? tot_drop / tot : 0;
+  r->nnz = nnz;
+  free(colsum);
+  *out = F;
+  return CV_OK;
+}
+
 int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffmatrix **F_gather,
                          cv_ff_report *rep, cv_err *err) {
   *F_gather = NULL;
@@ -687,9 +945,6 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
   kst = cv_ff_kernel_create(d, &p, &kern, err);
   if (kst) return kst;
   const int trace = kern->trace;
-  const vis_ctx vis = kern->vis;
-  const unsigned char *skip = kern->skip;
-  const size_t ns = d->n_surfaces;
   upper_row *up = calloc(n, sizeof *up);
   size_t *off = calloc(n + 1, sizeof *off);
   if (!up || !off) {
@@ -698,141 +953,17 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
     cv_ff_kernel_destroy(kern);
     return cv_err_set(err, CV_ERR_NOMEM, "form factors: out of memory");
   }
-
-  cv_progress *prog = NULL;
-  if (n >= 2048)
-    cv_progress_create_ex("form factors", (uint64_t)n * (n - 1) / 2,
-                          p.quiet ? CV_PROGRESS_QUIET : 0, NULL, &prog);
-
-  /* Pass 1: every unordered pair once (row i, senders j > i), both
-   * directions.  Rows are independent: the result does not depend on the
-   * schedule. */
-  int nomem = 0;
-#pragma omp parallel
-  {
-    uint32_t *tc = malloc(n * sizeof *tc);
-    float *ta = malloc(n * sizeof *ta), *tb = malloc(n * sizeof *tb);
-    if (!tc || !ta || !tb) {
-#pragma omp atomic write
-      nomem = 1;
-    }
-    if (trace) cv_rt_thread_init();
-#pragma omp for schedule(dynamic, 4)
-    for (size_t i = 0; i < n; i++) {
-      if (!tc || !ta || !tb) continue;
-      upper_row *ur = &up[i];
-      const cv_patch *pi = &d->patches[i];
-      const int li = is_lambert(&d->surfaces[pi->surface]);
-      size_t m = 0;
-      for (size_t k = 0; k < ns; k++) {
-        if (skip[pi->surface * ns + k]) continue;
-        const cv_display_surface *sk = &d->surfaces[k];
-        size_t j0 = sk->offset, j1 = sk->offset + (size_t)sk->nu * sk->nv;
-        if (j1 <= i + 1) continue;
-        if (j0 < i + 1) j0 = i + 1;
-        const int lk = is_lambert(sk);
-        for (size_t j = j0; j < j1; j++) {
-          double fji, fij;
-          if (li && lk) {
-            fji = pair_value(d, j, i, trace ? &vis : NULL, &ur->st);
-            fij = fji * d->patches[j].area / pi->area; /* reciprocity */
-          } else {
-            fji = pair_value(d, j, i, trace ? &vis : NULL, &ur->st);
-            fij = pair_value(d, i, j, trace ? &vis : NULL, &ur->st);
-          }
-          if (fji > 0 || fij > 0) {
-            tc[m] = (uint32_t)j;
-            ta[m] = (float)fji;
-            tb[m++] = (float)fij;
-          }
-        }
-      }
-      ur->col = malloc((m ? m : 1) * sizeof *ur->col);
-      ur->a = malloc((m ? m : 1) * sizeof *ur->a);
-      ur->b = malloc((m ? m : 1) * sizeof *ur->b);
-      if (!ur->col || !ur->a || !ur->b) {
-#pragma omp atomic write
-        nomem = 1;
-        continue;
-      }
-      memcpy(ur->col, tc, m * sizeof *tc);
-      memcpy(ur->a, ta, m * sizeof *ta);
-      memcpy(ur->b, tb, m * sizeof *tb);
-      ur->cnt = m;
-      cv_progress_add(prog, n - 1 - i);
-    }
-    free(tc);
-    free(ta);
-    free(tb);
-  }
-  cv_progress_finish(prog);
-  cv_progress_destroy(prog);
+  int nomem = pass_upper(d, kern, p.quiet, up);
   cv_ff_kernel_destroy(kern);
 
-  /* Pass 2: the full gather rows (lower part = transposed upper lists),
-   * columns ascending; zero entries are not stored. */
   cv_ff_report r;
   memset(&r, 0, sizeof r);
   uint32_t *fcol = NULL;
   float *fval = NULL;
   size_t nnz_full = 0;
-  if (!nomem) {
-    for (size_t i = 0; i < n; i++)
-      for (size_t k = 0; k < up[i].cnt; k++) {
-        off[i] += up[i].a[k] > 0;
-        off[up[i].col[k]] += up[i].b[k] > 0;
-      }
-    for (size_t i = 0; i < n; i++) {
-      size_t c = off[i];
-      off[i] = nnz_full;
-      nnz_full += c;
-    }
-    off[n] = nnz_full;
-    fcol = malloc((nnz_full + 1) * sizeof *fcol);
-    fval = malloc((nnz_full + 1) * sizeof *fval);
-    size_t *fill = malloc((n + 1) * sizeof *fill);
-    if (!fcol || !fval || !fill) {
-      nomem = 1;
-    } else {
-      memcpy(fill, off, (n + 1) * sizeof *fill);
-      /* lower entries first (k < i, in ascending k), then the upper list */
-      for (size_t k = 0; k < n; k++) {
-        const upper_row *ur = &up[k];
-        for (size_t e = 0; e < ur->cnt; e++) {
-          size_t i = ur->col[e];
-          /* Row r gathers the light sender c puts on r per unit of r's area:
-           * G_rc = (A_c / A_r) F_{c->r} (sender c's own lobe), which is
-           * F_{r->c} for Lambertian patches by reciprocity. */
-          if (ur->b[e] > 0) {
-            fcol[fill[i]] = (uint32_t)k;
-            fval[fill[i]++] = (float)(ur->b[e] * (d->patches[k].area / d->patches[i].area));
-          }
-        }
-        for (size_t e = 0; e < ur->cnt; e++)
-          if (ur->a[e] > 0) {
-            fcol[fill[k]] = ur->col[e];
-            fval[fill[k]++] =
-                (float)(ur->a[e] * (d->patches[ur->col[e]].area / d->patches[k].area));
-          }
-      }
-      /* the upper entries of row k were appended after all its lower
-       * entries only if every lower entry came first: true, because the
-       * lower entries of row k come from rows < k, processed earlier. */
-    }
-    free(fill);
-  }
-  for (size_t i = 0; i < n; i++) {
-    r.point_evals += up[i].st.evals;
-    r.rays += up[i].st.rays;
-    r.refined_pairs += up[i].st.refined;
-    r.clamped_pairs += up[i].st.clamped;
-    free(up[i].col);
-    free(up[i].a);
-    free(up[i].b);
-  }
-  free(up);
+  if (!nomem) nomem = pass_gather_rows(d, up, off, &fcol, &fval, &nnz_full);
+  upper_rows_free(up, n, &r);
 
-  /* Pass 3: sparsify each row relative to its energy. */
   double *rsum = NULL, *rdrop = NULL;
   size_t *kept = NULL;
   if (!nomem) {
@@ -841,105 +972,20 @@ int cv_formfactors_build(const cv_display *d, const cv_ff_params *params, cv_ffm
     kept = calloc(n + 1, sizeof *kept);
     if (!rsum || !rdrop || !kept) nomem = 1;
   }
-  if (!nomem) {
-#pragma omp parallel
-    {
-      float *sorted = malloc((n + 1) * sizeof *sorted);
-      if (!sorted) {
-#pragma omp atomic write
-        nomem = 1;
-      }
-#pragma omp for schedule(dynamic, 16)
-      for (size_t i = 0; i < n; i++) {
-        if (!sorted) continue;
-        const size_t b = off[i], e = off[i + 1];
-        double sum = 0;
-        for (size_t k = b; k < e; k++) sum += fval[k];
-        double cut = p.rel_threshold * sum;
-        if (p.drop_budget > 0 && e > b) {
-          size_t q = 0;
-          double below = 0;
-          for (size_t k = b; k < e; k++) {
-            if (fval[k] < cut)
-              below += fval[k];
-            else
-              sorted[q++] = fval[k];
-          }
-          qsort(sorted, q, sizeof *sorted, cmp_float);
-          double budget = p.drop_budget * sum - below, acc = 0;
-          size_t k = 0;
-          while (k < q && acc + sorted[k] <= budget) acc += sorted[k++];
-          if (k > 0 && k < q) cut = fmax(cut, sorted[k]);
-        }
-        /* keep entries >= cut, compacting the row in place */
-        size_t w = b;
-        double dropped = 0;
-        for (size_t k = b; k < e; k++) {
-          if (fval[k] >= cut) {
-            fcol[w] = fcol[k];
-            fval[w++] = fval[k];
-          } else {
-            dropped += fval[k];
-          }
-        }
-        rsum[i] = sum;
-        rdrop[i] = dropped;
-        kept[i] = w - b;
-      }
-      free(sorted);
-    }
-  }
+  if (!nomem) nomem = pass_sparsify(&p, n, off, fcol, fval, rsum, rdrop, kept);
 
   cv_ffmatrix *F = NULL;
-  size_t nnz = 0;
-  int st = nomem ? CV_ERR_NOMEM : CV_OK;
-  if (!st) {
-    for (size_t i = 0; i < n; i++) nnz += kept[i];
-    st = cv_ffmatrix_alloc(n, nnz, &F);
-  }
-  double *colsum = st ? NULL : calloc(n, sizeof *colsum);
-  if (!st && !colsum) st = CV_ERR_NOMEM;
-  if (!st) {
-    size_t o = 0, with_energy = 0;
-    double tot = 0, tot_drop = 0, drop_sum = 0;
-    r.row_sum_min = INFINITY;
-    for (size_t i = 0; i < n; i++) {
-      F->row_off[i] = o;
-      memcpy(F->col + o, fcol + off[i], kept[i] * sizeof *fcol);
-      memcpy(F->val + o, fval + off[i], kept[i] * sizeof *fval);
-      for (size_t k = o; k < o + kept[i]; k++) colsum[F->col[k]] += F->val[k];
-      o += kept[i];
-      r.row_sum_min = fmin(r.row_sum_min, rsum[i]);
-      r.row_sum_max = fmax(r.row_sum_max, rsum[i]);
-      r.row_sum_mean += rsum[i] / (double)n;
-      tot += rsum[i];
-      tot_drop += rdrop[i];
-      if (rsum[i] > 0) {
-        double frac = rdrop[i] / rsum[i];
-        r.dropped_max = fmax(r.dropped_max, frac);
-        drop_sum += frac;
-        with_energy++;
-      }
-    }
-    F->row_off[n] = o;
-    for (size_t j = 0; j < n; j++) r.col_sum_max = fmax(r.col_sum_max, colsum[j]);
-    r.dropped_mean = with_energy ? drop_sum / (double)with_energy : 0;
-    r.dropped_total = tot > 0 ? tot_drop / tot : 0;
-  }
-  free(colsum);
+  int st = nomem ? CV_ERR_NOMEM : assemble(n, off, fcol, fval, kept, rsum, rdrop, &F, &r);
   free(fcol);
   free(fval);
   free(off);
   free(rsum);
   free(rdrop);
   free(kept);
-  if (st) {
-    cv_ffmatrix_destroy(F);
+  if (st)
     return cv_err_set(err, st, "form factors: out of memory (%zu patches, %zu entries)", n,
                       nnz_full);
-  }
   r.n = n;
-  r.nnz = nnz;
   r.nnz_full = nnz_full;
   r.visibility_traced = trace;
   r.seconds = cv_now_seconds() - t_start;
