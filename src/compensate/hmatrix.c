@@ -224,6 +224,212 @@ static int aca(const double *A, size_t m, size_t w, int kmax, aca_ws *s) {
   }
 }
 
+/* Per-thread scratch of the compression: the row cluster's slab (m x n,
+ * cluster-ordered columns), one block in double, the cross-approximation
+ * workspace, the block sums and which column clusters the slab touches. */
+typedef struct hm_scratch {
+  float *slab;
+  double *A, *sblk;
+  aca_ws s;
+  uint8_t *nzc;
+} hm_scratch;
+
+static void hm_scratch_free(hm_scratch *t) {
+  free(t->slab);
+  free(t->A);
+  free(t->s.E);
+  free(t->s.U);
+  free(t->s.V);
+  free(t->s.rowabs);
+  free(t->s.allowed);
+  free(t->s.err);
+  free(t->sblk);
+  free(t->nzc);
+}
+
+/* Returns 1 when every buffer was allocated. */
+static int hm_scratch_alloc(hm_scratch *t, size_t maxm, size_t n, size_t nc) {
+  t->slab = malloc(maxm * n * sizeof *t->slab);
+  t->A = malloc(maxm * maxm * sizeof *t->A);
+  t->s = (aca_ws){malloc(maxm * maxm * sizeof(double)), malloc(maxm * maxm * sizeof(double)),
+                  malloc(maxm * maxm * sizeof(double)), malloc(maxm * sizeof(double)),
+                  malloc(maxm * sizeof(double)), malloc(maxm * sizeof(double))};
+  t->sblk = malloc(maxm * sizeof *t->sblk);
+  t->nzc = malloc(nc);
+  return t->slab && t->A && t->s.E && t->s.U && t->s.V && t->s.rowabs && t->s.allowed && t->s.err &&
+         t->sblk && t->nzc;
+}
+
+/* The cluster order: h->cstart (cluster offsets), h->perm (patches in
+ * cluster order) and pos_of (each patch's place in it); *maxm the largest
+ * cluster.  Errors: a cluster index out of range, a cluster of 0 or more
+ * than 4096 patches, out of memory. */
+static int cluster_layout(const uint32_t *cluster, size_t n, size_t nc, cv_hmatrix *h,
+                          uint32_t *pos_of, size_t *maxm, cv_err *err) {
+  for (size_t i = 0; i < n; i++) {
+    if (cluster[i] >= nc)
+      return cv_err_set(err, CV_ERR_INVALID, "hmatrix: patch %zu has cluster %u, expected < %zu",
+                        i, cluster[i], nc);
+    h->cstart[cluster[i] + 1]++;
+  }
+  *maxm = 0;
+  for (size_t c = 0; c < nc; c++) {
+    const size_t sz = h->cstart[c + 1];
+    if (sz == 0 || sz > 4096)
+      return cv_err_set(err, CV_ERR_INVALID,
+                        "hmatrix: cluster %zu has %zu patches, expected 1..4096", c, sz);
+    if (sz > *maxm) *maxm = sz;
+    h->cstart[c + 1] += h->cstart[c];
+  }
+  size_t *cur = malloc(nc * sizeof *cur);
+  if (!cur) return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
+  memcpy(cur, h->cstart, nc * sizeof *cur);
+  for (size_t i = 0; i < n; i++) {
+    const size_t p = cur[cluster[i]]++;
+    h->perm[p] = (uint32_t)i;
+    pos_of[i] = (uint32_t)p;
+  }
+  free(cur);
+  return CV_OK;
+}
+
+/* Row cluster r's rows of F into the slab (cluster-ordered columns), and
+ * which column clusters they touch (t->nzc); returns how many. */
+static size_t slab_fill(const cv_ffmatrix *F, const uint32_t *cluster, const cv_hmatrix *h,
+                        size_t nc, const uint32_t *pos_of, size_t r, hm_scratch *t) {
+  const size_t n = F->n, r0 = h->cstart[r], m = h->cstart[r + 1] - r0;
+  memset(t->slab, 0, m * n * sizeof *t->slab);
+  memset(t->nzc, 0, nc);
+  for (size_t ii = 0; ii < m; ii++) {
+    const size_t i = h->perm[r0 + ii];
+    for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) {
+      if (F->val[k] == 0) continue;
+      t->slab[ii * n + pos_of[F->col[k]]] = F->val[k];
+      t->nzc[cluster[F->col[k]]] = 1;
+    }
+  }
+  size_t nb = 0;
+  for (size_t c = 0; c < nc; c++) nb += t->nzc[c];
+  return nb;
+}
+
+/* Block (row cluster r, column cluster c) of the slab: dropped when all of
+ * it fits the error budget as zero (counted as error), stored as float
+ * factors of rank k when they take at most half the dense block (their
+ * exact error counted), else dense, appended to hr.  Returns 1 when out of
+ * memory. */
+static int compress_block(cv_hmatrix *h, const double *rowsum, double tol, size_t nb, size_t r,
+                          size_t c, hm_scratch *t, hrow *hr) {
+  const size_t n = h->n, r0 = h->cstart[r], m = h->cstart[r + 1] - r0;
+  const size_t c0 = h->cstart[c], wdt = h->cstart[c + 1] - c0;
+  double *A = t->A;
+  aca_ws *s = &t->s;
+  for (size_t ii = 0; ii < m; ii++) {
+    double sb = 0;
+    for (size_t jj = 0; jj < wdt; jj++) {
+      const double a = t->slab[ii * n + c0 + jj];
+      A[ii * wdt + jj] = a;
+      sb += a;
+    }
+    t->sblk[ii] = sb;
+    s->allowed[ii] = tol * 0.5 * (sb + rowsum[h->perm[r0 + ii]] / (double)nb);
+  }
+  /* Low rank only when the factors take at most half the dense block. */
+  const int kmax = (int)(m * wdt / (2 * (m + wdt)));
+  int k = kmax > 0 ? aca(A, m, wdt, kmax, s) : -1;
+  if (k == 0) {
+    /* All of the block is within the budget as zero: drop it, count
+     * its whole content as error. */
+    for (size_t ii = 0; ii < m; ii++) h->row_err[h->perm[r0 + ii]] += t->sblk[ii];
+    return 0;
+  }
+  hblock *b = &hr->blocks[hr->nblocks++];
+  memset(b, 0, sizeof *b);
+  b->r0 = (uint32_t)r0;
+  b->m = (uint32_t)m;
+  b->c0 = (uint32_t)c0;
+  b->w = (uint32_t)wdt;
+  b->vals = malloc((k > 0 ? (size_t)k * (m + wdt) : m * wdt) * sizeof *b->vals);
+  if (!b->vals) {
+    hr->nblocks--;
+    return 1;
+  }
+  if (k <= 0) {
+    for (size_t ii = 0; ii < m; ii++)
+      memcpy(b->vals + ii * wdt, t->slab + ii * n + c0, wdt * sizeof *b->vals);
+    return 0;
+  }
+  float *U = b->vals, *V = U + m * (size_t)k;
+  for (size_t ii = 0; ii < m; ii++)
+    for (int q = 0; q < k; q++) U[ii * (size_t)k + q] = (float)s->U[ii * (size_t)kmax + q];
+  for (int q = 0; q < k; q++)
+    for (size_t jj = 0; jj < wdt; jj++) V[(size_t)q * wdt + jj] = (float)s->V[(size_t)q * wdt + jj];
+  /* The error of what is stored (float factors), exactly. */
+  for (size_t ii = 0; ii < m; ii++) {
+    double e = 0;
+    for (size_t jj = 0; jj < wdt; jj++) {
+      double a = A[ii * wdt + jj];
+      for (int q = 0; q < k; q++) a -= (double)U[ii * (size_t)k + q] * (double)V[(size_t)q * wdt + jj];
+      e += fabs(a);
+    }
+    h->row_err[h->perm[r0 + ii]] += e;
+  }
+  b->rank = (uint32_t)k;
+  return 0;
+}
+
+/* Every row cluster's blocks into rows[] (in parallel, one row cluster at a
+ * time per thread).  Returns 1 when out of memory. */
+static int compress_rows(const cv_ffmatrix *F, const uint32_t *cluster, size_t nc, double tol,
+                         const uint32_t *pos_of, const double *rowsum, size_t maxm, cv_hmatrix *h,
+                         hrow *rows) {
+  int fail = 0;
+#pragma omp parallel
+  {
+    hm_scratch t;
+    int ok = hm_scratch_alloc(&t, maxm, F->n, nc);
+    if (!ok) {
+#pragma omp atomic write
+      fail = 1;
+    }
+#pragma omp for schedule(dynamic, 1)
+    for (size_t r = 0; r < nc; r++) {
+      if (!ok) continue;
+      const size_t nb = slab_fill(F, cluster, h, nc, pos_of, r, &t);
+      hrow *hr = &rows[r];
+      hr->blocks = malloc((nb ? nb : 1) * sizeof *hr->blocks);
+      if (!hr->blocks) ok = 0;
+      for (size_t c = 0; c < nc && ok; c++)
+        if (t.nzc[c] && compress_block(h, rowsum, tol, nb, r, c, &t, hr)) ok = 0;
+      if (!ok) {
+#pragma omp atomic write
+        fail = 1;
+      }
+    }
+    hm_scratch_free(&t);
+  }
+  return fail;
+}
+
+/* The blocks of all row clusters into h (rows freed).  Returns 1 when out
+ * of memory. */
+static int gather_blocks(cv_hmatrix *h, hrow *rows, size_t nc) {
+  size_t total = 0;
+  for (size_t r = 0; r < nc; r++) total += rows[r].nblocks;
+  h->blocks = malloc((total + 1) * sizeof *h->blocks);
+  for (size_t r = 0; r < nc; r++) {
+    for (uint32_t b = 0; b < rows[r].nblocks; b++) {
+      if (h->blocks)
+        h->blocks[h->nb++] = rows[r].blocks[b];
+      else
+        free(rows[r].blocks[b].vals);
+    }
+    free(rows[r].blocks);
+  }
+  free(rows);
+  return h->blocks == NULL;
+}
+
 int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clusters,
                      double tol, cv_hmatrix **out, cv_hmatrix_info *info, cv_err *err) {
   const double t0 = omp_get_wtime();
@@ -238,32 +444,10 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
   uint32_t *pos_of = malloc(n * sizeof *pos_of);
   double *rowsum = malloc(n * sizeof *rowsum);
   hrow *rows = calloc(nc, sizeof *rows);
-  if (!h || !pos_of || !rowsum || !rows) {
-    free(pos_of);
-    free(rowsum);
-    free(rows);
-    cv_hmatrix_destroy(h);
-    return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory (%zu patches)", n);
-  }
-  int st = CV_OK;
-  for (size_t i = 0; i < n && !st; i++) {
-    if (cluster[i] >= nc)
-      st = cv_err_set(err, CV_ERR_INVALID, "hmatrix: patch %zu has cluster %u, expected < %zu", i,
-                      cluster[i], nc);
-    else
-      h->cstart[cluster[i] + 1]++;
-  }
   size_t maxm = 0;
-  for (size_t c = 0; c < nc && !st; c++) {
-    const size_t sz = h->cstart[c + 1];
-    if (sz == 0 || sz > 4096)
-      st = cv_err_set(err, CV_ERR_INVALID, "hmatrix: cluster %zu has %zu patches, expected 1..4096",
-                      c, sz);
-    if (sz > maxm) maxm = sz;
-    h->cstart[c + 1] += h->cstart[c];
-  }
-  size_t *cur = st ? NULL : malloc(nc * sizeof *cur);
-  if (!st && !cur) st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
+  int st = (!h || !pos_of || !rowsum || !rows)
+               ? cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory (%zu patches)", n)
+               : cluster_layout(cluster, n, nc, h, pos_of, &maxm, err);
   if (st) {
     free(pos_of);
     free(rowsum);
@@ -271,149 +455,13 @@ int cv_hmatrix_build(const cv_ffmatrix *F, const uint32_t *cluster, size_t n_clu
     cv_hmatrix_destroy(h);
     return st;
   }
-  memcpy(cur, h->cstart, nc * sizeof *cur);
-  for (size_t i = 0; i < n; i++) {
-    const size_t p = cur[cluster[i]]++;
-    h->perm[p] = (uint32_t)i;
-    pos_of[i] = (uint32_t)p;
-  }
-  free(cur);
   for (size_t i = 0; i < n; i++) {
     double s = 0;
     for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) s += F->val[k];
     rowsum[i] = s;
   }
-
-  int fail = 0;
-#pragma omp parallel
-  {
-    /* Per thread: the row cluster's slab (m x n, cluster-ordered columns),
-     * one block in double and the cross-approximation scratch. */
-    float *slab = malloc(maxm * n * sizeof *slab);
-    double *A = malloc(maxm * maxm * sizeof *A);
-    aca_ws s = {malloc(maxm * maxm * sizeof(double)), malloc(maxm * maxm * sizeof(double)),
-                malloc(maxm * maxm * sizeof(double)), malloc(maxm * sizeof(double)),
-                malloc(maxm * sizeof(double)), malloc(maxm * sizeof(double))};
-    double *sblk = malloc(maxm * sizeof *sblk);
-    uint8_t *nzc = malloc(nc);
-    int ok = slab && A && s.E && s.U && s.V && s.rowabs && s.allowed && s.err && sblk && nzc;
-    if (!ok) {
-#pragma omp atomic write
-      fail = 1;
-    }
-#pragma omp for schedule(dynamic, 1)
-    for (size_t r = 0; r < nc; r++) {
-      if (!ok) continue;
-      const size_t r0 = h->cstart[r], m = h->cstart[r + 1] - r0;
-      memset(slab, 0, m * n * sizeof *slab);
-      memset(nzc, 0, nc);
-      for (size_t ii = 0; ii < m; ii++) {
-        const size_t i = h->perm[r0 + ii];
-        for (size_t k = F->row_off[i]; k < F->row_off[i + 1]; k++) {
-          if (F->val[k] == 0) continue;
-          slab[ii * n + pos_of[F->col[k]]] = F->val[k];
-          nzc[cluster[F->col[k]]] = 1;
-        }
-      }
-      size_t nb = 0;
-      for (size_t c = 0; c < nc; c++) nb += nzc[c];
-      hrow *hr = &rows[r];
-      hr->blocks = malloc((nb ? nb : 1) * sizeof *hr->blocks);
-      if (!hr->blocks) {
-        ok = 0;
-#pragma omp atomic write
-        fail = 1;
-        continue;
-      }
-      for (size_t c = 0; c < nc && ok; c++) {
-        if (!nzc[c]) continue;
-        const size_t c0 = h->cstart[c], wdt = h->cstart[c + 1] - c0;
-        for (size_t ii = 0; ii < m; ii++) {
-          double sb = 0;
-          for (size_t jj = 0; jj < wdt; jj++) {
-            const double a = slab[ii * n + c0 + jj];
-            A[ii * wdt + jj] = a;
-            sb += a;
-          }
-          sblk[ii] = sb;
-          s.allowed[ii] = tol * 0.5 * (sb + rowsum[h->perm[r0 + ii]] / (double)nb);
-        }
-        /* Low rank only when the factors take at most half the dense block. */
-        const int kmax = (int)(m * wdt / (2 * (m + wdt)));
-        int k = kmax > 0 ? aca(A, m, wdt, kmax, &s) : -1;
-        if (k == 0) {
-          /* All of the block is within the budget as zero: drop it, count
-           * its whole content as error. */
-          for (size_t ii = 0; ii < m; ii++) h->row_err[h->perm[r0 + ii]] += sblk[ii];
-          continue;
-        }
-        hblock *b = &hr->blocks[hr->nblocks++];
-        memset(b, 0, sizeof *b);
-        b->r0 = (uint32_t)r0;
-        b->m = (uint32_t)m;
-        b->c0 = (uint32_t)c0;
-        b->w = (uint32_t)wdt;
-        b->vals = malloc((k > 0 ? (size_t)k * (m + wdt) : m * wdt) * sizeof *b->vals);
-        if (!b->vals) {
-          hr->nblocks--;
-          ok = 0;
-          break;
-        }
-        if (k > 0) {
-          float *U = b->vals, *V = U + m * (size_t)k;
-          for (size_t ii = 0; ii < m; ii++)
-            for (int q = 0; q < k; q++) U[ii * (size_t)k + q] = (float)s.U[ii * (size_t)kmax + q];
-          for (int q = 0; q < k; q++)
-            for (size_t jj = 0; jj < wdt; jj++)
-              V[(size_t)q * wdt + jj] = (float)s.V[(size_t)q * wdt + jj];
-          /* The error of what is stored (float factors), exactly. */
-          for (size_t ii = 0; ii < m; ii++) {
-            double e = 0;
-            for (size_t jj = 0; jj < wdt; jj++) {
-              double a = A[ii * wdt + jj];
-              for (int q = 0; q < k; q++)
-                a -= (double)U[ii * (size_t)k + q] * (double)V[(size_t)q * wdt + jj];
-              e += fabs(a);
-            }
-            h->row_err[h->perm[r0 + ii]] += e;
-          }
-          b->rank = (uint32_t)k;
-        } else {
-          for (size_t ii = 0; ii < m; ii++)
-            memcpy(b->vals + ii * wdt, slab + ii * n + c0, wdt * sizeof *b->vals);
-        }
-      }
-      if (!ok) {
-#pragma omp atomic write
-        fail = 1;
-      }
-    }
-    free(slab);
-    free(A);
-    free(s.E);
-    free(s.U);
-    free(s.V);
-    free(s.rowabs);
-    free(s.allowed);
-    free(s.err);
-    free(sblk);
-    free(nzc);
-  }
-  /* Gather the blocks of all row clusters into h. */
-  size_t total = 0;
-  for (size_t r = 0; r < nc; r++) total += rows[r].nblocks;
-  h->blocks = malloc((total + 1) * sizeof *h->blocks);
-  if (!h->blocks) fail = 1;
-  for (size_t r = 0; r < nc; r++) {
-    for (uint32_t b = 0; b < rows[r].nblocks; b++) {
-      if (h->blocks)
-        h->blocks[h->nb++] = rows[r].blocks[b];
-      else
-        free(rows[r].blocks[b].vals);
-    }
-    free(rows[r].blocks);
-  }
-  free(rows);
+  int fail = compress_rows(F, cluster, nc, tol, pos_of, rowsum, maxm, h, rows);
+  if (gather_blocks(h, rows, nc)) fail = 1;
   if (!fail && cv_hm_finish(h)) fail = 1;
   if (fail) {
     free(pos_of);
