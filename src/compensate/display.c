@@ -144,31 +144,28 @@ static int read_range(ctx *x, const cJSON *obj, const char *path, const char *ke
 
 /* --- surfaces --------------------------------------------------------------- */
 
-static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
-  char path[64], field[128];
-  snprintf(path, sizeof path, "surfaces[%d]", k);
-  if (!cJSON_IsObject(o)) {
-    cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
+/* The surface's "type" into s->kind (default plane).  Returns 0 on a problem. */
+static int parse_surface_kind(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
+  char field[128];
+  s->kind = CV_SURFACE_PLANE;
+  const cJSON *type = cJSON_GetObjectItemCaseSensitive(o, "type");
+  if (!type) return 1;
+  field_name(field, sizeof field, path, "type");
+  if (cJSON_IsString(type) && !strcmp(type->valuestring, "plane"))
+    s->kind = CV_SURFACE_PLANE;
+  else if (cJSON_IsString(type) && !strcmp(type->valuestring, "cylinder"))
+    s->kind = CV_SURFACE_CYLINDER;
+  else if (cJSON_IsString(type) && !strcmp(type->valuestring, "dome"))
+    s->kind = CV_SURFACE_DOME;
+  else {
+    cv_problem(x, CV_ERR_CONFIG, field, "expected \"plane\", \"cylinder\" or \"dome\"");
     return 0;
   }
-  int ok = 1;
-  s->kind = CV_SURFACE_PLANE;
-  s->cosine_exponent = 1.0;
-  s->normal_tilt_deg = 0.0;
-  const cJSON *type = cJSON_GetObjectItemCaseSensitive(o, "type");
-  if (type) {
-    field_name(field, sizeof field, path, "type");
-    if (cJSON_IsString(type) && !strcmp(type->valuestring, "plane"))
-      s->kind = CV_SURFACE_PLANE;
-    else if (cJSON_IsString(type) && !strcmp(type->valuestring, "cylinder"))
-      s->kind = CV_SURFACE_CYLINDER;
-    else if (cJSON_IsString(type) && !strcmp(type->valuestring, "dome"))
-      s->kind = CV_SURFACE_DOME;
-    else {
-      cv_problem(x, CV_ERR_CONFIG, field, "expected \"plane\", \"cylinder\" or \"dome\"");
-      ok = 0;
-    }
-  }
+  return 1;
+}
+
+/* Only the keys of the surface's kind.  Returns 0 on a problem. */
+static int check_surface_keys(ctx *x, const cJSON *o, const char *path, const cv_display_surface *s) {
   static const char *const plane_keys[] = {"name", "type", "corners", "patches", "reflectance",
                                            "cosine_exponent", "normal_tilt_deg", "refine", NULL};
   static const char *const cyl_keys[] = {"name", "type", "center", "radius", "angle_deg",
@@ -182,168 +179,199 @@ static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
             path, s->kind == CV_SURFACE_CYLINDER ? cyl_keys
                   : s->kind == CV_SURFACE_DOME   ? dome_keys
                                                  : plane_keys);
-  if (x->count != before) ok = 0;
+  return x->count == before;
+}
 
+/* "name" (required, 1..63 characters).  Returns 0 on a problem. */
+static int parse_surface_name(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
+  char field[128];
   const cJSON *name = required(x, o, path, "name", "a surface name (1..63 characters)");
-  if (name) {
-    field_name(field, sizeof field, path, "name");
-    if (!cJSON_IsString(name) || !name->valuestring[0] || strlen(name->valuestring) > 63) {
-      cv_problem(x, CV_ERR_CONFIG, field, "expected a surface name (1..63 characters)");
-      ok = 0;
-    } else {
-      snprintf(s->name, sizeof s->name, "%s", name->valuestring);
-    }
-  } else {
-    ok = 0;
+  if (!name) return 0;
+  field_name(field, sizeof field, path, "name");
+  if (!cJSON_IsString(name) || !name->valuestring[0] || strlen(name->valuestring) > 63) {
+    cv_problem(x, CV_ERR_CONFIG, field, "expected a surface name (1..63 characters)");
+    return 0;
   }
+  snprintf(s->name, sizeof s->name, "%s", name->valuestring);
+  return 1;
+}
 
+/* "patches" (required, [nu, nv]).  Returns 0 on a problem. */
+static int parse_patches(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
+  char field[128];
   const cJSON *pt = required(x, o, path, "patches", "[nu, nv], positive integers");
-  if (pt) {
-    field_name(field, sizeof field, path, "patches");
-    double v[2];
-    if (!cJSON_IsArray(pt) || cJSON_GetArraySize(pt) != 2) {
-      cv_problem(x, CV_ERR_CONFIG, field, "expected [nu, nv], positive integers");
+  if (!pt) return 0;
+  field_name(field, sizeof field, path, "patches");
+  if (!cJSON_IsArray(pt) || cJSON_GetArraySize(pt) != 2) {
+    cv_problem(x, CV_ERR_CONFIG, field, "expected [nu, nv], positive integers");
+    return 0;
+  }
+  int ok = 1;
+  for (int a = 0; a < 2; a++) {
+    char f[160];
+    double v;
+    snprintf(f, sizeof f, "%s[%d]", field, a);
+    if (!read_number(x, cJSON_GetArrayItem(pt, a), f, &v)) {
+      ok = 0;
+    } else if (v != floor(v) || v < 1 || v > MAX_PATCHES_PER_AXIS) {
+      cv_problem(x, CV_ERR_RANGE, f, "expected a positive integer up to %d, got %g",
+                 MAX_PATCHES_PER_AXIS, v);
       ok = 0;
     } else {
-      for (int a = 0; a < 2; a++) {
-        char f[160];
-        snprintf(f, sizeof f, "%s[%d]", field, a);
-        if (!read_number(x, cJSON_GetArrayItem(pt, a), f, &v[a])) {
-          ok = 0;
-        } else if (v[a] != floor(v[a]) || v[a] < 1 || v[a] > MAX_PATCHES_PER_AXIS) {
-          cv_problem(x, CV_ERR_RANGE, f, "expected a positive integer up to %d, got %g",
-                  MAX_PATCHES_PER_AXIS, v[a]);
-          ok = 0;
-        } else {
-          *(a ? &s->nv : &s->nu) = (int)v[a];
-        }
-      }
+      *(a ? &s->nv : &s->nu) = (int)v;
     }
-  } else {
-    ok = 0;
   }
+  return ok;
+}
 
-  const cJSON *refl = required(x, o, path, "reflectance", "[r, g, b] in [0, 1]");
-  if (refl) {
-    field_name(field, sizeof field, path, "reflectance");
-    if (!read_vec(x, refl, field, 3, 0.0, 1.0, "[r, g, b] in [0, 1]", s->reflectance)) ok = 0;
-  } else {
-    ok = 0;
-  }
-  if (!read_opt_num(x, o, path, "cosine_exponent", 0, 1, 1000, 0, &s->cosine_exponent)) ok = 0;
+/* The optional "refine" block (seam refinement: seams, strength, width).
+ * Returns 0 on a problem. */
+static int parse_refine(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
   const cJSON *rf = cJSON_GetObjectItemCaseSensitive(o, "refine");
   s->refine_strength = 3.0;
   s->refine_width = 0.15;
-  if (rf) {
-    char rpath[200];
-    field_name(rpath, sizeof rpath, path, "refine");
-    static const char *const rkeys[] = {"seams", "strength", "width", NULL};
-    if (!cJSON_IsObject(rf)) {
-      cv_problem(x, CV_ERR_CONFIG, rpath, "expected {\"seams\": \"auto\" | [edges], \"strength\", \"width\"}");
-      ok = 0;
-    } else {
-      only_keys(x, rf, rpath, rkeys);
-      s->refine = 1;
-      const cJSON *sm = cJSON_GetObjectItemCaseSensitive(rf, "seams");
-      char sf[220];
-      field_name(sf, sizeof sf, rpath, "seams");
-      if (!sm || (cJSON_IsString(sm) && !strcmp(sm->valuestring, "auto"))) {
-        s->refine_auto = 1;
-      } else if (cJSON_IsArray(sm)) {
-        const cJSON *e;
-        cJSON_ArrayForEach(e, sm) {
-          static const char *const names[4] = {"left", "right", "bottom", "top"};
-          int hit = -1;
-          for (int q = 0; q < 4; q++)
-            if (cJSON_IsString(e) && !strcmp(e->valuestring, names[q])) hit = q;
-          if (hit < 0) {
-            cv_problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
-            ok = 0;
-          } else {
-            s->refine_edges |= 1u << hit;
-          }
-        }
-      } else {
+  if (!rf) return 1;
+  char rpath[200];
+  field_name(rpath, sizeof rpath, path, "refine");
+  static const char *const rkeys[] = {"seams", "strength", "width", NULL};
+  if (!cJSON_IsObject(rf)) {
+    cv_problem(x, CV_ERR_CONFIG, rpath, "expected {\"seams\": \"auto\" | [edges], \"strength\", \"width\"}");
+    return 0;
+  }
+  int ok = 1;
+  only_keys(x, rf, rpath, rkeys);
+  s->refine = 1;
+  const cJSON *sm = cJSON_GetObjectItemCaseSensitive(rf, "seams");
+  char sf[220];
+  field_name(sf, sizeof sf, rpath, "seams");
+  if (!sm || (cJSON_IsString(sm) && !strcmp(sm->valuestring, "auto"))) {
+    s->refine_auto = 1;
+  } else if (cJSON_IsArray(sm)) {
+    const cJSON *e;
+    cJSON_ArrayForEach(e, sm) {
+      static const char *const names[4] = {"left", "right", "bottom", "top"};
+      int hit = -1;
+      for (int q = 0; q < 4; q++)
+        if (cJSON_IsString(e) && !strcmp(e->valuestring, names[q])) hit = q;
+      if (hit < 0) {
         cv_problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
         ok = 0;
+      } else {
+        s->refine_edges |= 1u << hit;
       }
-      if (!read_opt_num(x, rf, rpath, "strength", 0, 0, 100, 0, &s->refine_strength)) ok = 0;
-      if (!read_opt_num(x, rf, rpath, "width", 0.01, 0, 1, 0, &s->refine_width)) ok = 0;
-    }
-  }
-  if (!read_opt_num(x, o, path, "normal_tilt_deg", -90, 1, 90, 1, &s->normal_tilt_deg)) ok = 0;
-
-  if (s->kind == CV_SURFACE_PLANE) {
-    const cJSON *c = required(x, o, path, "corners", "[pa, pb, pc]: lower-left, lower-right, upper-left");
-    if (!c) return 0;
-    field_name(field, sizeof field, path, "corners");
-    if (!cJSON_IsArray(c) || cJSON_GetArraySize(c) != 3) {
-      cv_problem(x, CV_ERR_CONFIG, field,
-              "expected [pa, pb, pc] (lower-left, lower-right, upper-left), each [x, y, z]");
-      return 0;
-    }
-    double *p[3] = {s->pa, s->pb, s->pc};
-    int cok = 1;
-    for (int a = 0; a < 3; a++) {
-      char f[160];
-      snprintf(f, sizeof f, "%s[%d]", field, a);
-      if (!read_vec(x, cJSON_GetArrayItem(c, a), f, 3, -1e6, 1e6, "[x, y, z] in metres", p[a]))
-        cok = 0;
-    }
-    if (!cok) return 0;
-    double e1[3], e2[3];
-    sub3(s->pb, s->pa, e1);
-    sub3(s->pc, s->pa, e2);
-    double l1 = len3(e1), l2 = len3(e2);
-    if (!(l1 > 1e-9) || !(l2 > 1e-9)) {
-      cv_problem(x, CV_ERR_CONFIG, field, "pa->%s has zero length", !(l1 > 1e-9) ? "pb" : "pc");
-      return 0;
-    }
-    double cosang = dot3(e1, e2) / (l1 * l2);
-    double ang = acos(fmax(-1.0, fmin(1.0, cosang))) * 180.0 / PI;
-    if (fabs(ang - 90.0) > RIGHT_ANGLE_TOL_DEG) {
-      cv_problem(x, CV_ERR_CONFIG, field,
-              "pa->pb and pa->pc are not perpendicular (angle %.4g deg); the surface must be a "
-              "rectangle",
-              ang);
-      return 0;
     }
   } else {
-    const cJSON *c = required(x, o, path, "center", "[x, y, z] in metres");
-    field_name(field, sizeof field, path, "center");
-    if (!c || !read_vec(x, c, field, 3, -1e6, 1e6, "[x, y, z] in metres", s->center)) ok = 0;
-    if (!read_req_num(x, o, path, "radius", 0, 1, 1e6, "a radius in metres", &s->radius)) ok = 0;
-    if (s->kind == CV_SURFACE_CYLINDER) {
-      double a[2], h[2];
-      if (read_range(x, o, path, "angle_deg", -720, 720, 360, "[a0, a1] in degrees", a)) {
-        s->range_u[0] = a[0] * PI / 180;
-        s->range_u[1] = a[1] * PI / 180;
-      } else {
-        ok = 0;
-      }
-      if (read_range(x, o, path, "height", -1e6, 1e6, 2e6, "[y0, y1] in metres, relative to center",
-                     h)) {
-        s->range_v[0] = h[0];
-        s->range_v[1] = h[1];
-      } else {
-        ok = 0;
-      }
-    } else {
-      double e[2], a[2];
-      if (read_range(x, o, path, "elevation_deg", -90, 90, 180, "[e0, e1] in degrees", e)) {
-        s->range_v[0] = e[0] * PI / 180;
-        s->range_v[1] = e[1] * PI / 180;
-      } else {
-        ok = 0;
-      }
-      if (read_range(x, o, path, "azimuth_deg", -720, 720, 360, "[a0, a1] in degrees", a)) {
-        s->range_u[0] = a[0] * PI / 180;
-        s->range_u[1] = a[1] * PI / 180;
-      } else {
-        ok = 0;
-      }
-    }
+    cv_problem(x, CV_ERR_CONFIG, sf, "expected \"auto\" or edge names left, right, bottom, top");
+    ok = 0;
   }
+  if (!read_opt_num(x, rf, rpath, "strength", 0, 0, 100, 0, &s->refine_strength)) ok = 0;
+  if (!read_opt_num(x, rf, rpath, "width", 0.01, 0, 1, 0, &s->refine_width)) ok = 0;
+  return ok;
+}
+
+/* A plane's "corners" [pa, pb, pc]: a rectangle.  Returns 0 on a problem. */
+static int parse_plane_corners(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
+  char field[128];
+  const cJSON *c = required(x, o, path, "corners", "[pa, pb, pc]: lower-left, lower-right, upper-left");
+  if (!c) return 0;
+  field_name(field, sizeof field, path, "corners");
+  if (!cJSON_IsArray(c) || cJSON_GetArraySize(c) != 3) {
+    cv_problem(x, CV_ERR_CONFIG, field,
+               "expected [pa, pb, pc] (lower-left, lower-right, upper-left), each [x, y, z]");
+    return 0;
+  }
+  double *p[3] = {s->pa, s->pb, s->pc};
+  int cok = 1;
+  for (int a = 0; a < 3; a++) {
+    char f[160];
+    snprintf(f, sizeof f, "%s[%d]", field, a);
+    if (!read_vec(x, cJSON_GetArrayItem(c, a), f, 3, -1e6, 1e6, "[x, y, z] in metres", p[a]))
+      cok = 0;
+  }
+  if (!cok) return 0;
+  double e1[3], e2[3];
+  sub3(s->pb, s->pa, e1);
+  sub3(s->pc, s->pa, e2);
+  double l1 = len3(e1), l2 = len3(e2);
+  if (!(l1 > 1e-9) || !(l2 > 1e-9)) {
+    cv_problem(x, CV_ERR_CONFIG, field, "pa->%s has zero length", !(l1 > 1e-9) ? "pb" : "pc");
+    return 0;
+  }
+  double cosang = dot3(e1, e2) / (l1 * l2);
+  double ang = acos(fmax(-1.0, fmin(1.0, cosang))) * 180.0 / PI;
+  if (fabs(ang - 90.0) > RIGHT_ANGLE_TOL_DEG) {
+    cv_problem(x, CV_ERR_CONFIG, field,
+               "pa->pb and pa->pc are not perpendicular (angle %.4g deg); the surface must be a "
+               "rectangle",
+               ang);
+    return 0;
+  }
+  return 1;
+}
+
+/* A degree range [a0, a1] of field `key` into out[] in radians.  Returns 0
+ * on a problem. */
+static int read_deg_range(ctx *x, const cJSON *o, const char *path, const char *key, double lo,
+                          double hi, double max_span, const char *what, double out[2]) {
+  double a[2];
+  if (!read_range(x, o, path, key, lo, hi, max_span, what, a)) return 0;
+  out[0] = a[0] * PI / 180;
+  out[1] = a[1] * PI / 180;
+  return 1;
+}
+
+/* A cylinder's or dome's center, radius and parameter ranges.  Returns 0
+ * on a problem. */
+static int parse_curved_shape(ctx *x, const cJSON *o, const char *path, cv_display_surface *s) {
+  char field[128];
+  int ok = 1;
+  const cJSON *c = required(x, o, path, "center", "[x, y, z] in metres");
+  field_name(field, sizeof field, path, "center");
+  if (!c || !read_vec(x, c, field, 3, -1e6, 1e6, "[x, y, z] in metres", s->center)) ok = 0;
+  if (!read_req_num(x, o, path, "radius", 0, 1, 1e6, "a radius in metres", &s->radius)) ok = 0;
+  if (s->kind == CV_SURFACE_CYLINDER) {
+    if (!read_deg_range(x, o, path, "angle_deg", -720, 720, 360, "[a0, a1] in degrees", s->range_u))
+      ok = 0;
+    double h[2];
+    if (read_range(x, o, path, "height", -1e6, 1e6, 2e6, "[y0, y1] in metres, relative to center",
+                   h)) {
+      s->range_v[0] = h[0];
+      s->range_v[1] = h[1];
+    } else {
+      ok = 0;
+    }
+  } else {
+    if (!read_deg_range(x, o, path, "elevation_deg", -90, 90, 180, "[e0, e1] in degrees",
+                        s->range_v))
+      ok = 0;
+    if (!read_deg_range(x, o, path, "azimuth_deg", -720, 720, 360, "[a0, a1] in degrees",
+                        s->range_u))
+      ok = 0;
+  }
+  return ok;
+}
+
+static int parse_surface(ctx *x, const cJSON *o, int k, cv_display_surface *s) {
+  char path[64], field[128];
+  snprintf(path, sizeof path, "surfaces[%d]", k);
+  if (!cJSON_IsObject(o)) {
+    cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
+    return 0;
+  }
+  s->cosine_exponent = 1.0;
+  s->normal_tilt_deg = 0.0;
+  int ok = parse_surface_kind(x, o, path, s);
+  if (!check_surface_keys(x, o, path, s)) ok = 0;
+  if (!parse_surface_name(x, o, path, s)) ok = 0;
+  if (!parse_patches(x, o, path, s)) ok = 0;
+  const cJSON *refl = required(x, o, path, "reflectance", "[r, g, b] in [0, 1]");
+  field_name(field, sizeof field, path, "reflectance");
+  if (!refl || !read_vec(x, refl, field, 3, 0.0, 1.0, "[r, g, b] in [0, 1]", s->reflectance)) ok = 0;
+  if (!read_opt_num(x, o, path, "cosine_exponent", 0, 1, 1000, 0, &s->cosine_exponent)) ok = 0;
+  if (!parse_refine(x, o, path, s)) ok = 0;
+  if (!read_opt_num(x, o, path, "normal_tilt_deg", -90, 1, 90, 1, &s->normal_tilt_deg)) ok = 0;
+  if (s->kind == CV_SURFACE_PLANE) return parse_plane_corners(x, o, path, s) ? ok : 0;
+  if (!parse_curved_shape(x, o, path, s)) ok = 0;
   return ok;
 }
 
