@@ -103,6 +103,201 @@ static int read_line(FILE *f, char *buf, size_t cap) {
   return 1;
 }
 
+/* A PLY file being read: the stream, its name, the line number and the
+ * vertex properties the header declared (3: x y z; 6: and red green blue). */
+typedef struct ply_reader {
+  FILE *f;
+  const char *path;
+  int ln;
+  int nvprops;
+  char line[512];
+} ply_reader;
+
+/* One 'property' or 'element face' line after the vertex element (state
+ * S_PROPS or S_AFTER of read_header); *state gets the next state.  Returns
+ * the status. */
+enum { S_MAGIC, S_FORMAT, S_VERTEX, S_PROPS, S_FACE_PROP, S_AFTER, S_DONE };
+static int header_props_line(ply_reader *r, int *state, cv_ply_points *p, cv_err *err) {
+  static const char *vprops[6] = {"x", "y", "z", "red", "green", "blue"};
+  const char *line = r->line, *path = r->path;
+  const int ln = r->ln;
+  if (*state == S_PROPS && r->nvprops < 6 && strncmp(line, "property ", 9) == 0) {
+    char want[64];
+    snprintf(want, sizeof want, "property float %s", vprops[r->nvprops]);
+    if (strcmp(line, want) != 0)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected '%s', got '%.60s'", path, ln, want, line);
+    r->nvprops++;
+    return CV_OK;
+  }
+  if (r->nvprops != 3 && r->nvprops != 6)
+    return cv_err_set(err, CV_ERR_FORMAT,
+                      "%s:%d: vertex needs x y z [red green blue] floats, has %d properties", path, ln,
+                      r->nvprops);
+  if (strcmp(line, "end_header") == 0) {
+    *state = S_DONE;
+    return CV_OK;
+  }
+  if (*state == S_PROPS) {
+    unsigned long long nf = 0;
+    char tail;
+    if (sscanf(line, "element face %llu%c", &nf, &tail) == 1 && nf <= ((unsigned long long)1 << 32)) {
+      p->ntris = (size_t)nf;
+      *state = S_FACE_PROP;
+      return CV_OK;
+    }
+  }
+  return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: unexpected header line '%.60s'", path, ln, line);
+}
+
+/* The header, line by line (comments skipped after the magic): format,
+ * vertex count and properties, the optional face element.  Returns the
+ * status. */
+static int read_header(ply_reader *r, cv_ply_points *p, cv_err *err) {
+  const char *path = r->path, *line = r->line;
+  int state = S_MAGIC;
+  while (state != S_DONE) {
+    if (!read_line(r->f, r->line, sizeof r->line))
+      return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: header ends before 'end_header'", path, r->ln + 1);
+    const int ln = ++r->ln;
+    if (strncmp(line, "comment", 7) == 0 && (line[7] == ' ' || line[7] == '\0') && state != S_MAGIC)
+      continue;
+    switch (state) {
+    case S_MAGIC:
+      if (strcmp(line, "ply") != 0) return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected 'ply'", path, ln);
+      state = S_FORMAT;
+      break;
+    case S_FORMAT:
+      if (strcmp(line, "format ascii 1.0") == 0) {
+        p->binary = 0;
+      } else if (strcmp(line, "format binary_little_endian 1.0") == 0) {
+        p->binary = 1;
+      } else {
+        return cv_err_set(err, CV_ERR_FORMAT,
+                          "%s:%d: expected 'format ascii 1.0' or 'format binary_little_endian 1.0', got '%.60s'",
+                          path, ln, line);
+      }
+      state = S_VERTEX;
+      break;
+    case S_VERTEX: {
+      unsigned long long nv = 0;
+      char tail;
+      if (sscanf(line, "element vertex %llu%c", &nv, &tail) != 1 || nv > ((unsigned long long)1 << 32))
+        return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected 'element vertex N', got '%.60s'", path, ln, line);
+      p->n = (size_t)nv;
+      state = S_PROPS;
+      break;
+    }
+    case S_PROPS:
+    case S_AFTER: {
+      int st = header_props_line(r, &state, p, err);
+      if (st) return st;
+      break;
+    }
+    case S_FACE_PROP:
+      if (strcmp(line, "property list uchar int vertex_indices") != 0)
+        return cv_err_set(err, CV_ERR_FORMAT,
+                          "%s:%d: expected 'property list uchar int vertex_indices', got '%.60s'", path, ln, line);
+      state = S_AFTER;
+      break;
+    }
+  }
+  return CV_OK;
+}
+
+/* Vertex i's properties into v[] (binary or one text line).  Returns the status. */
+static int read_vertex(ply_reader *r, const cv_ply_points *p, size_t i, float v[6], cv_err *err) {
+  const int np = r->nvprops;
+  if (p->binary) {
+    unsigned char b[24];
+    if (fread(b, 4, (size_t)np, r->f) != (size_t)np)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: vertex %zu: file truncated", r->path, i);
+    for (int k = 0; k < np; ++k) v[k] = get_f32le(b + 4 * k);
+    return CV_OK;
+  }
+  r->ln++;
+  if (!read_line(r->f, r->line, sizeof r->line))
+    return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: file truncated", r->path, r->ln, i);
+  char *s = r->line, *e;
+  for (int k = 0; k < np; ++k) {
+    errno = 0;
+    v[k] = strtof(s, &e);
+    if (e == s)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: expected %d numbers", r->path, r->ln, i, np);
+    s = e;
+  }
+  while (*s == ' ' || *s == '\t') s++;
+  if (*s) return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: extra text '%.20s'", r->path, r->ln, i, s);
+  return CV_OK;
+}
+
+/* Face t's three vertex indices into idx[] (binary or one text line).
+ * Returns the status. */
+static int read_face(ply_reader *r, const cv_ply_points *p, size_t t, long long idx[3], cv_err *err) {
+  if (p->binary) {
+    unsigned char b[13];
+    if (fread(b, 1, 13, r->f) != 13)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: face %zu: file truncated", r->path, t);
+    if (b[0] != 3)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: face %zu: %u vertices; only triangles are supported", r->path,
+                        t, (unsigned)b[0]);
+    for (int k = 0; k < 3; ++k) idx[k] = get_i32le(b + 1 + 4 * k);
+    return CV_OK;
+  }
+  r->ln++;
+  int cnt = 0, used = 0;
+  if (!read_line(r->f, r->line, sizeof r->line))
+    return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: face %zu: file truncated", r->path, r->ln, t);
+  if (sscanf(r->line, "%d %lld %lld %lld %n", &cnt, &idx[0], &idx[1], &idx[2], &used) != 4 || cnt != 3 ||
+      r->line[used] != '\0')
+    return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: face %zu: expected '3 i j k'", r->path, r->ln, t);
+  return CV_OK;
+}
+
+/* The vertices, then the faces (indices checked).  Returns the status. */
+static int read_elements(ply_reader *r, cv_ply_points *p, cv_err *err) {
+  const int np = r->nvprops;
+  p->xyz = malloc((p->n ? p->n : 1) * 3 * sizeof(float));
+  if (np == 6) p->rgb = malloc((p->n ? p->n : 1) * 3 * sizeof(float));
+  if (p->ntris) p->tris = malloc(p->ntris * 3 * sizeof(uint32_t));
+  if (!p->xyz || (np == 6 && !p->rgb) || (p->ntris && !p->tris))
+    return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", r->path);
+  for (size_t i = 0; i < p->n; ++i) {
+    float v[6];
+    int st = read_vertex(r, p, i, v, err);
+    if (st) return st;
+    for (int k = 0; k < np; ++k)
+      if (!isfinite(v[k])) return cv_err_set(err, CV_ERR_FORMAT, "%s: vertex %zu: non-finite value", r->path, i);
+    memcpy(p->xyz + 3 * i, v, 3 * sizeof(float));
+    if (p->rgb) memcpy(p->rgb + 3 * i, v + 3, 3 * sizeof(float));
+  }
+  for (size_t t = 0; t < p->ntris; ++t) {
+    long long idx[3];
+    int st = read_face(r, p, t, idx, err);
+    if (st) return st;
+    for (int k = 0; k < 3; ++k) {
+      if (idx[k] < 0 || (unsigned long long)idx[k] >= p->n)
+        return cv_err_set(err, CV_ERR_RANGE, "%s: face %zu: vertex index %lld outside 0..%zu", r->path, t,
+                          idx[k], p->n ? p->n - 1 : 0);
+      p->tris[3 * t + k] = (uint32_t)idx[k];
+    }
+  }
+  return CV_OK;
+}
+
+/* Nothing but blank lines (text) or nothing at all (binary) after the last
+ * element.  Returns the status. */
+static int check_trailing(ply_reader *r, const cv_ply_points *p, cv_err *err) {
+  if (p->binary)
+    return fgetc(r->f) != EOF ? cv_err_set(err, CV_ERR_FORMAT, "%s: data after the last element", r->path)
+                              : CV_OK;
+  while (read_line(r->f, r->line, sizeof r->line)) {
+    r->ln++;
+    if (r->line[strspn(r->line, " \t")] != '\0')
+      return cv_err_set(err, CV_ERR_FORMAT, "%s:%d: data after the last element", r->path, r->ln);
+  }
+  return CV_OK;
+}
+
 int cv_ply_read_points(const char *path, cv_ply_points **out, cv_err *err) {
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "cv_ply_read_points: out is NULL");
   *out = NULL;
@@ -114,197 +309,15 @@ int cv_ply_read_points(const char *path, cv_ply_points **out, cv_err *err) {
     fclose(f);
     return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
   }
-  char line[512];
-  int ln = 0, rc = CV_OK;
-  /* Expected header, line by line; '*' lines are optional groups. */
-  enum { S_MAGIC, S_FORMAT, S_VERTEX, S_PROPS, S_FACE_PROP, S_AFTER, S_DONE } state = S_MAGIC;
-  static const char *vprops[6] = {"x", "y", "z", "red", "green", "blue"};
-  int nvprops = 0, has_face = 0;
-  while (state != S_DONE) {
-    if (!read_line(f, line, sizeof line)) {
-      rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: header ends before 'end_header'", path, ln + 1);
-      goto fail;
-    }
-    ln++;
-    if (strncmp(line, "comment", 7) == 0 && (line[7] == ' ' || line[7] == '\0') && state != S_MAGIC)
-      continue;
-    switch (state) {
-    case S_MAGIC:
-      if (strcmp(line, "ply") != 0) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected 'ply'", path, ln);
-        goto fail;
-      }
-      state = S_FORMAT;
-      break;
-    case S_FORMAT:
-      if (strcmp(line, "format ascii 1.0") == 0) {
-        p->binary = 0;
-      } else if (strcmp(line, "format binary_little_endian 1.0") == 0) {
-        p->binary = 1;
-      } else {
-        rc = cv_err_set(err, CV_ERR_FORMAT,
-                        "%s:%d: expected 'format ascii 1.0' or 'format binary_little_endian 1.0', got '%.60s'",
-                        path, ln, line);
-        goto fail;
-      }
-      state = S_VERTEX;
-      break;
-    case S_VERTEX: {
-      unsigned long long nv = 0;
-      char tail;
-      if (sscanf(line, "element vertex %llu%c", &nv, &tail) != 1 || nv > ((unsigned long long)1 << 32)) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected 'element vertex N', got '%.60s'", path, ln, line);
-        goto fail;
-      }
-      p->n = (size_t)nv;
-      state = S_PROPS;
-      break;
-    }
-    case S_PROPS:
-    case S_AFTER:
-      if (state == S_PROPS && nvprops < 6 && strncmp(line, "property ", 9) == 0) {
-        char want[64];
-        snprintf(want, sizeof want, "property float %s", vprops[nvprops]);
-        if (strcmp(line, want) != 0) {
-          rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: expected '%s', got '%.60s'", path, ln, want, line);
-          goto fail;
-        }
-        nvprops++;
-        break;
-      }
-      if (nvprops != 3 && nvprops != 6) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex needs x y z [red green blue] floats, has %d properties",
-                        path, ln, nvprops);
-        goto fail;
-      }
-      if (strcmp(line, "end_header") == 0) {
-        state = S_DONE;
-        break;
-      }
-      if (state == S_PROPS) {
-        unsigned long long nf = 0;
-        char tail;
-        if (sscanf(line, "element face %llu%c", &nf, &tail) == 1 && nf <= ((unsigned long long)1 << 32)) {
-          p->ntris = (size_t)nf;
-          has_face = 1;
-          state = S_FACE_PROP;
-          break;
-        }
-      }
-      rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: unexpected header line '%.60s'", path, ln, line);
-      goto fail;
-    case S_FACE_PROP:
-      if (strcmp(line, "property list uchar int vertex_indices") != 0) {
-        rc = cv_err_set(err, CV_ERR_FORMAT,
-                        "%s:%d: expected 'property list uchar int vertex_indices', got '%.60s'", path, ln, line);
-        goto fail;
-      }
-      state = S_AFTER;
-      break;
-    case S_DONE:
-      break;
-    }
-  }
-  (void)has_face;
-  p->xyz = malloc((p->n ? p->n : 1) * 3 * sizeof(float));
-  if (nvprops == 6) p->rgb = malloc((p->n ? p->n : 1) * 3 * sizeof(float));
-  if (p->ntris) p->tris = malloc(p->ntris * 3 * sizeof(uint32_t));
-  if (!p->xyz || (nvprops == 6 && !p->rgb) || (p->ntris && !p->tris)) {
-    rc = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-    goto fail;
-  }
-  for (size_t i = 0; i < p->n; ++i) {
-    float v[6];
-    if (p->binary) {
-      unsigned char b[24];
-      if (fread(b, 4, (size_t)nvprops, f) != (size_t)nvprops) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s: vertex %zu: file truncated", path, i);
-        goto fail;
-      }
-      for (int k = 0; k < nvprops; ++k) v[k] = get_f32le(b + 4 * k);
-    } else {
-      ln++;
-      if (!read_line(f, line, sizeof line)) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: file truncated", path, ln, i);
-        goto fail;
-      }
-      char *s = line, *e;
-      for (int k = 0; k < nvprops; ++k) {
-        errno = 0;
-        v[k] = strtof(s, &e);
-        if (e == s) {
-          rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: expected %d numbers", path, ln, i, nvprops);
-          goto fail;
-        }
-        s = e;
-      }
-      while (*s == ' ' || *s == '\t') s++;
-      if (*s) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: vertex %zu: extra text '%.20s'", path, ln, i, s);
-        goto fail;
-      }
-    }
-    for (int k = 0; k < nvprops; ++k)
-      if (!isfinite(v[k])) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s: vertex %zu: non-finite value", path, i);
-        goto fail;
-      }
-    memcpy(p->xyz + 3 * i, v, 3 * sizeof(float));
-    if (p->rgb) memcpy(p->rgb + 3 * i, v + 3, 3 * sizeof(float));
-  }
-  for (size_t t = 0; t < p->ntris; ++t) {
-    long long idx[3];
-    if (p->binary) {
-      unsigned char b[13];
-      if (fread(b, 1, 13, f) != 13) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s: face %zu: file truncated", path, t);
-        goto fail;
-      }
-      if (b[0] != 3) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s: face %zu: %u vertices; only triangles are supported", path, t,
-                        (unsigned)b[0]);
-        goto fail;
-      }
-      for (int k = 0; k < 3; ++k) idx[k] = get_i32le(b + 1 + 4 * k);
-    } else {
-      ln++;
-      int cnt = 0, used = 0;
-      if (!read_line(f, line, sizeof line)) {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: face %zu: file truncated", path, ln, t);
-        goto fail;
-      }
-      if (sscanf(line, "%d %lld %lld %lld %n", &cnt, &idx[0], &idx[1], &idx[2], &used) != 4 || cnt != 3 ||
-          line[used] != '\0') {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: face %zu: expected '3 i j k'", path, ln, t);
-        goto fail;
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      if (idx[k] < 0 || (unsigned long long)idx[k] >= p->n) {
-        rc = cv_err_set(err, CV_ERR_RANGE, "%s: face %zu: vertex index %lld outside 0..%zu", path, t, idx[k],
-                        p->n ? p->n - 1 : 0);
-        goto fail;
-      }
-      p->tris[3 * t + k] = (uint32_t)idx[k];
-    }
-  }
-  if (!p->binary) { /* only blank lines may follow */
-    while (read_line(f, line, sizeof line)) {
-      ln++;
-      if (line[strspn(line, " \t")] != '\0') {
-        rc = cv_err_set(err, CV_ERR_FORMAT, "%s:%d: data after the last element", path, ln);
-        goto fail;
-      }
-    }
-  } else if (fgetc(f) != EOF) {
-    rc = cv_err_set(err, CV_ERR_FORMAT, "%s: data after the last element", path);
-    goto fail;
-  }
+  ply_reader r = {.f = f, .path = path};
+  int rc = read_header(&r, p, err);
+  if (!rc) rc = read_elements(&r, p, err);
+  if (!rc) rc = check_trailing(&r, p, err);
   fclose(f);
+  if (rc) {
+    cv_ply_points_destroy(p);
+    return rc;
+  }
   *out = p;
   return CV_OK;
-fail:
-  fclose(f);
-  cv_ply_points_destroy(p);
-  return rc;
 }
