@@ -314,6 +314,121 @@ static void read_frame(const char *path, const struct aiScene *sc, cv_file_frame
 }
 
 /* ---------------- import ---------------- */
+/* Pass 1: which materials triangles use (matmap[i] = 0 for those, -1 for
+ * the others) and the vertex and triangle counts; points and lines are
+ * counted as dropped.  Returns the status. */
+static int count_scene(const char *path, const struct aiScene *sc, int32_t *matmap, size_t *nv_out,
+                       size_t *nt_out, cv_import_stats *s, cv_err *err) {
+  size_t nv = 0, nt = 0;
+  for (unsigned i = 0; i <= sc->mNumMaterials; i++) matmap[i] = -1;
+  s->meshes = sc->mNumMeshes;
+  for (unsigned i = 0; i < sc->mNumMeshes; i++) {
+    const struct aiMesh *am = sc->mMeshes[i];
+    size_t ntri = 0;
+    for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
+      unsigned k = am->mFaces[fi].mNumIndices;
+      if (k == 3)
+        ntri++;
+      else if (k == 1)
+        s->points_dropped++;
+      else if (k == 2)
+        s->lines_dropped++;
+      else
+        return cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u has %u indices after "
+                          "triangulation", path, i, fi, k);
+    }
+    if (!ntri) continue;
+    if (am->mMaterialIndex >= sc->mNumMaterials)
+      return cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u refers to material %u of %u", path, i,
+                        am->mMaterialIndex, sc->mNumMaterials);
+    matmap[am->mMaterialIndex] = 0;
+    nv += am->mNumVertices;
+    nt += ntri;
+  }
+  if (nt == 0)
+    return cv_err_set(err, CV_ERR_EMPTY, "%s: no triangles (%zu points and %zu lines dropped)",
+                      path, s->points_dropped, s->lines_dropped);
+  if (nv >= UINT32_MAX || nt >= UINT32_MAX)
+    return cv_err_set(err, CV_ERR_RANGE, "%s: too large (%zu vertices, %zu triangles)", path, nv,
+                      nt);
+  *nv_out = nv;
+  *nt_out = nt;
+  return CV_OK;
+}
+
+/* Pass 2 for assimp mesh i (with triangles): its vertices (scaled, finite)
+ * and its triangles (indices checked independently of assimp, corner UVs
+ * of the first channel when some material has a texture).  Returns the
+ * status. */
+static int add_scene_mesh(const char *path, const struct aiMesh *am, unsigned i, double scale,
+                          const int32_t *matmap, cv_mesh *m, cv_err *err) {
+  uint32_t base = (uint32_t)m->nv;
+  for (unsigned vi = 0; vi < am->mNumVertices; vi++) {
+    double p[3] = {am->mVertices[vi].x, am->mVertices[vi].y, am->mVertices[vi].z};
+    for (int k = 0; k < 3; k++) {
+      p[k] *= scale;
+      if (!isfinite(p[k]) || fabs(p[k]) > 3.0e38)
+        return cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
+                          "coordinate", path, i, vi);
+    }
+    cv_mesh_add_vertex(m, (float)p[0], (float)p[1], (float)p[2], NULL);
+  }
+  const struct aiVector3D *uv = am->mTextureCoords[0];
+  if (m->mat_tex && cv_mesh_enable_uv(m)) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+  for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
+    const struct aiFace *fc = &am->mFaces[fi];
+    if (fc->mNumIndices != 3) continue;
+    for (int k = 0; k < 3; k++)
+      if (fc->mIndices[k] >= am->mNumVertices)
+        return cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u index %u out of range (%u "
+                          "vertices)", path, i, fi, fc->mIndices[k], am->mNumVertices);
+    cv_mesh_add_tri(m, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2],
+                    (uint32_t)matmap[am->mMaterialIndex]);
+    for (int k = 0; m->tri_uv && uv && k < 3; k++) {
+      const struct aiVector3D *t = &uv[fc->mIndices[k]];
+      if (!isfinite(t->x) || !isfinite(t->y))
+        return cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
+                          "texture coordinate", path, i, fc->mIndices[k]);
+      m->tri_uv[6 * (m->nt - 1) + 2 * k] = t->x;
+      m->tri_uv[6 * (m->nt - 1) + 2 * k + 1] = t->y;
+    }
+  }
+  return CV_OK;
+}
+
+/* The imported scene into m: counts, materials (with the overrides), then
+ * every mesh with triangles.  Returns the status. */
+static int build_mesh(const char *path, const struct aiScene *sc, const cv_import_opts *opts,
+                      cv_mesh *m, cv_import_stats *s, cv_err *err) {
+  int32_t *matmap = malloc((sc->mNumMaterials + 1) * sizeof *matmap);
+  uint8_t *ov_used = calloc(opts->n_overrides + 1, 1);
+  size_t nv = 0, nt = 0;
+  int st = (!matmap || !ov_used) ? cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path)
+                                 : count_scene(path, sc, matmap, &nv, &nt, s, err);
+  if (!st && cv_mesh_reserve(m, nv, nt)) st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+  for (unsigned i = 0; !st && i < sc->mNumMaterials; i++) {
+    if (matmap[i] < 0) continue;
+    matmap[i] = (int32_t)m->nm;
+    if (add_material(m, sc, sc->mMaterials[i], path, opts, ov_used, s))
+      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
+  }
+  for (unsigned i = 0; !st && i < sc->mNumMeshes; i++) {
+    const struct aiMesh *am = sc->mMeshes[i];
+    int has_tri = 0;
+    for (unsigned fi = 0; fi < am->mNumFaces && !has_tri; fi++)
+      has_tri = am->mFaces[fi].mNumIndices == 3;
+    if (has_tri) st = add_scene_mesh(path, am, i, opts->scale, matmap, m, err);
+  }
+  if (!st) {
+    s->triangles = m->nt;
+    read_frame(path, sc, &s->frame);
+    for (size_t i = 0; i < opts->n_overrides; i++) s->overrides_unused += !ov_used[i];
+  }
+  free(matmap);
+  free(ov_used);
+  return st;
+}
+
 int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh **out,
                           cv_import_stats *stats, cv_err *err) {
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "mesh import: out is NULL");
@@ -346,131 +461,14 @@ int cv_mesh_import_direct(const char *path, const cv_import_opts *opts, cv_mesh 
                          aiProcess_ValidateDataStructure;
   const struct aiScene *sc = aiImportFile(path, flags);
   if (!sc) return cv_err_set(err, CV_ERR_FORMAT, "%s: assimp: %s", path, aiGetErrorString());
-
   cv_mesh *m = NULL;
-  int32_t *matmap = NULL;
-  uint8_t *ov_used = NULL;
-  if (cv_mesh_create(&m)) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-    goto done;
+  st = cv_mesh_create(&m) ? cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path)
+                          : build_mesh(path, sc, opts, m, s, err);
+  if (!st) {
+    st = cv_mesh_validate(m, err);
+    if (st) cv_err_prefix(err, "%s", path);
   }
-  matmap = malloc((sc->mNumMaterials + 1) * sizeof *matmap);
-  ov_used = calloc(opts->n_overrides + 1, 1);
-  if (!matmap || !ov_used) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-    goto done;
-  }
-  /* Pass 1: which materials are used by triangles, and the sizes. */
-  size_t nv = 0, nt = 0;
-  for (unsigned i = 0; i <= sc->mNumMaterials; i++) matmap[i] = -1;
-  s->meshes = sc->mNumMeshes;
-  for (unsigned i = 0; i < sc->mNumMeshes; i++) {
-    const struct aiMesh *am = sc->mMeshes[i];
-    size_t ntri = 0;
-    for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
-      unsigned k = am->mFaces[fi].mNumIndices;
-      if (k == 3)
-        ntri++;
-      else if (k == 1)
-        s->points_dropped++;
-      else if (k == 2)
-        s->lines_dropped++;
-      else {
-        st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u has %u indices after "
-                        "triangulation", path, i, fi, k);
-        goto done;
-      }
-    }
-    if (!ntri) continue;
-    if (am->mMaterialIndex >= sc->mNumMaterials) {
-      st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u refers to material %u of %u", path, i,
-                      am->mMaterialIndex, sc->mNumMaterials);
-      goto done;
-    }
-    matmap[am->mMaterialIndex] = 0;
-    nv += am->mNumVertices;
-    nt += ntri;
-  }
-  if (nt == 0) {
-    st = cv_err_set(err, CV_ERR_EMPTY, "%s: no triangles (%zu points and %zu lines dropped)",
-                    path, s->points_dropped, s->lines_dropped);
-    goto done;
-  }
-  if (nv >= UINT32_MAX || nt >= UINT32_MAX) {
-    st = cv_err_set(err, CV_ERR_RANGE, "%s: too large (%zu vertices, %zu triangles)", path, nv,
-                    nt);
-    goto done;
-  }
-  if (cv_mesh_reserve(m, nv, nt)) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-    goto done;
-  }
-  for (unsigned i = 0; i < sc->mNumMaterials; i++) {
-    if (matmap[i] < 0) continue;
-    matmap[i] = (int32_t)m->nm;
-    if (add_material(m, sc, sc->mMaterials[i], path, opts, ov_used, s)) {
-      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-      goto done;
-    }
-  }
-  /* Pass 2: vertices and triangles, checked independently of assimp. */
-  for (unsigned i = 0; i < sc->mNumMeshes; i++) {
-    const struct aiMesh *am = sc->mMeshes[i];
-    int has_tri = 0;
-    for (unsigned fi = 0; fi < am->mNumFaces && !has_tri; fi++)
-      has_tri = am->mFaces[fi].mNumIndices == 3;
-    if (!has_tri) continue;
-    uint32_t base = (uint32_t)m->nv;
-    for (unsigned vi = 0; vi < am->mNumVertices; vi++) {
-      double p[3] = {am->mVertices[vi].x, am->mVertices[vi].y, am->mVertices[vi].z};
-      for (int k = 0; k < 3; k++) {
-        p[k] *= opts->scale;
-        if (!isfinite(p[k]) || fabs(p[k]) > 3.0e38) {
-          st = cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
-                          "coordinate", path, i, vi);
-          goto done;
-        }
-      }
-      cv_mesh_add_vertex(m, (float)p[0], (float)p[1], (float)p[2], NULL);
-    }
-    /* corner UVs (first channel) are kept when some material has a texture */
-    const struct aiVector3D *uv = am->mTextureCoords[0];
-    if (m->mat_tex && cv_mesh_enable_uv(m)) {
-      st = cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-      goto done;
-    }
-    for (unsigned fi = 0; fi < am->mNumFaces; fi++) {
-      const struct aiFace *fc = &am->mFaces[fi];
-      if (fc->mNumIndices != 3) continue;
-      for (int k = 0; k < 3; k++)
-        if (fc->mIndices[k] >= am->mNumVertices) {
-          st = cv_err_set(err, CV_ERR_FORMAT, "%s: mesh %u face %u index %u out of range (%u "
-                          "vertices)", path, i, fi, fc->mIndices[k], am->mNumVertices);
-          goto done;
-        }
-      cv_mesh_add_tri(m, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2],
-                      (uint32_t)matmap[am->mMaterialIndex]);
-      for (int k = 0; m->tri_uv && uv && k < 3; k++) {
-        const struct aiVector3D *t = &uv[fc->mIndices[k]];
-        if (!isfinite(t->x) || !isfinite(t->y)) {
-          st = cv_err_set(err, CV_ERR_NONFINITE, "%s: mesh %u vertex %u has a non-finite "
-                          "texture coordinate", path, i, fc->mIndices[k]);
-          goto done;
-        }
-        m->tri_uv[6 * (m->nt - 1) + 2 * k] = t->x;
-        m->tri_uv[6 * (m->nt - 1) + 2 * k + 1] = t->y;
-      }
-    }
-  }
-  s->triangles = m->nt;
-  read_frame(path, sc, &s->frame);
-  for (size_t i = 0; i < opts->n_overrides; i++) s->overrides_unused += !ov_used[i];
-  st = cv_mesh_validate(m, err);
-  if (st) cv_err_prefix(err, "%s", path);
-done:
   aiReleaseImport(sc);
-  free(matmap);
-  free(ov_used);
   if (st) {
     cv_mesh_destroy(m);
     return st;
