@@ -369,138 +369,154 @@ static int cmp_job_cost(const void *x, const void *y) {
   return (a < b) - (a > b);
 }
 
-int cv_hmatrix_build_direct(const cv_display *d, const cv_ff_params *fp,
-                            const cv_hmatrix_direct_params *params, cv_hmatrix **out,
-                            cv_hmatrix_info *info, cv_err *err) {
-  const double t0 = omp_get_wtime();
-  if (!out) return cv_err_set(err, CV_ERR_INVALID, "hmatrix: out is NULL");
-  *out = NULL;
-  cv_hmatrix_direct_params p;
+/* Checks the parameters (defaults for NULL) into *p.  Returns the status. */
+static int direct_params(const cv_display *d, const cv_hmatrix_direct_params *params,
+                         cv_hmatrix_direct_params *p, cv_err *err) {
   if (params)
-    p = *params;
+    *p = *params;
   else
-    cv_hmatrix_direct_params_default(&p);
+    cv_hmatrix_direct_params_default(p);
   if (!d || d->n_patches == 0)
     return cv_err_set(err, CV_ERR_INVALID, "hmatrix: display without patches");
-  if (!(p.tol > 0 && p.tol < 0.5))
-    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: tolerance %g, expected in (0, 0.5)", p.tol);
-  if (!(p.eta > 0 && p.eta < 100))
-    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: eta %g, expected in (0, 100)", p.eta);
-  if (p.leaf < 2 || p.leaf > 64)
-    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: leaf %d, expected 2..64", p.leaf);
-  cv_ff_kernel *K = NULL;
-  int st = cv_ff_kernel_create(d, fp, &K, err);
-  if (st) return st;
-  const size_t n = d->n_patches, ns = d->n_surfaces;
-  /* leaves: at most ceil(nu / 2)-style halving keeps every leaf >= leaf/2
-   * on a side, so n leaves is a safe upper bound */
+  if (!(p->tol > 0 && p->tol < 0.5))
+    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: tolerance %g, expected in (0, 0.5)", p->tol);
+  if (!(p->eta > 0 && p->eta < 100))
+    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: eta %g, expected in (0, 100)", p->eta);
+  if (p->leaf < 2 || p->leaf > 64)
+    return cv_err_set(err, CV_ERR_INVALID, "hmatrix: leaf %d, expected 2..64", p->leaf);
+  return CV_OK;
+}
+
+/* A safe upper bound of the leaves: halving keeps every leaf >= leaf/2 on
+ * a side. */
+static size_t max_leaves(const cv_display *d, int leaf) {
   size_t maxleaf = 0;
-  for (size_t k = 0; k < ns; k++) {
-    const size_t lu = (d->surfaces[k].nu + p.leaf - 1) / (size_t)p.leaf;
-    const size_t lv = (d->surfaces[k].nv + p.leaf - 1) / (size_t)p.leaf;
+  for (size_t k = 0; k < d->n_surfaces; k++) {
+    const size_t lu = (d->surfaces[k].nu + leaf - 1) / (size_t)leaf;
+    const size_t lv = (d->surfaces[k].nv + leaf - 1) / (size_t)leaf;
     maxleaf += 4 * lu * lv;
   }
-  cv_hmatrix *h = cv_hm_alloc(n, maxleaf);
-  ctree tree = {0};
-  jobs q = {0};
-  int *root = calloc(ns, sizeof *root);
-  if (!h || !root) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory (%zu patches)", n);
-    goto done;
-  }
+  return maxleaf;
+}
+
+/* The cluster tree of every surface (roots into root[]) and the first jobs:
+ * the admissible partition of every pair of surfaces that exchange light;
+ * *pairs the patch pairs they cover.  Returns the status. */
+static int plan_jobs(const cv_display *d, const cv_ff_kernel *K, const cv_hmatrix_direct_params *p,
+                     cv_hmatrix *h, ctree *tree, int *root, jobs *q, size_t *pairs, cv_err *err) {
+  const size_t ns = d->n_surfaces;
   size_t pos = 0, nleaf = 0;
-  for (size_t k = 0; k < ns && !st; k++) {
+  for (size_t k = 0; k < ns; k++) {
     const cv_display_surface *S = &d->surfaces[k];
-    root[k] = build_cluster(&tree, d, (uint32_t)k, 0, (uint32_t)S->nu, 0, (uint32_t)S->nv,
-                            p.leaf, h, &pos, &nleaf);
-    if (root[k] < 0) st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
+    root[k] = build_cluster(tree, d, (uint32_t)k, 0, (uint32_t)S->nu, 0, (uint32_t)S->nv, p->leaf,
+                            h, &pos, &nleaf);
+    if (root[k] < 0) return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
   }
-  if (st) goto done;
   h->nc = nleaf;
   h->cstart[nleaf] = pos;
-  size_t pairs = 0;
-  for (size_t a = 0; a < ns && !st; a++)
-    for (size_t b = 0; b < ns && !st; b++) {
+  *pairs = 0;
+  for (size_t a = 0; a < ns; a++)
+    for (size_t b = 0; b < ns; b++) {
       if (!cv_ff_kernel_surfaces_exchange(K, a, b)) continue;
-      pairs += tree.node[root[a]].np * tree.node[root[b]].np;
-      if (partition(&tree, p.eta, root[a], root[b], &q))
-        st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
+      *pairs += tree->node[root[a]].np * tree->node[root[b]].np;
+      if (partition(tree, p->eta, root[a], root[b], q))
+        return cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
     }
-  if (st) goto done;
+  return CV_OK;
+}
 
-  cv_progress *prog = NULL;
-  if (n >= 8192)
-    cv_progress_create_ex("compressed form factors", (uint64_t)pairs,
-                          p.quiet ? CV_PROGRESS_QUIET : 0, NULL, &prog);
-  size_t mm = 1; /* largest cluster in a job (children are smaller) */
-  for (size_t j = 0; j < q.n; j++) {
-    if (tree.node[q.j[j].s].np > mm) mm = tree.node[q.j[j].s].np;
-    if (tree.node[q.j[j].t].np > mm) mm = tree.node[q.j[j].t].np;
-  }
-  size_t first = 0, cap_blocks = 0;
+/* Jobs [first, end) in parallel, the costliest first (mm: the largest
+ * cluster of a job).  Returns 1 when out of memory. */
+static int run_round(cv_ff_kernel *K, cv_hmatrix *h, const ctree *tree, double tol, jobs *q,
+                     size_t first, size_t end, size_t mm, cv_progress *prog) {
   int fail = 0;
-  while (first < q.n && !fail) {
-    /* this round: jobs [first, q.n), the costliest first */
-    sort_tree = &tree;
-    qsort(q.j + first, q.n - first, sizeof *q.j, cmp_job_cost);
-    const size_t end = q.n;
+  sort_tree = tree;
+  qsort(q->j + first, end - first, sizeof *q->j, cmp_job_cost);
 #pragma omp parallel
-    {
-      aca_scratch s;
-      s.U = malloc(mm * KCAP * sizeof *s.U);
-      s.V = malloc(mm * KCAP * sizeof *s.V);
-      s.r = malloc(mm * sizeof *s.r);
-      s.sum = malloc(mm * sizeof *s.sum);
-      s.used = malloc(mm);
-      int ok = s.U && s.V && s.r && s.sum && s.used;
-      cv_ff_kernel_thread_init(K);
+  {
+    aca_scratch s;
+    s.U = malloc(mm * KCAP * sizeof *s.U);
+    s.V = malloc(mm * KCAP * sizeof *s.V);
+    s.r = malloc(mm * sizeof *s.r);
+    s.sum = malloc(mm * sizeof *s.sum);
+    s.used = malloc(mm);
+    int ok = s.U && s.V && s.r && s.sum && s.used;
+    cv_ff_kernel_thread_init(K);
 #pragma omp for schedule(dynamic, 1)
-      for (size_t j = first; j < end; j++) {
-        if (!ok || run_job(K, h, &tree, p.tol, &q.j[j], &s)) {
-          ok = 0;
-          continue;
-        }
-        if (q.j[j].status != 3)
-          cv_progress_add(prog, (uint64_t)tree.node[q.j[j].s].np * tree.node[q.j[j].t].np);
+    for (size_t j = first; j < end; j++) {
+      if (!ok || run_job(K, h, tree, tol, &q->j[j], &s)) {
+        ok = 0;
+        continue;
       }
-      if (!ok) {
+      if (q->j[j].status != 3)
+        cv_progress_add(prog, (uint64_t)tree->node[q->j[j].s].np * tree->node[q->j[j].t].np);
+    }
+    if (!ok) {
 #pragma omp atomic write
-        fail = 1;
-      }
-      free(s.U);
-      free(s.V);
-      free(s.r);
-      free(s.sum);
-      free(s.used);
+      fail = 1;
     }
-    /* blocks that did not compress enough: partition them one level down */
-    for (size_t j = first; j < end && !fail; j++) {
-      if (q.j[j].status != 3) continue;
-      const cnode *a = &tree.node[q.j[j].s], *b = &tree.node[q.j[j].t];
-      const int split_a = a->nchild && (!b->nchild || a->diam >= b->diam);
-      const cnode *pn = split_a ? a : b;
-      const int js = q.j[j].s, jt = q.j[j].t;
-      for (int c = 0; c < pn->nchild && !fail; c++) {
-        const int cs = split_a ? pn->child[c] : js, ct = split_a ? jt : pn->child[c];
-        if (jobs_push(&q, cs, ct, 0)) fail = 1; /* leaf pairs go dense if ACA fails */
-      }
+    free(s.U);
+    free(s.V);
+    free(s.r);
+    free(s.sum);
+    free(s.used);
+  }
+  return fail;
+}
+
+/* Jobs [first, end) that did not compress enough (status 3): partitioned
+ * one level down (the larger cluster split) as new jobs.  Returns 1 when
+ * out of memory. */
+static int split_failed_jobs(const ctree *tree, jobs *q, size_t first, size_t end) {
+  for (size_t j = first; j < end; j++) {
+    if (q->j[j].status != 3) continue;
+    const cnode *a = &tree->node[q->j[j].s], *b = &tree->node[q->j[j].t];
+    const int split_a = a->nchild && (!b->nchild || a->diam >= b->diam);
+    const cnode *pn = split_a ? a : b;
+    const int js = q->j[j].s, jt = q->j[j].t;
+    for (int c = 0; c < pn->nchild; c++) {
+      const int cs = split_a ? pn->child[c] : js, ct = split_a ? jt : pn->child[c];
+      if (jobs_push(q, cs, ct, 0)) return 1; /* leaf pairs go dense if ACA fails */
     }
+  }
+  return 0;
+}
+
+/* Rounds of jobs until none is left (each round's failures split into the
+ * next), with progress over `pairs` patch pairs.  Returns 1 when out of
+ * memory. */
+static int run_jobs(cv_ff_kernel *K, cv_hmatrix *h, const ctree *tree, double tol, jobs *q,
+                    size_t pairs, int quiet) {
+  cv_progress *prog = NULL;
+  if (h->n >= 8192)
+    cv_progress_create_ex("compressed form factors", (uint64_t)pairs,
+                          quiet ? CV_PROGRESS_QUIET : 0, NULL, &prog);
+  size_t mm = 1; /* largest cluster in a job (children are smaller) */
+  for (size_t j = 0; j < q->n; j++) {
+    if (tree->node[q->j[j].s].np > mm) mm = tree->node[q->j[j].s].np;
+    if (tree->node[q->j[j].t].np > mm) mm = tree->node[q->j[j].t].np;
+  }
+  size_t first = 0;
+  int fail = 0;
+  while (first < q->n && !fail) {
+    const size_t end = q->n;
+    fail = run_round(K, h, tree, tol, q, first, end, mm, prog) || split_failed_jobs(tree, q, first, end);
     first = end;
   }
   cv_progress_finish(prog);
   cv_progress_destroy(prog);
-  if (fail) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory while compressing");
-    goto done;
-  }
-  for (size_t j = 0; j < q.n; j++) cap_blocks += q.j[j].status == 1;
+  return fail;
+}
+
+/* The finished jobs' blocks into h (status 1: kept; 1 and 2: their error
+ * counted).  Returns 1 when out of memory. */
+static int collect_blocks(cv_hmatrix *h, jobs *q) {
+  size_t cap_blocks = 0;
+  for (size_t j = 0; j < q->n; j++) cap_blocks += q->j[j].status == 1;
   h->blocks = malloc((cap_blocks + 1) * sizeof *h->blocks);
-  if (!h->blocks) {
-    st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
-    goto done;
-  }
-  for (size_t j = 0; j < q.n; j++) {
-    job *jb = &q.j[j];
+  if (!h->blocks) return 1;
+  for (size_t j = 0; j < q->n; j++) {
+    job *jb = &q->j[j];
     if (jb->status == 1 || jb->status == 2)
       for (size_t i = 0; i < jb->b.m; i++) h->row_err[h->perm[jb->b.r0 + i]] += jb->err[i];
     if (jb->status == 1) {
@@ -508,13 +524,38 @@ int cv_hmatrix_build_direct(const cv_display *d, const cv_ff_params *fp,
       jb->b.vals = NULL;
     }
   }
-  if (cv_hm_finish(h)) {
+  return 0;
+}
+
+int cv_hmatrix_build_direct(const cv_display *d, const cv_ff_params *fp,
+                            const cv_hmatrix_direct_params *params, cv_hmatrix **out,
+                            cv_hmatrix_info *info, cv_err *err) {
+  const double t0 = omp_get_wtime();
+  if (!out) return cv_err_set(err, CV_ERR_INVALID, "hmatrix: out is NULL");
+  *out = NULL;
+  cv_hmatrix_direct_params p;
+  int st = direct_params(d, params, &p, err);
+  if (st) return st;
+  cv_ff_kernel *K = NULL;
+  st = cv_ff_kernel_create(d, fp, &K, err);
+  if (st) return st;
+  const size_t n = d->n_patches;
+  cv_hmatrix *h = cv_hm_alloc(n, max_leaves(d, p.leaf));
+  ctree tree = {0};
+  jobs q = {0};
+  int *root = calloc(d->n_surfaces, sizeof *root);
+  size_t pairs = 0;
+  if (!h || !root)
+    st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory (%zu patches)", n);
+  if (!st) st = plan_jobs(d, K, &p, h, &tree, root, &q, &pairs, err);
+  if (!st && run_jobs(K, h, &tree, p.tol, &q, pairs, p.quiet))
+    st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory while compressing");
+  if (!st && (collect_blocks(h, &q) || cv_hm_finish(h)))
     st = cv_err_set(err, CV_ERR_NOMEM, "hmatrix: out of memory");
-    goto done;
+  if (!st) {
+    cv_hm_info(h, pairs, (omp_get_wtime() - t0) * 1e3, &h->info);
+    if (info) *info = h->info;
   }
-  cv_hm_info(h, pairs, (omp_get_wtime() - t0) * 1e3, &h->info);
-  if (info) *info = h->info;
-done:
   for (size_t j = 0; j < q.n; j++) {
     free(q.j[j].err);
     free(q.j[j].b.vals);
