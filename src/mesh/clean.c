@@ -431,6 +431,108 @@ static int cmp_rec(const void *x, const void *y) {
   return a->v < b->v ? -1 : a->v > b->v;
 }
 
+/* The boundary edges in triangle order (deterministic) into be[] with
+ * their triangle's unit normal tn[]; their vertices marked in bnd[].
+ * Returns their number; *lsum their total length. */
+static size_t boundary_edges(const cv_mesh *m, const edgemap *em, bedge *be, double (*tn)[3],
+                             uint8_t *bnd, double *lsum) {
+  size_t nbe = 0;
+  *lsum = 0;
+  for (size_t t = 0; t < m->nt; t++)
+    for (int j = 0; j < 3; j++) {
+      uint32_t a = m->tri[3 * t + j], b = m->tri[3 * t + (j + 1) % 3];
+      if (edge_count(em, a, b) != 1) continue;
+      bedge *e = &be[nbe];
+      e->a = a, e->b = b, e->c = m->tri[3 * t + (j + 2) % 3], e->tri = (uint32_t)t;
+      float n[3];
+      cv_mesh_tri_normal(m, t, n);
+      double l = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+      for (int k = 0; k < 3; k++) tn[nbe][k] = l > 0 ? n[k] / l : 0.0;
+      double pa[3], pb[3];
+      vpos(m, a, pa);
+      vpos(m, b, pb);
+      *lsum += sqrt(dist2(pa, pb));
+      bnd[a] = bnd[b] = 1;
+      nbe++;
+    }
+  return nbe;
+}
+
+/* The boundary edges into the grid g of cell size cs: each edge entered at
+ * samples every half cell (once per cell it crosses).  Returns the status. */
+static int index_edges(const cv_mesh *m, const bedge *be, size_t nbe, double cs, const double org[3],
+                       sgrid *g) {
+  size_t nsamp = 0;
+  for (size_t i = 0; i < nbe; i++) {
+    double pa[3], pb[3];
+    vpos(m, be[i].a, pa);
+    vpos(m, be[i].b, pb);
+    nsamp += (size_t)ceil(sqrt(dist2(pa, pb)) / (0.5 * cs)) + 1;
+  }
+  if (sgrid_init(g, nsamp, cs, org)) return CV_ERR_NOMEM;
+  for (size_t i = 0; i < nbe; i++) {
+    double pa[3], pb[3];
+    vpos(m, be[i].a, pa);
+    vpos(m, be[i].b, pb);
+    size_t ns = (size_t)ceil(sqrt(dist2(pa, pb)) / (0.5 * cs)) + 1;
+    int64_t prev[3] = {INT64_MIN, 0, 0};
+    for (size_t s = 0; s < ns; s++) {
+      double t = ns > 1 ? (double)s / (double)(ns - 1) : 0.0, q[3];
+      for (int k = 0; k < 3; k++) q[k] = pa[k] + t * (pb[k] - pa[k]);
+      int64_t c[3];
+      sgrid_cell(g, q, c);
+      if (c[0] == prev[0] && c[1] == prev[1] && c[2] == prev[2]) continue;
+      memcpy(prev, c, sizeof prev);
+      sgrid_insert(g, c, (uint32_t)i);
+    }
+  }
+  return CV_OK;
+}
+
+/* Fan-splits the triangle of edge rec[i].edge at the vertices rec[i..j)
+ * (sorted along the edge): (a, v1, c), (v1, v2, c), ..., (vk, b, c), the
+ * corner UVs on the edge at each split point's t.  Returns the status. */
+static int fan_split(cv_mesh *m, const bedge *e, const ve_rec *rec, size_t i, size_t j,
+                     size_t *nadded) {
+  int st = CV_OK;
+  uint32_t mat = m->tri_mat[e->tri], prev = e->a;
+  float uva[2] = {0, 0}, uvb[2] = {0, 0}, uvc[2] = {0, 0};
+  if (m->tri_uv) {
+    const float *q = m->tri_uv + 6 * (size_t)e->tri;
+    int ja = m->tri[3 * (size_t)e->tri] == e->a ? 0 : m->tri[3 * (size_t)e->tri + 1] == e->a ? 1 : 2;
+    memcpy(uva, q + 2 * ja, sizeof uva);
+    memcpy(uvb, q + 2 * ((ja + 1) % 3), sizeof uvb);
+    memcpy(uvc, q + 2 * ((ja + 2) % 3), sizeof uvc);
+  }
+  double tprev = 0;
+  for (size_t r = i; r <= j && !st; r++) {
+    uint32_t cur = r < j ? rec[r].v : e->b;
+    double tcur = r < j ? rec[r].t : 1.0;
+    size_t tt;
+    if (r == i) {
+      tt = e->tri;
+      m->tri[3 * tt] = prev;
+      m->tri[3 * tt + 1] = cur;
+      m->tri[3 * tt + 2] = e->c;
+    } else {
+      tt = m->nt;
+      st = cv_mesh_add_tri(m, prev, cur, e->c, mat);
+      (*nadded)++;
+    }
+    if (!st && m->tri_uv) {
+      float *q = m->tri_uv + 6 * tt;
+      for (int k = 0; k < 2; k++) {
+        q[k] = (float)(uva[k] + tprev * (uvb[k] - uva[k]));
+        q[2 + k] = (float)(uva[k] + tcur * (uvb[k] - uva[k]));
+        q[4 + k] = uvc[k];
+      }
+    }
+    prev = cur;
+    tprev = tcur;
+  }
+  return st;
+}
+
 /* Vertex-to-edge pass: splits boundary edges at nearby boundary vertices. */
 static int crack_ve(cv_mesh *m, double cell_min, double cw, double tol, double cosc,
                     const double org[3], size_t *nsplit, size_t *nadded, int *deferred) {
@@ -442,14 +544,13 @@ static int crack_ve(cv_mesh *m, double cell_min, double cw, double tol, double c
   bedge *be = NULL;
   double(*tn)[3] = NULL;
   ve_rec *rec = NULL;
-  size_t nbe = 0, nrec = 0;
+  size_t nrec = 0;
   sgrid g = {0};
   if (!nrm || !bnd || !tsplit || edgemap_build(&em, m)) {
     st = CV_ERR_NOMEM;
     goto done;
   }
   cv_mesh_vertex_normals(m, nrm);
-  /* Boundary edges in triangle order (deterministic). */
   size_t cap = count_boundary(&em);
   if (!cap) goto done;
   be = malloc(cap * sizeof *be);
@@ -459,56 +560,15 @@ static int crack_ve(cv_mesh *m, double cell_min, double cw, double tol, double c
     st = CV_ERR_NOMEM;
     goto done;
   }
-  double lsum = 0;
-  for (size_t t = 0; t < m->nt; t++)
-    for (int j = 0; j < 3; j++) {
-      uint32_t a = m->tri[3 * t + j], b = m->tri[3 * t + (j + 1) % 3];
-      if (edge_count(&em, a, b) != 1) continue;
-      bedge *e = &be[nbe];
-      e->a = a, e->b = b, e->c = m->tri[3 * t + (j + 2) % 3], e->tri = (uint32_t)t;
-      float n[3];
-      cv_mesh_tri_normal(m, t, n);
-      double l = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-      for (int k = 0; k < 3; k++) tn[nbe][k] = l > 0 ? n[k] / l : 0.0;
-      double pa[3], pb[3];
-      vpos(m, a, pa);
-      vpos(m, b, pb);
-      lsum += sqrt(dist2(pa, pb));
-      bnd[a] = bnd[b] = 1;
-      nbe++;
-    }
+  double lsum;
+  const size_t nbe = boundary_edges(m, &em, be, tn, bnd, &lsum);
   /* Cell size >= crack width; edges are entered at samples every half cell,
    * so an edge within cw of a vertex has a sample within 1.25 cells: query
    * +-2 cells. */
   double cs = lsum / (double)nbe;
   if (cs < cell_min) cs = cell_min;
-  size_t nsamp = 0;
-  for (size_t i = 0; i < nbe; i++) {
-    double pa[3], pb[3];
-    vpos(m, be[i].a, pa);
-    vpos(m, be[i].b, pb);
-    nsamp += (size_t)ceil(sqrt(dist2(pa, pb)) / (0.5 * cs)) + 1;
-  }
-  if (sgrid_init(&g, nsamp, cs, org)) {
-    st = CV_ERR_NOMEM;
-    goto done;
-  }
-  for (size_t i = 0; i < nbe; i++) {
-    double pa[3], pb[3];
-    vpos(m, be[i].a, pa);
-    vpos(m, be[i].b, pb);
-    size_t ns = (size_t)ceil(sqrt(dist2(pa, pb)) / (0.5 * cs)) + 1;
-    int64_t prev[3] = {INT64_MIN, 0, 0};
-    for (size_t s = 0; s < ns; s++) {
-      double t = ns > 1 ? (double)s / (double)(ns - 1) : 0.0, q[3];
-      for (int k = 0; k < 3; k++) q[k] = pa[k] + t * (pb[k] - pa[k]);
-      int64_t c[3];
-      sgrid_cell(&g, q, c);
-      if (c[0] == prev[0] && c[1] == prev[1] && c[2] == prev[2]) continue;
-      memcpy(prev, c, sizeof prev);
-      sgrid_insert(&g, c, (uint32_t)i);
-    }
-  }
+  st = index_edges(m, be, nbe, cs, org, &g);
+  if (st) goto done;
   ve_ctx c = {m, nrm, be, (const double(*)[3])tn, {0, 0, 0}, cw * cw, tol * tol, cosc, 0, 0,
               0, 0};
   for (size_t v = 0; v < m->nv; v++) {
@@ -523,55 +583,18 @@ static int crack_ve(cv_mesh *m, double cell_min, double cw, double tol, double c
     if (c.best != UINT32_MAX) rec[nrec++] = (ve_rec){c.best, (uint32_t)v, c.bestt};
   }
   qsort(rec, nrec, sizeof *rec, cmp_rec);
-  /* Fan-split each edge's triangle: (a, v1, c), (v1, v2, c), ..., (vk, b, c).
-   * A triangle is split along one edge per pass; the rest waits. */
+  /* A triangle is split along one edge per pass; the rest waits. */
   for (size_t i = 0; i < nrec && !st;) {
     size_t j = i;
     while (j < nrec && rec[j].edge == rec[i].edge) j++;
     const bedge *e = &be[rec[i].edge];
     if (tsplit[e->tri]) {
       *deferred = 1;
-      i = j;
-      continue;
+    } else {
+      tsplit[e->tri] = 1;
+      st = fan_split(m, e, rec, i, j, nadded);
+      *nsplit += j - i;
     }
-    tsplit[e->tri] = 1;
-    uint32_t mat = m->tri_mat[e->tri], prev = e->a;
-    /* corner UVs of a, b, c; a split point's UV lies on the edge at its t */
-    float uva[2] = {0, 0}, uvb[2] = {0, 0}, uvc[2] = {0, 0};
-    if (m->tri_uv) {
-      const float *q = m->tri_uv + 6 * (size_t)e->tri;
-      int ja = m->tri[3 * (size_t)e->tri] == e->a ? 0 : m->tri[3 * (size_t)e->tri + 1] == e->a ? 1 : 2;
-      memcpy(uva, q + 2 * ja, sizeof uva);
-      memcpy(uvb, q + 2 * ((ja + 1) % 3), sizeof uvb);
-      memcpy(uvc, q + 2 * ((ja + 2) % 3), sizeof uvc);
-    }
-    double tprev = 0;
-    for (size_t r = i; r <= j && !st; r++) {
-      uint32_t cur = r < j ? rec[r].v : e->b;
-      double tcur = r < j ? rec[r].t : 1.0;
-      size_t tt;
-      if (r == i) {
-        tt = e->tri;
-        m->tri[3 * tt] = prev;
-        m->tri[3 * tt + 1] = cur;
-        m->tri[3 * tt + 2] = e->c;
-      } else {
-        tt = m->nt;
-        st = cv_mesh_add_tri(m, prev, cur, e->c, mat);
-        (*nadded)++;
-      }
-      if (!st && m->tri_uv) {
-        float *q = m->tri_uv + 6 * tt;
-        for (int k = 0; k < 2; k++) {
-          q[k] = (float)(uva[k] + tprev * (uvb[k] - uva[k]));
-          q[2 + k] = (float)(uva[k] + tcur * (uvb[k] - uva[k]));
-          q[4 + k] = uvc[k];
-        }
-      }
-      prev = cur;
-      tprev = tcur;
-    }
-    *nsplit += j - i;
     i = j;
   }
 done:
