@@ -84,113 +84,121 @@ static int neighbours(int x, int y, int w, int h, size_t out[8]) {
   return k;
 }
 
-int cv_sun_extract(const cv_envmap *env, const cv_sun_params *p, cv_sun_info *info,
-                   cv_envmap **residual) {
-  if (residual) *residual = NULL;
-  if (!env || !env->img || !info) return CV_ERR_INVALID;
-  cv_sun_params def;
-  cv_sun_params_default(&def);
-  if (!p) p = &def;
-  if (!(p->rel_threshold > 0.0 && p->rel_threshold <= 1.0) || !(p->median_factor >= 0.0) ||
-      !(p->max_solid_angle > 0.0) ||
-      !(p->min_energy_fraction >= 0.0 && p->min_energy_fraction <= 1.0) || p->dilate < 0 ||
-      p->dilate > 16)
-    return CV_ERR_INVALID;
-  memset(info, 0, sizeof *info);
-  const cv_image *img = env->img;
-  const int w = img->w, h = img->h;
-  const size_t np = (size_t)w * (size_t)h;
+/* The map being scanned: its luminance, per-row pixel solid angle, the
+ * region mask (1: region, 2: the ring just outside) and the region's pixels
+ * in q (the thresholded region first, then the dilation rings). */
+typedef struct sun_scan {
+  const cv_image *img;
+  int w, h;
+  size_t np;
+  float *lum;
+  uint8_t *mask;
+  double *row_sa;
+  queue q;
+} sun_scan;
 
-  float *lum = malloc(np * sizeof *lum);
-  float *tmp = malloc(np * sizeof *tmp);
-  uint8_t *mask = calloc(np, 1);
-  double *row_sa = malloc((size_t)h * sizeof *row_sa);
-  queue q = {0};
-  int st = CV_OK;
-  if (!lum || !tmp || !mask || !row_sa) {
-    st = CV_ERR_NOMEM;
-    goto done;
-  }
-  for (int y = 0; y < h; y++) row_sa[y] = cv_latlong_pixel_solid_angle(y, w, h);
+static int sun_params_ok(const cv_sun_params *p) {
+  return p->rel_threshold > 0.0 && p->rel_threshold <= 1.0 && p->median_factor >= 0.0 &&
+         p->max_solid_angle > 0.0 && p->min_energy_fraction >= 0.0 &&
+         p->min_energy_fraction <= 1.0 && p->dilate >= 0 && p->dilate <= 16;
+}
 
-  /* luminance, peak (first in scan order), total energy */
+/* Luminance, the peak (first in scan order), the total energy and the
+ * median into info, the threshold max(rel_threshold x peak, median_factor x
+ * median).  tmp: scratch of np floats.  Returns the peak pixel. */
+static size_t luminance_stats(sun_scan *S, const cv_sun_params *p, float *tmp, cv_sun_info *info) {
   size_t peak = 0;
   double total = 0.0;
-  for (size_t i = 0; i < np; i++) {
-    const float *px = img->px + 3 * i;
-    lum[i] = (float)cv_luminance(px[0], px[1], px[2]);
-    if (lum[i] > lum[peak]) peak = i;
-    total += lum[i] * row_sa[i / (size_t)w];
+  for (size_t i = 0; i < S->np; i++) {
+    const float *px = S->img->px + 3 * i;
+    S->lum[i] = (float)cv_luminance(px[0], px[1], px[2]);
+    if (S->lum[i] > S->lum[peak]) peak = i;
+    total += S->lum[i] * S->row_sa[i / (size_t)S->w];
   }
-  memcpy(tmp, lum, np * sizeof *tmp);
-  const double median = select_kth(tmp, np, np / 2);
-  const double thr = fmax(p->rel_threshold * lum[peak], p->median_factor * median);
-  info->peak_luminance = lum[peak];
+  memcpy(tmp, S->lum, S->np * sizeof *tmp);
+  const double median = select_kth(tmp, S->np, S->np / 2);
+  info->peak_luminance = S->lum[peak];
   info->median_luminance = median;
-  info->threshold = thr;
+  info->threshold = fmax(p->rel_threshold * S->lum[peak], p->median_factor * median);
   info->total_energy = total;
-  if (!(lum[peak] > thr) || !(total > 0.0)) goto copy; /* no candidate */
+  return peak;
+}
 
-  /* grow the thresholded region from the peak (breadth first) */
+/* The region: grown from the peak over pixels above thr (breadth first),
+ * then `dilate` rings added, each the neighbours of the previous one.
+ * Returns the status. */
+static int grow_region(sun_scan *S, size_t peak, double thr, int dilate) {
+  const int w = S->w, h = S->h;
   size_t nb[8];
-  mask[peak] = 1;
-  if ((st = q_push(&q, peak)) != CV_OK) goto done;
-  for (size_t head = 0; head < q.n; head++) {
-    const size_t i = q.v[head];
+  int st;
+  S->mask[peak] = 1;
+  if ((st = q_push(&S->q, peak)) != CV_OK) return st;
+  for (size_t head = 0; head < S->q.n; head++) {
+    const size_t i = S->q.v[head];
     const int k = neighbours((int)(i % (size_t)w), (int)(i / (size_t)w), w, h, nb);
     for (int j = 0; j < k; j++)
-      if (!mask[nb[j]] && lum[nb[j]] > thr) {
-        mask[nb[j]] = 1;
-        if ((st = q_push(&q, nb[j])) != CV_OK) goto done;
+      if (!S->mask[nb[j]] && S->lum[nb[j]] > thr) {
+        S->mask[nb[j]] = 1;
+        if ((st = q_push(&S->q, nb[j])) != CV_OK) return st;
       }
   }
-  /* dilation rings: q.v[0..q.n) lists the region; each pass appends the
-   * neighbours of the previous ring */
   size_t ring_start = 0;
-  for (int r = 0; r < p->dilate; r++) {
-    const size_t ring_end = q.n;
+  for (int r = 0; r < dilate; r++) {
+    const size_t ring_end = S->q.n;
     for (size_t head = ring_start; head < ring_end; head++) {
-      const size_t i = q.v[head];
+      const size_t i = S->q.v[head];
       const int k = neighbours((int)(i % (size_t)w), (int)(i / (size_t)w), w, h, nb);
       for (int j = 0; j < k; j++)
-        if (!mask[nb[j]]) {
-          mask[nb[j]] = 1;
-          if ((st = q_push(&q, nb[j])) != CV_OK) goto done;
+        if (!S->mask[nb[j]]) {
+          S->mask[nb[j]] = 1;
+          if ((st = q_push(&S->q, nb[j])) != CV_OK) return st;
         }
     }
     ring_start = ring_end;
   }
-  const size_t region_n = q.n;
+  return CV_OK;
+}
 
-  /* ring just outside the region (marked 2): the fill colour */
-  double fill[3] = {0.0, 0.0, 0.0}, fill_w = 0.0;
-  for (size_t head = 0; head < region_n; head++) {
-    const size_t i = q.v[head];
+/* The fill colour: the solid-angle weighted mean of the ring just outside
+ * the region (marked 2). */
+static void region_fill(sun_scan *S, double fill[3]) {
+  const int w = S->w, h = S->h;
+  size_t nb[8];
+  double fill_w = 0.0;
+  fill[0] = fill[1] = fill[2] = 0.0;
+  for (size_t head = 0; head < S->q.n; head++) {
+    const size_t i = S->q.v[head];
     const int k = neighbours((int)(i % (size_t)w), (int)(i / (size_t)w), w, h, nb);
     for (int j = 0; j < k; j++)
-      if (!mask[nb[j]]) {
-        mask[nb[j]] = 2;
-        const double sa = row_sa[nb[j] / (size_t)w];
-        const float *px = img->px + 3 * nb[j];
+      if (!S->mask[nb[j]]) {
+        S->mask[nb[j]] = 2;
+        const double sa = S->row_sa[nb[j] / (size_t)w];
+        const float *px = S->img->px + 3 * nb[j];
         for (int c = 0; c < 3; c++) fill[c] += sa * px[c];
         fill_w += sa;
       }
   }
   if (fill_w > 0.0)
     for (int c = 0; c < 3; c++) fill[c] /= fill_w;
+}
 
-  /* region statistics */
+/* The region's solid angle, energy, RGB over the fill and direction (the
+ * centroid of its excess luminance, else the peak) into info, and whether
+ * it is a sun. */
+static void region_stats(const sun_scan *S, size_t peak, const double fill[3],
+                         const cv_sun_params *p, cv_sun_info *info) {
+  const int w = S->w, h = S->h;
   double sa_sum = 0.0, e_region = 0.0, rgb[3] = {0.0, 0.0, 0.0}, cen[3] = {0.0, 0.0, 0.0};
   const double fill_lum = cv_luminance(fill[0], fill[1], fill[2]);
-  for (size_t head = 0; head < region_n; head++) {
-    const size_t i = q.v[head];
+  for (size_t head = 0; head < S->q.n; head++) {
+    const size_t i = S->q.v[head];
     const int x = (int)(i % (size_t)w), y = (int)(i / (size_t)w);
-    const double sa = row_sa[y];
-    const float *px = img->px + 3 * i;
+    const double sa = S->row_sa[y];
+    const float *px = S->img->px + 3 * i;
     sa_sum += sa;
-    e_region += lum[i] * sa;
+    e_region += S->lum[i] * sa;
     for (int c = 0; c < 3; c++) rgb[c] += (px[c] - fill[c]) * sa;
-    const double ex = (lum[i] - fill_lum) * sa;
+    const double ex = (S->lum[i] - fill_lum) * sa;
     if (ex > 0.0) {
       double d[3];
       cv_latlong_pixel_dir(x, y, w, h, d);
@@ -205,30 +213,53 @@ int cv_sun_extract(const cv_envmap *env, const cv_sun_params *p, cv_sun_info *in
   }
   info->elevation_deg = asin(fmax(-1.0, fmin(1.0, info->dir[1]))) * 180.0 / M_PI;
   info->solid_angle = sa_sum;
-  info->energy_fraction = e_region / total;
-  info->pixels = (long)region_n;
+  info->energy_fraction = e_region / info->total_energy;
+  info->pixels = (long)S->q.n;
   for (int c = 0; c < 3; c++) {
     info->rgb[c] = rgb[c] > 0.0 ? rgb[c] : 0.0;
     info->rgb_clamped += rgb[c] < 0.0;
   }
-  memcpy(info->fill_rgb, fill, sizeof fill);
+  memcpy(info->fill_rgb, fill, 3 * sizeof *fill);
   info->found = sa_sum <= p->max_solid_angle && info->energy_fraction >= p->min_energy_fraction;
+}
 
-copy:
-  if (residual) {
-    if ((st = cv_envmap_clone(env, residual)) != CV_OK) goto done;
-    if (info->found)
-      for (size_t head = 0; head < (size_t)info->pixels; head++) {
-        float *px = (*residual)->img->px + 3 * q.v[head];
-        for (int c = 0; c < 3; c++) px[c] = (float)info->fill_rgb[c];
-      }
+int cv_sun_extract(const cv_envmap *env, const cv_sun_params *p, cv_sun_info *info,
+                   cv_envmap **residual) {
+  if (residual) *residual = NULL;
+  if (!env || !env->img || !info) return CV_ERR_INVALID;
+  cv_sun_params def;
+  cv_sun_params_default(&def);
+  if (!p) p = &def;
+  if (!sun_params_ok(p)) return CV_ERR_INVALID;
+  memset(info, 0, sizeof *info);
+  sun_scan S = {.img = env->img, .w = env->img->w, .h = env->img->h};
+  S.np = (size_t)S.w * (size_t)S.h;
+  S.lum = malloc(S.np * sizeof *S.lum);
+  float *tmp = malloc(S.np * sizeof *tmp);
+  S.mask = calloc(S.np, 1);
+  S.row_sa = malloc((size_t)S.h * sizeof *S.row_sa);
+  int st = (!S.lum || !tmp || !S.mask || !S.row_sa) ? CV_ERR_NOMEM : CV_OK;
+  if (!st) {
+    for (int y = 0; y < S.h; y++) S.row_sa[y] = cv_latlong_pixel_solid_angle(y, S.w, S.h);
+    const size_t peak = luminance_stats(&S, p, tmp, info);
+    const int candidate = S.lum[peak] > info->threshold && info->total_energy > 0.0;
+    if (candidate) st = grow_region(&S, peak, info->threshold, p->dilate);
+    if (candidate && !st) {
+      double fill[3];
+      region_fill(&S, fill);
+      region_stats(&S, peak, fill, p, info);
+    }
   }
-done:
-  free(lum);
+  if (!st && residual && (st = cv_envmap_clone(env, residual)) == CV_OK && info->found)
+    for (size_t head = 0; head < (size_t)info->pixels; head++) {
+      float *px = (*residual)->img->px + 3 * S.q.v[head];
+      for (int c = 0; c < 3; c++) px[c] = (float)info->fill_rgb[c];
+    }
+  free(S.lum);
   free(tmp);
-  free(mask);
-  free(row_sa);
-  free(q.v);
+  free(S.mask);
+  free(S.row_sa);
+  free(S.q.v);
   if (st != CV_OK) {
     if (residual) {
       cv_envmap_destroy(*residual);
