@@ -157,8 +157,10 @@ int master_stop_poll(master *m) {
   long len;
   while ((len = cv_mailbox_take(m->stop_mb, &data, NULL)) > 1) {
     if (m->stop_code) continue;
+    if (data[0] == 'S' && *m->s->stop) continue; /* the whole job was signalled: not one rank's stop */
     const int code = data[0] - '0';
-    m->stop_code = code >= CV_WIN_CLOSED && code <= CV_WIN_LOST ? code : CV_WIN_CLOSED;
+    m->stop_code = data[0] == 'S' ? MASTER_STOP_SIGNAL
+                   : code >= CV_WIN_CLOSED && code <= CV_WIN_LOST ? code : CV_WIN_CLOSED;
     snprintf(m->stop_reason, sizeof m->stop_reason, "%.*s", (int)(len - 2), (const char *)data + 2);
     fprintf(stderr, "cave run: stopping: %s\n", m->stop_reason);
   }
