@@ -559,6 +559,8 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     cv_metrics_uint(ml, "packets", m->trk.packets);
     cv_metrics_uint(ml, "malformed", m->trk.malformed);
     cv_metrics_uint(ml, "no_body", m->trk.no_body);
+    cv_metrics_uint(ml, "held_outside", m->gate.outside); /* implausible poses held (master_sync.c) */
+    cv_metrics_uint(ml, "held_too_fast", m->gate.too_fast);
   }
   if (fs->has_eyes) cv_metrics_doubles(ml, "eyes", &fs->eyes[0][0], 6);
   cv_metrics_object_end(ml);

@@ -22,6 +22,7 @@
 #include "render/desktop.h"
 #include "service/clocksync.h"
 #include "service/metrics.h"
+#include "service/posegate.h"
 #include "service/tracker_calib.h"
 #include "lightshare.h"
 #include "service_internal.h"
@@ -230,6 +231,10 @@ typedef struct master {
   double stalled_s;         /* the master's own stalls (SIGSTOP, starved) in report waits, seconds */
   uint32_t stalls;          /* and their count */
   double stall_last;        /* master_stall_check's previous call */
+  cv_pose_gate gate;        /* implausible DTrack poses held (service/posegate.h) */
+  int gate_on;
+  double gate_warn_t;       /* the last warning about them (one per 5 s) */
+  uint64_t gate_warned;     /* held samples already said */
   cv_metrics_line *ml;
   double *frame_ms, *overhead_ms;
   double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
