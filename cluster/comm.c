@@ -386,6 +386,11 @@ void cv_mailbox_close(cv_mailbox *m) {
 
 void cv_comm_barrier(void) { MPI_Barrier(MPI_COMM_WORLD); }
 
+int cv_comm_bcast_int(int v) {
+  MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  return v;
+}
+
 
 int cv_comm_render_group(int render) {
   MPI_Comm c;

@@ -78,6 +78,8 @@ void cv_mailbox_close(cv_mailbox *m);
 
 /* MPI_Barrier (the optional swap lock). */
 void cv_comm_barrier(void);
+/* Rank 0's v on every rank (MPI_Bcast, collective; start-up only). */
+int cv_comm_bcast_int(int v);
 
 /* The render ranks' communicator (the swap lock): every rank calls it once
  * after init, collectively, with render = 1 on the ranks that render. */

@@ -4,6 +4,7 @@
  * master and the other gather ranks (lcdreduce.c).  A gather rank is never
  * waited for by a frame: a slow or stopped one only delays the sums. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -51,18 +52,38 @@ static double thread_cpu_ms(void) {
   return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
-/* Reports set-up success ('O') or failure ('F' + message) to the master. */
-void cv_service_ready(int ok, const char *msg) {
+/* Reports set-up success ('O') or failure ('F'), the .prt's hash and the
+ * message to the master. */
+void cv_service_ready(int ok, uint64_t prt_hash, const char *msg) {
   char buf[2048];
   buf[0] = ok ? 'O' : 'F';
-  size_t n = 1;
+  memcpy(buf + 1, &prt_hash, 8);
+  size_t n = 9;
   if (msg) {
     size_t l = strlen(msg);
-    if (l > sizeof buf - 2) l = sizeof buf - 2;
-    memcpy(buf + 1, msg, l);
+    if (l > sizeof buf - 10) l = sizeof buf - 10;
+    memcpy(buf + 9, msg, l);
     n += l;
   }
   cv_comm_send(buf, n, 0, CV_TAG_READY);
+}
+
+void cv_service_test_load_delay(int rank) {
+  const char *e = getenv("CAVE_TEST_LOAD_DELAY");
+  if (!e) return;
+  char *end;
+  const long ms = strtol(e, &end, 10);
+  if (*end != ':' || ms <= 0) return;
+  for (const char *p = end + 1; *p;) {
+    const long r = strtol(p, &end, 10);
+    if (end == p) return;
+    if (r == rank) {
+      struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+      nanosleep(&ts, NULL);
+      return;
+    }
+    p = *end == ',' ? end + 1 : end;
+  }
 }
 
 int cv_gather_run(cv_service *s) {
@@ -71,6 +92,7 @@ int cv_gather_run(cv_service *s) {
   cv_prt *prt = NULL;
   cv_lcd_worker *w = NULL;
   const int index = cv_service_contributor(s, s->rank);
+  cv_service_test_load_delay(s->rank);
   int st = cv_prt_read(s->o.scene_path, &prt, &err);
   if (!st && index >= 0) st = cv_lcd_worker_create(s, prt, index, 0, &w, &err);
   {
@@ -78,7 +100,7 @@ int cv_gather_run(cv_service *s) {
     cv_comm_host(host, sizeof host);
     if (st == CV_OK) snprintf(msg, sizeof msg, "rank %d on %s: gather-only (LCD path tracing)", s->rank, host);
     else snprintf(msg, sizeof msg, "rank %d on %s (gather): %s", s->rank, host, err.msg);
-    cv_service_ready(st == CV_OK, msg);
+    cv_service_ready(st == CV_OK, prt ? prt->meta.file_hash : 0, msg);
   }
   cv_lcd_reduce *red = NULL;
   if (s->lcd_me > 0 && cv_lcd_reduce_create(s->o.lcd_w, s->o.lcd_h, s->o.lcd_budget, s->n_contributors, s->lcd_members,

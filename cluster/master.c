@@ -98,6 +98,7 @@ static int master_setup(master *m, cv_err *err) {
   int st = cv_prt_read(s->o.scene_path, &prt, err);
   if (st) return st;
   m->bands = (int)prt->bands;
+  m->prt_hash = prt->meta.file_hash;
   cv_mesh *pm = NULL;
   cv_lcd_panel pn;
   if (!cv_prt_to_mesh(prt, &pm) && !cv_lcd_panel_from_mesh(pm, &pn, NULL))
@@ -165,11 +166,7 @@ static int master_setup(master *m, cv_err *err) {
   if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   if ((st = master_sync_setup(m, err))) return st;
   /* Metrics. */
-  char mp[CV_PATHLEN + 32];
-  if (s->o.metrics_path[0]) snprintf(mp, sizeof mp, "%s", s->o.metrics_path);
-  else snprintf(mp, sizeof mp, "%s/metrics.jsonl", s->o.out_dir);
-  m->mf = fopen(mp, "w");
-  if (!m->mf) return cv_err_set(err, CV_ERR_IO, "%s: cannot write the metrics", mp);
+  if ((st = master_out_open(m, err))) return st;
   if (cv_metrics_line_create(&m->ml)) return cv_err_set(err, CV_ERR_NOMEM, "metrics: out of memory");
   return CV_OK;
 }
@@ -194,13 +191,15 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     long len = cv_mailbox_take(rb, &data, &from);
     if (len > 0) {
       ready++;
+      const int tl = len > 9 ? (int)(len - 9) : 0; /* flag, .prt hash, text */
+      master_prt_check(m, from, data, len);
       if (from > 0 && from < s->size && !lines[from]) {
-        lines[from] = malloc((size_t)len);
-        if (lines[from]) snprintf(lines[from], (size_t)len, "%.*s", (int)(len - 1), (const char *)data + 1);
+        lines[from] = malloc((size_t)tl + 1);
+        if (lines[from]) snprintf(lines[from], (size_t)tl + 1, "%.*s", tl, (const char *)data + 9);
       }
       if (data[0] != 'O' && !fail) {
         fail = 1;
-        snprintf(why, cap, "%.*s", (int)(len - 1), (const char *)data + 1);
+        snprintf(why, cap, "%.*s", tl, (const char *)data + 9);
       }
       continue;
     }
@@ -213,6 +212,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     }
   }
   cv_mailbox_close(rb);
+  if (!fail) fail = master_prt_mismatch(m, why, cap);
   if (!fail && lines) {
     char host[128];
     cv_comm_host(host, sizeof host);
@@ -242,7 +242,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
       cv_metrics_string(ml, k, lines[r] ? lines[r] : "?");
     }
     cv_metrics_object_end(ml);
-    cv_metrics_write(ml, m->mf);
+    master_metrics_put(m);
     fflush(stdout);
   }
   for (int r = 0; lines && r < s->size; r++) free(lines[r]);
@@ -421,10 +421,12 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
   int ngot = 0;
   /* Frame 0 also pays every rank's first lighting (relight, shadow map,
    * background from the maps): allow it the start-up time. */
-  const double deadline =
+  double deadline =
       t_sent + (f == 0 || f == CV_FRAME_MEASURE ? fmax(s->o.timeout_ms * 1e-3, s->o.startup_timeout_s) : s->o.timeout_ms * 1e-3);
+  m->stall_last = t_sent; /* a stop right after the send counts too */
   while (ngot < s->n_walleyes) {
     int progressed = 0;
+    deadline += master_stall_check(m); /* a stopped master does not make the wall-eyes late */
     for (int i = 0; i < s->n_render; i++) {
       const uint8_t *data;
       long len;
@@ -557,6 +559,8 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     cv_metrics_uint(ml, "packets", m->trk.packets);
     cv_metrics_uint(ml, "malformed", m->trk.malformed);
     cv_metrics_uint(ml, "no_body", m->trk.no_body);
+    cv_metrics_uint(ml, "held_outside", m->gate.outside); /* implausible poses held (master_sync.c) */
+    cv_metrics_uint(ml, "held_too_fast", m->gate.too_fast);
   }
   if (fs->has_eyes) cv_metrics_doubles(ml, "eyes", &fs->eyes[0][0], 6);
   cv_metrics_object_end(ml);
@@ -618,7 +622,7 @@ static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs,
     cv_metrics_object_end(ml);
   }
   cv_metrics_object_end(ml);
-  cv_metrics_write(ml, m->mf);
+  master_metrics_put(m);
 }
 
 /* Held frames at one a second (the LCD threads run only on cores the
@@ -629,7 +633,8 @@ static void pace(master *m, double tf0, int holding) {
   double period = holding ? 1.0 : (s->o.max_fps > 0 ? 1.0 / s->o.max_fps : 0);
   if (!holding && m->wall_clock && s->o.max_fps <= 0) period = 1.0 / s->cave.rate;
   if (period <= 0) return;
-  while (cv_service_now() - tf0 < period && !*s->stop && !m->stop_code &&
+  m->stall_last = cv_service_now();
+  while (master_stall_check(m), cv_service_now() - tf0 < period && !*s->stop && !m->stop_code &&
          !(holding && m->lcd_rounds >= (uint32_t)s->o.lcd_budget)) {
     /* a pending solve fits the pause: done now instead of after the next state */
     if (period - (cv_service_now() - tf0) > 2e-3 * m->cst.ms + 0.005) master_comp_poll(m);
@@ -680,6 +685,8 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_double(ml, "master_thread_cpu_s", (thread_cpu_ms() - m->run_cpu0_ms) * 1e-3);
   master_sync_summary(m, ml);
   cv_metrics_uint(ml, "late_reports", m->late_reports);
+  cv_metrics_uint(ml, "master_stalls", m->stalls);
+  cv_metrics_double(ml, "master_stalled_s", m->stalled_s);
   master_path_summary(m, ml);
   light_summary(m, ml);
   master_health_metrics(m, ml);
@@ -705,7 +712,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
     lcd_drive_summary(m, ml, "lcd_drive");
   }
   cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
-  cv_metrics_write(ml, m->mf);
+  master_metrics_put(m);
 }
 
 /* Priming round before frame 0 (see the top of this file): the wall-eyes
@@ -876,13 +883,13 @@ int cv_master_run(cv_service *s) {
   }
   montage_flush(m);
   write_summary(m, f, run_t0);
-  if (!s->o.quiet) printf("cave run: %zu frames; metrics in the out folder\n", m->nframes_done);
+  master_out_final_line(m);
   if (m->stop_code)
     printf("cave run: stopped on request: %s\n", m->stop_reason);
   /* with a dead rank the others leave without MPI_Finalize: a large send
    * (rendezvous) to one that quit before taking it never completes */
   cv_comm_flush(cv_comm_dead_count() > 0 ? 2 : 10);
-  const int lost = m->stop_code == CV_WIN_LOST || m->stop_code == MASTER_STOP_DEAD;
+  const int lost = m->stop_code == CV_WIN_LOST || m->stop_code >= MASTER_STOP_DEAD;
   master_free(m);
   return lost ? 1 : 0;
 }

@@ -216,6 +216,7 @@ void master_path_sample(master *m, int from, const cv_walleye_report *r) {
     if (m->late_corr && r->late_corr > m->late_corr[from - 1]) m->late_corr[from - 1] = r->late_corr;
     if (m->files_dropped && r->files_dropped > m->files_dropped[from - 1]) m->files_dropped[from - 1] = r->files_dropped;
     if (m->files_failed && r->files_failed > m->files_failed[from - 1]) m->files_failed[from - 1] = r->files_failed;
+    master_out_files_failed(m, from, r->files_failed, NULL); /* stops the run (master_out.c) */
   }
   /* the figures are of the rank's previous frame; frames 0 and 1 pay the start */
   if (r->frame < 2 || grow(m)) return;
@@ -255,4 +256,5 @@ void master_path_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_uint(ml, "files_failed", failed);
   if (st.failed) fprintf(stderr, "cave run: master: %llu montages not written; first: %s\n",
                          (unsigned long long)st.failed, st.first_error);
+  master_out_files_failed(m, 0, st.failed, st.first_error); /* the last montage's failure: exit status 1 */
 }

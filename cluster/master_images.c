@@ -230,6 +230,9 @@ void montage_flush(master *m) {
   m->mont_have = 0;
   m->mont_flushed++;
   if (f) cv_filewriter_submit(m->fw, (cv_write_job){frame_images_run, frame_images_free, f});
+  cv_filewriter_stats st; /* a montage that could not be written stops the run (master_out.c) */
+  cv_filewriter_stats_get(m->fw, &st);
+  master_out_files_failed(m, 0, st.failed, st.first_error);
 }
 
 /* Takes the left eye's written images; a montage is written once every wall

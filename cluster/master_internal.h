@@ -14,6 +14,7 @@
 #include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <sys/types.h>
 
 #include "compensate/formfactor.h"
 #include "compensate/solve.h"
@@ -21,6 +22,7 @@
 #include "render/desktop.h"
 #include "service/clocksync.h"
 #include "service/metrics.h"
+#include "service/posegate.h"
 #include "service/tracker_calib.h"
 #include "lightshare.h"
 #include "service_internal.h"
@@ -218,6 +220,21 @@ typedef struct master {
   double desk_show_ms;    /* the last compose + XPutImage */
   /* metrics */
   FILE *mf;
+  char metrics_path[4200];  /* where mf writes */
+  off_t metrics_good;       /* bytes of whole lines in it */
+  char metrics_err[400];    /* why a line could not be written ("" none: master_out.c) */
+  int files_stop_said;      /* the stop for failed frame files was made */
+  uint64_t prt_hash;        /* content hash of the .prt the master loaded (cv_prt_meta.file_hash) */
+  char prt_bad[300];        /* ranks whose .prt hash differs ("3, 7"), prt_nbad of them */
+  int prt_nbad;
+  uint64_t prt_bad_hash;    /* the first of theirs */
+  double stalled_s;         /* the master's own stalls (SIGSTOP, starved) in report waits, seconds */
+  uint32_t stalls;          /* and their count */
+  double stall_last;        /* master_stall_check's previous call */
+  cv_pose_gate gate;        /* implausible DTrack poses held (service/posegate.h) */
+  int gate_on;
+  double gate_warn_t;       /* the last warning about them (one per 5 s) */
+  uint64_t gate_warned;     /* held samples already said */
   cv_metrics_line *ml;
   double *frame_ms, *overhead_ms;
   double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
@@ -307,8 +324,32 @@ void master_images_free(master *m);
 void montage_drain(master *m);
 void montage_flush(master *m);
 
+/* The out folder (master_out.c): the metrics file opened, each line
+ * written whole or not at all (a failed write is cut back to the last whole
+ * line and stops the run, MASTER_STOP_OUT, as does a metrics file deleted
+ * under the run); a rank's failed frame files stop the run; the last line
+ * says where the metrics are and whether they are complete. */
+int master_out_open(master *m, cv_err *err);
+void master_metrics_put(master *m);
+void master_out_files_failed(master *m, int rank, uint64_t failed, const char *first);
+void master_out_final_line(master *m);
+/* A ready message (flag, 8-byte .prt hash, text) of rank `from`: its hash
+ * compared with the master's (issue 35, defect 5).  After all are in,
+ * master_prt_mismatch gives 1 and why when some rank loaded another file. */
+void master_prt_check(master *m, int from, const uint8_t *data, long len);
+int master_prt_mismatch(master *m, char *why, size_t cap);
+/* The master's own stall (issue 35, defect 9): the time since
+ * m->stall_last (the previous call in a wait loop; the loop sets it when it
+ * starts) when 0.5 s or more, else 0.  A stall is counted
+ * (stalls, stalled_s), moves the heartbeat watch's times by the gap and,
+ * from 1 s, is said on stderr; the caller moves its deadline by the gap. */
+double master_stall_check(master *m);
+
 /* Heartbeat watch (master_health.c, docs/dead-rank.md). */
-enum { MASTER_STOP_DEAD = 100 }; /* stop_code: a wall-eye died */
+/* stop_code: a wall-eye died; a wall-eye was signalled alone (walleye.c
+ * watch_signal); the out folder or the metrics could not be written
+ * (master_out.c).  Each gives exit status 1. */
+enum { MASTER_STOP_DEAD = 100, MASTER_STOP_SIGNAL = 101, MASTER_STOP_OUT = 102 };
 /* The scattering compensation (master_comp.c): set-up (form factors,
  * solver, the thread with lag 1), the frame's solve (on the path, lag 0)
  * or its hand-over to the thread (lag 1), the thread's finished solves

@@ -157,8 +157,10 @@ int master_stop_poll(master *m) {
   long len;
   while ((len = cv_mailbox_take(m->stop_mb, &data, NULL)) > 1) {
     if (m->stop_code) continue;
+    if (data[0] == 'S' && *m->s->stop) continue; /* the whole job was signalled: not one rank's stop */
     const int code = data[0] - '0';
-    m->stop_code = code >= CV_WIN_CLOSED && code <= CV_WIN_LOST ? code : CV_WIN_CLOSED;
+    m->stop_code = data[0] == 'S' ? MASTER_STOP_SIGNAL
+                   : code >= CV_WIN_CLOSED && code <= CV_WIN_LOST ? code : CV_WIN_CLOSED;
     snprintf(m->stop_reason, sizeof m->stop_reason, "%.*s", (int)(len - 2), (const char *)data + 2);
     fprintf(stderr, "cave run: stopping: %s\n", m->stop_reason);
   }
@@ -229,6 +231,37 @@ void master_swap_stats(master *m, uint32_t f) {
   }
 }
 
+/* A DTrack pose outside the config's tracking volume or faster than
+ * max_head_speed is held (issue 35, defect 8): counted (tracker.held_*),
+ * said on stderr at most every 5 s.  0 when held. */
+static int pose_plausible(master *m, const double pos[3], double now) {
+  const cv_cave *c = &m->s->cave;
+  if (!m->gate_on) {
+    cv_pose_gate_init(&m->gate, c->track_lo, c->track_hi, c->max_head_speed);
+    m->gate_on = 1;
+  }
+  double v = 0;
+  const int why = cv_pose_gate_check(&m->gate, pos, now, &v);
+  if (why == CV_POSE_OK) return 1;
+  if (now - m->gate_warn_t >= 5.0) {
+    const uint64_t held = m->gate.outside + m->gate.too_fast;
+    m->gate_warn_t = now;
+    if (why == CV_POSE_OUTSIDE)
+      fprintf(stderr, "cave run: master: tracked head (%.2f, %.2f, %.2f) m outside the tracking volume "
+              "[%.2f..%.2f, %.2f..%.2f, %.2f..%.2f]: held at the last good pose (%llu held since the last "
+              "warning; tracker.held_outside)\n", pos[0], pos[1], pos[2], c->track_lo[0], c->track_hi[0],
+              c->track_lo[1], c->track_hi[1], c->track_lo[2], c->track_hi[2],
+              (unsigned long long)(held - m->gate_warned));
+    else
+      fprintf(stderr, "cave run: master: tracked head jumped to (%.2f, %.2f, %.2f) m at %.3g m/s, faster "
+              "than max_head_speed %g m/s: held at the last good pose (%llu held since the last warning; "
+              "tracker.held_too_fast)\n", pos[0], pos[1], pos[2], v, c->max_head_speed,
+              (unsigned long long)(held - m->gate_warned));
+    m->gate_warned = held;
+  }
+  return 0;
+}
+
 void master_head(master *m, double now, double frame_time, double head[3], double gaze[3],
                  double *t_sample, double *t_target) {
   cv_service *s = m->s;
@@ -248,6 +281,7 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
         got = 0;
       }
     }
+    if (got == 1 && !pose_plausible(m, p.pos, now)) got = 0; /* the last good pose is kept */
     if (got == 1) {
       m->prev_pose = m->pose;
       m->prev_pose_time = m->pose_time;

@@ -16,6 +16,7 @@
 
 #include "core/parse.h"
 #include "comm.h"
+#include "core/dirlock.h"
 #include "lightshare.h"
 #include "prt/prt.h"
 #include "service.h"
@@ -25,8 +26,7 @@
 static volatile sig_atomic_t g_stop;
 
 static void on_signal(int sig) {
-  (void)sig;
-  g_stop = 1;
+  g_stop = sig; /* the signal's number (a wall-eye names it: walleye.c watch_signal) */
 }
 
 static const char *k_builtin_drive =
@@ -767,6 +767,20 @@ int cmd_run(int argc, char **argv) {
     cv_comm_finalize();
     return 2;
   }
+  /* One run per out folder (issue 35, defect 6): rank 0 locks it before any
+   * rank writes there (pid files included); a second run refuses. */
+  int lock_fd = -1;
+  {
+    cv_err lerr;
+    cv_err_clear(&lerr);
+    const int busy = cv_comm_bcast_int(s.rank == 0 && cv_dirlock_take(s.o.out_dir, &lock_fd, &lerr) != CV_OK);
+    if (busy) {
+      if (s.rank == 0) fprintf(stderr, "cave run: %s; not started\n", lerr.msg);
+      cv_drive_destroy(s.drive);
+      cv_comm_finalize();
+      return 1;
+    }
+  }
   /* Each rank's pid, for operators (and the fault tests: SIGSTOP a rank);
    * removed again on a clean exit. */
   char pd[CV_PATHLEN + 32], pf[CV_PATHLEN + 64];
@@ -801,7 +815,10 @@ int cmd_run(int argc, char **argv) {
     cv_comm_abort(1, NULL);
   }
   int rc;
-  if (role.role == CV_ROLE_MASTER) rc = cv_master_run(&s);
+  if (role.role == CV_ROLE_MASTER) {
+    rc = cv_master_run(&s);
+    cv_dirlock_release(s.o.out_dir, lock_fd);
+  }
   else if (role.role == CV_ROLE_RENDER) rc = cv_walleye_run(&s);
   else rc = cv_gather_run(&s);
   cv_drive_destroy(s.drive);

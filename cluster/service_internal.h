@@ -70,8 +70,14 @@ typedef struct cv_preview_msg {
   int32_t w, h;
 } cv_preview_msg;
 
-/* Tells the master this rank's set-up succeeded or why it failed. */
-void cv_service_ready(int ok, const char *msg);
+/* Tells the master this rank's set-up succeeded or why it failed, with the
+ * content hash of the .prt it loaded (cv_prt_meta.file_hash, 0 if none):
+ * the master compares every rank's with its own (issue 35, defect 5).
+ * Message: 'O' or 'F', the hash (8 bytes), the text. */
+void cv_service_ready(int ok, uint64_t prt_hash, const char *msg);
+/* The test hook CAVE_TEST_LOAD_DELAY=MS:R1,R2,...: ranks R1, R2... wait MS
+ * ms before reading the .prt (the fault test replaces the file meanwhile). */
+void cv_service_test_load_delay(int rank);
 
 /* Writes an image of display values in [0, 1] (clamped; c >= 3) as an
  * 8-bit RGB PNG. */

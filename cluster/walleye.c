@@ -27,6 +27,7 @@
  * window or a lost X connection is sent to the master, which stops every
  * rank; this rank keeps its place in the barriers until then. */
 #include <math.h>
+#include <signal.h>
 #include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -112,6 +113,9 @@ typedef struct walleye {
   cv_window_spec spec;
   char title[96];
   int win_event;      /* CV_WIN_* sent to the master (once) */
+  double sig_since;   /* when this rank's stop flag (a signal) was first seen; 0 never */
+  int sig_sent;       /* the signal's stop request went to the master */
+  int files_said;     /* the first failed file was said on stderr */
   /* the last swap, reported with the next frame */
   uint32_t swap_frame;
   double swap_t, ms_present, ms_barrier;
@@ -235,6 +239,7 @@ static int walleye_setup(walleye *we, cv_err *err) {
                       "offers none (no EGL stereo attribute exists; Mesa's GLX has no stereo visuals "
                       "either): use \"passive\" (one output per eye) or \"side-by-side\"/\"top-bottom\"",
                       role.output, W->name);
+  cv_service_test_load_delay(s->rank);
   int st = cv_prt_read(s->o.scene_path, &we->prt, err);
   if (st) return st;
   cv_render_opts ro;
@@ -336,11 +341,34 @@ static void watch_window(walleye *we) {
   cv_comm_send(msg, strlen(msg) + 1, 0, CV_TAG_STOPREQ);
 }
 
-/* Background work while waiting: clock probes, the window, LCD rounds out,
- * LCD images in. */
+/* A signal to this rank alone (issue 35, defect 4): it went on with its
+ * waits cut short, a frame ahead of the others, and nobody said anything.
+ * Once its stop flag has been set for 0.5 s without the master's quit (a
+ * signal to the whole job makes the master quit first), it asks the master
+ * to stop the run, naming itself; the master stops every rank (summary
+ * stop_reason, exit status 1).  Not for a rank declared dead (it leaves). */
+static void watch_signal(walleye *we) {
+  cv_service *s = we->s;
+  if (!*s->stop || we->sig_sent || cv_comm_declared_dead()) return;
+  const double now = cv_service_now();
+  if (we->sig_since == 0) we->sig_since = now;
+  if (now - we->sig_since < 0.5) return;
+  we->sig_sent = 1;
+  const int sig = *s->stop;
+  char msg[256];
+  snprintf(msg, sizeof msg, "S rank %d (wall-eye of wall %s) got %s: the run stops", s->rank,
+           s->cave.walls[we->wall].name, sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a stop signal");
+  fprintf(stderr, "cave run: rank %d: %s alone (not the job): asking the master to stop the run\n", s->rank,
+          sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a stop signal");
+  cv_comm_send(msg, strlen(msg) + 1, 0, CV_TAG_STOPREQ);
+}
+
+/* Background work while waiting: clock probes, the window, a signal, LCD
+ * rounds out, LCD images in. */
 static void idle(walleye *we) {
   answer_pings(we);
   watch_window(we);
+  watch_signal(we);
   if (we->lw) cv_lcd_worker_send_ready(we->lw, send_to_master, NULL, &we->lcd_rounds_done, &we->lcd_ms);
   const uint8_t *data;
   long len;
@@ -391,6 +419,7 @@ static int next_state(walleye *we, cv_frame_state *fs, uint64_t *hash) {
     if (we->ping_mb) idle(we);
     else cv_comm_progress();
     if (cv_comm_declared_dead()) return 0; /* stalled, not dead: no quit will come */
+    watch_signal(we);
     if (*we->s->stop) {
       if (stop_since == 0) stop_since = cv_service_now();
       else if (cv_service_now() - stop_since > 5) return 0;
@@ -556,6 +585,10 @@ static void send_report(walleye *we, eye_view *v, cv_walleye_report *rep) {
   cv_filewriter_stats_get(we->fw, &fst);
   rep->files_dropped = fst.dropped + we->files_nomem;
   rep->files_failed = fst.failed;
+  if (fst.failed && !we->files_said) { /* at once, once: the master stops the run (master_out.c) */
+    we->files_said = 1;
+    fprintf(stderr, "cave run: rank %d: files not written: %s\n", we->s->rank, fst.first_error);
+  }
   rep->ms_lcd = we->lcd_ms;
   rep->lcd_rounds_done = we->lcd_rounds_done;
   rep->swap_frame = we->swap_frame;
@@ -638,7 +671,10 @@ static double take_correction(walleye *we, const cv_frame_state *fs, int64_t wan
     const uint8_t *data;
     long l;
     while (!got && (l = cv_mailbox_take(we->corr_mb, &data, NULL)) >= 0) got = keep_correction(we, data, l, (uint32_t)want);
-    if (got || cv_service_now() > deadline || *s->stop) break;
+    /* the stop flag ends the wait only on frame 0 (start-up time): later a
+     * signal to this rank alone must not put it a frame ahead of the others
+     * (the wait is bounded by the deadline; the master's quit follows) */
+    if (got || cv_service_now() > deadline || (*s->stop && fs->frame == 0)) break;
     idle(we);
     nap();
   }
@@ -998,7 +1034,7 @@ int cv_walleye_run(cv_service *s) {
     if (st == CV_OK) ready_text(we, msg, sizeof msg);
     else snprintf(msg, sizeof msg, "rank %d (outputs[%d], wall %s): %s", s->rank, s->rank - 1,
                   we->o ? s->cave.walls[we->wall].name : "?", err.msg);
-    cv_service_ready(st == CV_OK, msg);
+    cv_service_ready(st == CV_OK, we->prt ? we->prt->meta.file_hash : 0, msg);
   }
   if (st) {
     /* wait for the master's quit so the job ends cleanly */

@@ -6,12 +6,14 @@
  * (src/lcd).  Writes the panel image (EXR), a sidecar JSON with its sample
  * count, error estimate and readability figures (lcd/readability.h), a
  * contrast-ratio heat map PNG, and optionally a tone-mapped PNG. */
+#include <errno.h>
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "cli/cli.h"
@@ -232,14 +234,65 @@ typedef struct drive_job {
   double dt;        /* seconds between steps */
 } drive_job;
 
+/* gnuplot's PNG under a temporary name (plot_begin), checked and renamed by
+ * plot_end: gnuplot writing series.png straight to its name left a cut-short
+ * plot on a full disk that was reported as written (issue 35 (3)). */
+typedef struct plot_out {
+  cv_outfile of;
+  FILE *g; /* gnuplot's stdin */
+} plot_out;
+
+/* 1: gnuplot started, its script goes to p->g with output p->of.tmp; 0: no
+ * gnuplot installed; -1: failed (err set). */
+static int plot_begin(plot_out *p, const char *png, cv_err *err) {
+  memset(p, 0, sizeof *p);
+  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
+  if (cv_outfile_open(&p->of, png, 0, err) != CV_OK) return -1;
+  close(p->of.fd); /* gnuplot opens it by name */
+  p->of.fd = -1;
+  p->g = popen("gnuplot", "w");
+  if (!p->g) {
+    int e = errno;
+    cv_outfile_abort(&p->of);
+    cv_err_set(err, CV_ERR_IO, "%s: cannot start gnuplot: %s", png, strerror(e));
+    return -1;
+  }
+  return 1;
+}
+
+/* Ends gnuplot; the plot gets its name only when gnuplot succeeded and the
+ * PNG decodes whole.  1 when written, -1 (err set, nothing left) if not. */
+static int plot_end(plot_out *p, const char *png, cv_err *err) {
+  const int st = pclose(p->g);
+  p->g = NULL;
+  cv_image *im = NULL;
+  cv_err e2;
+  cv_err_clear(&e2);
+  struct stat sb;
+  const long long bytes = stat(p->of.tmp, &sb) == 0 ? (long long)sb.st_size : -1;
+  const int whole = st == 0 && cv_png_read(p->of.tmp, &im, &e2) == CV_OK;
+  cv_image_destroy(im);
+  if (!whole) {
+    struct statvfs fs;
+    const double free_kb = statvfs(p->of.tmp, &fs) == 0 ? (double)fs.f_bavail * (double)fs.f_frsize / 1024.0 : -1;
+    cv_outfile_abort(&p->of);
+    cv_err_set(err, CV_ERR_IO, "%s: not written: gnuplot %s (%lld bytes; %.0f KB free on its disk)", png,
+               st != 0 ? "failed" : "wrote a cut-short or unreadable PNG", bytes, free_kb);
+    return -1;
+  }
+  return cv_outfile_commit(&p->of, err) == CV_OK ? 1 : -1;
+}
+
 /* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
  * CR with its error bars against time, the requirement as a line, the steps
- * below it marked.  Returns 1 when written. */
+ * below it marked.  Returns 1 when written, 0 without gnuplot, -1 on failure
+ * (err set). */
 static int drive_plot(const char *csv, const char *png, double cr_min, const cv_lcd_config *lc,
-                      int absolute) {
-  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
-  FILE *g = popen("gnuplot", "w");
-  if (!g) return 0;
+                      int absolute, cv_err *err) {
+  plot_out po;
+  const int b = plot_begin(&po, png, err);
+  if (b <= 0) return b;
+  FILE *g = po.g;
   fprintf(g,
           "set terminal pngcairo size 1000,450 font ',10'\n"
           "set output '%s'\n"
@@ -249,7 +302,7 @@ static int drive_plot(const char *csv, const char *png, double cr_min, const cv_
           "set title \"LCD readability over the drive: CR +- 1 s.e.; below the line the panel "
           "misses the required %g:1 (ISO 15008)%s\"\n"
           "plot ",
-          png, cr_min,
+          po.of.tmp, cr_min,
           absolute ? "" : "\\nUNCALIBRATED light (relative units): no verdict, CR not comparable with 3:1");
   static const char *const col[CV_LCD_MAX_PANELS] = {"#3b528b", "#21918c", "#5ec962", "#440154"};
   for (int i = 0; i < lc->n_panels; i++) {
@@ -262,7 +315,7 @@ static int drive_plot(const char *csv, const char *png, double cr_min, const cv_
             i == 0 ? "title 'UNREADABLE (CR, area or VL)'" : "notitle");
   }
   fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", cr_min, cr_min);
-  return pclose(g) == 0;
+  return plot_end(&po, png, err);
 }
 
 /* Readability parameters of panel i: the block's, with the panel's white and
@@ -480,7 +533,11 @@ static int lcd_drive(const drive_job *j, const cv_prt *p, const cv_tracer *tr,
   }
   char png[CV_PATH_MAX];
   snprintf(png, sizeof png, "%.*s.png", (int)(strlen(j->csv) - 4), j->csv);
-  if (drive_plot(j->csv, png, rp->cr_min, lc, ty.absolute)) printf("wrote %s and %s\n", j->csv, png);
+  cv_err perr;
+  cv_err_clear(&perr);
+  const int pl = drive_plot(j->csv, png, rp->cr_min, lc, ty.absolute, &perr);
+  if (pl < 0) return cli_fail("lcd", 1, "%s (%s is written)", perr.msg, j->csv);
+  if (pl) printf("wrote %s and %s\n", j->csv, png);
   else printf("wrote %s (no plot: gnuplot is not installed)\n", j->csv);
   return 0;
 }
@@ -872,13 +929,14 @@ static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lc
 /* The sweep's plot with gnuplot (when installed): CR of every panel against
  * the illuminance (log scale), the area share on the right axis, the
  * requirement, each panel's crossing and bright daylight marked.  1 when
- * written. */
+ * written, 0 without gnuplot, -1 on failure (err set). */
 static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
                       const cv_lcd_read_params *rp, const double *cross, const float eye[3],
-                      double lo, double hi) {
-  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
-  FILE *g = popen("gnuplot", "w");
-  if (!g) return 0;
+                      double lo, double hi, cv_err *err) {
+  plot_out po;
+  const int b = plot_begin(&po, png, err);
+  if (b <= 0) return b;
+  FILE *g = po.g;
   const int np = lc->n_panels, cols = 11;
   fprintf(g,
           "set terminal pngcairo size 1000,500 font ',10'\nset output '%s'\n"
@@ -889,7 +947,7 @@ static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
           "set format x '%%.0f'\n"
           "set title 'LCD readability against the light level (eye %.3f %.3f %.3f m, the sun as "
           "given): CR falls to %g:1 at",
-          png, rp->cr_min, lo, hi, eye[0], eye[1], eye[2], rp->cr_min);
+          po.of.tmp, rp->cr_min, lo, hi, eye[0], eye[1], eye[2], rp->cr_min);
   for (int i = 0; i < np; i++)
     fprintf(g, "%s %s %.0f lx", i ? "," : "", lc->panels[i].name, cross[i]);
   fprintf(g, "'\n");
@@ -912,7 +970,7 @@ static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
   }
   fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", rp->cr_min,
           rp->cr_min);
-  return pclose(g) == 0;
+  return plot_end(&po, png, err);
 }
 
 /* One panel's sweep summary from the grid's columns and the closed form. */
@@ -1010,7 +1068,9 @@ static int lcd_sweep(const lcd_opts *o, const cv_lcd_config *lc, const cv_lcd_pa
   if (!rc) {
     char png[CV_PATH_MAX];
     snprintf(png, sizeof png, "%.*s.png", (int)(strlen(o->out) - 4), o->out);
-    if (sweep_plot(o->out, png, lc, &o->rp, cross, eye, o->sweep_lo, o->sweep_hi)) printf("wrote %s and %s\n", o->out, png);
+    const int pl = sweep_plot(o->out, png, lc, &o->rp, cross, eye, o->sweep_lo, o->sweep_hi, &err);
+    if (pl < 0) rc = cli_fail("lcd", 1, "%s (%s is written)", err.msg, o->out);
+    else if (pl) printf("wrote %s and %s\n", o->out, png);
     else printf("wrote %s (no plot: gnuplot is not installed)\n", o->out);
   }
   for (int i = 0; i < np; i++) {

@@ -99,9 +99,16 @@ typedef struct exr_stream {
   char msg[300];
 } exr_stream;
 
+/* The stream of the write in progress on this thread.  A write context
+ * holds its (non-recursive) lock while it calls the write function, and
+ * exr_get_user_data takes that lock again: a write error reported from
+ * inside exr_write_header (a full disk) hung every writer for ever.  So the
+ * handler of a write finds its stream here, never through the context. */
+static _Thread_local exr_stream *tl_write_stream;
+
 static void on_exr_error(exr_const_context_t ctxt, exr_result_t code, const char *msg) {
-  void *ud = NULL;
-  if (exr_get_user_data(ctxt, &ud) != EXR_ERR_SUCCESS || !ud) return;
+  void *ud = tl_write_stream;
+  if (!ud && (exr_get_user_data(ctxt, &ud) != EXR_ERR_SUCCESS || !ud)) return; /* read: no lock */
   exr_stream *s = ud;
   if (s->have_msg) return; /* keep the first, most specific, message */
   s->have_msg = 1;
@@ -740,6 +747,7 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
   int rc = CV_OK, part = 0;
   uint8_t *plane[4] = {NULL, NULL, NULL, NULL};
   const int bpe = half ? 2 : 4;
+  tl_write_stream = &s; /* cleared on both ways out below */
   exr_result_t rv = exr_start_write(&ctxt, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
   if (rv == EXR_ERR_SUCCESS) rv = exr_add_part(ctxt, "main", EXR_STORAGE_SCANLINE, &part);
   if (rv == EXR_ERR_SUCCESS)
@@ -819,6 +827,7 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
   }
   rv = exr_finish(&ctxt);
   ctxt = NULL;
+  tl_write_stream = NULL;
   if (rv != EXR_ERR_SUCCESS) {
     rc = cv_err_set(err, CV_ERR_BACKEND, "%s: cannot finish EXR: %s", path, exr_msg(&s, rv));
     goto fail;
@@ -828,6 +837,7 @@ int cv_exr_write_ex(const char *path, const cv_image *img, int half, int compres
 
 fail:
   if (ctxt) exr_finish(&ctxt);
+  tl_write_stream = NULL;
   cv_outfile_abort(&of);
   for (int k = 0; k < 4; ++k) free(plane[k]);
   return rc;

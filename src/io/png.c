@@ -16,6 +16,8 @@
 typedef struct png_ctx {
   jmp_buf jb;
   char msg[200];
+  FILE *f;     /* writing: the file, written by on_png_write */
+  int write_errno; /* the errno of a failed write (a full disk), 0 if none */
 } png_ctx;
 
 static void on_png_error(png_structp png, png_const_charp msg) {
@@ -29,11 +31,32 @@ static void on_png_warning(png_structp png, png_const_charp msg) {
   (void)msg; /* library code never prints */
 }
 
+/* libpng's own writer says only "Write Error": ours keeps errno, so that a
+ * full disk is named as such. */
+static void on_png_write(png_structp png, png_bytep data, size_t n) {
+  png_ctx *c = png_get_io_ptr(png);
+  errno = 0;
+  if (fwrite(data, 1, n, c->f) != n) {
+    c->write_errno = errno ? errno : EIO;
+    png_error(png, "write failed");
+  }
+}
+
+static void on_png_flush(png_structp png) {
+  png_ctx *c = png_get_io_ptr(png);
+  if (fflush(c->f) != 0) {
+    c->write_errno = errno ? errno : EIO;
+    png_error(png, "write failed");
+  }
+}
+
 /* Writes the image to an open FILE; returns CV_OK or an error in err. */
 static int png_write_file(FILE *f, const char *path, int w, int h, int channels,
                           const uint8_t *px, cv_err *err) {
   png_ctx ctx;
   ctx.msg[0] = '\0';
+  ctx.f = f;
+  ctx.write_errno = 0;
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, on_png_error, on_png_warning);
   if (!png) return cv_err_set(err, CV_ERR_NOMEM, "%s: cannot create PNG writer", path);
   png_infop info = png_create_info_struct(png);
@@ -43,9 +66,11 @@ static int png_write_file(FILE *f, const char *path, int w, int h, int channels,
   }
   if (setjmp(ctx.jb)) {
     png_destroy_write_struct(&png, &info);
+    if (ctx.write_errno)
+      return cv_err_set(err, CV_ERR_IO, "%s: write failed: %s", path, strerror(ctx.write_errno));
     return cv_err_set(err, CV_ERR_BACKEND, "%s: libpng: %s", path, ctx.msg);
   }
-  png_init_io(png, f);
+  png_set_write_fn(png, &ctx, on_png_write, on_png_flush);
   int ct = channels == 1 ? PNG_COLOR_TYPE_GRAY : channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_RGBA;
   png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 8, ct, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);

@@ -41,6 +41,9 @@ typedef struct cv_prt_meta {
   float est_error;       /* estimated relative error (auto mode), or -1 */
   double bake_seconds;   /* in memory only: the file holds no timing, so the same
                             inputs and seed give the same bytes */
+  uint64_t file_hash;    /* in memory only (cv_prt_read): FNV-1a of the header's bytes
+                            and the payload's hash, as read: two ranks that loaded
+                            different files have different values (0: not read) */
 } cv_prt_meta;
 
 typedef struct cv_prt {

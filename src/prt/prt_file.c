@@ -352,6 +352,7 @@ int cv_prt_read(const char *path, cv_prt **out, cv_err *err) {
     return cv_err_set(err, CV_ERR_FORMAT, "%s: payload %s (hash mismatch)", path,
                       extra ? "has trailing bytes" : "is corrupt");
   }
+  p->meta.file_hash = cv_hash64_u64(cv_hash64_update(cv_hash64_init(), &h, sizeof h), ph);
   for (size_t i = 0; i < p->nm; i++) p->mats[i].name[sizeof p->mats[i].name - 1] = '\0';
   for (size_t i = 0; p->mat_tex && i < p->nm; i++) p->mat_tex[i][CV_TEX_PATH_MAX - 1] = '\0';
   st = check_records(p, path, err);

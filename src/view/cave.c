@@ -533,6 +533,48 @@ void cv_cave_defaults(cv_cave *c) {
   c->rate = 60.0;
   c->screen_reflectance = 0.8;
   c->screen_patches = 24;
+  c->max_head_speed = 10.0;
+}
+
+/* "tracking": {"volume": [[x0, y0, z0], [x1, y1, z1]], "max_head_speed": V};
+ * without a volume, the walls' bounding box grown by 0.5 m. */
+static void parse_tracking(ctx *x, const cJSON *root, cv_cave *c, int walls_ok) {
+  int have_vol = 0;
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(root, "tracking");
+  if (v && !cJSON_IsObject(v)) {
+    problem(x, CV_ERR_CONFIG, "tracking", "expected an object {volume, max_head_speed}");
+  } else if (v) {
+    static const char *const tkeys[] = {"volume", "max_head_speed", NULL};
+    only_keys(x, v, "tracking", tkeys);
+    const cJSON *vol = cJSON_GetObjectItemCaseSensitive(v, "volume");
+    if (vol) {
+      if (!cJSON_IsArray(vol) || cJSON_GetArraySize(vol) != 2) {
+        problem(x, CV_ERR_CONFIG, "tracking.volume", "expected two corners [[x0, y0, z0], [x1, y1, z1]] (m)");
+      } else if (read_vec3(x, cJSON_GetArrayItem(vol, 0), "tracking.volume[0]", c->track_lo) &&
+                 read_vec3(x, cJSON_GetArrayItem(vol, 1), "tracking.volume[1]", c->track_hi)) {
+        have_vol = 1;
+        for (int k = 0; k < 3; k++)
+          if (!(c->track_hi[k] > c->track_lo[k]))
+            problem(x, CV_ERR_RANGE, "tracking.volume", "expected corner 1 above corner 0 on every axis, got "
+                    "%g <= %g on axis %d", c->track_hi[k], c->track_lo[k], k);
+      }
+    }
+    ctx_field_prefix(x, "tracking.");
+    opt_num(x, v, "max_head_speed", 0.0, 0, 1000.0, 0, &c->max_head_speed);
+    ctx_field_prefix(x, "");
+  }
+  if (have_vol || !walls_ok) return;
+  for (int k = 0; k < 3; k++) c->track_lo[k] = INFINITY, c->track_hi[k] = -INFINITY;
+  for (int i = 0; i < c->n_walls; i++) {
+    const cv_wall *w = &c->walls[i];
+    for (int k = 0; k < 3; k++) {
+      const double q[4] = {w->pa[k], w->pb[k], w->pc[k], w->pb[k] + w->pc[k] - w->pa[k]};
+      for (int j = 0; j < 4; j++) {
+        c->track_lo[k] = fmin(c->track_lo[k], q[j] - 0.5);
+        c->track_hi[k] = fmax(c->track_hi[k], q[j] + 0.5);
+      }
+    }
+  }
 }
 
 static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
@@ -545,7 +587,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
       "lum_res",     "drago_bias", "drago_ldmax", "t0_cone",     "t0_rod",
       "tau_cone",    "tau_rod", "head",           "gaze",        "scene_offset",
       "near",        "far",     "rate",           "screens",     "outputs",
-      NULL};
+      "tracking",    NULL};
   only_keys(x, root, "", keys);
 
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(root, "description");
@@ -631,6 +673,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_cave *c) {
       ctx_field_prefix(x, "");
     }
   }
+  parse_tracking(x, root, c, walls_ok);
   if (walls_ok) {
     v = cJSON_GetObjectItemCaseSensitive(root, "outputs");
     if (v) {

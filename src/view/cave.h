@@ -96,6 +96,11 @@ typedef struct cv_cave {
   double t0_cone, t0_rod;  /* Pattanaik neural time constants, s: 0.080, 0.150 */
   double tau_cone, tau_rod; /* Pattanaik bleaching time constants, s: 110, 400 */
   double head[3], gaze[3]; /* default tracked pose (CAVE coordinates); gaze unit */
+  /* "tracking": the volume where a tracked head is plausible (m, CAVE
+   * coordinates; default: the walls' bounding box grown by 0.5 m) and the
+   * fastest plausible head (m/s, default 10; 0: no limit); issue 35 */
+  double track_lo[3], track_hi[3];
+  double max_head_speed;
   double scene_offset[3];  /* scene point = cave point + scene_offset */
   double near, far;        /* clip planes, metres, defaults 0.05, 50; 0 < near < far */
   double rate;             /* target frame rate of the wall clock, Hz, default 60, (0, 1000] */

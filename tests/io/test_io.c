@@ -8,11 +8,14 @@
 #include <stdint.h>
 #include <cmocka.h>
 #include "cv_test_near.h"
+#include <errno.h>
 #include <math.h>
 #include <openexr.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -1056,6 +1059,51 @@ static void test_obj_write(void **state) {
   cv_mesh_destroy(m);
 }
 
+/* A write that fails at once (issue 35 (1), (9)): the file size limit makes
+ * the first write fail, as a full disk does (EFBIG instead of ENOSPC).  The
+ * EXR writer used to deadlock in the error handler (exr_get_user_data takes
+ * the lock exr_write_header holds): the alarm ends a hang as a failure.  The
+ * PNG writer said only "libpng: Write Error".  Both must name the file and
+ * the system's reason, and leave no temporary. */
+static void test_write_fails_at_once(void **state) {
+  (void)state;
+  char rm[1024]; /* leftovers of an earlier run killed by the alarm */
+  snprintf(rm, sizeof rm, "rm -f %s/limit.exr.tmp.* %s/limit.png.tmp.*", CV_TEST_TMP_DIR, CV_TEST_TMP_DIR);
+  assert_int_equal(system(rm), 0);
+  cv_image *img = make_image(64, 48, 3);
+  uint8_t px[64 * 48 * 3];
+  memset(px, 128, sizeof px);
+  struct rlimit old, lim;
+  assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
+  lim = old;
+  lim.rlim_cur = 0; /* every write past byte 0 fails with EFBIG */
+  signal(SIGXFSZ, SIG_IGN);
+  assert_int_equal(setrlimit(RLIMIT_FSIZE, &lim), 0);
+  alarm(20); /* a hang ends the test (SIGALRM) instead of waiting for ctest */
+  cv_err err;
+  cv_err_clear(&err);
+  int erc = cv_exr_write(tmp_path("limit.exr"), img, 1, CV_EXR_ZIP, &err);
+  char emsg[sizeof err.msg];
+  snprintf(emsg, sizeof emsg, "%s", err.msg);
+  cv_err_clear(&err);
+  int prc = cv_png_write(tmp_path("limit.png"), 64, 48, 3, px, &err);
+  alarm(0);
+  assert_int_equal(setrlimit(RLIMIT_FSIZE, &old), 0);
+  signal(SIGXFSZ, SIG_DFL);
+  printf("EXR: %s\nPNG: %s\n", emsg, err.msg);
+  assert_int_not_equal(erc, CV_OK);
+  assert_non_null(strstr(emsg, "limit.exr"));
+  assert_non_null(strstr(emsg, strerror(EFBIG)));
+  assert_int_equal(prc, CV_ERR_IO);
+  assert_non_null(strstr(err.msg, "limit.png: write failed: "));
+  assert_non_null(strstr(err.msg, strerror(EFBIG)));
+  assert_false(file_exists(tmp_path("limit.exr")));
+  assert_false(file_exists(tmp_path("limit.png")));
+  assert_int_equal(tmp_leftovers("limit.exr"), 0);
+  assert_int_equal(tmp_leftovers("limit.png"), 0);
+  cv_image_destroy(img);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_half_conversion),
@@ -1076,6 +1124,7 @@ int main(void) {
       cmocka_unit_test(test_ply_roundtrip),
       cmocka_unit_test(test_ply_malformed),
       cmocka_unit_test(test_obj_write),
+      cmocka_unit_test(test_write_fails_at_once),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
