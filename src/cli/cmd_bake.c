@@ -186,6 +186,253 @@ static int bake_lcd_block(const char *in, const char *out, uint64_t hash) {
   return 0;
 }
 
+/* What one bake holds: the scene config, its mesh, tracer and lighting,
+ * the bake parameters and the baked transfer. */
+typedef struct bake_job {
+  cv_scene_config cfg;
+  cv_mesh *m;
+  cv_tracer *tr;
+  cv_scene_light *sl;
+  cv_prt *prt;
+  cv_bake_params bp;
+  float est_error;
+} bake_job;
+
+/* The output before any work: a .prt file, not the input, not a folder.
+ * Returns 0 or the exit code. */
+static int check_output(const bake_opts *o) {
+  if (!o->out[0]) return cli_fail("bake", 2, "-o: expected a file name");
+  if (strcmp(o->in, "default") && cli_same_file(o->in, o->out))
+    return cli_fail("bake", 2, "-o: %s: is the input; expected a new .prt path", o->out);
+  if (!cli_has_ext(o->out, ".prt"))
+    return cli_fail("bake", 2, "-o: expected a .prt path, got '%s'", o->out);
+  if (cli_check_output("bake", "-o", o->out)) return 1; /* a folder, a missing folder */
+  return 0;
+}
+
+/* The scene config of the input: the built-in scene, a scene .json or a
+ * mesh file.  Returns 0 or the exit code. */
+static int load_config(const char *in, cv_scene_config *cfg) {
+  cv_err err;
+  cv_err_clear(&err);
+  if (!strcmp(in, "default")) {
+    cv_scene_config_default(cfg);
+  } else if (cli_has_ext(in, ".json")) {
+    if (cv_scene_config_load(in, cfg, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  } else {
+    cv_scene_config_default(cfg);
+    cfg->mesh_is_cabin = 0;
+    snprintf(cfg->mesh_path, sizeof cfg->mesh_path, "%s", in);
+    snprintf(cfg->source, sizeof cfg->source, "%s", in);
+  }
+  return 0;
+}
+
+/* --bands, --rays, --bounces, --seed, --budget, --tess into cfg.  Returns 0
+ * or the exit code. */
+static int apply_sampling_options(const bake_opts *o, cv_scene_config *cfg) {
+  if (o->bands_s) {
+    if (!strcmp(o->bands_s, "auto")) cfg->bands = 0;
+    else if (cli_parse_int(o->bands_s, 2, 8, &cfg->bands))
+      return cli_fail("bake", 2, "--bands: expected 2..8 or auto, got '%s'", o->bands_s);
+  }
+  if (o->rays_s) {
+    if (!strcmp(o->rays_s, "auto")) cfg->rays = 0;
+    else if (cli_parse_int(o->rays_s, 1, 1 << 24, &cfg->rays))
+      return cli_fail("bake", 2, "--rays: expected 1..16777216 or auto, got '%s'", o->rays_s);
+  }
+  if (o->bounces_s && cli_parse_int(o->bounces_s, 0, 16, &cfg->bounces))
+    return cli_fail("bake", 2, "--bounces: expected 0..16, got '%s'", o->bounces_s);
+  if (o->seed_s) {
+    int s;
+    if (cli_parse_int(o->seed_s, 0, 2147483647, &s))
+      return cli_fail("bake", 2, "--seed: expected 0..2147483647, got '%s'", o->seed_s);
+    cfg->seed = (uint32_t)s;
+  }
+  if (o->budget_s && (cli_parse_double(o->budget_s, &cfg->error_budget) || cfg->error_budget <= 0 ||
+                      cfg->error_budget > 1))
+    return cli_fail("bake", 2, "--budget: expected a relative error in (0, 1], got '%s'", o->budget_s);
+  if (o->tess_s && cli_parse_int(o->tess_s, 1, 64, &cfg->cabin_tess))
+    return cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", o->tess_s);
+  return 0;
+}
+
+/* The lighting options: the command line's lighting, or the car's pose
+ * under the config's; --no-sun; what --view-budget needs.  Returns 0 or the
+ * exit code. */
+static int apply_light_options(const bake_opts *o, cv_scene_config *cfg) {
+  if (o->have_light) {
+    cfg->light = o->lspec;
+  } else if (o->pose) { /* the car's orientation under the config's lighting */
+    if (cfg->light.kind == CV_LIGHT_NONE)
+      return cli_fail("bake", 2, "%s needs the lighting: --env, --env-constant or --sky (or the "
+                      "config's \"lighting\")", o->pose);
+    if (o->pose_given & 1) cfg->light.yaw_deg = o->lspec.yaw_deg;
+    if (o->pose_given & 2) cfg->light.pitch_deg = o->lspec.pitch_deg;
+    if (o->pose_given & 4) cfg->light.roll_deg = o->lspec.roll_deg;
+  }
+  if (o->no_sun) {
+    if (cfg->light.kind != CV_LIGHT_ENV)
+      /* only a map's sun can stay in the SH: the sky's is always a separate light */
+      return cli_fail("bake", 2, "--no-sun: applies to env maps (--env, or the config's \"env\" "
+                      "lighting)%s", cfg->light.kind == CV_LIGHT_NONE ? "; no lighting is given"
+                      : cfg->light.kind == CV_LIGHT_SKY ? ", not to --sky: its sun is always split out"
+                      : ", not to --env-constant: it has no sun");
+    cfg->light.extract_sun = 0;
+  }
+  if (o->view_budget > 0 && cfg->light.kind == CV_LIGHT_NONE)
+    return cli_fail("bake", 2, "--view-budget: needs the lighting (--env, --env-constant or --sky, "
+                    "or the config's lighting)");
+  return 0;
+}
+
+/* Every option into the job's config: the mesh checks, sampling, placement,
+ * threads and the lighting.  Returns 0 or the exit code. */
+static int apply_options(const bake_opts *o, bake_job *J) {
+  cv_scene_config *cfg = &J->cfg;
+  if (!cfg->mesh_is_cabin && cli_same_file(cfg->mesh_path, o->out))
+    return cli_fail("bake", 2, "-o: %s: is the scene's mesh; expected a new .prt path", o->out);
+  if (o->tess_s && !cfg->mesh_is_cabin)
+    return cli_fail("bake", 2, "--tess: applies to the built-in cabin, not to a mesh file (%s)",
+                    cfg->mesh_path);
+  int rc = apply_sampling_options(o, cfg);
+  if (!rc) rc = cli_place_apply("bake", &o->place, cfg);
+  if (rc) return rc;
+  if (o->threads > 0) omp_set_num_threads(o->threads);
+  if (o->spread >= 0) cfg->spread = o->spread;
+  if (o->cosine_only >= 0) cfg->window_sampling = !o->cosine_only;
+  if (o->tail >= 0) cfg->tail = o->tail;
+  return apply_light_options(o, cfg);
+}
+
+/* The job's tracer (built once), with the bake's spread and sampling.
+ * Returns 0 or the exit code. */
+static int job_tracer(bake_job *J) {
+  cv_err err;
+  if (!J->tr && cv_tracer_create(J->m, &J->tr, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  cv_tracer_set_spread(J->tr, J->bp.spread);
+  cv_tracer_set_window_sampling(J->tr, !J->bp.cosine_only);
+  return 0;
+}
+
+/* --view-budget: bands and split picked in the driver's view
+ * (prt/auto_view.h), printed.  Returns 0 or the exit code. */
+static int pick_in_view(const bake_opts *o, bake_job *J) {
+  cv_err err;
+  int rc = job_tracer(J);
+  if (rc) return rc;
+  cv_view_cam cam;
+  cv_view_cam_driver(&cam);
+  cv_view_auto va;
+  if (cv_auto_view_select(J->tr, J->sl, &cam, o->view_budget, 1024, J->cfg.seed,
+                          o->bands_s ? J->cfg.bands : 0, -1, &va, &err))
+    return cli_fail("bake", 1, "%s", err.msg);
+  printf("view auto: driver's view %dx%d (%d pixels on geometry, %d pilot vertices), %.2f s; "
+         "per-pixel error of the direct light against its all-frequency estimate:\n",
+         cam.w, cam.h, va.pixels, va.pilot_vertices, va.seconds);
+  for (int k = 0; k < va.n_cand; k++)
+    printf("  %d bands, split %2d: median %.1f%%, p90 %.1f%%, mean ratio %.3f\n", va.cand[k].bands,
+           va.cand[k].split, 100 * va.cand[k].median, 100 * va.cand[k].p90, va.cand[k].mean_ratio);
+  printf("view auto: picked %d bands with --split %d: median %.1f%%, p90 %.1f%%, mean ratio %.3f "
+         "(budget: median %.1f%%, p90 %.1f%%)%s\n", va.bands, va.split, 100 * va.median,
+         100 * va.p90, va.mean_ratio, 100 * o->view_budget, 300 * o->view_budget,
+         va.met_budget ? "" : " -- budget NOT met, the lowest median used");
+  if (va.split > 0)
+    printf("view auto: relight with `cave shade --split %d` / `cave render --split %d` for this "
+           "error\n", va.split, va.split);
+  J->bp.bands = va.bands;
+  if (J->cfg.rays == 0) J->bp.rays = 1024;
+  return 0;
+}
+
+/* --bands auto / --rays auto: picked by the per-vertex error budget
+ * (prt/auto.h), printed.  Returns 0 or the exit code. */
+static int pick_auto(bake_job *J) {
+  int rc = job_tracer(J);
+  if (rc) return rc;
+  cv_lighting lt, *lp = NULL;
+  if (J->sl) {
+    lt = cv_scene_light_sh(J->sl);
+    lp = &lt;
+  }
+  cv_auto_result ar;
+  if (cv_prt_auto_select(J->tr, lp, J->cfg.error_budget, J->cfg.seed, J->cfg.bands, J->cfg.rays, &ar))
+    return cli_fail("bake", 1, "auto: the scene has no surface to sample");
+  printf("auto: %d pilot vertices, %d candidates in %.2f s under %s\n", ar.pilot_vertices,
+         ar.n_cand, ar.seconds, lp ? "the scene's lighting (sun split out)" : "a CIE overcast sky");
+  printf("auto: picked %d bands, %d rays: estimated error %.2f%% (budget %.2f%%)%s\n", ar.bands,
+         ar.rays, 100 * ar.est_error, 100 * J->cfg.error_budget,
+         ar.met_budget ? "" : " -- budget NOT met, most accurate candidate used");
+  J->bp.bands = ar.bands;
+  J->bp.rays = ar.rays;
+  J->est_error = (float)ar.est_error;
+  return 0;
+}
+
+/* The bake itself with its progress lines, then the .prt written.
+ * Returns 0 or the exit code. */
+static int bake_and_write(const bake_opts *o, bake_job *J) {
+  cv_err err;
+  const cv_bake_params *bp = &J->bp;
+  int rc = job_tracer(J);
+  if (rc) return rc;
+  printf("bake: %zu vertices, %d bands, %d rays, %d bounces%s, spread %g, seed %u, %s, %d threads\n",
+         J->m->nv, bp->bands, bp->rays, bp->bounces, bp->tail && bp->bounces ? " + tail" : "",
+         (double)bp->spread, bp->seed,
+         cv_tracer_window_sampling(J->tr) ? "window importance sampling" : "cosine sampling",
+         omp_get_max_threads());
+  fflush(stdout);
+  cv_bake_stats bs;
+  if (cv_prt_bake_tracer(J->tr, bp, &J->prt, &bs, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  J->prt->meta.est_error = J->est_error;
+  for (int b = 0; b <= bp->bounces; b++)
+    printf("  pass %d (%s): %.2f s, %.2f Mrays/s\n", b, b ? "bounce" : "direct", bs.seconds[b],
+           bs.seconds[b] > 0 ? bs.rays[b] / bs.seconds[b] / 1e6 : 0.0);
+  if (bp->tail && bp->bounces > 0)
+    printf("  tail: bounce ratio %.4f %.4f %.4f (RGB), last bounce x r/(1-r) added%s\n",
+           bs.tail_ratio[0], bs.tail_ratio[1], bs.tail_ratio[2],
+           bs.tail_clamped ? " (a ratio was clamped to 0..0.9)" : "");
+  printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices only on window openings (no transfer)\n",
+         bs.total_seconds, (unsigned long long)bs.total_rays,
+         bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,
+         (unsigned long long)bs.empty_fans);
+  if (cv_prt_write(o->out, J->prt, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  printf("wrote %s (input hash %016llx)\n", o->out, (unsigned long long)J->prt->meta.input_hash);
+  return bake_lcd_block(o->in, o->out, J->prt->meta.input_hash);
+}
+
+/* Loads the mesh and the lighting, picks what auto asks for, then bakes
+ * unless the .prt is up to date.  Returns 0 or the exit code. */
+static int run_bake(const bake_opts *o, bake_job *J) {
+  cv_err err;
+  cv_scene_config *cfg = &J->cfg;
+  if (cli_load_scene_mesh(cfg, stdout, &J->m, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  J->bp = (cv_bake_params){.bands = cfg->bands, .rays = cfg->rays, .bounces = cfg->bounces,
+                           .seed = cfg->seed, .spread = (float)cfg->spread,
+                           .cosine_only = !cfg->window_sampling, .tail = cfg->tail, .quiet = o->quiet};
+  J->est_error = -1.0f;
+  if (cfg->light.kind != CV_LIGHT_NONE) {
+    /* The scene's lighting (8 bands: the auto modes need them): reported
+     * here (sun found or not, its energy) and used by auto to judge SH
+     * truncation. */
+    if (cv_scene_light_build(&cfg->light, 8, &J->sl, &err)) return cli_fail("bake", 1, "%s", err.msg);
+    cv_scene_light_print(stdout, J->sl);
+  }
+  int rc = 0;
+  if (o->view_budget > 0)
+    rc = pick_in_view(o, J);
+  else if (cfg->bands == 0 || cfg->rays == 0)
+    rc = pick_auto(J); /* the tracer is needed for it anyway: built first */
+  if (rc) return rc;
+  uint64_t want = cv_prt_input_hash(J->m, &J->bp), have;
+  if (!o->force && cv_prt_read_input_hash(o->out, &have, NULL) == CV_OK && have == want) {
+    printf("%s is up to date (input hash %016llx); use --force to bake again\n", o->out,
+           (unsigned long long)want);
+    return bake_lcd_block(o->in, o->out, want);
+  }
+  return bake_and_write(o, J);
+}
+
 int cmd_bake(int argc, char **argv) {
   bake_opts o;
   const int parsed = parse_opts(argc, argv, &o);
@@ -194,240 +441,19 @@ int cmd_bake(int argc, char **argv) {
     cli_print_usage(help);
     return cli_fail("bake", 2, "an input and -o FILE.prt are required");
   }
-  /* The output before any work: a .prt file, not the input, not a folder. */
-  if (!o.out[0]) return cli_fail("bake", 2, "-o: expected a file name");
-  if (strcmp(o.in, "default") && cli_same_file(o.in, o.out))
-    return cli_fail("bake", 2, "-o: %s: is the input; expected a new .prt path", o.out);
-  if (!cli_has_ext(o.out, ".prt"))
-    return cli_fail("bake", 2, "-o: expected a .prt path, got '%s'", o.out);
-  if (cli_check_output("bake", "-o", o.out)) return 1; /* a folder, a missing folder */
+  int rc = check_output(&o);
+  if (rc) return rc;
   /* The lighting modifiers that only act on the command line's --env maps. */
   if (o.env_only && o.lspec.kind != CV_LIGHT_ENV) return cli_fail("bake", 2, "%s needs --env", o.env_only);
-  if (o.weights) {
-    const int wrc = cli_apply_weights("bake", &o.lspec, o.weights);
-    if (wrc) return wrc;
-  }
-  cv_scene_config cfg;
-  cv_err err;
-  cv_err_clear(&err);
-  if (!strcmp(o.in, "default")) {
-    cv_scene_config_default(&cfg);
-  } else if (cli_has_ext(o.in, ".json")) {
-    if (cv_scene_config_load(o.in, &cfg, &err)) return cli_fail("bake", 1, "%s", err.msg);
-  } else {
-    cv_scene_config_default(&cfg);
-    cfg.mesh_is_cabin = 0;
-    snprintf(cfg.mesh_path, sizeof cfg.mesh_path, "%s", o.in);
-    snprintf(cfg.source, sizeof cfg.source, "%s", o.in);
-  }
-  int rc = 1;
-  cv_mesh *m = NULL;
-  cv_tracer *tr = NULL;
-  if (!cfg.mesh_is_cabin && cli_same_file(cfg.mesh_path, o.out)) {
-    rc = cli_fail("bake", 2, "-o: %s: is the scene's mesh; expected a new .prt path", o.out);
-    goto done;
-  }
-  if (o.tess_s && !cfg.mesh_is_cabin) {
-    rc = cli_fail("bake", 2, "--tess: applies to the built-in cabin, not to a mesh file (%s)",
-                  cfg.mesh_path);
-    goto done;
-  }
-  cv_prt *prt = NULL;
-  cv_scene_light *sl = NULL;
-  /* Command-line overrides. */
-  if (o.bands_s) {
-    if (!strcmp(o.bands_s, "auto")) cfg.bands = 0;
-    else if (cli_parse_int(o.bands_s, 2, 8, &cfg.bands)) {
-      rc = cli_fail("bake", 2, "--bands: expected 2..8 or auto, got '%s'", o.bands_s);
-      goto done;
-    }
-  }
-  if (o.rays_s) {
-    if (!strcmp(o.rays_s, "auto")) cfg.rays = 0;
-    else if (cli_parse_int(o.rays_s, 1, 1 << 24, &cfg.rays)) {
-      rc = cli_fail("bake", 2, "--rays: expected 1..16777216 or auto, got '%s'", o.rays_s);
-      goto done;
-    }
-  }
-  if (o.bounces_s && cli_parse_int(o.bounces_s, 0, 16, &cfg.bounces)) {
-    rc = cli_fail("bake", 2, "--bounces: expected 0..16, got '%s'", o.bounces_s);
-    goto done;
-  }
-  if (o.seed_s) {
-    int s;
-    if (cli_parse_int(o.seed_s, 0, 2147483647, &s)) {
-      rc = cli_fail("bake", 2, "--seed: expected 0..2147483647, got '%s'", o.seed_s);
-      goto done;
-    }
-    cfg.seed = (uint32_t)s;
-  }
-  if (o.budget_s && (cli_parse_double(o.budget_s, &cfg.error_budget) || cfg.error_budget <= 0 ||
-                   cfg.error_budget > 1)) {
-    rc = cli_fail("bake", 2, "--budget: expected a relative error in (0, 1], got '%s'", o.budget_s);
-    goto done;
-  }
-  if (o.tess_s && cli_parse_int(o.tess_s, 1, 64, &cfg.cabin_tess)) {
-    rc = cli_fail("bake", 2, "--tess: expected 1..64, got '%s'", o.tess_s);
-    goto done;
-  }
-  if ((rc = cli_place_apply("bake", &o.place, &cfg)) != 0) goto done;
-  rc = 1;
-  if (o.threads > 0) omp_set_num_threads(o.threads);
-  if (o.spread >= 0) cfg.spread = o.spread;
-  if (o.cosine_only >= 0) cfg.window_sampling = !o.cosine_only;
-  if (o.tail >= 0) cfg.tail = o.tail;
-
-  if (o.have_light) {
-    cfg.light = o.lspec;
-  } else if (o.pose) { /* the car's orientation under the config's lighting */
-    if (cfg.light.kind == CV_LIGHT_NONE) {
-      rc = cli_fail("bake", 2, "%s needs the lighting: --env, --env-constant or --sky (or the "
-                    "config's \"lighting\")", o.pose);
-      goto done;
-    }
-    if (o.pose_given & 1) cfg.light.yaw_deg = o.lspec.yaw_deg;
-    if (o.pose_given & 2) cfg.light.pitch_deg = o.lspec.pitch_deg;
-    if (o.pose_given & 4) cfg.light.roll_deg = o.lspec.roll_deg;
-  }
-  if (o.no_sun) {
-    if (cfg.light.kind != CV_LIGHT_ENV) {
-      /* only a map's sun can stay in the SH: the sky's is always a separate light */
-      rc = cli_fail("bake", 2, "--no-sun: applies to env maps (--env, or the config's \"env\" "
-                    "lighting)%s", cfg.light.kind == CV_LIGHT_NONE ? "; no lighting is given"
-                    : cfg.light.kind == CV_LIGHT_SKY ? ", not to --sky: its sun is always split out"
-                    : ", not to --env-constant: it has no sun");
-      goto done;
-    }
-    cfg.light.extract_sun = 0;
-  }
-  if (o.view_budget > 0 && cfg.light.kind == CV_LIGHT_NONE) {
-    rc = cli_fail("bake", 2, "--view-budget: needs the lighting (--env, --env-constant or --sky, "
-                  "or the config's lighting)");
-    goto done;
-  }
-  if (cli_load_scene_mesh(&cfg, stdout, &m, &err)) {
-    rc = cli_fail("bake", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_bake_params bp = {.bands = cfg.bands, .rays = cfg.rays, .bounces = cfg.bounces,
-                       .seed = cfg.seed, .spread = (float)cfg.spread,
-                       .cosine_only = !cfg.window_sampling, .tail = cfg.tail, .quiet = o.quiet};
-  float est_error = -1.0f;
-  if (cfg.light.kind != CV_LIGHT_NONE) {
-    /* The scene's lighting (8 bands: the auto modes need them): reported here (sun found or not, its energy) and
-     * used by auto to judge SH truncation. */
-    if (cv_scene_light_build(&cfg.light, 8, &sl, &err)) {
-      rc = cli_fail("bake", 1, "%s", err.msg);
-      goto done;
-    }
-    cv_scene_light_print(stdout, sl);
-  }
-  if (o.view_budget > 0) {
-    /* Image-space pick in the driver's view (prt/auto_view.h). */
-    if (cv_tracer_create(m, &tr, &err)) {
-      rc = cli_fail("bake", 1, "%s", err.msg);
-      goto done;
-    }
-    cv_tracer_set_spread(tr, bp.spread);
-    cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-    cv_view_cam cam;
-    cv_view_cam_driver(&cam);
-    cv_view_auto va;
-    if (cv_auto_view_select(tr, sl, &cam, o.view_budget, 1024, cfg.seed, o.bands_s ? cfg.bands : 0, -1,
-                            &va, &err)) {
-      rc = cli_fail("bake", 1, "%s", err.msg);
-      goto done;
-    }
-    printf("view auto: driver's view %dx%d (%d pixels on geometry, %d pilot vertices), %.2f s; "
-           "per-pixel error of the direct light against its all-frequency estimate:\n",
-           cam.w, cam.h, va.pixels, va.pilot_vertices, va.seconds);
-    for (int k = 0; k < va.n_cand; k++)
-      printf("  %d bands, split %2d: median %.1f%%, p90 %.1f%%, mean ratio %.3f\n", va.cand[k].bands,
-             va.cand[k].split, 100 * va.cand[k].median, 100 * va.cand[k].p90, va.cand[k].mean_ratio);
-    printf("view auto: picked %d bands with --split %d: median %.1f%%, p90 %.1f%%, mean ratio %.3f "
-           "(budget: median %.1f%%, p90 %.1f%%)%s\n", va.bands, va.split, 100 * va.median,
-           100 * va.p90, va.mean_ratio, 100 * o.view_budget, 300 * o.view_budget,
-           va.met_budget ? "" : " -- budget NOT met, the lowest median used");
-    if (va.split > 0)
-      printf("view auto: relight with `cave shade --split %d` / `cave render --split %d` for this "
-             "error\n", va.split, va.split);
-    bp.bands = va.bands;
-    if (cfg.rays == 0) bp.rays = 1024;
-  } else if (cfg.bands == 0 || cfg.rays == 0) {
-    /* The auto pick depends only on the mesh, the lighting and the budget;
-     * the tracer is needed for it anyway, so build it first. */
-    if (cv_tracer_create(m, &tr, &err)) {
-      rc = cli_fail("bake", 1, "%s", err.msg);
-      goto done;
-    }
-    cv_tracer_set_spread(tr, bp.spread);
-    cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-    cv_lighting lt, *lp = NULL;
-    if (sl) {
-      lt = cv_scene_light_sh(sl);
-      lp = &lt;
-    }
-    cv_auto_result ar;
-    if (cv_prt_auto_select(tr, lp, cfg.error_budget, cfg.seed, cfg.bands, cfg.rays, &ar)) {
-      rc = cli_fail("bake", 1, "auto: the scene has no surface to sample");
-      goto done;
-    }
-    printf("auto: %d pilot vertices, %d candidates in %.2f s under %s\n", ar.pilot_vertices,
-           ar.n_cand, ar.seconds, lp ? "the scene's lighting (sun split out)" : "a CIE overcast sky");
-    printf("auto: picked %d bands, %d rays: estimated error %.2f%% (budget %.2f%%)%s\n", ar.bands,
-           ar.rays, 100 * ar.est_error, 100 * cfg.error_budget,
-           ar.met_budget ? "" : " -- budget NOT met, most accurate candidate used");
-    bp.bands = ar.bands;
-    bp.rays = ar.rays;
-    est_error = (float)ar.est_error;
-  }
-  uint64_t want = cv_prt_input_hash(m, &bp), have;
-  if (!o.force && cv_prt_read_input_hash(o.out, &have, NULL) == CV_OK && have == want) {
-    printf("%s is up to date (input hash %016llx); use --force to bake again\n", o.out,
-           (unsigned long long)want);
-    rc = bake_lcd_block(o.in, o.out, want);
-    goto done;
-  }
-  if (!tr && cv_tracer_create(m, &tr, &err)) {
-    rc = cli_fail("bake", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_tracer_set_spread(tr, bp.spread);
-  cv_tracer_set_window_sampling(tr, !bp.cosine_only);
-  printf("bake: %zu vertices, %d bands, %d rays, %d bounces%s, spread %g, seed %u, %s, %d threads\n",
-         m->nv, bp.bands, bp.rays, bp.bounces, bp.tail && bp.bounces ? " + tail" : "",
-         (double)bp.spread, bp.seed,
-         cv_tracer_window_sampling(tr) ? "window importance sampling" : "cosine sampling",
-         omp_get_max_threads());
-  fflush(stdout);
-  cv_bake_stats bs;
-  if (cv_prt_bake_tracer(tr, &bp, &prt, &bs, &err)) {
-    rc = cli_fail("bake", 1, "%s", err.msg);
-    goto done;
-  }
-  prt->meta.est_error = est_error;
-  for (int b = 0; b <= bp.bounces; b++)
-    printf("  pass %d (%s): %.2f s, %.2f Mrays/s\n", b, b ? "bounce" : "direct", bs.seconds[b],
-           bs.seconds[b] > 0 ? bs.rays[b] / bs.seconds[b] / 1e6 : 0.0);
-  if (bp.tail && bp.bounces > 0)
-    printf("  tail: bounce ratio %.4f %.4f %.4f (RGB), last bounce x r/(1-r) added%s\n",
-           bs.tail_ratio[0], bs.tail_ratio[1], bs.tail_ratio[2],
-           bs.tail_clamped ? " (a ratio was clamped to 0..0.9)" : "");
-  printf("bake: %.2f s, %llu rays, %.2f Mrays/s; %llu vertices only on window openings (no transfer)\n",
-         bs.total_seconds, (unsigned long long)bs.total_rays,
-         bs.total_seconds > 0 ? bs.total_rays / bs.total_seconds / 1e6 : 0.0,
-         (unsigned long long)bs.empty_fans);
-  if (cv_prt_write(o.out, prt, &err)) {
-    rc = cli_fail("bake", 1, "%s", err.msg);
-    goto done;
-  }
-  printf("wrote %s (input hash %016llx)\n", o.out, (unsigned long long)prt->meta.input_hash);
-  rc = bake_lcd_block(o.in, o.out, prt->meta.input_hash);
-done:
-  cv_prt_destroy(prt);
-  cv_tracer_destroy(tr);
-  cv_scene_light_destroy(sl);
-  cv_mesh_destroy(m);
-  cv_scene_config_free(&cfg);
+  if (o.weights && (rc = cli_apply_weights("bake", &o.lspec, o.weights)) != 0) return rc;
+  bake_job J = {0};
+  if ((rc = load_config(o.in, &J.cfg)) != 0) return rc;
+  rc = apply_options(&o, &J);
+  if (!rc) rc = run_bake(&o, &J);
+  cv_prt_destroy(J.prt);
+  cv_tracer_destroy(J.tr);
+  cv_scene_light_destroy(J.sl);
+  cv_mesh_destroy(J.m);
+  cv_scene_config_free(&J.cfg);
   return rc;
 }
