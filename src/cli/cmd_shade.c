@@ -92,233 +92,275 @@ static int pixel_lights(int mode, const cv_lighting *l, const cv_dir_light *extr
   return n;
 }
 
-int cmd_shade(int argc, char **argv) {
-  const char *in = NULL, *out = NULL;
+/* The command line of cave shade. */
+typedef struct shade_opts {
+  const char *in, *out, *weights;
   cv_light_spec spec;
-  cv_light_spec_default(&spec);
-  int ascii = 0, have_view = 0, have_look = 0, split = 0, split_grid = 64, pixel_mode = PIXEL_SUN;
+  int ascii, have_view, have_look, split, split_grid, pixel_mode;
   cv_relight_opts ro;
-  cv_relight_opts_default(&ro);
-  double exposure = 0;
-  view_opts v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480};
-  const char *eye_s = "", *look_s = "", *up_s = "0,1,0 (the default)";
+  double exposure;
+  view_opts v;
+  const char *eye_s, *look_s, *up_s;
+} shade_opts;
+
+/* One option with a value (argv[*i], value argv[*i + 1]) into o; 1 when
+ * it is not one of these, else 0 or minus the exit code. */
+static int parse_value_opt(int argc, char **argv, int *i, shade_opts *o) {
+  const char *a = argv[*i], *val = argv[*i + 1];
+  view_opts *v = &o->v;
+  int st;
+  if (!strcmp(a, "-o")) {
+    o->out = argv[++*i];
+  } else if ((st = cli_parse_light("shade", argc, argv, i, &o->spec, &o->weights)) != 0) {
+    if (st < 0) return st;
+  } else if (!strcmp(a, "--sun-samples")) {
+    if (cli_parse_int(argv[++*i], 1, 4096, &o->ro.sun_samples))
+      return -cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
+  } else if (!strcmp(a, "--split-samples")) {
+    if (cli_parse_int(argv[++*i], 1, 4096, &o->ro.split_samples))
+      return -cli_fail("shade", 2, "--split-samples: expected 1..4096, got '%s'", val);
+  } else if (!strcmp(a, "--pixel-lights")) {
+    ++*i;
+    if (!strcmp(val, "sun")) o->pixel_mode = PIXEL_SUN;
+    else if (!strcmp(val, "all")) o->pixel_mode = PIXEL_ALL;
+    else if (!strcmp(val, "none")) o->pixel_mode = PIXEL_NONE;
+    else return -cli_fail("shade", 2, "--pixel-lights: expected sun, all or none, got '%s'", val);
+  } else if (!strcmp(a, "--split")) {
+    if (cli_parse_int(argv[++*i], 0, 4096, &o->split))
+      return -cli_fail("shade", 2, "--split: expected 0..4096 lights, got '%s'", val);
+  } else if (!strcmp(a, "--split-grid")) {
+    if (cli_parse_int(argv[++*i], 4, 1024, &o->split_grid) || o->split_grid % 2)
+      return -cli_fail("shade", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
+  } else if (!strcmp(a, "--view")) {
+    if (cli_parse_vec(argv[++*i], 3, v->eye)) return -cli_fail("shade", 2, "--view: expected x,y,z, got '%s'", val);
+    o->have_view = 1;
+    o->eye_s = val;
+  } else if (!strcmp(a, "--look")) {
+    if (cli_parse_vec(argv[++*i], 3, v->look)) return -cli_fail("shade", 2, "--look: expected x,y,z, got '%s'", val);
+    o->have_look = 1;
+    o->look_s = val;
+  } else if (!strcmp(a, "--view-up")) {
+    if (cli_parse_vec(argv[++*i], 3, v->up)) return -cli_fail("shade", 2, "--view-up: expected x,y,z, got '%s'", val);
+    o->up_s = val;
+  } else if (!strcmp(a, "--fov")) {
+    if (cli_parse_double(argv[++*i], &v->fov) || v->fov <= 1 || v->fov >= 179)
+      return -cli_fail("shade", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
+  } else if (!strcmp(a, "--size")) {
+    if (cli_parse_size(argv[++*i], 16384, &v->w, &v->h))
+      return -cli_fail("shade", 2, "--size: expected WxH (1..16384), got '%s'", val);
+  } else if (!strcmp(a, "--exposure")) {
+    if (cli_parse_double(argv[++*i], &o->exposure) || o->exposure <= 0)
+      return -cli_fail("shade", 2, "--exposure: expected a positive number, got '%s'", val);
+  } else {
+    return 1;
+  }
+  return 0;
+}
+
+/* argv into o.  Returns -1 to go on, else the exit code. */
+static int parse_args(int argc, char **argv, shade_opts *o) {
   static const char *const value_opts[] = {"-o", "--sun-samples", "--split-samples",
                                            "--pixel-lights", "--split", "--split-grid", "--view",
                                            "--look", "--view-up", "--fov", "--size",
                                            "--exposure", NULL};
-  const char *weights = NULL;
-  cv_err err;
-  cv_err_clear(&err);
-  for (int i = 1, st; i < argc; i++) {
+  *o = (shade_opts){.split_grid = 64, .pixel_mode = PIXEL_SUN,
+                    .v = {.up = {0, 1, 0}, .fov = 70, .w = 640, .h = 480},
+                    .eye_s = "", .look_s = "", .up_s = "0,1,0 (the default)"};
+  cv_light_spec_default(&o->spec);
+  cv_relight_opts_default(&o->ro);
+  for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       help(stdout);
       return 0;
     } else if (!strcmp(a, "--ascii")) {
-      ascii = 1;
+      o->ascii = 1;
     } else if (!strcmp(a, "--no-sun")) {
-      spec.extract_sun = 0;
+      o->spec.extract_sun = 0;
     } else if (!strcmp(a, "--up")) {
       return cli_fail("shade", 2, "--up: the camera's up vector is --view-up x,y,z (--up y|z is a "
                                   "mesh file's up axis, in cave bake and materials)");
     } else if (!val) {
       if (a[0] == '-' && a[1]) return cli_value_missing("shade", help, a, value_opts);
-      if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
-      in = a;
-    } else if (!strcmp(a, "-o")) {
-      out = argv[++i];
-    } else if ((st = cli_parse_light("shade", argc, argv, &i, &spec, &weights)) != 0) {
-      if (st < 0) return -st;
-    } else if (!strcmp(a, "--sun-samples")) {
-      if (cli_parse_int(argv[++i], 1, 4096, &ro.sun_samples))
-        return cli_fail("shade", 2, "--sun-samples: expected 1..4096, got '%s'", val);
-    } else if (!strcmp(a, "--split-samples")) {
-      if (cli_parse_int(argv[++i], 1, 4096, &ro.split_samples))
-        return cli_fail("shade", 2, "--split-samples: expected 1..4096, got '%s'", val);
-    } else if (!strcmp(a, "--pixel-lights")) {
-      ++i;
-      if (!strcmp(val, "sun")) pixel_mode = PIXEL_SUN;
-      else if (!strcmp(val, "all")) pixel_mode = PIXEL_ALL;
-      else if (!strcmp(val, "none")) pixel_mode = PIXEL_NONE;
-      else return cli_fail("shade", 2, "--pixel-lights: expected sun, all or none, got '%s'", val);
-    } else if (!strcmp(a, "--split")) {
-      if (cli_parse_int(argv[++i], 0, 4096, &split))
-        return cli_fail("shade", 2, "--split: expected 0..4096 lights, got '%s'", val);
-    } else if (!strcmp(a, "--split-grid")) {
-      if (cli_parse_int(argv[++i], 4, 1024, &split_grid) || split_grid % 2)
-        return cli_fail("shade", 2, "--split-grid: expected an even width 4..1024, got '%s'", val);
-    } else if (!strcmp(a, "--view")) {
-      if (cli_parse_vec(argv[++i], 3, v.eye)) return cli_fail("shade", 2, "--view: expected x,y,z, got '%s'", val);
-      have_view = 1;
-      eye_s = val;
-    } else if (!strcmp(a, "--look")) {
-      if (cli_parse_vec(argv[++i], 3, v.look)) return cli_fail("shade", 2, "--look: expected x,y,z, got '%s'", val);
-      have_look = 1;
-      look_s = val;
-    } else if (!strcmp(a, "--view-up")) {
-      if (cli_parse_vec(argv[++i], 3, v.up)) return cli_fail("shade", 2, "--view-up: expected x,y,z, got '%s'", val);
-      up_s = val;
-    } else if (!strcmp(a, "--fov")) {
-      if (cli_parse_double(argv[++i], &v.fov) || v.fov <= 1 || v.fov >= 179)
-        return cli_fail("shade", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
-    } else if (!strcmp(a, "--size")) {
-      if (cli_parse_size(argv[++i], 16384, &v.w, &v.h))
-        return cli_fail("shade", 2, "--size: expected WxH (1..16384), got '%s'", val);
-    } else if (!strcmp(a, "--exposure")) {
-      if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
-        return cli_fail("shade", 2, "--exposure: expected a positive number, got '%s'", val);
-    } else if (a[0] == '-') {
-      cli_print_usage(help);
-      return cli_fail("shade", 2, "unknown option '%s'", a);
+      if (o->in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", o->in, a);
+      o->in = a;
     } else {
-      if (in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", in, a);
-      in = a;
+      const int st = parse_value_opt(argc, argv, &i, o);
+      if (st < 0) return -st;
+      if (st == 0) continue;
+      if (a[0] == '-') {
+        cli_print_usage(help);
+        return cli_fail("shade", 2, "unknown option '%s'", a);
+      }
+      if (o->in) return cli_fail("shade", 2, "more than one input ('%s' and '%s')", o->in, a);
+      o->in = a;
     }
   }
-  if (!in || !out) {
+  return -1;
+}
+
+/* What the options need of each other, before any work.  Returns 0 or the
+ * exit code. */
+static int check_args(shade_opts *o) {
+  if (!o->in || !o->out) {
     cli_print_usage(help);
     return cli_fail("shade", 2, "a .prt input and -o FILE are required");
   }
-  int cst = cli_check_output("shade", "-o", out);
-  if (cst) return cst;
-  if (spec.kind == CV_LIGHT_NONE)
+  int st = cli_check_output("shade", "-o", o->out);
+  if (st) return st;
+  if (o->spec.kind == CV_LIGHT_NONE)
     return cli_fail("shade", 2, "no lighting: give --env, --env-constant or --sky");
-  int wst = cli_apply_weights("shade", &spec, weights);
-  if (wst) return wst;
-  if (have_view != have_look) return cli_fail("shade", 2, "--view and --look go together");
-  int is_view = have_view;
-  if (is_view && !cli_has_ext(out, ".exr") && !cli_has_ext(out, ".png"))
-    return cli_fail("shade", 2, "-o: a view is written as .exr or .png, got '%s'", out);
-  if (!is_view && !cli_has_ext(out, ".ply"))
-    return cli_fail("shade", 2, "-o: per-vertex output is a .ply (or add --view for an image), got '%s'", out);
-  if (is_view) {
-    cli_camera_arg ca = {v.eye, v.look, v.up, eye_s, look_s, up_s};
+  if ((st = cli_apply_weights("shade", &o->spec, o->weights)) != 0) return st;
+  if (o->have_view != o->have_look) return cli_fail("shade", 2, "--view and --look go together");
+  if (o->have_view && !cli_has_ext(o->out, ".exr") && !cli_has_ext(o->out, ".png"))
+    return cli_fail("shade", 2, "-o: a view is written as .exr or .png, got '%s'", o->out);
+  if (!o->have_view && !cli_has_ext(o->out, ".ply"))
+    return cli_fail("shade", 2, "-o: per-vertex output is a .ply (or add --view for an image), got '%s'", o->out);
+  if (o->have_view) {
+    cli_camera_arg ca = {o->v.eye, o->v.look, o->v.up, o->eye_s, o->look_s, o->up_s};
     if (cli_check_camera("shade", &ca)) return 2;
   }
+  return 0;
+}
 
-  int rc = 1;
-  cv_prt *p = NULL;
-  cv_mesh *m = NULL;
-  cv_tracer *tr = NULL;
-  cv_scene_light *sl = NULL;
-  float *rad = NULL;
-  cv_dir_light *lights = NULL;
-  cv_image *img = NULL;
-  cv_image **tex = NULL; /* per material, NULL where untextured */
-  if (cv_prt_read(in, &p, &err)) {
-    rc = cli_fail("shade", 1, "%s", err.msg);
-    goto done;
+/* What one shade holds. */
+typedef struct shade_job {
+  cv_prt *p;
+  cv_mesh *m;
+  cv_tracer *tr;
+  cv_scene_light *sl;
+  float *rad;
+  cv_dir_light *lights;
+  cv_image *img;
+  cv_image **tex; /* per material, NULL where untextured */
+} shade_job;
+
+/* The .prt, its lighting (split when asked), its tracer; the lighting
+ * printed.  Returns 0 or the exit code. */
+static int load_scene(const shade_opts *o, shade_job *J) {
+  cv_err err;
+  cv_err_clear(&err);
+  if (cv_prt_read(o->in, &J->p, &err)) return cli_fail("shade", 1, "%s", err.msg);
+  if (cv_scene_light_build(&o->spec, (int)J->p->bands, &J->sl, &err))
+    return cli_fail("shade", 1, "%s", err.msg);
+  if (cv_prt_to_mesh(J->p, &J->m) || cv_tracer_create(J->m, &J->tr, &err))
+    return cli_fail("shade", 1, "%s: %s", o->in, err.msg[0] ? err.msg : "out of memory");
+  if (o->split && cv_scene_light_split(J->sl, J->tr, o->split, o->split_grid, &err))
+    return cli_fail("shade", 1, "--split: %s", err.msg);
+  cv_scene_light_print(stdout, J->sl);
+  return 0;
+}
+
+/* The albedo textures of a textured .prt into J->tex: a texture that cannot
+ * be read shows the material's stored albedo (its mean) as a 1 x 1
+ * texture, as the renderer does, counted.  Returns 0 or the exit code. */
+static int load_textures(shade_job *J) {
+  const cv_prt *p = J->p;
+  cv_err err;
+  if (!(J->tex = calloc(p->nm + 1, sizeof *J->tex))) return cli_fail("shade", 1, "out of memory");
+  size_t unread = 0;
+  for (size_t i = 0; i < p->nm; i++) {
+    if (!cv_prt_mat_textured(p, i)) continue;
+    if (cv_texture_load(p->mat_tex[i], &J->tex[i], &err)) {
+      if (!unread++) printf("warning: material '%s' texture: %s\n", p->mats[i].name, err.msg);
+      if (cv_image_create(1, 1, 3, &J->tex[i])) return cli_fail("shade", 1, "out of memory");
+      memcpy(J->tex[i]->px, p->mats[i].albedo, 3 * sizeof(float));
+      continue;
+    }
+    cv_texture_match_mean(J->tex[i], p->mats[i].albedo); /* the colour factor */
+    printf("texture: material '%s': %s (%d x %d)\n", p->mats[i].name, p->mat_tex[i],
+           J->tex[i]->w, J->tex[i]->h);
   }
-  if (cv_scene_light_build(&spec, (int)p->bands, &sl, &err)) {
-    rc = cli_fail("shade", 1, "%s", err.msg);
-    goto done;
+  if (unread) printf("warning: %zu textures could not be read and show their mean albedo\n", unread);
+  return 0;
+}
+
+/* The view from the camera (vertex radiance plus the pixel lights), written
+ * as EXR or PNG.  Returns 0 or the exit code. */
+static int write_view(const shade_opts *o, const cv_lighting *l, const cv_dir_light *extra,
+                      int n_extra, shade_job *J) {
+  const view_opts *v = &o->v;
+  cv_err err;
+  if (cv_image_create(v->w, v->h, 3, &J->img))
+    return cli_fail("shade", 1, "cannot allocate a %dx%d image", v->w, v->h);
+  int rc = (J->p->flags & CV_PRT_TEXTURED) ? load_textures(J) : 0;
+  if (rc) return rc;
+  cv_shade_view_params vp = {.rad = J->rad, .lights = J->lights, .tex = J->tex,
+                             .background = background, .bg_ctx = J->sl};
+  vp.n_lights = pixel_lights(o->pixel_mode, l, extra, n_extra, J->lights);
+  cv_pinhole_init(&vp.cam, v->eye, v->look, v->up, v->fov, v->w, v->h);
+  cv_shade_view_stats vs;
+  cv_shade_view(J->p, cv_tracer_rt(J->tr), &vp, J->img, &vs);
+  printf("view: %d lights per pixel (--pixel-lights %s); %llu pixel channels clamped from "
+         "negative, %llu non-finite\n", vp.n_lights,
+         o->pixel_mode == PIXEL_ALL ? "all" : o->pixel_mode == PIXEL_SUN ? "sun" : "none",
+         (unsigned long long)vs.clamped_negative, (unsigned long long)vs.nonfinite);
+  if (vs.escaped)
+    printf("view: %llu pixels saw neither geometry nor a window (black)\n",
+           (unsigned long long)vs.escaped);
+  if (cli_has_ext(o->out, ".exr")) {
+    if (cv_exr_write(o->out, J->img, 0, CV_EXR_ZIP, &err)) return cli_fail("shade", 1, "%s", err.msg);
+    return 0;
   }
-  if (cv_prt_to_mesh(p, &m) || cv_tracer_create(m, &tr, &err)) {
-    rc = cli_fail("shade", 1, "%s: %s", in, err.msg[0] ? err.msg : "out of memory");
-    goto done;
-  }
-  if (split && cv_scene_light_split(sl, tr, split, split_grid, &err)) {
-    rc = cli_fail("shade", 1, "--split: %s", err.msg);
-    goto done;
-  }
-  cv_scene_light_print(stdout, sl);
-  cv_lighting l = cv_scene_light_sh(sl);
+  cv_preview_stats ps;
+  if (cv_preview_write_png(o->out, J->img, o->exposure, &ps, &err))
+    return cli_fail("shade", 1, "%s", err.msg);
+  printf("view: exposure %.4g (log-average luminance %.4g), %llu channels clamped\n",
+         ps.exposure, ps.log_avg_luminance, (unsigned long long)ps.clamped_channels);
+  return 0;
+}
+
+/* Relights every vertex (the direct light of what --pixel-lights leaves to
+ * the vertices), then writes the vertices as PLY or the view.  Returns 0 or
+ * the exit code. */
+static int relight_and_write(shade_opts *o, shade_job *J) {
+  cv_err err;
+  cv_prt *p = J->p;
+  cv_lighting l = cv_scene_light_sh(J->sl);
   const cv_dir_light *extra = NULL;
-  int n_extra = cv_scene_light_extra(sl, &extra);
-  if (!is_view) pixel_mode = PIXEL_NONE; /* per-vertex output: all direct light per vertex */
-  ro.sun_direct = pixel_mode == PIXEL_NONE;
-  ro.extra_direct = pixel_mode != PIXEL_ALL;
-  ro.clamp = pixel_mode == PIXEL_NONE; /* else clamped per pixel, after the pixel lights */
-  rad = malloc(3 * p->nv * sizeof(float) + 1);
-  lights = malloc((1 + (size_t)n_extra) * sizeof *lights);
+  int n_extra = cv_scene_light_extra(J->sl, &extra);
+  if (!o->have_view) o->pixel_mode = PIXEL_NONE; /* per-vertex output: all direct light per vertex */
+  cv_relight_opts *ro = &o->ro;
+  ro->sun_direct = o->pixel_mode == PIXEL_NONE;
+  ro->extra_direct = o->pixel_mode != PIXEL_ALL;
+  ro->clamp = o->pixel_mode == PIXEL_NONE; /* else clamped per pixel, after the pixel lights */
+  J->rad = malloc(3 * p->nv * sizeof(float) + 1);
+  J->lights = malloc((1 + (size_t)n_extra) * sizeof *J->lights);
   cv_relight_stats rs;
-  if (!rad || !lights || cv_prt_relight_opt(p, &l, extra, n_extra, tr, &ro, rad, &rs)) {
-    rc = cli_fail("shade", 1, "relighting failed");
-    goto done;
-  }
+  if (!J->rad || !J->lights || cv_prt_relight_opt(p, &l, extra, n_extra, J->tr, ro, J->rad, &rs))
+    return cli_fail("shade", 1, "relighting failed");
   printf("relit %zu vertices (%u bands); %llu channels %s (SH ringing), %llu non-finite\n",
          p->nv, p->bands, (unsigned long long)rs.clamped_negative,
-         ro.clamp ? "clamped from negative" : "negative (kept: clamped per pixel after the pixel lights)",
+         ro->clamp ? "clamped from negative" : "negative (kept: clamped per pixel after the pixel lights)",
          (unsigned long long)rs.nonfinite);
-  if (!is_view) {
-    if (cv_prt_fold_texture_means(p, rad)) {
-      rc = cli_fail("shade", 1, "out of memory");
-      goto done;
-    }
-    if (cv_ply_write_points(out, p->nv, p->pos, rad, p->tri, p->nt, !ascii, &err)) {
-      rc = cli_fail("shade", 1, "%s", err.msg);
-      goto done;
-    }
+  if (o->have_view) {
+    int rc = write_view(o, &l, extra, n_extra, J);
+    if (rc) return rc;
   } else {
-    if (cv_image_create(v.w, v.h, 3, &img)) {
-      rc = cli_fail("shade", 1, "cannot allocate a %dx%d image", v.w, v.h);
-      goto done;
-    }
-    if (p->flags & CV_PRT_TEXTURED) {
-      if (!(tex = calloc(p->nm + 1, sizeof *tex))) {
-        rc = cli_fail("shade", 1, "out of memory");
-        goto done;
-      }
-      size_t unread = 0;
-      for (size_t i = 0; i < p->nm; i++) {
-        if (!cv_prt_mat_textured(p, i)) continue;
-        if (cv_texture_load(p->mat_tex[i], &tex[i], &err)) {
-          /* as the renderer does: the material's stored albedo (the
-           * texture's mean) as a 1 x 1 texture, counted */
-          if (!unread++) printf("warning: material '%s' texture: %s\n", p->mats[i].name, err.msg);
-          if (cv_image_create(1, 1, 3, &tex[i])) {
-            rc = cli_fail("shade", 1, "out of memory");
-            goto done;
-          }
-          memcpy(tex[i]->px, p->mats[i].albedo, 3 * sizeof(float));
-          continue;
-        }
-        cv_texture_match_mean(tex[i], p->mats[i].albedo); /* the colour factor */
-        printf("texture: material '%s': %s (%d x %d)\n", p->mats[i].name, p->mat_tex[i],
-               tex[i]->w, tex[i]->h);
-      }
-      if (unread)
-        printf("warning: %zu textures could not be read and show their mean albedo\n", unread);
-    }
-    cv_shade_view_params vp = {.rad = rad, .lights = lights, .tex = tex,
-                               .background = background, .bg_ctx = sl};
-    vp.n_lights = pixel_lights(pixel_mode, &l, extra, n_extra, lights);
-    cv_pinhole_init(&vp.cam, v.eye, v.look, v.up, v.fov, v.w, v.h);
-    cv_shade_view_stats vs;
-    cv_shade_view(p, cv_tracer_rt(tr), &vp, img, &vs);
-    printf("view: %d lights per pixel (--pixel-lights %s); %llu pixel channels clamped from "
-           "negative, %llu non-finite\n", vp.n_lights,
-           pixel_mode == PIXEL_ALL ? "all" : pixel_mode == PIXEL_SUN ? "sun" : "none",
-           (unsigned long long)vs.clamped_negative, (unsigned long long)vs.nonfinite);
-    if (vs.escaped)
-      printf("view: %llu pixels saw neither geometry nor a window (black)\n",
-             (unsigned long long)vs.escaped);
-    if (cli_has_ext(out, ".exr")) {
-      if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
-        rc = cli_fail("shade", 1, "%s", err.msg);
-        goto done;
-      }
-    } else {
-      cv_preview_stats ps;
-      if (cv_preview_write_png(out, img, exposure, &ps, &err)) {
-        rc = cli_fail("shade", 1, "%s", err.msg);
-        goto done;
-      }
-      printf("view: exposure %.4g (log-average luminance %.4g), %llu channels clamped\n",
-             ps.exposure, ps.log_avg_luminance, (unsigned long long)ps.clamped_channels);
-    }
+    if (cv_prt_fold_texture_means(p, J->rad)) return cli_fail("shade", 1, "out of memory");
+    if (cv_ply_write_points(o->out, p->nv, p->pos, J->rad, p->tri, p->nt, !o->ascii, &err))
+      return cli_fail("shade", 1, "%s", err.msg);
   }
-  printf("wrote %s\n", out);
-  rc = 0;
-done:
-  for (size_t i = 0; tex && i < p->nm; i++) cv_image_destroy(tex[i]);
-  free(tex);
-  cv_image_destroy(img);
-  free(rad);
-  free(lights);
-  cv_tracer_destroy(tr);
-  cv_mesh_destroy(m);
-  cv_scene_light_destroy(sl);
-  cv_prt_destroy(p);
+  printf("wrote %s\n", o->out);
+  return 0;
+}
+
+int cmd_shade(int argc, char **argv) {
+  shade_opts o;
+  int rc = parse_args(argc, argv, &o);
+  if (rc >= 0) return rc;
+  if ((rc = check_args(&o)) != 0) return rc;
+  shade_job J = {0};
+  rc = load_scene(&o, &J);
+  if (!rc) rc = relight_and_write(&o, &J);
+  for (size_t i = 0; J.tex && i < J.p->nm; i++) cv_image_destroy(J.tex[i]);
+  free(J.tex);
+  cv_image_destroy(J.img);
+  free(J.rad);
+  free(J.lights);
+  cv_tracer_destroy(J.tr);
+  cv_mesh_destroy(J.m);
+  cv_scene_light_destroy(J.sl);
+  cv_prt_destroy(J.p);
   return rc;
 }
