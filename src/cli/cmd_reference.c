@@ -107,21 +107,87 @@ static int load_mesh(const char *in, int tess, cv_mesh **m, cv_err *err) {
   return cli_load_scene_mesh(&cfg, stdout, m, err);
 }
 
-int cmd_reference(int argc, char **argv) {
-  const char *in = NULL, *out = NULL, *err_out = NULL, *png_out = NULL, *ids_out = NULL;
-  light_opts lo = {.weights = NULL};
-  cv_light_spec_default(&lo.spec);
-  cv_ref_camera cam = {.up = {0, 1, 0}, .fov_deg = 70, .w = 640, .h = 480};
+/* The command line of cave reference. */
+typedef struct ref_opts {
+  const char *in, *out, *err_out, *png_out, *ids_out;
+  light_opts lo;
+  cv_ref_camera cam;
   cv_ref_params rp;
-  cv_ref_params_default(&rp);
-  int have_view = 0, have_look = 0, threads = 0, tess = 0, png = 0;
-  double exposure = 0;
-  const char *eye_s = "", *look_s = "", *up_s = "0,1,0 (the default)";
+  int have_view, have_look, threads, tess, png;
+  double exposure;
+  const char *eye_s, *look_s, *up_s;
   char png_path[4096];
+} ref_opts;
+
+/* One option with a value (argv[*i], value val) into o; 1 when it is not
+ * one of these, else 0 or minus the exit code. */
+static int parse_value_opt(char **argv, int *i, ref_opts *o) {
+  const char *a = argv[*i], *val = argv[*i + 1];
+  cv_ref_camera *cam = &o->cam;
+  cv_ref_params *rp = &o->rp;
+  if (!strcmp(a, "-o")) {
+    o->out = argv[++*i];
+  } else if (!strcmp(a, "--error")) {
+    o->err_out = argv[++*i];
+  } else if (!strcmp(a, "--ids")) {
+    o->ids_out = argv[++*i];
+  } else if (!strcmp(a, "--view") || !strcmp(a, "--look") || !strcmp(a, "--view-up")) {
+    double *dst = !strcmp(a, "--view") ? cam->eye : !strcmp(a, "--look") ? cam->look : cam->up;
+    if (cli_parse_vec(argv[++*i], 3, dst))
+      return -cli_fail("reference", 2, "%s: expected x,y,z, got '%s'", a, val);
+    o->have_view |= !strcmp(a, "--view");
+    o->have_look |= !strcmp(a, "--look");
+    if (!strcmp(a, "--view")) o->eye_s = val;
+    else if (!strcmp(a, "--look")) o->look_s = val;
+    else o->up_s = val;
+  } else if (!strcmp(a, "--fov")) {
+    if (cli_parse_double(argv[++*i], &cam->fov_deg) || cam->fov_deg <= 1 || cam->fov_deg >= 179)
+      return -cli_fail("reference", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
+  } else if (!strcmp(a, "--size")) {
+    if (cli_parse_size(argv[++*i], 16384, &cam->w, &cam->h))
+      return -cli_fail("reference", 2, "--size: expected WxH (1..16384), got '%s'", val);
+  } else if (!strcmp(a, "--spp")) {
+    if (cli_parse_int(argv[++*i], 1, 1 << 20, &rp->spp))
+      return -cli_fail("reference", 2, "--spp: expected 1..1048576, got '%s'", val);
+  } else if (!strcmp(a, "--pass")) {
+    if (cli_parse_int(argv[++*i], 1, 1 << 20, &rp->pass_spp))
+      return -cli_fail("reference", 2, "--pass: expected 1..1048576, got '%s'", val);
+  } else if (!strcmp(a, "--bounces")) {
+    if (cli_parse_int(argv[++*i], 0, 1000, &rp->bounces))
+      return -cli_fail("reference", 2, "--bounces: expected 0..1000, got '%s'", val);
+  } else if (!strcmp(a, "--seed")) {
+    int s;
+    if (cli_parse_int(argv[++*i], 0, 2147483647, &s))
+      return -cli_fail("reference", 2, "--seed: expected 0..2147483647, got '%s'", val);
+    rp->seed = (uint32_t)s;
+  } else if (!strcmp(a, "--tess")) {
+    if (cli_parse_int(argv[++*i], 1, 64, &o->tess))
+      return -cli_fail("reference", 2, "--tess: expected 1..64, got '%s'", val);
+  } else if (!strcmp(a, "--threads")) {
+    if (cli_parse_int(argv[++*i], 1, 1024, &o->threads))
+      return -cli_fail("reference", 2, "--threads: expected 1..1024, got '%s'", val);
+  } else if (!strcmp(a, "--exposure")) {
+    if (cli_parse_double(argv[++*i], &o->exposure) || o->exposure <= 0)
+      return -cli_fail("reference", 2, "--exposure: expected a positive number, got '%s'", val);
+  } else {
+    return 1;
+  }
+  return 0;
+}
+
+/* argv into o.  Returns -1 to go on, else the exit code. */
+static int parse_args(int argc, char **argv, ref_opts *o) {
   static const char *const value_opts[] = {"-o", "--error", "--ids", "--view", "--look",
                                            "--view-up", "--fov", "--size", "--spp", "--pass",
                                            "--bounces", "--seed", "--tess", "--threads",
                                            "--exposure", NULL};
+  memset(o, 0, sizeof *o);
+  cv_light_spec_default(&o->lo.spec);
+  o->cam = (cv_ref_camera){.up = {0, 1, 0}, .fov_deg = 70, .w = 640, .h = 480};
+  cv_ref_params_default(&o->rp);
+  o->eye_s = "";
+  o->look_s = "";
+  o->up_s = "0,1,0 (the default)";
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -129,7 +195,7 @@ int cmd_reference(int argc, char **argv) {
       return 0;
     }
     if (!strcmp(a, "--quiet")) {
-      rp.quiet = 1;
+      o->rp.quiet = 1;
       continue;
     }
     if (!strcmp(a, "--png")) {
@@ -137,7 +203,7 @@ int cmd_reference(int argc, char **argv) {
       if (val && val[0] != '-' && cli_has_ext(val, ".png"))
         return cli_fail("reference", 2, "--png: a flag (the preview goes next to -o, view.exr: "
                                         "view.png), got a file '%s'", val);
-      png = 1;
+      o->png = 1;
       continue;
     }
     if (!strcmp(a, "--no-sun"))
@@ -146,87 +212,53 @@ int cmd_reference(int argc, char **argv) {
     if (!strcmp(a, "--up"))
       return cli_fail("reference", 2, "--up: the camera's up vector is --view-up x,y,z (--up y|z "
                                       "is a mesh file's up axis, in cave bake and materials)");
-    int pl = cli_parse_light("reference", argc, argv, &i, &lo.spec, &lo.weights);
+    int pl = cli_parse_light("reference", argc, argv, &i, &o->lo.spec, &o->lo.weights);
     if (pl < 0) return -pl;
     if (pl) continue;
     if (a[0] == '-' && a[1] && !val) return cli_value_missing("reference", help, a, value_opts);
-    if (!strcmp(a, "-o")) {
-      out = argv[++i];
-    } else if (!strcmp(a, "--error")) {
-      err_out = argv[++i];
-    } else if (!strcmp(a, "--ids")) {
-      ids_out = argv[++i];
-    } else if (!strcmp(a, "--view") || !strcmp(a, "--look") || !strcmp(a, "--view-up")) {
-      double *dst = !strcmp(a, "--view") ? cam.eye : !strcmp(a, "--look") ? cam.look : cam.up;
-      if (cli_parse_vec(argv[++i], 3, dst))
-        return cli_fail("reference", 2, "%s: expected x,y,z, got '%s'", a, val);
-      have_view |= !strcmp(a, "--view");
-      have_look |= !strcmp(a, "--look");
-      if (!strcmp(a, "--view")) eye_s = val;
-      else if (!strcmp(a, "--look")) look_s = val;
-      else up_s = val;
-    } else if (!strcmp(a, "--fov")) {
-      if (cli_parse_double(argv[++i], &cam.fov_deg) || cam.fov_deg <= 1 || cam.fov_deg >= 179)
-        return cli_fail("reference", 2, "--fov: expected degrees in (1, 179), got '%s'", val);
-    } else if (!strcmp(a, "--size")) {
-      if (cli_parse_size(argv[++i], 16384, &cam.w, &cam.h))
-        return cli_fail("reference", 2, "--size: expected WxH (1..16384), got '%s'", val);
-    } else if (!strcmp(a, "--spp")) {
-      if (cli_parse_int(argv[++i], 1, 1 << 20, &rp.spp))
-        return cli_fail("reference", 2, "--spp: expected 1..1048576, got '%s'", val);
-    } else if (!strcmp(a, "--pass")) {
-      if (cli_parse_int(argv[++i], 1, 1 << 20, &rp.pass_spp))
-        return cli_fail("reference", 2, "--pass: expected 1..1048576, got '%s'", val);
-    } else if (!strcmp(a, "--bounces")) {
-      if (cli_parse_int(argv[++i], 0, 1000, &rp.bounces))
-        return cli_fail("reference", 2, "--bounces: expected 0..1000, got '%s'", val);
-    } else if (!strcmp(a, "--seed")) {
-      int s;
-      if (cli_parse_int(argv[++i], 0, 2147483647, &s))
-        return cli_fail("reference", 2, "--seed: expected 0..2147483647, got '%s'", val);
-      rp.seed = (uint32_t)s;
-    } else if (!strcmp(a, "--tess")) {
-      if (cli_parse_int(argv[++i], 1, 64, &tess))
-        return cli_fail("reference", 2, "--tess: expected 1..64, got '%s'", val);
-    } else if (!strcmp(a, "--threads")) {
-      if (cli_parse_int(argv[++i], 1, 1024, &threads))
-        return cli_fail("reference", 2, "--threads: expected 1..1024, got '%s'", val);
-    } else if (!strcmp(a, "--exposure")) {
-      if (cli_parse_double(argv[++i], &exposure) || exposure <= 0)
-        return cli_fail("reference", 2, "--exposure: expected a positive number, got '%s'", val);
-    } else if (a[0] == '-' && a[1]) {
+    if (val) {
+      const int st = parse_value_opt(argv, &i, o);
+      if (st < 0) return -st;
+      if (st == 0) continue;
+    }
+    if (a[0] == '-' && a[1]) {
       cli_print_usage(help);
       return cli_fail("reference", 2, "unknown option '%s'", a);
-    } else if (!in) {
-      in = a;
+    } else if (!o->in) {
+      o->in = a;
     } else {
-      return cli_fail("reference", 2, "more than one input ('%s' and '%s')", in, a);
+      return cli_fail("reference", 2, "more than one input ('%s' and '%s')", o->in, a);
     }
   }
-  if (!in || !out) {
+  return -1;
+}
+
+/* The outputs' names, the camera, the lighting and every output's folder,
+ * before minutes of path tracing.  Returns 0 or the exit code. */
+static int check_args(ref_opts *o) {
+  if (!o->in || !o->out) {
     cli_print_usage(help);
     return cli_fail("reference", 2, "an input scene and -o FILE.exr are required");
   }
-  if (!cli_has_ext(out, ".exr"))
-    return cli_fail("reference", 2, "-o: the view is written as linear .exr, got '%s'", out);
-  if (err_out && !cli_has_ext(err_out, ".exr"))
-    return cli_fail("reference", 2, "--error: expected an .exr path, got '%s'", err_out);
-  if (ids_out && !cli_has_ext(ids_out, ".exr"))
-    return cli_fail("reference", 2, "--ids: expected an .exr path, got '%s'", ids_out);
-  if (png) {
-    if (strlen(out) - 4 + 5 > sizeof png_path)
-      return cli_fail("reference", 2, "-o: path too long for --png, got '%s'", out);
-    snprintf(png_path, sizeof png_path, "%.*s.png", (int)strlen(out) - 4, out);
-    png_out = png_path;
+  if (!cli_has_ext(o->out, ".exr"))
+    return cli_fail("reference", 2, "-o: the view is written as linear .exr, got '%s'", o->out);
+  if (o->err_out && !cli_has_ext(o->err_out, ".exr"))
+    return cli_fail("reference", 2, "--error: expected an .exr path, got '%s'", o->err_out);
+  if (o->ids_out && !cli_has_ext(o->ids_out, ".exr"))
+    return cli_fail("reference", 2, "--ids: expected an .exr path, got '%s'", o->ids_out);
+  if (o->png) {
+    if (strlen(o->out) - 4 + 5 > sizeof o->png_path)
+      return cli_fail("reference", 2, "-o: path too long for --png, got '%s'", o->out);
+    snprintf(o->png_path, sizeof o->png_path, "%.*s.png", (int)strlen(o->out) - 4, o->out);
+    o->png_out = o->png_path;
   }
-  if (!have_view || !have_look)
+  if (!o->have_view || !o->have_look)
     return cli_fail("reference", 2, "--view x,y,z and --look x,y,z are required");
-  cli_camera_arg ca = {cam.eye, cam.look, cam.up, eye_s, look_s, up_s};
+  cli_camera_arg ca = {o->cam.eye, o->cam.look, o->cam.up, o->eye_s, o->look_s, o->up_s};
   if (cli_check_camera("reference", &ca)) return 2;
-  if (finish_light(&lo)) return 2;
-  /* every output's folder before minutes of path tracing */
-  const char *outs[4][2] = {{"-o", out}, {"--error", err_out}, {"--ids", ids_out},
-                            {"--png", png_out}};
+  if (finish_light(&o->lo)) return 2;
+  const char *outs[4][2] = {{"-o", o->out}, {"--error", o->err_out}, {"--ids", o->ids_out},
+                            {"--png", o->png_out}};
   for (int k = 0; k < 4; k++) {
     if (!outs[k][1]) continue;
     int cst = cli_check_output("reference", outs[k][0], outs[k][1]);
@@ -236,98 +268,108 @@ int cmd_reference(int argc, char **argv) {
         return cli_fail("reference", 2, "%s: '%s' is also the %s output", outs[k][0], outs[k][1],
                         outs[j][0]);
   }
-  if (threads) omp_set_num_threads(threads);
+  return 0;
+}
 
-  int rc = 1;
+/* What one reference render holds. */
+typedef struct ref_job {
+  cv_mesh *m;
+  cv_ref_scene *sc;
+  cv_ref_light *light;
+  cv_image *img, *se, *ids;
+} ref_job;
+
+/* The scene, its lighting and the path-traced view with its standard
+ * error, printed.  Returns 0 or the exit code. */
+static int render_view(const ref_opts *o, ref_job *J) {
   cv_err err;
   cv_err_clear(&err);
-  cv_mesh *m = NULL;
-  cv_ref_scene *sc = NULL;
-  cv_ref_light *light = NULL;
-  cv_image *img = NULL, *se = NULL, *ids = NULL;
-  if (load_mesh(in, tess, &m, &err)) {
-    rc = cli_fail("reference", 1, "%s", err.msg);
-    goto done;
-  }
-  if (cv_ref_scene_create(m, &sc, &err)) {
-    rc = cli_fail("reference", 1, "%s: %s", in, err.msg);
-    goto done;
-  }
-  if (cv_ref_light_build(&lo.spec, &light, &err)) {
-    rc = cli_fail("reference", 1, "%s", err.msg);
-    goto done;
-  }
-  cv_ref_light_print(stdout, light);
-  if (cv_image_create(cam.w, cam.h, 3, &img) || cv_image_create(cam.w, cam.h, 3, &se)) {
-    rc = cli_fail("reference", 1, "cannot allocate a %dx%d image", cam.w, cam.h);
-    goto done;
-  }
+  const cv_ref_camera *cam = &o->cam;
+  const cv_ref_params *rp = &o->rp;
+  if (load_mesh(o->in, o->tess, &J->m, &err)) return cli_fail("reference", 1, "%s", err.msg);
+  if (cv_ref_scene_create(J->m, &J->sc, &err)) return cli_fail("reference", 1, "%s: %s", o->in, err.msg);
+  if (cv_ref_light_build(&o->lo.spec, &J->light, &err)) return cli_fail("reference", 1, "%s", err.msg);
+  cv_ref_light_print(stdout, J->light);
+  if (cv_image_create(cam->w, cam->h, 3, &J->img) || cv_image_create(cam->w, cam->h, 3, &J->se))
+    return cli_fail("reference", 1, "cannot allocate a %dx%d image", cam->w, cam->h);
   cv_ref_stats st;
-  if (cv_ref_render(sc, light, &cam, &rp, img, se, &st, &err)) {
-    rc = cli_fail("reference", 1, "%s", err.msg);
-    goto done;
-  }
+  if (cv_ref_render(J->sc, J->light, cam, rp, J->img, J->se, &st, &err))
+    return cli_fail("reference", 1, "%s", err.msg);
   printf("reference: %dx%d, %d spp, bounces %s, seed %u: %.2f s, %.3g paths/s, %.2f vertices "
          "per path\n",
-         cam.w, cam.h, rp.spp, rp.bounces < 0 ? "until roulette" : "limited", rp.seed, st.seconds,
+         cam->w, cam->h, rp->spp, rp->bounces < 0 ? "until roulette" : "limited", rp->seed, st.seconds,
          st.paths / (st.seconds > 0 ? st.seconds : 1), (double)st.vertices / (double)st.paths);
   printf("reference: relative standard error of pixel luminance: median %.2f%%, p90 %.2f%%; "
          "%llu samples non-finite (set to 0); %llu pixels saw neither geometry nor a window\n",
          100 * st.median_rel_se, 100 * st.p90_rel_se, (unsigned long long)st.nonfinite,
          (unsigned long long)st.blocked_view);
-  /* ZIP: cv_exr_write guards against OpenEXR issue #2306 (a chunk whose
-   * deflated size equals its raw size was stored wrongly; noisy images hit it).
-   * Each file is written whole (temp + rename); when one fails, those
-   * written before it are removed: an error leaves nothing behind. */
+  return 0;
+}
+
+/* The view, then the asked-for error, ids and preview files.  ZIP:
+ * cv_exr_write guards against OpenEXR issue #2306 (a chunk whose deflated
+ * size equals its raw size was stored wrongly; noisy images hit it).  Each
+ * file is written whole (temp + rename); when one fails, those written
+ * before it are removed: an error leaves nothing behind.  Returns 0 or the
+ * exit code. */
+static int write_outputs(const ref_opts *o, ref_job *J) {
+  cv_err err;
+  cv_err_clear(&err);
   const char *written[4];
-  int n_written = 0;
-  if (cv_exr_write(out, img, 0, CV_EXR_ZIP, &err)) {
-    rc = cli_fail("reference", 1, "%s", err.msg);
-    goto done;
-  }
-  written[n_written++] = out;
-  if (err_out) {
-    if (cv_exr_write(err_out, se, 0, CV_EXR_ZIP, &err)) {
+  int n_written = 0, rc = 0;
+  if (cv_exr_write(o->out, J->img, 0, CV_EXR_ZIP, &err)) return cli_fail("reference", 1, "%s", err.msg);
+  written[n_written++] = o->out;
+  if (o->err_out) {
+    if (cv_exr_write(o->err_out, J->se, 0, CV_EXR_ZIP, &err))
       rc = cli_fail("reference", 1, "--error: %s", err.msg);
-      goto unwrite;
-    }
-    written[n_written++] = err_out;
+    else
+      written[n_written++] = o->err_out;
   }
-  if (ids_out) {
-    if (cv_image_create(cam.w, cam.h, 1, &ids) || cv_ref_material_ids(sc, &cam, ids, &err) ||
-        cv_exr_write(ids_out, ids, 0, CV_EXR_NONE, &err)) {
+  if (!rc && o->ids_out) {
+    if (cv_image_create(o->cam.w, o->cam.h, 1, &J->ids) ||
+        cv_ref_material_ids(J->sc, &o->cam, J->ids, &err) ||
+        cv_exr_write(o->ids_out, J->ids, 0, CV_EXR_NONE, &err))
       rc = cli_fail("reference", 1, "--ids: %s", err.msg[0] ? err.msg : "out of memory");
-      goto unwrite;
-    }
-    written[n_written++] = ids_out;
+    else
+      written[n_written++] = o->ids_out;
   }
   cv_preview_stats ps;
-  if (png_out) {
-    if (cv_preview_write_png(png_out, img, exposure, &ps, &err)) {
+  if (!rc && o->png_out) {
+    if (cv_preview_write_png(o->png_out, J->img, o->exposure, &ps, &err))
       rc = cli_fail("reference", 1, "--png: %s", err.msg);
-      goto unwrite;
-    }
-    written[n_written++] = png_out;
+    else
+      written[n_written++] = o->png_out;
   }
-  if (ids_out)
-    for (size_t k = 0; k < m->nm; k++)
-      printf("material %zu: %s (albedo %.3g %.3g %.3g)\n", k, m->mats[k].name,
-             (double)m->mats[k].albedo[0], (double)m->mats[k].albedo[1],
-             (double)m->mats[k].albedo[2]);
-  if (png_out) printf("preview: %s, exposure %.4g\n", png_out, ps.exposure);
+  if (rc) {
+    for (int k = 0; k < n_written; k++) remove(written[k]);
+    return rc;
+  }
+  if (o->ids_out)
+    for (size_t k = 0; k < J->m->nm; k++)
+      printf("material %zu: %s (albedo %.3g %.3g %.3g)\n", k, J->m->mats[k].name,
+             (double)J->m->mats[k].albedo[0], (double)J->m->mats[k].albedo[1],
+             (double)J->m->mats[k].albedo[2]);
+  if (o->png_out) printf("preview: %s, exposure %.4g\n", o->png_out, ps.exposure);
   printf("wrote");
   for (int k = 0; k < n_written; k++) printf("%s %s", k ? "," : "", written[k]);
   printf("\n");
-  rc = 0;
-  goto done;
-unwrite:
-  for (int k = 0; k < n_written; k++) remove(written[k]);
-done:
-  cv_image_destroy(img);
-  cv_image_destroy(se);
-  cv_image_destroy(ids);
-  cv_ref_light_destroy(light);
-  cv_ref_scene_destroy(sc);
-  cv_mesh_destroy(m);
+  return 0;
+}
+
+int cmd_reference(int argc, char **argv) {
+  ref_opts o;
+  int rc = parse_args(argc, argv, &o);
+  if (rc >= 0) return rc;
+  if ((rc = check_args(&o)) != 0) return rc;
+  if (o.threads) omp_set_num_threads(o.threads);
+  ref_job J = {0};
+  rc = render_view(&o, &J);
+  if (!rc) rc = write_outputs(&o, &J);
+  cv_image_destroy(J.img);
+  cv_image_destroy(J.se);
+  cv_image_destroy(J.ids);
+  cv_ref_light_destroy(J.light);
+  cv_ref_scene_destroy(J.sc);
+  cv_mesh_destroy(J.m);
   return rc;
 }
