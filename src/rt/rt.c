@@ -5,6 +5,7 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #if defined(__x86_64__) || defined(__i386__)
@@ -19,7 +20,42 @@ struct cv_rt {
   uint32_t *prim_to_tri; /* opaque primitive index -> mesh triangle */
   uint32_t *win_to_tri;  /* window primitive index -> mesh triangle */
   const uint32_t *opaque_vtx; /* Embree's index buffer of the opaque scene */
+  /* The device's first error, from Embree's error callback (any thread). */
+  int err_set;
+  enum RTCError err_code;
+  char err_msg[256];
 };
+
+static const char *rtc_error_name(enum RTCError e) {
+  switch (e) {
+  case RTC_ERROR_NONE: return "no error";
+  case RTC_ERROR_UNKNOWN: return "unknown error";
+  case RTC_ERROR_INVALID_ARGUMENT: return "invalid argument";
+  case RTC_ERROR_INVALID_OPERATION: return "invalid operation";
+  case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
+  case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
+  case RTC_ERROR_CANCELLED: return "cancelled";
+  }
+  return "unknown error";
+}
+
+/* Embree's error callback: keeps the first error of the device (later ones
+ * are usually its consequences). */
+static void on_device_error(void *user, enum RTCError code, const char *str) {
+  cv_rt *rt = user;
+  int expected = 0;
+  if (!__atomic_compare_exchange_n(&rt->err_set, &expected, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE))
+    return;
+  rt->err_code = code;
+  snprintf(rt->err_msg, sizeof rt->err_msg, "%s%s%s", rtc_error_name(code), str && str[0] ? ": " : "",
+           str ? str : "");
+}
+
+int cv_rt_status(const cv_rt *rt, cv_err *err) {
+  if (!__atomic_load_n(&rt->err_set, __ATOMIC_ACQUIRE)) return CV_OK;
+  return cv_err_set(err, rt->err_code == RTC_ERROR_OUT_OF_MEMORY ? CV_ERR_NOMEM : CV_ERR_BACKEND,
+                    "Embree: %s", rt->err_msg);
+}
 
 void cv_rt_thread_init(void) {
 #if defined(__x86_64__) || defined(__i386__)
@@ -30,8 +66,9 @@ void cv_rt_thread_init(void) {
 
 /* Builds one committed scene from the triangles whose window flag equals
  * `want_window`; writes the primitive -> triangle map when map != NULL. */
-static int build_scene(RTCDevice dev, const cv_mesh *m, int want_window, uint32_t *map,
+static int build_scene(cv_rt *rt, const cv_mesh *m, int want_window, uint32_t *map,
                        RTCScene *out, size_t *count, const uint32_t **index) {
+  RTCDevice dev = rt->dev;
   size_t n = 0;
   for (size_t t = 0; t < m->nt; t++)
     if (!!(m->mats[m->tri_mat[t]].flags & CV_MAT_WINDOW) == want_window) n++;
@@ -65,7 +102,7 @@ static int build_scene(RTCDevice dev, const cv_mesh *m, int want_window, uint32_
   rtcReleaseGeometry(g);
   rtcCommitScene(sc);
   *out = sc;
-  return rtcGetDeviceError(dev) == RTC_ERROR_NONE ? CV_OK : CV_ERR_BACKEND;
+  return rt->err_set ? CV_ERR_BACKEND : CV_OK;
 }
 
 int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
@@ -77,9 +114,11 @@ int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
   rt->dev = rtcNewDevice(NULL);
   if (!rt->dev) {
     free(rt);
-    return cv_err_set(err, CV_ERR_BACKEND, "Embree: cannot create a device (error %d)",
-                      (int)rtcGetDeviceError(NULL));
+    /* no device to report through the callback: the thread's last error */
+    return cv_err_set(err, CV_ERR_BACKEND, "Embree: cannot create a device: %s",
+                      rtc_error_name(rtcGetDeviceError(NULL)));
   }
+  rtcSetDeviceErrorFunction(rt->dev, on_device_error, rt);
   rt->prim_to_tri = malloc(m->nt * sizeof(uint32_t));
   rt->win_to_tri = malloc(m->nt * sizeof(uint32_t));
   if (!rt->prim_to_tri || !rt->win_to_tri) {
@@ -87,12 +126,14 @@ int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err) {
     return cv_err_set(err, CV_ERR_NOMEM, "out of memory building the ray tracer");
   }
   size_t nop = 0, nwin = 0;
-  st = build_scene(rt->dev, m, 0, rt->prim_to_tri, &rt->opaque, &nop, &rt->opaque_vtx);
-  if (!st) st = build_scene(rt->dev, m, 1, rt->win_to_tri, &rt->windows, &nwin, NULL);
+  st = build_scene(rt, m, 0, rt->prim_to_tri, &rt->opaque, &nop, &rt->opaque_vtx);
+  if (!st) st = build_scene(rt, m, 1, rt->win_to_tri, &rt->windows, &nwin, NULL);
   if (st) {
+    cv_err e;
+    cv_err_clear(&e);
+    if (!cv_rt_status(rt, &e)) cv_err_set(&e, CV_ERR_BACKEND, "Embree: no buffer for the scene");
     cv_rt_destroy(rt);
-    return cv_err_set(err, st, "Embree: scene build failed (error %d)",
-                      (int)rtcGetDeviceError(NULL));
+    return cv_err_set(err, e.status, "%s (scene build)", e.msg);
   }
   if (nop == 0) {
     cv_rt_destroy(rt);

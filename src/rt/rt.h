@@ -30,6 +30,11 @@ typedef struct cv_hit {
  * ownership of m.  *out owned by the caller (cv_rt_destroy).
  * Errors: CV_ERR_EMPTY (no opaque triangle), CV_ERR_BACKEND (Embree). */
 int cv_rt_create(const cv_mesh *m, cv_rt **out, cv_err *err);
+/* The first error Embree's device reported (its error callback, set at
+ * creation): CV_OK when none, else CV_ERR_NOMEM or CV_ERR_BACKEND with
+ * "Embree: <kind>: <Embree's message>" in err.  Scene builds check it
+ * themselves; a caller may check it after tracing. */
+int cv_rt_status(const cv_rt *rt, cv_err *err);
 void cv_rt_destroy(cv_rt *rt);
 
 /* Sets FTZ/DAZ for the calling thread (no-op off x86). */
