@@ -16,15 +16,11 @@ int cv_service_display(const cv_service *s, cv_display **out, cv_err *err) {
   *out = NULL;
   cv_display *d = NULL;
   int st;
-  if (s->o.display_path[0] && cv_display_is_cave_config(s->o.display_path)) {
-    /* a CAVE config stands in for a display description (docs/display-format.md):
-     * its walls and "screens", --patches / --reflectance overriding */
-    cv_cave dc;
-    if ((st = cv_cave_load(s->o.display_path, &dc, err))) return st;
-    st = cv_display_from_cave(&dc, s->o.patches, s->o.reflectance, &d, err);
-    if (st) return cv_err_prefix(err, "%s", s->o.display_path);
-  } else if (s->o.display_path[0]) {
-    st = cv_display_load(s->o.display_path, &d, err);
+  if (s->o.display_path[0]) {
+    /* a display description, or a CAVE config standing in for one
+     * (docs/display-format.md): its walls and "screens", --patches /
+     * --reflectance overriding */
+    st = cv_display_load_any(s->o.display_path, s->o.patches, s->o.reflectance, &d, NULL, err);
     if (st) return st;
   } else {
     st = cv_display_from_cave(&s->cave, s->o.patches, s->o.reflectance, &d, err);

@@ -252,18 +252,14 @@ static int parse_options(int argc, char **argv, comp_opts *o) {
 static int load_display(const char *path, cv_display **d) {
   cv_err err;
   cv_err_clear(&err);
-  if (cv_display_is_cave_config(path)) { /* its walls and "screens" */
-    cv_cave cave;
-    if (cv_cave_load(path, &cave, &err)) return cli_fail("compensate", 1, "%s", err.msg);
-    if (cv_display_from_cave(&cave, 0, -1, d, &err))
-      return cli_fail("compensate", 1, "%s: %s", path, err.msg);
-    return 0;
-  }
-  if (cv_display_load(path, d, &err)) {
-    char buf[8192];
-    int np = 0;
-    cv_display_validate_all(path, buf, sizeof buf, &np);
-    if (np > 1) fputs(buf, stderr);
+  int is_cave = 0;
+  if (cv_display_load_any(path, 0, -1, d, &is_cave, &err)) {
+    if (!is_cave) { /* every problem of a display description, when there are several */
+      char buf[8192];
+      int np = 0;
+      cv_display_validate_all(path, buf, sizeof buf, &np);
+      if (np > 1) fputs(buf, stderr);
+    }
     return cli_fail("compensate", 1, "%s", err.msg);
   }
   return 0;

@@ -7,6 +7,9 @@
  * once the description is free of problems. */
 #include "compensate/display.h"
 
+#include "io/textfile.h"
+#include "view/cave.h"
+
 #include "core/vec3d.h"
 #include "io/json_keys.h"
 #include "io/problems.h"
@@ -785,13 +788,22 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
 }
 
 /* Parses text into a display, collecting problems into x. */
-static cv_display *parse_text(ctx *x, const char *text) {
+/* The display of a parsed tree (problems collected in x; NULL when out of
+ * memory). */
+static cv_display *parse_tree(ctx *x, const cJSON *root) {
   cv_display *d = calloc(1, sizeof *d);
   if (!d) {
     cv_problem(x, CV_ERR_NOMEM, "", "out of memory");
     return NULL;
   }
   snprintf(d->source, sizeof d->source, "%s", x->file);
+  parse_root(x, root, d);
+  return d;
+}
+
+/* JSON text parsed, or NULL with its syntax error (line and column) as a
+ * problem. */
+static cJSON *parse_json(ctx *x, const char *text) {
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
   if (!root) {
@@ -800,45 +812,23 @@ static cv_display *parse_text(ctx *x, const char *text) {
     cv_json_syntax_error(text, end, &line, &col, what, sizeof what);
     snprintf(f, sizeof f, "line %d, column %d", line, col);
     cv_problem(x, CV_ERR_CONFIG, f, "%s", what);
-    return d;
   }
-  parse_root(x, root, d);
+  return root;
+}
+
+static cv_display *parse_text(ctx *x, const char *text) {
+  cJSON *root = parse_json(x, text);
+  if (!root) return NULL;
+  cv_display *d = parse_tree(x, root);
   cJSON_Delete(root);
   return d;
 }
 
 static int read_file(const char *path, char **text, ctx *x) {
-  *text = NULL;
-  FILE *f = fopen(path, "rb");
-  if (!f) {
-    cv_problem(x, CV_ERR_IO, "", "cannot open: %s", strerror(errno));
-    return CV_ERR_IO;
-  }
-  cv_err fe;
-  if (cv_json_file_check(f, path, &fe)) {
-    fclose(f);
-    cv_problem(x, CV_ERR_IO, "", "is a folder, expected a JSON file");
-    return CV_ERR_IO;
-  }
-  fseek(f, 0, SEEK_END);
-  long n = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  if (n < 0 || n > (64 << 20)) {
-    fclose(f);
-    cv_problem(x, CV_ERR_CONFIG, "", "not a plausible display description (size %ld)", n);
-    return CV_ERR_CONFIG;
-  }
-  char *t = malloc((size_t)n + 1);
-  if (!t || fread(t, 1, (size_t)n, f) != (size_t)n) {
-    fclose(f);
-    free(t);
-    cv_problem(x, CV_ERR_IO, "", "read failed");
-    return CV_ERR_IO;
-  }
-  fclose(f);
-  t[n] = '\0';
-  *text = t;
-  return CV_OK;
+  cv_err e;
+  int st = cv_read_json_file(path, text, &e);
+  if (st) cv_problem(x, st, "", "%s", cv_err_after_path(e.msg, path));
+  return st;
 }
 
 static int finish(ctx *x, cv_display *d, cv_display **out, cv_err *err) {
@@ -862,26 +852,34 @@ int cv_display_parse(const char *json, const char *name, cv_display **out, cv_er
   return finish(&x, d, out, err);
 }
 
-int cv_display_is_cave_config(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return 0;
-  char *text = NULL;
-  long n = -1;
-  if (!fseek(f, 0, SEEK_END) && (n = ftell(f)) >= 0 && n < (64L << 20) && !fseek(f, 0, SEEK_SET) &&
-      (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
-    text[n] = 0;
-  else
-    n = -1;
-  fclose(f);
-  int cave = 0;
-  if (n >= 0) {
-    cJSON *root = cJSON_Parse(text);
-    cave = cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
-           !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
-    cJSON_Delete(root);
-  }
+/* A CAVE config rather than a display description: a top-level "walls"
+ * and no "surfaces". */
+static int is_cave_tree(const cJSON *root) {
+  return cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
+         !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
+}
+
+int cv_display_load_any(const char *path, int patches, double reflectance, cv_display **out,
+                        int *is_cave, cv_err *err) {
+  *out = NULL;
+  if (is_cave) *is_cave = 0;
+  ctx x = {.file = path};
+  char *text;
+  if (read_file(path, &text, &x)) return finish(&x, NULL, out, err);
+  cJSON *root = parse_json(&x, text);
   free(text);
-  return cave;
+  if (root && is_cave_tree(root)) {
+    if (is_cave) *is_cave = 1;
+    cv_cave cave;
+    int st = cv_cave_from_json(root, path, &cave, err);
+    cJSON_Delete(root);
+    if (st) return st;
+    st = cv_display_from_cave(&cave, patches, reflectance, out, err);
+    return st ? cv_err_prefix(err, "%s", path) : CV_OK;
+  }
+  cv_display *d = root ? parse_tree(&x, root) : NULL;
+  cJSON_Delete(root);
+  return finish(&x, d, out, err);
 }
 
 int cv_display_load(const char *path, cv_display **out, cv_err *err) {

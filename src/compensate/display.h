@@ -159,12 +159,14 @@ typedef struct cv_display {
  * as "file: field.path: what", followed by " [+N more problems]" when there
  * are others), CV_ERR_NOMEM; *out is NULL then. */
 int cv_display_load(const char *path, cv_display **out, cv_err *err);
-/* 1 when path holds a CAVE config (a top-level "walls" and no "surfaces")
- * rather than a display description: decided by the keys alone, so that
- * each loader reports its own problems (anything unreadable: 0, and the
- * display loader says why).  `cave compensate --display` and `cave run
- * --display` take either. */
-int cv_display_is_cave_config(const char *path);
+/* Loads a display description or a CAVE config (a top-level "walls" and no
+ * "surfaces": its walls and "screens", as cv_display_from_cave with patches
+ * and reflectance), reading and parsing the file once; *is_cave (may be
+ * NULL) says which it was, also on failure once the file parsed.  Errors
+ * as cv_display_load, or the CAVE loader's ("path: ..." for the screens).
+ * `cave compensate --display` and `cave run --display` take either. */
+int cv_display_load_any(const char *path, int patches, double reflectance, cv_display **out,
+                        int *is_cave, cv_err *err);
 
 /* As cv_display_load on JSON text already in memory; name is used in the
  * messages in place of the file name. */

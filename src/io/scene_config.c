@@ -1,5 +1,6 @@
 /* Scene configuration parser (see scene_config.h), on cJSON. */
 #include "io/scene_config.h"
+#include "io/textfile.h"
 
 #include "io/json_keys.h"
 
@@ -425,27 +426,9 @@ int cv_light_spec_parse_json(const void *json, const char *file, const char *bas
 int cv_scene_config_load(const char *path, cv_scene_config *c, cv_err *err) {
   cv_scene_config_default(c);
   snprintf(c->source, sizeof c->source, "%s", path);
-  FILE *f = fopen(path, "rb");
-  if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-  if (cv_json_file_check(f, path, err)) {
-    fclose(f);
-    return CV_ERR_IO;
-  }
-  fseek(f, 0, SEEK_END);
-  long n = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  if (n < 0 || n > (64 << 20)) {
-    fclose(f);
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: not a plausible config (size %ld)", path, n);
-  }
-  char *text = malloc((size_t)n + 1);
-  if (!text || fread(text, 1, (size_t)n, f) != (size_t)n) {
-    fclose(f);
-    free(text);
-    return cv_err_set(err, CV_ERR_IO, "%s: read failed", path);
-  }
-  fclose(f);
-  text[n] = '\0';
+  char *text = NULL;
+  int rst = cv_read_json_file(path, &text, err);
+  if (rst) return rst;
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
   if (!root) {

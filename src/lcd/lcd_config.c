@@ -1,6 +1,8 @@
 /* The "lcd" settings block (see lcd_config.h), on cJSON. */
 #include "lcd/lcd_config.h"
 
+#include "io/textfile.h"
+
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
@@ -279,32 +281,9 @@ void cv_lcd_config_override(cv_lcd_config *c, unsigned what) {
 }
 
 static int load(const char *path, int scene, cv_lcd_config *c, cv_err *err) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open (%s)", path, strerror(errno));
-  if (cv_json_file_check(f, path, err)) {
-    fclose(f);
-    return CV_ERR_IO;
-  }
-  size_t cap = 4096, n = 0;
-  char *buf = malloc(cap);
-  while (buf) {
-    if (n + 1 >= cap) {
-      char *nb = realloc(buf, cap * 2);
-      if (!nb) {
-        free(buf);
-        buf = NULL;
-        break;
-      }
-      buf = nb;
-      cap *= 2;
-    }
-    size_t got = fread(buf + n, 1, cap - 1 - n, f);
-    n += got;
-    if (!got) break;
-  }
-  fclose(f);
-  if (!buf) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", path);
-  buf[n] = 0;
+  char *buf = NULL;
+  int rst = cv_read_json_file(path, &buf, err);
+  if (rst) return rst;
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithOpts(buf, &end, 0);
   if (!root) {

@@ -10,7 +10,7 @@
 #include "core/hash.h"
 #include "io/json_keys.h"
 #include "io/problems.h"
-#include "service/textfile.h"
+#include "io/textfile.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -343,7 +343,7 @@ int cv_drive_load(const char *path, cv_drive **out, cv_err *err) {
   if (out) *out = NULL;
   if (!path) return cv_err_set(err, CV_ERR_INVALID, "drive: NULL path");
   char *text;
-  int st = cv_service_read_text(path, &text, NULL, err);
+  int st = cv_read_text_file(path, &text, NULL, err);
   if (st) return st;
   char dir[CV_PATH_MAX];
   dir_of(path, dir, sizeof dir);
@@ -373,7 +373,7 @@ int cv_drive_validate_all(const char *path, char *buf, size_t n, int *n_problems
   cv_err e;
   cv_err_clear(&e);
   if (buf && n) buf[0] = '\0';
-  int st = cv_service_read_text(path, &text, NULL, &e);
+  int st = cv_read_text_file(path, &text, NULL, &e);
   if (st) {
     if (buf && n) snprintf(buf, n, "%s\n", e.msg);
     if (n_problems) *n_problems = 1;

@@ -4,7 +4,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "service/tracker.h"
 
-#include "service/textfile.h"
+#include "io/textfile.h"
 
 #include <arpa/inet.h>
 #include <ctype.h>
@@ -133,7 +133,7 @@ int cv_head_path_load(const char *path, cv_head_path **out, cv_err *err) {
   if (out) *out = NULL;
   char *text;
   size_t len;
-  int st = cv_service_read_text(path, &text, &len, err);
+  int st = cv_read_text_file(path, &text, &len, err);
   if (st) return st;
   size_t nul = strlen(text);
   if (nul < len)

@@ -9,7 +9,7 @@
 
 #include "io/json_keys.h"
 #include "mesh/place.h"
-#include "service/textfile.h"
+#include "io/textfile.h"
 
 void cv_tracker_config_default(cv_tracker_config *c) {
   memset(c, 0, sizeof *c);
@@ -178,7 +178,7 @@ int cv_tracker_config_parse(const char *text, const char *name, cv_tracker_confi
 int cv_tracker_config_load(const char *path, cv_tracker_config *c, cv_err *err) {
   char *text = NULL;
   size_t n = 0;
-  int st = cv_service_read_text(path, &text, &n, err);
+  int st = cv_read_text_file(path, &text, &n, err);
   if (st) return st;
   st = cv_tracker_config_parse(text, path, c, err);
   free(text);

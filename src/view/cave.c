@@ -6,6 +6,8 @@
  * *out is written only when there was no problem. */
 #include "view/cave.h"
 
+#include "io/textfile.h"
+
 #include "io/json_keys.h"
 
 #include <cjson/cJSON.h>
@@ -703,6 +705,8 @@ int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *o
   return cave_parse(json_text, name_for_errors, out, NULL, 0, NULL, err);
 }
 
+static int cave_from_tree(ctx *x, const cJSON *root, cv_cave *out, int *count, cv_err *err);
+
 static int cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out, char *lines,
                       size_t cap, int *count, cv_err *err) {
   ctx x;
@@ -726,23 +730,33 @@ static int cave_parse(const char *json_text, const char *name_for_errors, cv_cav
     if (count) *count = x.count;
     return finish(&x, err);
   }
-  cv_cave *c = malloc(sizeof *c);
-  if (!c) {
-    cJSON_Delete(root);
-    return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", x.file);
-  }
-  cv_cave_defaults(c);
-  parse_root(&x, root, c);
+  int st = cave_from_tree(&x, root, out, count, err);
   cJSON_Delete(root);
-  if (count) *count = x.count;
-  if (x.count) {
+  return st;
+}
+
+/* The CAVE of a parsed tree (problems collected in x). */
+static int cave_from_tree(ctx *x, const cJSON *root, cv_cave *out, int *count, cv_err *err) {
+  cv_cave *c = malloc(sizeof *c);
+  if (!c) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", x->file);
+  cv_cave_defaults(c);
+  parse_root(x, root, c);
+  if (count) *count = x->count;
+  if (x->count) {
     free(c);
-    return finish(&x, err);
+    return finish(x, err);
   }
   *out = *c;
   free(c);
   cv_err_clear(err);
   return CV_OK;
+}
+
+int cv_cave_from_json(const cJSON *root, const char *name_for_errors, cv_cave *out, cv_err *err) {
+  ctx x;
+  memset(&x, 0, sizeof x);
+  x.file = name_for_errors ? name_for_errors : "(cave)";
+  return cave_from_tree(&x, root, out, NULL, err);
 }
 
 int cv_cave_load(const char *path, cv_cave *out, cv_err *err) {
@@ -753,29 +767,9 @@ int cv_cave_load_all(const char *path, cv_cave *out, char *buf, size_t cap, int 
   if (count) *count = 1;
   if (buf && cap) buf[0] = 0;
   if (!path || !out) return cv_err_set(err, CV_ERR_INVALID, "cv_cave_load: no path or output");
-  FILE *f = fopen(path, "rb");
-  if (!f) return cv_err_set(err, CV_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-  if (cv_json_file_check(f, path, err)) {
-    fclose(f);
-    return CV_ERR_IO;
-  }
   char *t = NULL;
-  long n = -1;
-  if (fseek(f, 0, SEEK_END) == 0) n = ftell(f);
-  if (n < 0 || n > (16 << 20) || fseek(f, 0, SEEK_SET) != 0) {
-    fclose(f);
-    return cv_err_set(err, CV_ERR_CONFIG, "%s: not a plausible CAVE description (size %ld)",
-                      path, n);
-  }
-  t = malloc((size_t)n + 1);
-  if (!t || fread(t, 1, (size_t)n, f) != (size_t)n) {
-    int st = t ? CV_ERR_IO : CV_ERR_NOMEM;
-    fclose(f);
-    free(t);
-    return cv_err_set(err, st, "%s: read failed", path);
-  }
-  fclose(f);
-  t[n] = '\0';
+  int rst = cv_read_json_file(path, &t, err);
+  if (rst) return rst;
   int st = cave_parse(t, path, out, buf, cap, count, err);
   free(t);
   return st;

@@ -137,6 +137,10 @@ int cv_cave_load_all(const char *path, cv_cave *out, char *buf, size_t cap, int 
 
 /* As cv_cave_load on a JSON string; name_for_errors prefixes messages. */
 int cv_cave_parse(const char *json_text, const char *name_for_errors, cv_cave *out, cv_err *err);
+/* As cv_cave_parse on a JSON tree already parsed (cJSON). */
+struct cJSON;
+int cv_cave_from_json(const struct cJSON *root, const char *name_for_errors, cv_cave *out,
+                      cv_err *err);
 
 /* CV_ERR_RANGE naming the wall when eye is on or behind any wall's plane
  * (signed distance along the wall normal <= 1e-6 m), CV_OK otherwise. */

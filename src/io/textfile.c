@@ -1,5 +1,5 @@
 /* Whole-file reading (textfile.h). */
-#include "service/textfile.h"
+#include "io/textfile.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -7,7 +7,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-int cv_service_read_text(const char *path, char **text, size_t *len, cv_err *err) {
+static int read_text(const char *path, const char *kind, char **text, size_t *len, cv_err *err) {
   *text = NULL;
   if (len) *len = 0;
   FILE *f = fopen(path, "rb");
@@ -15,7 +15,7 @@ int cv_service_read_text(const char *path, char **text, size_t *len, cv_err *err
   struct stat sb;
   if (fstat(fileno(f), &sb) == 0 && S_ISDIR(sb.st_mode)) {
     fclose(f);
-    return cv_err_set(err, CV_ERR_IO, "%s: is a folder, expected a file", path);
+    return cv_err_set(err, CV_ERR_IO, "%s: is a folder, expected %s", path, kind);
   }
   size_t cap = 4096, n = 0;
   char *b = malloc(cap);
@@ -28,8 +28,8 @@ int cv_service_read_text(const char *path, char **text, size_t *len, cv_err *err
       if (cap >= CV_TEXT_FILE_MAX) {
         free(b);
         fclose(f);
-        return cv_err_set(err, CV_ERR_RANGE, "%s: larger than %zu bytes", path,
-                          (size_t)CV_TEXT_FILE_MAX);
+        return cv_err_set(err, CV_ERR_RANGE, "%s: larger than %zu MiB: not a configuration or "
+                          "head path file", path, (size_t)CV_TEXT_FILE_MAX >> 20);
       }
       char *nb = realloc(b, cap * 2);
       if (!nb) {
@@ -54,4 +54,17 @@ int cv_service_read_text(const char *path, char **text, size_t *len, cv_err *err
   *text = b;
   if (len) *len = n;
   return CV_OK;
+}
+
+int cv_read_text_file(const char *path, char **text, size_t *len, cv_err *err) {
+  return read_text(path, "a file", text, len, err);
+}
+
+int cv_read_json_file(const char *path, char **text, cv_err *err) {
+  return read_text(path, "a JSON file", text, NULL, err);
+}
+
+const char *cv_err_after_path(const char *msg, const char *path) {
+  const size_t n = strlen(path);
+  return strncmp(msg, path, n) == 0 && msg[n] == ':' && msg[n + 1] == ' ' ? msg + n + 2 : msg;
 }
