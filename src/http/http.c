@@ -74,9 +74,9 @@ void cv_http_opts_default(cv_http_opts *o) {
   memset(o, 0, sizeof *o);
   snprintf(o->addr, sizeof o->addr, "127.0.0.1");
   o->port = CV_HTTP_DEFAULT_PORT;
-  o->max_connections = 64;
+  o->max_connections = 256;
   o->max_events = 8;
-  o->timeout_s = 5;
+  o->timeout_s = 3;
   o->memory_limit = 32 * 1024;
 }
 
@@ -464,7 +464,7 @@ static int listen_socket(const cv_http_opts *o, int *fd_out, int *port, cv_err *
   sa.sin_family = AF_INET;
   sa.sin_port = htons((uint16_t)o->port);
   inet_pton(AF_INET, o->addr, &sa.sin_addr);
-  if (bind(fd, (struct sockaddr *)&sa, sizeof sa) || listen(fd, 64)) {
+  if (bind(fd, (struct sockaddr *)&sa, sizeof sa) || listen(fd, 128)) {
     const int e = errno;
     close(fd);
     return cv_err_set(err, CV_ERR_IO, "--http %s:%d: cannot listen: %s%s", o->addr, o->port, strerror(e),

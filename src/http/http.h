@@ -29,9 +29,9 @@ typedef struct cv_http_opts {
   char addr[64];          /* IPv4 address to bind (a.b.c.d) */
   int port;               /* 0: a free port (cv_http_port says which) */
   char token[256];        /* "" none; else required on every request */
-  int max_connections;    /* default 64 */
+  int max_connections;    /* default 256 */
   int max_events;         /* concurrent /events streams, default 8 */
-  int timeout_s;          /* idle connections closed after this, default 5 */
+  int timeout_s;          /* idle connections closed after this, default 3 */
   size_t memory_limit;    /* per connection (request headers included), default 32 KiB */
 } cv_http_opts;
 

@@ -115,7 +115,7 @@ while time.time() < deadline and any(c["closed"] is None for c in conns):
             c["next"] = now + 1.0
 # the clients stop sending: how long until the server closes what is left
 t_stop = time.time()
-while time.time() < t_stop + 12 and any(c["closed"] is None for c in conns):
+while time.time() < t_stop + 20 and any(c["closed"] is None for c in conns):
     for key, mask in sel.select(timeout=0.05):
         if mask & selectors.EVENT_READ:
             on_event(key.data, selectors.EVENT_READ, time.time())
