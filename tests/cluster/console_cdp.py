@@ -113,4 +113,12 @@ ok &= bool(paused)
 shot("console.png")
 js("document.getElementById('b_resume').click()")
 ws.close()
+# the browser closes itself, so that xvfb-run ends and takes its Xvfb along
+try:
+    bws = json.load(urllib.request.urlopen("http://127.0.0.1:%d/json/version" % port, timeout=10))["webSocketDebuggerUrl"]
+    b = websocket.create_connection(bws, timeout=10)
+    b.send(json.dumps({"id": 1, "method": "Browser.close"}))
+    b.close()
+except Exception as e:  # noqa: BLE001 (the shell ends it then)
+    print("NOTE: Browser.close: %s" % e)
 sys.exit(0 if ok else 1)

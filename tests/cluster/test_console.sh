@@ -80,7 +80,7 @@ done_() { echo "$pass passed, $fail failed"; [ $fail -eq 0 ]; exit $?; }
 
 # --- browser -----------------------------------------------------------------------
 if [ "$PART" = browser ]; then
-  start run 11 --frames 0 --max-fps 8 --gather-timeout 3 --drive sky.json --http 127.0.0.1:0
+  start run 11 --frames 0 --max-fps 8 --gather-timeout 6 --drive sky.json --http 127.0.0.1:0
   wait_url run 3 || { bad "no console URL in the ready line: $(tail -3 run.err)"; done_; }
   ok "ready line: console $url"
   mkdir -p chrome shots
@@ -92,7 +92,13 @@ if [ "$PART" = browser ]; then
   KILL=10
   "$PY3" "$HERE/console_cdp.py" "$WORK/chrome" "$url" 11 $KILL run/pids/rank$KILL.pid "$WORK/shots" >cdp.txt 2>&1
   crc=$?
-  kill -TERM $cpid 2>/dev/null; pkill -TERM -P $cpid 2>/dev/null; wait $cpid 2>/dev/null
+  # Browser.close ended chromium, and xvfb-run its Xvfb; else they are ended by id
+  for i in $(seq 1 150); do kill -0 $cpid 2>/dev/null || break; sleep 0.1; done
+  if kill -0 $cpid 2>/dev/null; then
+    echo "NOTE: chromium did not close: ended"
+    kill -TERM $(pgrep -f -- "--user-data-dir=$WORK/chrome") $(pgrep -P $cpid -x Xvfb) $cpid 2>/dev/null
+  fi
+  wait $cpid 2>/dev/null
   while read -r l; do case "$l" in ok:*) ok "${l#ok: }" ;; FAIL:*) bad "${l#FAIL: }" ;; *) echo "$l" ;; esac; done <cdp.txt
   [ $crc -eq 0 ] || bad "the browser part failed (status $crc)"
   [ -s shots/console.png ] && ok "screenshot $WORK/shots/console.png" || bad "no screenshot"
