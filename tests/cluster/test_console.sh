@@ -186,6 +186,19 @@ if [ "$PART" = security ]; then
   s=$(summary run console.unauthorized)
   [ "$ended" = 1 ] && [ "$s" = "summary 3" ] && ok "quit with the token ended the job; summary console.unauthorized: 3" \
     || bad "ended $ended, summary: $s"
+  # a port in use stops the start-up, naming it (no other port)
+  PRE=()
+  "$PY3" -c 'import socket, sys, time
+s = socket.socket(); s.bind(("127.0.0.1", 0)); s.listen(1)
+open("busy.port", "w").write(str(s.getsockname()[1])); sys.stdout.close(); time.sleep(120)' &
+hold=$!
+  for i in $(seq 1 50); do [ -s busy.port ] && break; sleep 0.1; done
+  start busy 5 --frames 0 --no-lcd --http 127.0.0.1:$(cat busy.port)
+  finish busy 60
+  kill $hold 2>/dev/null; wait $hold 2>/dev/null
+  grep -q "rank 0 (master): --http 127.0.0.1:$(cat busy.port): cannot listen: Address already in use" busy.err && [ "$ended" = 1 ] \
+    && [ "$(nframes busy)" = 0 ] && ok "a port in use: the start-up stops: $(grep -o 'set-up failed.*in use' busy.err)" \
+    || bad "port in use: ended $ended, frames $(nframes busy): $(grep -v PMIX busy.err | head -3)"
   done_
 fi
 
