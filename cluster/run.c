@@ -617,21 +617,6 @@ static void check_http(const cv_run_opts *o, problems *pb) {
   }
 }
 
-/* --check: is the console's address free now?  (The run binds it again.) */
-static void check_http_bind(const cv_run_opts *o, problems *pb) {
-  if (o->http_off) return;
-  cv_console *c = NULL;
-  cv_http *h = NULL;
-  cv_http_opts ho;
-  cv_err e;
-  cv_http_opts_default(&ho);
-  snprintf(ho.addr, sizeof ho.addr, "%s", o->http_addr);
-  ho.port = o->http_port;
-  if (cv_console_create(&c) == CV_OK && cv_http_start(&ho, c, &h, &e) != CV_OK) problem(pb, "%s", e.msg);
-  cv_http_stop(h);
-  cv_console_destroy(c);
-}
-
 /* Every check that can be made before anything starts; fills s. */
 static void check_all(cv_service *s, int size, const char *desktop_view, problems *pb) {
   cv_run_opts *o = &s->o;
@@ -757,7 +742,7 @@ static void print_layout(const cv_service *s, int ranks) {
   if (s->o.http_off) printf("  console: off (--http off)\n");
   else if (s->o.http_port == 0) printf("  console: http://%s:<any free port>/ (the ready line says which)%s\n", s->o.http_addr,
                                        s->o.http_token_path[0] ? ", token required" : "");
-  else printf("  console: http://%s:%d/ (free now)%s\n", s->o.http_addr, s->o.http_port,
+  else printf("  console: http://%s:%d/%s\n", s->o.http_addr, s->o.http_port,
               s->o.http_token_path[0] ? ", token required" : "");
 }
 
@@ -797,7 +782,6 @@ int cmd_run(int argc, char **argv) {
   if (check) {
     if (ranks < 1) problem(&pb, "--check needs --ranks N");
     check_all(&s, ranks, desktop_view, &pb);
-    if (!pb.n) check_http_bind(&s.o, &pb);
     if (pb.n) {
       fputs(pb.buf, stderr);
       fprintf(stderr, "cave run: %d problem%s, not started\n", pb.n, pb.n > 1 ? "s" : "");
