@@ -181,6 +181,8 @@ if [ "$PART" = security ]; then
     && ok "without the token 401, a wrong one 401, a quit without it 401; with it 200 (header and ?token=)" \
     || bad "codes: none $a, wrong $b, bearer $c, query $d, quit without token $e"
   [ "$(nframes run)" -ge 2 ] && kill -0 $mpid 2>/dev/null && ok "the run went on after the refused quit" || bad "the run stopped"
+  ev=$(ip netns exec $NS curl -s -N -m 3 "${url}events?token=$TOK" | head -c 15)
+  [ "$ev" = 'data: {"state":' ] && ok "the event stream with the token: '$ev...'" || bad "events with the token: '$ev'"
   code -X POST -H "Authorization: Bearer $TOK" -d action=quit "${url}control" >/dev/null
   finish run 60
   s=$(summary run console.unauthorized)
