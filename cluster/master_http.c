@@ -3,9 +3,9 @@
  * console's state from its own once per frame and publishes it without
  * waiting (service/console.h), and applies the console's controls at the
  * start of a frame through the paths a tracker or a drive use:
- *   pause / resume  the drive's clock stands still (frames go on rendering,
- *                   the head still moves): frame_clock's time minus the
- *                   time held;
+ *   pause / resume  the drive's clock stands still, and a recorded head
+ *                   path's with it (frames go on rendering, a live tracker's
+ *                   head still moves): frame_clock's time minus the time held;
  *   quit            a stop request, as SIGTERM or Escape: the frame ends,
  *                   every rank quits, the summary says "console: quit";
  *   head            a tracker sample at that time (the desktop's keyboard
