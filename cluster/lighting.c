@@ -10,12 +10,15 @@
 #include "io/png.h"
 #include "lcd/lcd_config.h"
 
+#include "http/http.h"
 #include "service.h"
 #include "service_internal.h"
 
 void cv_run_opts_default(cv_run_opts *o) {
   memset(o, 0, sizeof *o);
   snprintf(o->dtrack_host, sizeof o->dtrack_host, "127.0.0.1");
+  snprintf(o->http_addr, sizeof o->http_addr, "127.0.0.1"); /* the console: loopback only */
+  o->http_port = CV_HTTP_DEFAULT_PORT;
   o->dtrack_body = 1;
   o->frames = 30;
   o->dt = 1.0 / 30.0;

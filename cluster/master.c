@@ -79,6 +79,7 @@ static void master_free(master *m) {
   free(m->got);
   master_sync_free(m);
   master_images_free(m);
+  master_http_free(m); /* after the image thread, which hands it the montages */
   master_desktop_free(m);
   if (m->mf) fclose(m->mf);
   cv_metrics_line_destroy(m->ml);
@@ -165,6 +166,7 @@ static int master_setup(master *m, cv_err *err) {
   m->overhead_cpu_ms = calloc(m->cap, sizeof *m->overhead_cpu_ms);
   if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   if ((st = master_sync_setup(m, err))) return st;
+  if ((st = master_http_setup(m, err))) return st; /* a port in use stops the start-up */
   /* Metrics. */
   if ((st = master_out_open(m, err))) return st;
   if (cv_metrics_line_create(&m->ml)) return cv_err_set(err, CV_ERR_NOMEM, "metrics: out of memory");
@@ -224,6 +226,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
       printf("\n");
       for (int r = 1; r < s->size; r++) printf("cave run: ready: %s\n", lines[r] ? lines[r] : "?");
     }
+    master_http_ready(m, lines);
     cv_metrics_line *ml = m->ml;
     cv_metrics_begin(ml);
     cv_metrics_string(ml, "type", "ready");
@@ -234,6 +237,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
     cv_metrics_string(ml, "hardware_swap_sync", "none");
     cv_metrics_string(ml, "share_lighting", cv_share_lighting_name(s->o.share_lighting));
+    master_http_metrics(m, ml);
     lcd_ready_metrics(m, ml);
     cv_metrics_object_begin(ml, "ranks");
     for (int r = 1; r < s->size; r++) {
@@ -266,14 +270,15 @@ static void quit_all(master *m, uint32_t f) {
 static void frame_clock(master *m, uint32_t f, int holding, double *prev_t, cv_frame_state *fs) {
   const cv_service *s = m->s;
   const int nframes = s->o.frames;
+  /* the console's pause holds the drive's clock (master_http.c) */
   if (m->wall_clock) {
     const double now = cv_service_now();
     if (f == 0) m->t_start = now;
-    fs->time = holding ? *prev_t : now - m->t_start;
+    fs->time = holding ? *prev_t : master_http_drive_time(m, now - m->t_start);
     fs->dt = f ? fs->time - *prev_t : 0;
   } else {
-    fs->dt = holding ? 0 : s->o.dt;
-    fs->time = (holding ? (uint32_t)nframes - 1 : f) * s->o.dt;
+    fs->dt = holding || m->paused ? 0 : s->o.dt;
+    fs->time = holding ? ((uint32_t)nframes - 1) * s->o.dt : master_http_drive_time(m, f * s->o.dt);
   }
   *prev_t = fs->time;
 }
@@ -281,6 +286,7 @@ static void frame_clock(master *m, uint32_t f, int holding, double *prev_t, cv_f
 static void frame_lighting(master *m, cv_frame_state *fs) {
   cv_service *s = m->s;
   cv_drive_eval(s->drive, fs->time, &fs->drive);
+  master_http_drive(m, &fs->drive); /* the console's sky and heading, when it set them */
   cv_service_quantise_drive(&fs->drive);
   const uint64_t lk = cv_service_light_key(&fs->drive);
   if (!m->have_light || lk != m->light_key) {
@@ -693,6 +699,7 @@ static void write_summary(master *m, uint32_t f, double run_t0) {
   cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
   cv_metrics_uint(ml, "montages", m->montages);
   master_desktop_summary(m, ml);
+  master_http_summary(m, ml);
   pthread_mutex_lock(&m->img_mu); /* the image thread has ended its jobs (drained above) */
   if (m->have_viewer) {
     cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
@@ -776,6 +783,7 @@ int cv_master_run(cv_service *s) {
   double prev_t = 0;
   uint32_t f;
   for (f = 0;; f++) {
+    master_http_controls(m); /* the console's, queued since the last frame */
     if (*s->stop || m->stop_code) break;
     /* After the drive's frames, --lcd-wait holds the time (the head and the
      * lighting stand still, as while the driver reads the panel) and goes on
@@ -851,6 +859,7 @@ int cv_master_run(cv_service *s) {
     const double overhead = ((t.t_sent - t.tf0) + (t.tc0 - t.t_wait) + (t.tf1 - t.tc1)) * 1e3;
     const double overhead_cpu = (t.c_sent - t.cf0) + (t.cc0 - t.c_wait) + (t.cf1 - t.cc1);
     write_frame_metrics(m, f, &fs, &acc, late, &t, overhead, overhead_cpu);
+    master_http_publish(m, &fs, t.tf1 - t.tf0, overhead * 1e-3);
     if (m->nframes_done < m->cap) {
       m->frame_ms[m->nframes_done] = (t.tf1 - t.tf0) * 1e3;
       m->overhead_ms[m->nframes_done] = overhead;
@@ -889,7 +898,9 @@ int cv_master_run(cv_service *s) {
   /* with a dead rank the others leave without MPI_Finalize: a large send
    * (rendezvous) to one that quit before taking it never completes */
   cv_comm_flush(cv_comm_dead_count() > 0 ? 2 : 10);
-  const int lost = m->stop_code == CV_WIN_LOST || m->stop_code >= MASTER_STOP_DEAD;
+  /* an operator's quit from the console ends the run as asked: status 0 */
+  const int lost = m->stop_code == CV_WIN_LOST ||
+                   (m->stop_code >= MASTER_STOP_DEAD && m->stop_code != MASTER_STOP_CONSOLE);
   master_free(m);
   return lost ? 1 : 0;
 }

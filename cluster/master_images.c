@@ -26,6 +26,7 @@
 #include "io/filewriter.h"
 #include "compensate/resample.h"
 #include "master_internal.h"
+#include "service/console.h"
 #include "view/montage.h"
 
 int master_images_setup(master *m, cv_err *err) {
@@ -179,6 +180,7 @@ static int viewer_simulation(frame_images *f, cv_err *err) {
     m->have_viewer = 1;
     m->viewer_ms = (cv_service_now() - t0) * 1e3;
     pthread_mutex_unlock(&m->img_mu);
+    master_http_montage(m, CV_IMG_VIEWER, f->frame, oc); /* the console's (in memory) */
     if (f->files && !(st = write_montage(f, "_viewer", oc, err))) st = write_montage(f, "_viewer_uncompensated", ou, err);
   } else {
     fprintf(stderr, "cave run: master: viewer simulation of frame %u failed\n", f->frame);
@@ -195,6 +197,8 @@ static int frame_images_run(void *p, cv_err *err) {
   frame_images *f = p;
   master *m = f->m;
   int st = CV_OK;
+  master_http_montage(m, CV_IMG_PROJECTOR, f->frame, f->mont); /* the console's (in memory) */
+  master_http_montage(m, CV_IMG_UNCOMPENSATED, f->frame, f->unc);
   if (f->files) {
     st = write_montage(f, "", f->mont, err);
     pthread_mutex_lock(&m->img_mu);

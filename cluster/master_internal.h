@@ -218,6 +218,21 @@ typedef struct master {
   int desk_marked;        /* the current frame is a preview frame */
   uint64_t desk_marks, desk_shown; /* preview frames marked, shown */
   double desk_show_ms;    /* the last compose + XPutImage */
+  /* the live console (master_http.c) */
+  struct cv_console *con;
+  struct cv_http *http;
+  struct cv_console_state *con_st; /* the state being built (large: heap) */
+  uint64_t *con_reports;  /* per render rank: frames it reported */
+  uint64_t *con_rep0;     /* at con_fps_t */
+  double con_fps_t, con_p99_t, con_heat_t;
+  int paused, head_console;
+  double raw_prev, held_s; /* the drive clock: raw time at the last frame, time held by pauses */
+  int ovr_sky, ovr_yaw;
+  unsigned sky_mask;
+  double sky[3], yaw;
+  double *con_ms;          /* per frame: the console's work on the master thread (controls, publish) */
+  size_t con_n;
+  double con_ms_frame;     /* this frame's so far */
   /* metrics */
   FILE *mf;
   char metrics_path[4200];  /* where mf writes */
@@ -300,6 +315,30 @@ void lcd_drive_tally(master *m, uint32_t frame, double t, double dt_s, int held)
  * cr_min; the frames with a figure and with one at most 2 frames old. */
 void lcd_drive_summary(master *m, cv_metrics_line *ml, const char *name);
 
+/* Panel 0's verdict text of the last estimate ("" before the first). */
+const char *lcd_verdict_text(master *m);
+
+/* The live console (master_http.c, docs/service.md "Live console"): the
+ * server started in the set-up (a port in use fails it), the ranks' rows
+ * from their ready lines, the controls taken at the start of a frame and
+ * applied through the master's own state (pause holds the drive's clock,
+ * quit stops as SIGTERM does, a head pose is a tracker sample, sky and yaw
+ * hold those values of the drive), one publish after each frame's metrics
+ * line, the montages from the image thread and the LCD heat map. */
+int master_http_setup(master *m, cv_err *err);
+void master_http_free(master *m);
+void master_http_ready(master *m, char *const *lines);
+void master_http_controls(master *m);
+void master_http_publish(master *m, const cv_frame_state *fs, double frame_s, double master_s);
+void master_http_montage(master *m, int which, uint32_t frame, cv_image *const *walls);
+void master_http_heatmap(master *m, const cv_lcd_readability *rd, uint32_t frame);
+void master_http_metrics(master *m, cv_metrics_line *ml);
+void master_http_summary(master *m, cv_metrics_line *ml);
+/* frame_clock's drive time with the console's pause: raw minus the time held. */
+double master_http_drive_time(master *m, double raw);
+/* The console's sky and heading over the drive's (frame_lighting). */
+void master_http_drive(master *m, cv_drive_state *d);
+
 /* master_desktop.c */
 /* Opens the preview window (a no-op without --present desktop) sized for
  * the cross or the wall, the keyboard-and-mouse head (when neither
@@ -348,8 +387,14 @@ double master_stall_check(master *m);
 /* Heartbeat watch (master_health.c, docs/dead-rank.md). */
 /* stop_code: a wall-eye died; a wall-eye was signalled alone (walleye.c
  * watch_signal); the out folder or the metrics could not be written
- * (master_out.c).  Each gives exit status 1. */
-enum { MASTER_STOP_DEAD = 100, MASTER_STOP_SIGNAL = 101, MASTER_STOP_OUT = 102 };
+ * (master_out.c): each gives exit status 1.  The console's quit
+ * (master_http.c) ends the run as SIGTERM would. */
+enum {
+  MASTER_STOP_DEAD = 100,
+  MASTER_STOP_SIGNAL = 101,
+  MASTER_STOP_OUT = 102,
+  MASTER_STOP_CONSOLE = 103
+};
 /* The scattering compensation (master_comp.c): set-up (form factors,
  * solver, the thread with lag 1), the frame's solve (on the path, lag 0)
  * or its hand-over to the thread (lag 1), the thread's finished solves

@@ -277,6 +277,7 @@ void lcd_readability_update(master *m) {
     m->lread.p[i].vl = rd.vl;
     m->lread.p[i].L_a = rd.L_a.value;
     m->lread.cr_min = rd.cr_min;
+    if (i == 0) master_http_heatmap(m, &rd, frame); /* the console's heat map (at most every 2 s) */
     cv_lcd_readability_free(&rd);
   }
   m->lread.have_light = cv_lcd_accum_light(acc, m->lread.light);
@@ -325,6 +326,13 @@ static const char *panel_verdict(const master *m, int i, int absolute) {
   rd.frac_ok = m->lread.p[i].area;
   rd.vl = m->lread.p[i].vl;
   return cv_lcd_verdict_name(cv_lcd_verdict(&rd, &rp, absolute, NULL, 0));
+}
+
+const char *lcd_verdict_text(master *m) {
+  if (!m->lread.valid) return "";
+  cv_lcd_calib cal;
+  lcd_calibration(m, &cal);
+  return panel_verdict(m, 0, cal.absolute);
 }
 
 /* One panel's figures (cd/m2, ratios, shares; docs/metrics.md). */

@@ -22,6 +22,7 @@
 #include "service.h"
 #include "service_internal.h"
 #include "service/tracker_calib.h"
+#include "http/http.h"
 
 static volatile sig_atomic_t g_stop;
 
@@ -145,6 +146,15 @@ static void help(FILE *f) {
           "  --no-idle-lcd        wall-eyes do not contribute LCD rounds\n"
           "  --lcd-wait           after the frames, wait until the LCD budget is summed\n"
           "  --seed N             LCD sample sequence seed, 0..4294967295 (default lcd.seed: 1)\n"
+          "  --http ADDR:PORT     the live console (a web page: ranks, plots, images,\n"
+          "                       controls; /metrics for Prometheus; docs/service.md) on\n"
+          "                       this address (default 127.0.0.1:8033; PORT alone binds\n"
+          "                       127.0.0.1; port 0: any free port, printed in the ready\n"
+          "                       line; off: no console).  A port in use stops the start.\n"
+          "                       An address outside 127.0.0.0/8 needs --http-token\n"
+          "  --http-token FILE    every console request must carry the token on FILE's\n"
+          "                       first line (16..255 characters): ?token=T or\n"
+          "                       Authorization: Bearer T; else 401\n"
           "  --metrics FILE       JSON lines (default OUT/metrics.jsonl); its folder must exist\n"
           "                       (or be -o DIR)\n"
           "  -o DIR               output folder, created when missing (default out/run)\n"
@@ -315,6 +325,14 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--tracker")) {
       NEED();
       PATH(tracker_path);
+    } else if (!strcmp(a, "--http")) {
+      NEED();
+      cv_err e;
+      if (cv_http_parse_listen(v, o->http_addr, sizeof o->http_addr, &o->http_port, &o->http_off, &e))
+        problem(pb, "%s", e.msg);
+    } else if (!strcmp(a, "--http-token")) {
+      NEED();
+      PATH(http_token_path);
     } else if (!strcmp(a, "--dtrack-host")) {
       NEED();
       snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
@@ -582,6 +600,23 @@ static void check_outputs(const cv_run_opts *o, problems *pb) {
     problem(pb, "--metrics: cannot write %s: folder %s: %s", o->metrics_path, d, strerror(errno));
 }
 
+/* --http and --http-token: a readable token of the expected form; an
+ * address off loopback only with a token; a token only with a console. */
+static void check_http(const cv_run_opts *o, problems *pb) {
+  if (o->http_off) {
+    if (o->http_token_path[0]) problem(pb, "--http-token: no console to protect with --http off");
+    return;
+  }
+  if (o->http_token_path[0]) {
+    char tok[256];
+    cv_err e;
+    if (cv_http_load_token(o->http_token_path, tok, sizeof tok, &e)) problem(pb, "%s", e.msg);
+  } else if (!cv_http_is_loopback(o->http_addr)) {
+    problem(pb, "--http %s:%d: not a loopback address: anyone who reaches it could steer the CAVE; give "
+            "--http-token FILE", o->http_addr, o->http_port);
+  }
+}
+
 /* Every check that can be made before anything starts; fills s. */
 static void check_all(cv_service *s, int size, const char *desktop_view, problems *pb) {
   cv_run_opts *o = &s->o;
@@ -664,6 +699,7 @@ static void check_all(cv_service *s, int size, const char *desktop_view, problem
   check_desktop(s, desktop_view, pb);
   if (!o->out_dir[0]) snprintf(o->out_dir, sizeof o->out_dir, "out/run");
   check_outputs(o, pb);
+  check_http(o, pb);
   if (o->dtrack_host[0]) {
     struct in_addr ia;
     if (inet_pton(AF_INET, o->dtrack_host, &ia) != 1)
@@ -703,6 +739,11 @@ static void print_layout(const cv_service *s, int ranks) {
       printf("%s %s %dx%d", i ? "," : "", s->lcd.panels[i].name, s->lcd_layout.w[i], s->lcd_layout.h[i]);
     printf(" texels, %d spp per round, eye tolerance %g m\n", s->o.lcd_spp, s->o.lcd_tolerance);
   }
+  if (s->o.http_off) printf("  console: off (--http off)\n");
+  else if (s->o.http_port == 0) printf("  console: http://%s:<any free port>/ (the ready line says which)%s\n", s->o.http_addr,
+                                       s->o.http_token_path[0] ? ", token required" : "");
+  else printf("  console: http://%s:%d/%s\n", s->o.http_addr, s->o.http_port,
+              s->o.http_token_path[0] ? ", token required" : "");
 }
 
 static int mkdirs(const char *path) {

@@ -96,6 +96,10 @@ typedef struct cv_run_opts {
   int share_lighting;            /* --share-lighting: CV_SHARE_HOST (default) or CV_SHARE_OFF
                                     (cluster/lightshare.h) */
   int half_transfer;             /* --transfer: -1 auto (default), 0 float, 1 half (renderer.h) */
+  int http_off;                  /* --http off: no console */
+  char http_addr[64];            /* --http ADDR:PORT: the console's address (default 127.0.0.1) */
+  int http_port;                 /* its port (default 8033; 0: any free port, in the ready line) */
+  char http_token_path[CV_PATHLEN]; /* --http-token FILE: every request needs the token */
   uint32_t seed;
   int seed_set;                  /* --seed given: it also sets the LCD sequences' seed */
   int quiet;

@@ -12,6 +12,7 @@ CAVE_PACKAGES=(
   xvfb xauth xdotool x11-utils python3
   gnuplot-nox linux-perf
   blender-data assimp-testmodels python3-jsonschema
+  libmicrohttpd-dev chromium python3-websocket python3-prometheus-client curl iproute2
 )
 
 cave_install_packages() {

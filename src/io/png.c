@@ -98,6 +98,72 @@ int cv_png_write(const char *path, int w, int h, int channels, const uint8_t *px
   return cv_outfile_commit(&of, err);
 }
 
+/* The encoder's output buffer for cv_png_encode (grown by doubling). */
+typedef struct png_mem {
+  uint8_t *buf;
+  size_t n, cap;
+  int oom;
+} png_mem;
+
+static void png_mem_write(png_structp png, png_bytep data, png_size_t len) {
+  png_mem *m = png_get_io_ptr(png);
+  if (m->oom) return;
+  if (m->n + len > m->cap) {
+    size_t cap = m->cap ? m->cap : 65536;
+    while (cap < m->n + len) cap *= 2;
+    uint8_t *nb = realloc(m->buf, cap);
+    if (!nb) {
+      m->oom = 1;
+      return;
+    }
+    m->buf = nb;
+    m->cap = cap;
+  }
+  memcpy(m->buf + m->n, data, len);
+  m->n += len;
+}
+
+static void png_mem_flush(png_structp png) { (void)png; }
+
+int cv_png_encode(int w, int h, int channels, const uint8_t *px, int level, uint8_t **out, size_t *n,
+                  cv_err *err) {
+  if (!out || !n || !px || w <= 0 || h <= 0 || (channels != 1 && channels != 3 && channels != 4))
+    return cv_err_set(err, CV_ERR_INVALID, "cv_png_encode: empty image or %d channels", channels);
+  *out = NULL;
+  *n = 0;
+  png_ctx ctx;
+  ctx.msg[0] = '\0';
+  png_mem mem = {0};
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, on_png_error, on_png_warning);
+  png_infop info = png ? png_create_info_struct(png) : NULL;
+  if (!png || !info) {
+    png_destroy_write_struct(&png, &info);
+    return cv_err_set(err, CV_ERR_NOMEM, "cv_png_encode: cannot create PNG writer");
+  }
+  if (setjmp(ctx.jb)) {
+    png_destroy_write_struct(&png, &info);
+    free(mem.buf);
+    return cv_err_set(err, CV_ERR_BACKEND, "cv_png_encode: libpng: %s", ctx.msg);
+  }
+  png_set_write_fn(png, &mem, png_mem_write, png_mem_flush);
+  png_set_compression_level(png, level < 0 ? 0 : level > 9 ? 9 : level);
+  int ct = channels == 1 ? PNG_COLOR_TYPE_GRAY : channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_RGBA;
+  png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 8, ct, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  const size_t stride = (size_t)w * (size_t)channels;
+  for (int y = 0; y < h; ++y) png_write_row(png, (png_const_bytep)(px + (size_t)y * stride));
+  png_write_end(png, NULL);
+  png_destroy_write_struct(&png, &info);
+  if (mem.oom) {
+    free(mem.buf);
+    return cv_err_set(err, CV_ERR_NOMEM, "cv_png_encode: out of memory (%d x %d)", w, h);
+  }
+  *out = mem.buf;
+  *n = mem.n;
+  return CV_OK;
+}
+
 int cv_png_read(const char *path, cv_image **out, cv_err *err) {
   if (!out) return cv_err_set(err, CV_ERR_INVALID, "cv_png_read: out is NULL");
   *out = NULL;

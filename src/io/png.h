@@ -15,6 +15,12 @@
  * (cannot create/rename), CV_ERR_BACKEND (libpng error, message quoted). */
 int cv_png_write(const char *path, int w, int h, int channels, const uint8_t *px, cv_err *err);
 
+/* The same PNG encoded into memory: *out (malloc'd, the caller frees it)
+ * holds *n bytes.  level: zlib level 0..9 (1: fast, for live views).
+ * Errors: CV_ERR_INVALID, CV_ERR_NOMEM, CV_ERR_BACKEND. */
+int cv_png_encode(int w, int h, int channels, const uint8_t *px, int level, uint8_t **out, size_t *n,
+                  cv_err *err);
+
 /* Reads any PNG (palette, gray, gray+alpha, RGB, RGBA; 1..16 bits) into a
  * new image with 1..4 channels of floats in [0, 1] (sample / max), *out
  * owned by the caller.  Errors: CV_ERR_IO, CV_ERR_FORMAT (not a PNG or

@@ -57,10 +57,10 @@ sum=$(awk '!/^#/ && NF { sub("slots=", "", $2); s += $2 } END { print s }' hf.tx
 n=$(sed -n 's/^ranks: \([0-9]*\) .*/\1/p' t2.txt)
 [ "$sum" = 14 ] && [ "$n" = 14 ] && grep -qx "cave1 slots=9" hf.txt && grep -qx "cave2 slots=5" hf.txt \
   && ok "hostfile slots sum to $sum = the printed rank count" || bad "hostfile sum $sum, printed $n: $(cat hf.txt)"
-"$CAVE" run --check --ranks "$n" "$CFG2" --scene s.prt >chk.txt 2>&1 \
+"$CAVE" run --http off --check --ranks "$n" "$CFG2" --scene s.prt >chk.txt 2>&1 \
   && grep -q "rank 10: wall ceiling, right eye, host cave2" chk.txt && ok "cave run --check --ranks $n accepts the 2-host config" \
   || bad "check: $(cat chk.txt)"
-"$CAVE" run --check --ranks 11 "$CFG2" --scene s.prt --present window >chk.txt 2>&1 \
+"$CAVE" run --http off --check --ranks 11 "$CFG2" --scene s.prt --present window >chk.txt 2>&1 \
   && ok "--check --present window accepts the 2-host config (displays given)" || bad "check window: $(cat chk.txt)"
 # Without -o the file goes to stdout and the table to stderr.
 "$CAVE" cluster rankfile "$CFG1" >so.txt 2>se.txt && [ "$(grep -c '^rank ' so.txt)" = 11 ] \

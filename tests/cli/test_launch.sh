@@ -27,7 +27,7 @@ CFG="$SRC/configs/caves/cave5.json"
 bash "$SRC/cluster/launch.sh" --help | grep -q "CAVE_CORES" && ok "launch.sh --help" || bad "launch.sh --help"
 
 t0=$(date +%s)
-timeout 110 bash "$SRC/cluster/launch.sh" "$CFG" --scene s.prt --frames 2 --size 32 --no-lcd --present files \
+timeout 110 bash "$SRC/cluster/launch.sh" "$CFG" --scene s.prt --frames 2 --size 32 --no-lcd --present files --http off \
   -o run >launch.out 2>launch.err; rc=$?
 t1=$(date +%s)
 [ $rc -eq 0 ] && ok "launch exit 0 in $((t1 - t0)) s" || bad "launch rc $rc: $(tail -15 launch.err launch.out)"

@@ -49,7 +49,7 @@ start() {
   local np=$1 dir=$2; shift 2
   rm -rf "$dir"
   timeout 900 "$MPIEXEC" --oversubscribe --enable-recovery -x OMP_NUM_THREADS -x LP_NUM_THREADS "${XS[@]}" \
-    -np "$np" "$CAVE" run "$CFG" "${COMMON[@]}" "$@" -o "$dir" >"$dir.out" 2>"$dir.err" &
+    -np "$np" "$CAVE" run --http off "$CFG" "${COMMON[@]}" "$@" -o "$dir" >"$dir.out" 2>"$dir.err" &
   mpid=$!
 }
 nframes() { local n; n=$(grep -c '"type":"frame"' "$1/metrics.jsonl" 2>/dev/null); echo "${n:-0}"; }

@@ -24,24 +24,24 @@ cat > two.json <<'JSON'
 JSON
 
 # --- configuration errors before launch ------------------------------------
-"$CAVE" run --check --ranks 3 "$CFG" --scene scene.prt >out.txt 2>err.txt; rc=$?
+"$CAVE" run --http off --check --ranks 3 "$CFG" --scene scene.prt >out.txt 2>err.txt; rc=$?
 [ $rc -ne 0 ] && grep -q "at least 1 + 10 = 11 ranks" err.txt && ok "too few ranks (check): $(head -1 err.txt)" || bad "too few ranks: rc $rc $(cat err.txt)"
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt >out.txt 2>err.txt \
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt >out.txt 2>err.txt \
   && grep -q "rank 10: wall ceiling, right eye" out.txt && ok "layout: $(cat out.txt)" || bad "layout $(cat out.txt err.txt)"
 sed 's/"name": "left"/"name": "front"/' "$CFG" > dup.json
-"$CAVE" run --check --ranks 11 dup.json --scene missing.prt --drive nodrive.json >out.txt 2>err.txt; rc=$?
+"$CAVE" run --http off --check --ranks 11 dup.json --scene missing.prt --drive nodrive.json >out.txt 2>err.txt; rc=$?
 n=$(grep -c "" err.txt)
 [ $rc -ne 0 ] && grep -q "front" err.txt && grep -q "missing.prt" err.txt && grep -q "nodrive.json" err.txt \
   && ok "every problem listed ($n lines)" || bad "problem list: $(cat err.txt)"
 sed 's/-0.9772\]/-3.5]/g; s/-0.9937\]/-3.5165]/' two.json > outside.json
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --scene-config outside.json >out.txt 2>err.txt; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --scene-config outside.json >out.txt 2>err.txt; rc=$?
 [ $rc -eq 2 ] && grep -q "outside.json: lcd.panels\[1\].corners\[0\]: .*outside the scene" err.txt \
   && ok "panel outside the scene (check): $(head -1 err.txt)" || bad "panel outside the scene: rc $rc $(cat err.txt)"
-timeout 120 "${MPI[@]}" -np 3 "$CAVE" run "$CFG" "${COMMON[@]}" -o r3 >out.txt 2>err.txt; rc=$?
+timeout 120 "${MPI[@]}" -np 3 "$CAVE" run --http off "$CFG" "${COMMON[@]}" -o r3 >out.txt 2>err.txt; rc=$?
 [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q "11 ranks" err.txt && ok "mpirun with too few ranks ends at once (rc $rc)" || bad "mpirun too few ranks: rc $rc $(tail -3 err.txt)"
 
 # --- 11 ranks, a few frames ------------------------------------------------
-timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 4 \
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive still.json --frames 4 \
   --write-every 2 --lcd-budget 20 -o r11 >out11.txt 2>err11.txt; rc=$?
 if [ $rc -eq 0 ]; then ok "11-rank run"; else bad "11-rank run rc $rc: $(tail -5 err11.txt)"; fi
 nexr=$(ls r11/frame00003_*.exr 2>/dev/null | wc -l)
@@ -75,7 +75,7 @@ cat > trk.json <<JSON
  "eye_offset": [0, -0.1, -0.08], "ipd": 0.064, "udp": {"port": $TPORT, "bind": "127.0.0.1"}}
 JSON
 printf '{"units": "furlong"}\n' >badtrk.json
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --tracker badtrk.json >out.txt 2>err.txt; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --tracker badtrk.json >out.txt 2>err.txt; rc=$?
 [ $rc -ne 0 ] && grep -q "\-\-tracker: badtrk.json: units: unknown unit 'furlong'" err.txt && ok "bad tracker config listed" || bad "bad tracker config: $(cat err.txt)"
 python3 - "$TPORT" <<'PY' &
 import socket, sys, time
@@ -89,7 +89,7 @@ while time.time() - t0 < 60:
     time.sleep(0.02)
 PY
 spid=$!
-timeout 300 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 12 --max-fps 8 \
+timeout 300 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive still.json --frames 12 --max-fps 8 \
   --no-compensation --tracker trk.json -o rt >outrt.txt 2>errrt.txt; rc=$?
 kill $spid 2>/dev/null; wait $spid 2>/dev/null
 python3 - rt <<'PY' && ok "tracker config: calibrated eyes in every frame after the first packet, NaN and missing body counted" || bad "calibrated tracker (rc $rc): $(tail -3 errrt.txt)"
@@ -107,8 +107,8 @@ PY
 
 # --- LCD: bit-identical for 11 and 13 ranks at one budget -------------------
 L=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation --scene-config two.json)
-timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" "${L[@]}" -o l11 >/dev/null 2>l11.txt; rc1=$?
-timeout 600 "${MPI[@]}" -np 13 "$CAVE" run "$CFG" "${COMMON[@]}" "${L[@]}" -o l13 >/dev/null 2>l13.txt; rc2=$?
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" "${L[@]}" -o l11 >/dev/null 2>l11.txt; rc1=$?
+timeout 600 "${MPI[@]}" -np 13 "$CAVE" run --http off "$CFG" "${COMMON[@]}" "${L[@]}" -o l13 >/dev/null 2>l13.txt; rc2=$?
 r11=$(grep -o '"lcd_rounds":[0-9]*' l11/metrics.jsonl | tail -1 | grep -o '[0-9]*$')
 r13=$(grep -o '"lcd_rounds":[0-9]*' l13/metrics.jsonl | tail -1 | grep -o '[0-9]*$')
 if [ $rc1 -eq 0 ] && [ $rc2 -eq 0 ] && [ "$r11" = 12 ] && [ "$r13" = 12 ] && cmp -s l11/lcd.exr l13/lcd.exr; then
@@ -125,7 +125,7 @@ fi
 # --- the same with 4 gather ranks: the master is the last rank of the LCD
 # communicator (a leaf of the sum's tree, comm.c), the gather ranks report
 # their rounds and CPU times in the header ---------------------------------
-timeout 600 "${MPI[@]}" -np 15 "$CAVE" run "$CFG" "${COMMON[@]}" "${L[@]}" -o l15 >/dev/null 2>l15.txt; rc2=$?
+timeout 600 "${MPI[@]}" -np 15 "$CAVE" run --http off "$CFG" "${COMMON[@]}" "${L[@]}" -o l15 >/dev/null 2>l15.txt; rc2=$?
 ar=$(tail -1 l15/metrics.jsonl 2>/dev/null | grep -o '"lcd_allreduce":{[^}]*}')
 if [ $rc2 -eq 0 ] && cmp -s l11/lcd.exr l15/lcd.exr &&
    python3 -c 'import json,sys; a=json.loads(sys.argv[1]); sys.exit(not (a["members"] == 5 and a["rounds"] >= 1 and a["gather_rounds"] >= a["rounds"] and a["gather_round_cpu_ms"] > 0))' \
@@ -169,7 +169,7 @@ PY
 "$CAVE" bake two.json -o two.prt --bands 3 --rays 32 --bounces 1 --quiet >/dev/null 2>&1 \
   || bad "bake two.json"
 L2=(--drive still.json --frames 2 --lcd-budget 12 --lcd-wait --no-compensation)
-timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]/scene.prt/two.prt}" "${L2[@]}" -o lp >/dev/null 2>lp.txt; rc=$?
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]/scene.prt/two.prt}" "${L2[@]}" -o lp >/dev/null 2>lp.txt; rc=$?
 python3 - lp/metrics.jsonl r11/metrics.jsonl <<'PY' >lp_check.txt && cmp -s l11/lcd.exr lp/lcd.exr \
   && ok "cave run --scene two.prt uses its baked panels: $(cat lp_check.txt)" \
   || bad "cave run --scene two.prt: rc $rc $(cat lp_check.txt) $(tail -2 lp.txt)"
@@ -197,7 +197,7 @@ cat > turn.json <<'JSON'
 {"description": "turning under forest", "loop": true, "maps": ["forest.exr"],
  "keyframes": [{"t": 0, "yaw": 0, "weights": [1]}, {"t": 10, "yaw": 300}]}
 JSON
-timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive turn.json --frames 16 --dt 0.3 \
+timeout 600 "${MPI[@]}" -np 12 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive turn.json --frames 16 --dt 0.3 \
   --max-fps 4 --no-compensation -o turn >/dev/null 2>turn.txt; rc=$?
 python3 - turn <<'PY' && ok "readability during the drive: $(cat turn/drive_check.txt)" || bad "readability during the drive: rc $rc $(cat turn/drive_check.txt 2>/dev/null) $(tail -2 turn.txt)"
 import json, sys
@@ -250,7 +250,7 @@ PY
 # --- a stopped gather rank does not stall the frames -----------------------
 # (stopped 8 s: below --gather-timeout, so stalled, not dead; dead_gather.sh
 # kills one)
-timeout 600 "${MPI[@]}" -np 12 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 \
+timeout 600 "${MPI[@]}" -np 12 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive still.json --frames 0 \
   --timeout-ms 1500 --gather-timeout 20 -o stop >stop.txt 2>stoperr.txt &
 job=$!
 for i in $(seq 1 300); do [ -s stop/pids/rank11.pid ] && [ -s stop/metrics.jsonl ] && break; sleep 0.5; done
@@ -286,7 +286,7 @@ fi
 # --- SIGTERM to mpirun (forwarded to every rank; mpirun's SIGKILL follows
 # after odls_base_sigkill_timeout, raised here as the docs advise) -----------
 export OMPI_MCA_odls_base_sigkill_timeout=20
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o term \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o term \
   >term.txt 2>termerr.txt &
 mpid=$!
 for i in $(seq 1 300); do [ -s term/metrics.jsonl ] && break; sleep 0.5; done
@@ -306,7 +306,7 @@ tail -1 term/metrics.jsonl | grep -q '"interrupted":true' && [ "$left" -eq 0 ] &
 
 # --- a rank that dies: Open MPI 4 ends the job at once and names the rank ---
 unset OMPI_MCA_odls_base_sigkill_timeout  # back to 1 s (the others get SIGTERM, then SIGKILL)
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o death \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --drive still.json --frames 0 -o death \
   >death.txt 2>deatherr.txt &
 mpid=$!
 for i in $(seq 1 300); do [ -s death/metrics.jsonl ] && break; sleep 0.5; done
@@ -320,7 +320,7 @@ dt=$(( $(date +%s) - t0 ))
 
 # --- --size keeps each wall's aspect (as in cave render) ----------------------
 sed 's/"res": \[720, 720\]/"res": [1440, 720]/g' "$SRC/configs/caves/two-sided-wall.json" > wide.json
-timeout 300 "${MPI[@]}" -np 5 "$CAVE" run wide.json --scene scene.prt --size 32 --frames 1 --no-compensation \
+timeout 300 "${MPI[@]}" -np 5 "$CAVE" run --http off wide.json --scene scene.prt --size 32 --frames 1 --no-compensation \
   --lcd-size 8x6 --quiet -o wide >/dev/null 2>wideerr.txt; rc=$?
 "$CAVE" tonemap wide/frame00000_front_L.exr -o wide.png >/dev/null 2>&1
 python3 - wide.png <<'PY' && [ $rc -eq 0 ] && ok "--size 32 on 1440x720 walls renders 32x16" || bad "--size aspect (rc $rc): $(tail -2 wideerr.txt)"

@@ -57,19 +57,19 @@ wait_tracker() {
 }
 
 # --- option checks (no MPI) -------------------------------------------------------
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --present desktop,window >c1.out 2>&1; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --present desktop,window >c1.out 2>&1; rc=$?
 [ $rc -eq 2 ] && grep -q "^--present desktop and window do not combine" c1.out \
   && ok "desktop with window refused: $(grep 'do not combine' c1.out | cut -c1-60)..." || bad "desktop,window: rc $rc $(cat c1.out)"
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --present desktop --desktop-view side >c2.out 2>&1; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --present desktop --desktop-view side >c2.out 2>&1; rc=$?
 [ $rc -eq 2 ] && grep -q "^--desktop-view: expected cross or a wall of .* (front, left, right, floor, ceiling), got 'side'" c2.out \
   && ok "bad --desktop-view: $(head -1 c2.out | sed 's|/.*cave5.json|cave5.json|')" || bad "--desktop-view side: rc $rc $(cat c2.out)"
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --present desktop,files >c3.out 2>&1; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --present desktop,files >c3.out 2>&1; rc=$?
 [ $rc -eq 0 ] && grep -q "desktop preview on \$DISPLAY (cross)" c3.out && ok "desktop,files is valid: $(head -1 c3.out)" \
   || bad "desktop,files --check: rc $rc $(cat c3.out)"
 
 # --- no X display ---------------------------------------------------------------------
 t0=$(date +%s.%N)
-DISPLAY=:987 timeout 120 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 2 --present desktop -o nod \
+DISPLAY=:987 timeout 120 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 2 --present desktop -o nod \
   >nod.out 2>nod.err; rc=$?
 secs=$(python3 -c "import time, sys; print('%.1f' % (time.time() - float(sys.argv[1])))" "$t0")
 n=$(grep -c "desktop" nod.err)
@@ -77,7 +77,7 @@ n=$(grep -c "desktop" nod.err)
   && ok "no X display: exit $rc after $secs s: $(grep desktop nod.err)" || bad "no display: rc $rc, $n lines: $(cat nod.err)"
 
 # --- 11 ranks, the cross, keys, mouse, close ------------------------------------------
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim --desktop-fps 0 \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim --desktop-fps 0 \
   --present desktop,files -o d >d.out 2>d.err &
 pid=$!
 for i in $(seq 1 240); do [ -s d/montage00020_L_uncompensated.png ] && break; sleep 0.5; done
@@ -147,7 +147,7 @@ done
 [ $bad_png -eq 0 ] && ok "files whole after the stop ($n PNGs)" || bad "$bad_png truncated PNGs"
 
 # --- one wall, Escape -----------------------------------------------------------------
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim \
   --present desktop,files --desktop-view front -o f >f.out 2>f.err &
 pid=$!
 for i in $(seq 1 240); do [ -s f/montage00010_L.png ] && break; sleep 0.5; done

@@ -19,7 +19,7 @@ COMMON=(--scene scene.prt --size 160 --patches 8 --no-lcd --frames 5 --write-eve
 
 run() { # run NAME ARGS...: mpirun 11 ranks into NAME/, stdout NAME.out, stderr NAME.err
   local name="$1"; shift
-  timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" -o "$name" "$@" >"$name.out" 2>"$name.err"
+  timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" -o "$name" "$@" >"$name.out" 2>"$name.err"
 }
 
 # (1) the frame on the GPU (the default on a hardware GL; llvmpipe's default
@@ -103,7 +103,7 @@ sys.exit(0 if pairs and all(a == b for a, b in pairs) else 1)
 PY
 
 # (4) corrections held back past the wall-eyes' wait (--timeout-ms / 2)
-CAVE_TEST_SOLVE_DELAY_MS=600 timeout 600 "${MPI[@]}" -x CAVE_TEST_SOLVE_DELAY_MS -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" \
+CAVE_TEST_SOLVE_DELAY_MS=600 timeout 600 "${MPI[@]}" -x CAVE_TEST_SOLVE_DELAY_MS -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" \
   --timeout-ms 400 -o late >late.out 2>late.err; rc=$?
 python3 - late/metrics.jsonl <<'PY' && [ $rc -eq 0 ] && ok "late corrections counted per rank and in the summary" || bad "late corrections (rc $rc): $(tail -2 late.err)"
 import json, sys
@@ -134,9 +134,9 @@ sys.exit(0 if len(exr) == 10 and len(png) == 24 and not tmp and not bad and s["f
 PY
 
 # (6) wrong values
-"$CAVE" run "$CFG" --check --ranks 11 --scene scene.prt --post fast >o.txt 2>e.txt; rc=$?
+"$CAVE" run --http off "$CFG" --check --ranks 11 --scene scene.prt --post fast >o.txt 2>e.txt; rc=$?
 [ $rc -ne 0 ] && grep -q -- "--post: expected auto, gpu or cpu, got 'fast'" e.txt && ok "--post fast refused" || bad "--post fast: rc $rc $(cat e.txt)"
-"$CAVE" run "$CFG" --check --ranks 11 --scene scene.prt --compensation-lag 2 >o.txt 2>e.txt; rc=$?
+"$CAVE" run --http off "$CFG" --check --ranks 11 --scene scene.prt --compensation-lag 2 >o.txt 2>e.txt; rc=$?
 [ $rc -ne 0 ] && grep -q -- "--compensation-lag: expected 0 or 1" e.txt && ok "--compensation-lag 2 refused" || bad "--compensation-lag 2: rc $rc $(cat e.txt)"
 
 echo "$pass passed, $fail failed"

@@ -19,12 +19,12 @@ COMMON=(--scene scene.prt --size 48 --drive "$SRC/configs/drives/sky.json" --dt 
         --write-every 1 --no-lcd --patches 8 --timeout-ms 60000 --compensation-ms 60000 --quiet)
 # (--compensation-ms: no time slot, so the solves and images do not depend on the load)
 
-"$CAVE" run --check --ranks 11 "$CFG" --scene scene.prt --share-lighting 2 >out.txt 2>err.txt; rc=$?
+"$CAVE" run --http off --check --ranks 11 "$CFG" --scene scene.prt --share-lighting 2 >out.txt 2>err.txt; rc=$?
 [ $rc -eq 2 ] && grep -q "share-lighting: expected auto, host, host-now, background or off, got '2'" err.txt \
   && ok "bad --share-lighting refused: $(head -1 err.txt)" || bad "bad value: rc $rc $(cat err.txt)"
 
 for mode in host host-now off background auto; do
-  timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --share-lighting $mode -o $mode \
+  timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --share-lighting $mode -o $mode \
     >out_$mode.txt 2>err_$mode.txt; rc=$?
   [ $rc -eq 0 ] && ok "11 ranks, --share-lighting $mode" || bad "run $mode rc $rc: $(tail -5 err_$mode.txt)"
 done
@@ -101,7 +101,7 @@ assert all("[auto: host (a software GL" in p for p in picked), picked
 PY
 # --- a late leader: the leader (named in the ready line) stopped for 3 s ----
 # (with --transfer float: the option reaches every wall-eye, said in its ready line)
-timeout 600 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" --scene scene.prt --size 48 \
+timeout 600 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" --scene scene.prt --size 48 \
   --drive "$SRC/configs/drives/sky.json" --dt 0.2 --frames 40 --write-every 0 --no-lcd --patches 8 \
   --timeout-ms 800 --gather-timeout 60 --transfer float --quiet -o late >out_late.txt 2>err_late.txt &
 job=$!

@@ -22,14 +22,14 @@ fi
 source "$(dirname "${BASH_SOURCE[0]}")/x11_common.sh"
 
 # --- GPU choice -------------------------------------------------------------
-timeout 120 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 2 --gpu 0 -o g0 >g0.out 2>g0.err; rc=$?
+timeout 120 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 2 --gpu 0 -o g0 >g0.out 2>g0.err; rc=$?
 n=$(grep -c "GPU 0" g0.err)
 [ $rc -ne 0 ] && [ $rc -ne 124 ] && [ "$n" -eq 1 ] && grep -q "no hardware EGL device 0; this machine has 0" g0.err \
   && ok "--gpu 0 without a hardware device: $(grep 'GPU 0' g0.err)" || bad "--gpu 0: rc $rc, $(cat g0.err)"
-timeout 300 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 2 --gpu software -o gs >gs.out 2>gs.err; rc=$?
+timeout 300 "${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 2 --gpu software -o gs >gs.out 2>gs.err; rc=$?
 [ $rc -eq 0 ] && grep -q '"ranks"' gs/metrics.jsonl && head -1 gs/metrics.jsonl | grep -q "llvmpipe" \
   && ok "--gpu software runs and names llvmpipe in the ready line" || bad "--gpu software: rc $rc $(tail -3 gs.err)"
-"$CAVE" run "$CFG" "${COMMON[@]}" --gpu 3x >/dev/null 2>bad.err; rc=$?
+"$CAVE" run --http off "$CFG" "${COMMON[@]}" --gpu 3x >/dev/null 2>bad.err; rc=$?
 [ $rc -eq 2 ] && grep -q "^--gpu: expected auto, software or a hardware device index" bad.err && ok "bad --gpu value: $(head -1 bad.err)" || bad "bad --gpu: rc $rc $(cat bad.err)"
 
 # --- quad-buffered stereo where no stereo config exists ----------------------
@@ -43,12 +43,12 @@ for w in c["walls"][1:]:
 c["outputs"] = outs
 print(json.dumps(c))
 PY
-"$CAVE" run --check --ranks 10 quad.json --scene scene.prt >q.out 2>&1 && grep -q "rank 1: wall front, quad" q.out \
+"$CAVE" run --http off --check --ranks 10 quad.json --scene scene.prt >q.out 2>&1 && grep -q "rank 1: wall front, quad" q.out \
   && ok "quad config is valid: $(grep 'rank 1:' q.out)" || bad "quad --check: $(cat q.out)"
-"$CAVE" run --check --ranks 10 quad.json --scene scene.prt --present window >q.out 2>&1; rc=$?
+"$CAVE" run --http off --check --ranks 10 quad.json --scene scene.prt --present window >q.out 2>&1; rc=$?
 [ $rc -ne 0 ] && grep -q "outputs\[0\] (wall front): quad-buffered stereo needs a stereo GL config" q.out \
   && ok "--check --present window refuses quad stereo as the run does" || bad "quad --check with windows: rc $rc $(cat q.out)"
-timeout 120 "${MPI[@]}" -np 10 "$CAVE" run quad.json "${COMMON[@]}" --frames 2 --present window -o q >q.out 2>q.err; rc=$?
+timeout 120 "${MPI[@]}" -np 10 "$CAVE" run --http off quad.json "${COMMON[@]}" --frames 2 --present window -o q >q.out 2>q.err; rc=$?
 [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q "outputs\[0\] (wall front): quad-buffered stereo needs a stereo GL config" q.err \
   && ok "quad without a stereo config: $(grep -o 'outputs\[0\][^:]*: quad[^,]*' q.err | head -1)" || bad "quad: rc $rc $(cat q.err)"
 
@@ -58,7 +58,7 @@ timeout 120 "${MPI[@]}" -np 10 "$CAVE" run quad.json "${COMMON[@]}" --frames 2 -
 # when a slot runs out on a loaded machine, more; the window then shows a later
 # frame than the last PNG.  Without it every frame of the still scene is the
 # same image, and the window must show exactly its codes.
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 0 --write-every 5 --clock sim \
   --no-compensation --present window,files -o w >w.out 2>w.err &
 pid=$!
 for i in $(seq 1 240); do [ -s w/montage00020_L.png ] && break; sleep 0.5; done
@@ -115,7 +115,7 @@ for f in w/frame*_front_L.png; do "$XCHECK" 2>/dev/null; python3 -c "import sys;
 
 # --- Escape in a window; the frame ending on the GPU (--post gpu: the window
 # draws the post pass's 8-bit image, no upload) ------------------------------------
-"${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --frames 0 --post gpu --no-compensation \
+"${MPI[@]}" -np 11 "$CAVE" run --http off "$CFG" "${COMMON[@]}" --frames 0 --post gpu --no-compensation \
   --present window,files --write-every 2 -o esc >esc.out 2>esc.err &
 pid=$!
 for i in $(seq 1 240); do grep -q '"frame":5,' esc/metrics.jsonl 2>/dev/null && break; sleep 0.5; done
