@@ -5,6 +5,7 @@
 
 #include <stdio.h>
 
+#include "io/scene_mesh.h"
 #include "io/scene_config.h"
 #include "mesh/mesh.h"
 #include "mesh/place.h"
@@ -96,9 +97,6 @@ int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights)
 /* 1 if path ends with ext (case-insensitive, ext includes the dot). */
 int cli_has_ext(const char *path, const char *ext);
 
-/* Prints the placement (units, up, where they came from) and the bounding box
- * in metres, with a warning when the size is implausible for a car. */
-void cli_print_placement(FILE *f, const cv_placement_report *r, const char *file_says);
 
 /* The placement options shared by commands that load a mesh: --units U,
  * --up y|z, --model-scale S, --rotate X,Y,Z (degrees), --translate X,Y,Z (m). */
@@ -121,14 +119,5 @@ int cli_place_option(const char *cmd, char **argv, int argc, int *i, cli_place_o
  * they are given for the built-in cabin, else 0. */
 int cli_place_apply(const char *cmd, const cli_place_opts *o, cv_scene_config *c);
 
-/* "window", "lcd", "window+lcd" or "none" for CV_MAT_* flags. */
-const char *cli_tag_name(uint32_t flags);
-/* The scene's mesh before cleaning: the cabin or the imported, placed file,
- * with the config's material overrides (a line per pattern to `report`). */
-int cli_import_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err);
-/* Builds the scene's mesh from the config: the parametric cabin or an
- * imported file, material overrides, then geometry cleaning (report printed
- * to `report` when non-NULL).  *out owned by the caller. */
-int cli_load_scene_mesh(const cv_scene_config *c, FILE *report, cv_mesh **out, cv_err *err);
 
 #endif

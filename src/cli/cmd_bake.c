@@ -406,7 +406,7 @@ static int bake_and_write(const bake_opts *o, bake_job *J) {
 static int run_bake(const bake_opts *o, bake_job *J) {
   cv_err err;
   cv_scene_config *cfg = &J->cfg;
-  if (cli_load_scene_mesh(cfg, stdout, &J->m, &err)) return cli_fail("bake", 1, "%s", err.msg);
+  if (cv_scene_mesh_load(cfg, stdout, &J->m, &err)) return cli_fail("bake", 1, "%s", err.msg);
   J->bp = (cv_bake_params){.bands = cfg->bands, .rays = cfg->rays, .bounces = cfg->bounces,
                            .seed = cfg->seed, .spread = (float)cfg->spread,
                            .cosine_only = !cfg->window_sampling, .tail = cfg->tail, .quiet = o->quiet};

@@ -1115,7 +1115,7 @@ static int load_scene(lcd_opts *o, const cv_lcd_config *lc, cv_prt **p) {
         goto done;
       }
     } else {
-      if (cli_load_scene_mesh(&cfg, stdout, &m, &err) || cv_tracer_create(m, &tr, &err)) {
+      if (cv_scene_mesh_load(&cfg, stdout, &m, &err) || cv_tracer_create(m, &tr, &err)) {
         rc = cli_fail("lcd", 1, "%s", err.msg);
         goto done;
       }

@@ -84,7 +84,7 @@ int cmd_materials(int argc, char **argv) {
   double *area = NULL;
   if (rc) goto done;
   rc = 1;
-  if (cli_import_scene_mesh(&cfg, stdout, &m, &err)) {
+  if (cv_scene_mesh_import(&cfg, stdout, &m, &err)) {
     rc = cli_fail("materials", 1, "%s", err.msg);
     goto done;
   }
@@ -97,7 +97,7 @@ int cmd_materials(int argc, char **argv) {
   for (size_t k = 0; k < m->nm; k++) {
     const cv_material *mt = &m->mats[k];
     printf("%5zu %9zu %12.4f  %-10s %5.3f %5.3f %5.3f %s\n", k, ntri[k], area[k],
-           cli_tag_name(mt->flags), (double)mt->albedo[0], (double)mt->albedo[1],
+           cv_material_tag_name(mt->flags), (double)mt->albedo[0], (double)mt->albedo[1],
            (double)mt->albedo[2], mt->name);
     total += area[k];
   }

@@ -104,7 +104,7 @@ static int load_mesh(const char *in, int tess, cv_mesh **m, cv_err *err) {
     snprintf(cfg.source, sizeof cfg.source, "%s", in);
   }
   if (tess > 0) cfg.cabin_tess = tess;
-  return cli_load_scene_mesh(&cfg, stdout, m, err);
+  return cv_scene_mesh_load(&cfg, stdout, m, err);
 }
 
 /* The command line of cave reference. */
