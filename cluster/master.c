@@ -309,26 +309,22 @@ static void frame_lighting(master *m, cv_frame_state *fs) {
   memcpy(fs->sun_E, m->lighting.sun_E, sizeof fs->sun_E);
 }
 
+/* The adaptation of the frame: the policy cave render shares
+ * (cv_adapt_feed_frame), the target being the foveal log-average of the
+ * last reports (the priming round's for frame 0). */
 static void frame_adaptation(master *m, uint32_t f, cv_frame_state *fs) {
-  m->pending_dt += f ? fs->dt : 0;
   double lwa_f = 0;
-  if (m->have_stats && cv_lumstats_lwa(&m->stats, &lwa_f) == 1) {
-    if (!m->have_adapt) {
-      cv_adapt_init(&m->ad, &m->ap, lwa_f);
-      m->have_adapt = 1;
-    } else {
-      cv_adapt_step(&m->ad, &m->ap, lwa_f, m->pending_dt);
-    }
-    m->pending_dt = 0;
-  }
-  fs->lwa = m->have_adapt ? cv_adapt_lwa(&m->ad) : 1.0;
+  const int have_g = m->have_stats && cv_lumstats_lwa(&m->stats, &lwa_f) == 1;
+  cv_adapt_feed_frame(&m->adf, &m->ap, f ? fs->dt : 0, have_g, lwa_f);
+  const cv_adapt_state *ad = &m->adf.s;
+  fs->lwa = cv_adapt_lwa(ad); /* 1 cd/m2 until the first target */
   fs->lwmax = m->lwmax > 0 ? m->lwmax : 100 * fs->lwa;
-  fs->adapt[0] = m->ad.a_cone;
-  fs->adapt[1] = m->ad.a_rod;
-  fs->adapt[2] = m->ad.b_cone;
-  fs->adapt[3] = m->ad.b_rod;
-  fs->adapt[4] = m->ad.time;
-  fs->adapt[5] = m->ad.initialised;
+  fs->adapt[0] = ad->a_cone;
+  fs->adapt[1] = ad->a_rod;
+  fs->adapt[2] = ad->b_cone;
+  fs->adapt[3] = ad->b_rod;
+  fs->adapt[4] = ad->time;
+  fs->adapt[5] = ad->initialised;
 }
 
 /* LCD key: quantised eye (car frame) and lighting. */
@@ -811,7 +807,7 @@ int cv_master_run(cv_service *s) {
       for (int e = 0; e < 2; e++)
         for (int k = 0; k < 3; k++) fs.eyes[e][k] = fs.head[k] + m->eye_rel[e][k];
     }
-    if (f == 0 && !m->have_adapt) {
+    if (f == 0 && !m->adf.s.initialised) {
       cv_frame_state pf = fs;
       frame_adaptation(m, f, &pf); /* 1 cd/m2: only the HDR image (its luminance) is used */
       master_prime_adaptation(m, pf);

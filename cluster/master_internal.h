@@ -67,9 +67,7 @@ typedef struct master {
   pose_rec poses[POSE_RING];
   cv_tracker_stats trk;
   cv_adapt_params ap;
-  cv_adapt_state ad;
-  int have_adapt;
-  double pending_dt;      /* simulated time since the last adaptation update */
+  cv_adapt_feed adf;      /* the adaptation (tonemap/adapt.h: the policy cave render shares) */
   cv_lumstats stats;      /* previous frame's merged foveal statistics */
   int have_stats;
   double lwmax;

@@ -260,7 +260,7 @@ void lcd_readability_update(master *m) {
     rp.white = lc->panels[i].content_luminance;
     rp.black = lc->panels[i].black_luminance;
     rp.cr_min = lc->cr_min;
-    rp.adaptation = m->have_adapt ? cv_adapt_lwa(&m->ad) : 0;
+    rp.adaptation = m->adf.s.initialised ? cv_adapt_lwa(&m->adf.s) : 0;
     cv_lcd_accum *crop = NULL;
     cv_lcd_figure lv = {0, 0};
     cv_lcd_readability rd;
@@ -392,7 +392,7 @@ void lcd_write(master *m, const char *stem) {
   cv_drago_default(&dg);
   dg.bias = m->s->cave.drago_bias;
   dg.ldmax = m->s->cave.drago_ldmax;
-  dg.lwa = m->have_adapt ? cv_adapt_lwa(&m->ad) : 1.0;
+  dg.lwa = cv_adapt_lwa(&m->adf.s); /* 1 before the first target */
   dg.lwmax = m->lwmax > 0 ? m->lwmax : 100 * dg.lwa;
   cv_image *tm;
   if (cv_image_create(img->w, img->h, 3, &tm) == CV_OK) {

@@ -311,7 +311,7 @@ typedef struct render_job {
   cv_render_view views[MAX_VIEWS];
   int nviews;
   cv_adapt_params ap;
-  cv_adapt_state as;
+  cv_adapt_feed adf; /* the adaptation (the master's policy) */
 } render_job;
 
 /* The renderer on the scene, its textures reported, the split lights
@@ -400,8 +400,7 @@ static int make_views(render_job *j) {
 /* One frame's foveal statistics (step 2 of the file's comment). */
 typedef struct frame_stats {
   cv_lumstats acc;   /* the foveal cone over the walls it touches, both eyes */
-  double lwmax, sum_log_all;
-  uint64_t n_all;    /* pixels of the log-average of all walls (first frame only) */
+  double lwmax;
   char touched[256]; /* the walls the cone touches */
 } frame_stats;
 
@@ -412,17 +411,11 @@ static void foveal_stats(const render_job *j, frame_stats *fs) {
   for (int i = 0; i < j->nviews; i++) {
     const cv_wall *w = &cave->walls[i / 2];
     const cv_image *L = j->lum[i];
-    /* Lwmax over every pixel; the log-average of everything only when the
-     * adaptation has no state yet (first frame, empty cone). */
-    const int need_all = !j->as.initialised;
+    /* Lwmax over every pixel */
     for (int k = 0; k < L->w * L->h; k++) {
       float y = L->px[k];
       if (!(y >= 0) || !isfinite(y)) continue;
       if (y > fs->lwmax) fs->lwmax = y;
-      if (need_all) {
-        fs->sum_log_all += log(y + CV_LUM_EPS);
-        fs->n_all++;
-      }
     }
     if (!cv_foveal_touches(w->pa, w->pb, w->pc, j->eyes[i % 2], cave->gaze, half_angle)) continue;
     cv_lumstats s = {0};
@@ -436,20 +429,16 @@ static void foveal_stats(const render_job *j, frame_stats *fs) {
   }
 }
 
-/* Step 3: the adaptation towards the cone's log-average *g (set here):
- * 0 or the exit status. */
+/* Step 3: the adaptation towards the cone's log-average *g (set here), by
+ * the policy cave run's master uses (cv_adapt_feed_frame: frame 0 starts in
+ * steady state at its own foveal luminance, an empty cone keeps the state
+ * and its time waits): 0 or the exit status. */
 static int adapt(render_job *j, const frame_stats *fs, int f, double *g) {
-  int have = cv_lumstats_lwa(&fs->acc, g);
-  if (!have && !j->as.initialised && fs->n_all) {
-    *g = exp(fs->sum_log_all / (double)fs->n_all);
-    have = 1;
-    printf("frame %d: foveal cone empty; adaptation starts from the log-average of all walls\n", f);
-  }
-  if (!have) {
-    printf("frame %d: foveal cone empty, adaptation state kept\n", f);
-    return 0;
-  }
-  if (cv_adapt_step(&j->as, &j->ap, *g, f == 0 ? 0.0 : j->a->dt))
+  const int have = cv_lumstats_lwa(&fs->acc, g) == 1;
+  if (!have)
+    printf("frame %d: foveal cone empty, adaptation state kept%s\n", f,
+           j->adf.s.initialised ? "" : " (1 cd/m2 until the cone sees a wall)");
+  if (cv_adapt_feed_frame(&j->adf, &j->ap, f == 0 ? 0.0 : j->a->dt, have, have ? *g : 0) < 0)
     return cli_fail("render", 1, "adaptation step failed (target %g cd/m2, dt %g s)", *g, j->a->dt);
   return 0;
 }
@@ -493,7 +482,7 @@ static int render_frame(render_job *j, int f) {
   int st = adapt(j, &fs, f, &g);
   if (st) return st;
   cv_drago d = {.bias = j->cave.drago_bias, .ldmax = j->cave.drago_ldmax,
-                .lwa = cv_adapt_lwa(&j->as), .lwmax = fs.lwmax};
+                .lwa = cv_adapt_lwa(&j->adf.s), .lwmax = fs.lwmax};
   cv_drago_consts dc;
   cv_drago_prepare(&d, &dc);
   /* 4. depth + shading passes, outputs */
@@ -509,7 +498,7 @@ static int render_frame(render_job *j, int f) {
     if ((st = write_view(j, i, f))) return st;
     t_write += now_ms() - s0;
   }
-  const cv_adapt_state *as = &j->as;
+  const cv_adapt_state *as = &j->adf.s;
   printf("frame %d (t = %.3f s): foveal %s on %s (%llu px, %.3g sr), Lwmax %.4g; adapted Lwa %.4g "
          "cd/m2 (cones A %.4g B %.4f, rods A %.4g B %.4f); luminance passes %.1f ms, stats %.3f "
          "ms, depth+shading %.1f ms (%.1f ms per wall-eye)\n",

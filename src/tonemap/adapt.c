@@ -89,3 +89,18 @@ double cv_adapt_lwa(const cv_adapt_state *s) {
   if (!(lwa <= LWA_MAX)) lwa = LWA_MAX;
   return lwa;
 }
+
+int cv_adapt_feed_frame(cv_adapt_feed *f, const cv_adapt_params *p, double dt, int have_g, double g) {
+  if (!(dt >= 0.0) || !isfinite(dt) || (have_g && (!(g >= 0.0) || !isfinite(g)))) return CV_ERR_INVALID;
+  f->pending_dt += dt;
+  if (!have_g) return 0;
+  if (!f->s.initialised) {
+    cv_adapt_init(&f->s, p, g);
+    f->pending_dt = 0;
+    return 1;
+  }
+  int st = cv_adapt_step(&f->s, p, g, f->pending_dt);
+  if (st) return st;
+  f->pending_dt = 0;
+  return 0;
+}

@@ -59,4 +59,22 @@ int cv_adapt_step(cv_adapt_state *s, const cv_adapt_params *p, double g, double 
  * the photopic luminance (no scotopic conversion; a simplification). */
 double cv_adapt_lwa(const cv_adapt_state *s);
 
+/* The one start-and-step policy of `cave run` (the master) and `cave
+ * render`: per frame, the frame's dt (0 for the first) is added to the time
+ * waiting; with a target luminance (the foveal log-average of the frame, the
+ * master's priming round giving frame 0's) an uninitialised state starts in
+ * steady state at it, a started one steps by the waiting time; without one
+ * (empty foveal cone, late reports) the state is kept and the time waits
+ * for the next target.  Until the first target the adaptation luminance is
+ * 1 cd/m2 (cv_adapt_lwa). */
+typedef struct cv_adapt_feed {
+  cv_adapt_state s;
+  double pending_dt; /* seconds not yet integrated */
+} cv_adapt_feed;
+
+/* One frame of the policy above: g is the target (cd/m2) when have_g.
+ * Returns 1 when the state started this frame, 0 otherwise, or
+ * CV_ERR_INVALID (state unchanged) for a non-finite or negative dt or g. */
+int cv_adapt_feed_frame(cv_adapt_feed *f, const cv_adapt_params *p, double dt, int have_g, double g);
+
 #endif

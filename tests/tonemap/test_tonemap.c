@@ -275,6 +275,45 @@ static void same_state(const cv_adapt_state *a, const cv_adapt_state *b, double 
   rel_close(a->b_rod, b->b_rod, tol, "b_rod");
 }
 
+/* The start-and-step policy cave run and cave render share
+ * (cv_adapt_feed_frame): no target yet: 1 cd/m2 and the time waits; the
+ * first target starts the state in steady state (as cv_adapt_init); frames
+ * without a target keep the state and their time is integrated at the next
+ * target in one step (as cv_adapt_step with the summed dt). */
+static void test_adapt_feed_policy(void **state) {
+  (void)state;
+  cv_adapt_params p;
+  cv_adapt_default_params(&p);
+  cv_adapt_feed f = {0};
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 0.0, 0, 0), 0); /* frame 0, empty cone */
+  assert_near(cv_adapt_lwa(&f.s), 1.0, 0);
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 0.5, 0, 0), 0);
+  assert_near(f.pending_dt, 0.5, 0);
+  /* the first target: steady state at it, the waiting time dropped */
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 0.25, 1, 40.0), 1);
+  cv_adapt_state ref;
+  cv_adapt_init(&ref, &p, 40.0);
+  assert_near(f.s.a_cone, ref.a_cone, 0);
+  assert_near(f.s.b_rod, ref.b_rod, 0);
+  assert_near(f.s.time, 0, 0);
+  assert_near(f.pending_dt, 0, 0);
+  assert_near(cv_adapt_lwa(&f.s), cv_adapt_lwa(&ref), 0);
+  /* two frames without a target, then one with: one step of the three dt */
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 1.0 / 60, 0, 0), 0);
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 1.0 / 60, 0, 0), 0);
+  assert_near(f.s.a_cone, ref.a_cone, 0); /* kept */
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 1.0 / 60, 1, 4000.0), 0);
+  assert_int_equal(cv_adapt_step(&ref, &p, 4000.0, 1.0 / 60 + 1.0 / 60 + 1.0 / 60), CV_OK);
+  assert_near(f.s.a_cone, ref.a_cone, 1e-12 * ref.a_cone);
+  assert_near(f.s.b_cone, ref.b_cone, 1e-15);
+  assert_near(f.s.time, 3.0 / 60, 1e-15);
+  /* wrong input leaves the state as it was */
+  const cv_adapt_feed before = f;
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, -1.0, 1, 1.0), CV_ERR_INVALID);
+  assert_int_equal(cv_adapt_feed_frame(&f, &p, 0.1, 1, NAN), CV_ERR_INVALID);
+  assert_memory_equal(&f, &before, sizeof f);
+}
+
 static void test_adapt_step_composition(void **state) {
   (void)state;
   cv_adapt_params p;
@@ -760,6 +799,7 @@ int main(void) {
       cmocka_unit_test(test_lum_downsample),
       cmocka_unit_test(test_foveal_timing),
       cmocka_unit_test(test_rec709_code_table),
+      cmocka_unit_test(test_adapt_feed_policy),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
