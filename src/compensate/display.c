@@ -77,18 +77,6 @@ static int read_vec(ctx *x, const cJSON *v, const char *field, int n, double lo,
   return ok;
 }
 
-/* Reports every key of obj not in the NULL-terminated allowed list. */
-static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *const *allowed) {
-  const cJSON *it;
-  cJSON_ArrayForEach(it, obj) {
-    if (!cv_json_key_allowed(it->string, allowed)) {
-      char field[256], list[320], kbuf[128];
-      field_name(field, sizeof field, path, cv_json_key_show(it->string, kbuf, sizeof kbuf));
-      cv_json_key_list(allowed, list, sizeof list);
-      cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
-    }
-  }
-}
 
 static const cJSON *required(ctx *x, const cJSON *obj, const char *path, const char *key,
                              const char *what) {
@@ -178,7 +166,7 @@ static int check_surface_keys(ctx *x, const cJSON *o, const char *path, const cv
                                           "azimuth_deg", "patches", "reflectance",
                                           "cosine_exponent", "normal_tilt_deg", "refine", NULL};
   int before = x->count;
-  only_keys(x, o,
+  cv_problems_only_keys(x, o,
             path, s->kind == CV_SURFACE_CYLINDER ? cyl_keys
                   : s->kind == CV_SURFACE_DOME   ? dome_keys
                                                  : plane_keys);
@@ -242,7 +230,7 @@ static int parse_refine(ctx *x, const cJSON *o, const char *path, cv_display_sur
     return 0;
   }
   int ok = 1;
-  only_keys(x, rf, rpath, rkeys);
+  cv_problems_only_keys(x, rf, rpath, rkeys);
   s->refine = 1;
   const cJSON *sm = cJSON_GetObjectItemCaseSensitive(rf, "seams");
   char sf[220];
@@ -665,7 +653,7 @@ static void parse_projectors(ctx *x, const cJSON *pj, cv_display *d) {
       cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
       continue;
     }
-    only_keys(x, o, path, keys);
+    cv_problems_only_keys(x, o, path, keys);
     const cJSON *pos = required(x, o, path, "position", "[x, y, z] in metres");
     field_name(field, sizeof field, path, "position");
     if (pos) read_vec(x, pos, field, 3, -1e6, 1e6, "[x, y, z] in metres", pr->position);
@@ -704,7 +692,7 @@ static void parse_root(ctx *x, const cJSON *root, cv_display *d) {
     cv_problem(x, CV_ERR_CONFIG, "", "expected a JSON object at the top level");
     return;
   }
-  only_keys(x, root, "", keys);
+  cv_problems_only_keys(x, root, "", keys);
   const cJSON *desc = cJSON_GetObjectItemCaseSensitive(root, "description");
   if (desc && !cJSON_IsString(desc)) cv_problem(x, CV_ERR_CONFIG, "description", "expected a string");
 
@@ -837,12 +825,8 @@ static int finish(ctx *x, cv_display *d, cv_display **out, cv_err *err) {
     return CV_OK;
   }
   cv_display_destroy(d);
-  if (x->count > 1)
-    cv_err_set(err, x->first_status, "%s [+%d more problem%s]", x->first, x->count - 1,
-               x->count > 2 ? "s" : "");
-  else
-    cv_err_set(err, x->first_status ? x->first_status : CV_ERR_CONFIG, "%s", x->first);
-  return x->first_status ? x->first_status : CV_ERR_CONFIG;
+  if (x->count == 0) return cv_err_set(err, CV_ERR_NOMEM, "%s: out of memory", x->file);
+  return cv_problems_finish(x, err);
 }
 
 int cv_display_parse(const char *json, const char *name, cv_display **out, cv_err *err) {

@@ -7,6 +7,8 @@
 
 #include <stddef.h>
 
+#include "core/status.h"
+
 typedef struct cv_problems {
   const char *file;
   int count;
@@ -19,5 +21,17 @@ typedef struct cv_problems {
 /* Records one problem (field may be NULL or ""). */
 void cv_problem(cv_problems *x, int status, const char *field, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
+
+/* Records an "unknown field (expected one of: ...)" problem for every key of
+ * obj not in the NULL-terminated allowed list; fields are named
+ * "path.key" ("key" at the top, path ""). */
+struct cJSON;
+void cv_problems_only_keys(cv_problems *x, const struct cJSON *obj, const char *path,
+                           const char *const *allowed);
+
+/* The problems as the one-line error of a loader: the first, then
+ * " [+N more problem(s)]"; returns its status (CV_ERR_CONFIG when it had
+ * none), or CV_OK when there was no problem. */
+int cv_problems_finish(const cv_problems *x, cv_err *err);
 
 #endif

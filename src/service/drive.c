@@ -40,29 +40,8 @@ struct cv_drive {
 
 typedef cv_problems ctx; /* io/problems.h */
 
-static int finish(ctx *x, cv_err *err) {
-  if (x->count == 0) return CV_OK;
-  int st = x->first_status ? x->first_status : CV_ERR_CONFIG;
-  if (x->count > 1)
-    cv_err_set(err, st, "%s [+%d more problem%s]", x->first, x->count - 1,
-               x->count > 2 ? "s" : "");
-  else
-    cv_err_set(err, st, "%s", x->first);
-  return st;
-}
+static int finish(ctx *x, cv_err *err) { return cv_problems_finish(x, err); }
 
-static void only_keys(ctx *x, const cJSON *obj, const char *path, const char *const *allowed) {
-  const cJSON *it;
-  cJSON_ArrayForEach(it, obj) {
-    if (!cv_json_key_allowed(it->string, allowed)) {
-      char field[256], list[320], kbuf[128];
-      snprintf(field, sizeof field, "%s%s%s", path, path[0] ? "." : "",
-               cv_json_key_show(it->string, kbuf, sizeof kbuf));
-      cv_json_key_list(allowed, list, sizeof list);
-      cv_problem(x, CV_ERR_CONFIG, field, "unknown field (expected one of: %s)", list);
-    }
-  }
-}
 
 /* Optional finite number in [lo, hi]; 1 when present and valid. */
 static int opt_num(ctx *x, const cJSON *obj, const char *path, const char *name, double lo,
@@ -118,7 +97,7 @@ static void parse_key(ctx *x, const cJSON *o, int k, int is_sky, int n_maps, con
     cv_problem(x, CV_ERR_CONFIG, path, "expected an object");
     return;
   }
-  only_keys(x, o, path, is_sky ? sky_key_fields : map_key_fields);
+  cv_problems_only_keys(x, o, path, is_sky ? sky_key_fields : map_key_fields);
   if (prev) {
     *kf = *prev;
   } else {
@@ -219,7 +198,7 @@ static void parse_drive(ctx *x, const char *json, const char *base_dir, cv_drive
     cv_problem(x, CV_ERR_CONFIG, "", "expected a JSON object");
     goto done;
   }
-  only_keys(x, root, "", top_fields);
+  cv_problems_only_keys(x, root, "", top_fields);
 
   const cJSON *desc = cJSON_GetObjectItemCaseSensitive(root, "description");
   if (desc && !cJSON_IsString(desc)) cv_problem(x, CV_ERR_CONFIG, "description", "expected a string");
