@@ -1,6 +1,7 @@
 /* The master's state and the parts of its frame loop that live in their own
  * files (internal to cluster/):
- *   master.c         set-up, the frame loop as named phases, metrics
+ *   master.c         set-up, the frame loop as named phases
+ *   master_metrics.c the metrics lines (ready, frame, summary)
  *   master_sync.c    clock probes of the render ranks, swap skew, tracker
  *                    age and motion-to-photon latency, head prediction,
  *                    stop requests from windows
@@ -237,6 +238,7 @@ typedef struct master {
   FILE *mf;
   char metrics_path[4200];  /* where mf writes */
   off_t metrics_good;       /* bytes of whole lines in it */
+  uint32_t metrics_rotations; /* files rotated (--metrics-max-mb) */
   char metrics_err[400];    /* why a line could not be written ("" none: master_out.c) */
   int files_stop_said;      /* the stop for failed frame files was made */
   uint64_t prt_hash;        /* content hash of the .prt the master loaded (cv_prt_meta.file_hash) */
@@ -370,6 +372,20 @@ void montage_flush(master *m);
  * says where the metrics are and whether they are complete. */
 int master_out_open(master *m, cv_err *err);
 void master_metrics_put(master *m);
+
+/* The master's metrics lines (master_metrics.c).  frame_times: the
+ * service times (s) and the master thread's CPU times (ms) of a frame's
+ * phases. */
+typedef struct frame_times {
+  double tf0, t_sent, t_wait, tc0, tc1, tf1;
+  double cf0, c_sent, c_wait, cc0, cc1, cf1; /* the master thread's CPU time there (ms) */
+} frame_times;
+/* This thread's CPU time (ms). */
+double master_thread_cpu_ms(void);
+void master_metrics_ready(master *m, const char *host, const char *const *lines);
+void master_metrics_frame(master *m, uint32_t f, const cv_frame_state *fs, const cv_lumstats *acc, int late,
+                          const frame_times *t, double overhead, double overhead_cpu);
+void master_metrics_summary(master *m, uint32_t f, double run_t0);
 void master_out_files_failed(master *m, int rank, uint64_t failed, const char *first);
 void master_out_final_line(master *m);
 /* A ready message (flag, 8-byte .prt hash, text) of rank `from`: its hash
