@@ -85,6 +85,7 @@ static void master_free(master *m) {
   cv_metrics_line_destroy(m->ml);
   free(m->frame_ms);
   free(m->frame_t);
+  free(m->frame_sim_t);
   free(m->overhead_ms);
   free(m->overhead_cpu_ms);
 }
@@ -162,9 +163,10 @@ static int master_setup(master *m, cv_err *err) {
   m->cap = s->o.frames > 0 ? (size_t)s->o.frames + 64 : 1u << 16;
   m->frame_ms = calloc(m->cap, sizeof *m->frame_ms);
   m->frame_t = calloc(m->cap, sizeof *m->frame_t);
+  m->frame_sim_t = calloc(m->cap, sizeof *m->frame_sim_t);
   m->overhead_ms = calloc(m->cap, sizeof *m->overhead_ms);
   m->overhead_cpu_ms = calloc(m->cap, sizeof *m->overhead_cpu_ms);
-  if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+  if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t || !m->frame_sim_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   if ((st = master_sync_setup(m, err))) return st;
   if ((st = master_http_setup(m, err))) return st; /* a port in use stops the start-up */
   /* Metrics. */
@@ -547,6 +549,7 @@ int cv_master_run(cv_service *s) {
     memset(&fs, 0, sizeof fs);
     fs.frame = f;
     frame_clock(m, f, holding, &prev_t, &fs);
+    if (f < m->cap) m->frame_sim_t[f] = fs.time;
     frame_lighting(m, &fs);
     double t_sample, t_target;
     const double now = cv_service_now();

@@ -12,6 +12,7 @@
 #ifndef CV_CLUSTER_MASTER_INTERNAL_H
 #define CV_CLUSTER_MASTER_INTERNAL_H
 
+#include <math.h>
 #include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -257,6 +258,7 @@ typedef struct master {
   double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
   double run_cpu0_ms;      /* its CPU time when the frames started */
   double *frame_t;        /* cap: service time each frame started */
+  double *frame_sim_t;    /* cap: each frame's drive time (s; frame_clock) */
   size_t cap;             /* entries of the per-frame histories */
   size_t nframes_done;
 } master;
@@ -382,6 +384,10 @@ typedef struct frame_times {
 } frame_times;
 /* This thread's CPU time (ms). */
 double master_thread_cpu_ms(void);
+/* Frame f's drive time (s), NAN past the history. */
+static inline double master_frame_time(const master *m, uint32_t f) {
+  return f < m->cap && m->frame_sim_t ? m->frame_sim_t[f] : (double)NAN;
+}
 void master_metrics_ready(master *m, const char *host, const char *const *lines);
 void master_metrics_frame(master *m, uint32_t f, const cv_frame_state *fs, const cv_lumstats *acc, int late,
                           const frame_times *t, double overhead, double overhead_cpu);
