@@ -86,8 +86,8 @@ static void frame_images_free(void *p) {
 /* Display-linear images -> the transfer-applied values the montage writer
  * quantises (the PNGs' codes / 255), written whole (a temporary name, then
  * renamed).  CV_OK when written. */
-static const char *variant_name(const char *suffix) {
-  if (!strcmp(suffix, "")) return "projector (compensated)";
+static const char *variant_name(const master *m, const char *suffix) {
+  if (!strcmp(suffix, "")) return m->disp ? "projector (compensated)" : "rendered (no compensation)";
   if (!strcmp(suffix, "_uncompensated")) return "rendered (uncompensated)";
   if (!strcmp(suffix, "_viewer")) return "viewer, compensated";
   return "viewer, uncompensated";
@@ -109,7 +109,7 @@ static int write_montage(const frame_images *f, const char *suffix, cv_image **i
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
   if (st) st = cv_err_set(err, st, "montage %s: out of memory", path);
   char caption[160];
-  snprintf(caption, sizeof caption, "frame %u  t %.3f s\n%s, left eye", f->frame, f->time, variant_name(suffix));
+  snprintf(caption, sizeof caption, "frame %u  t %.3f s\n%s\nleft eye", f->frame, f->time, variant_name(m, suffix));
   if (!st) st = cv_montage_write_labelled(tmp, &s->cave, tr, caption, err);
   if (!st && rename(tmp, path)) st = cv_err_set(err, CV_ERR_IO, "%s: cannot rename %s into place", path, tmp);
   if (st) remove(tmp);

@@ -35,7 +35,7 @@ static const struct {
 static int montage_variant(const char *name, long *frame) {
   unsigned f;
   int used = 0;
-  if (sscanf(name, "montage%5u_L%n", &f, &used) != 1 || used != 15) return -1;
+  if (sscanf(name, "montage%5u_L%n", &f, &used) != 1 || used != 14) return -1;
   const char *rest = name + used;
   const size_t n = strlen(rest);
   if (n < 4 || strcmp(rest + n - 4, ".png")) return -1;
@@ -60,7 +60,8 @@ static void put_head(FILE *f, long n_files) {
           "<title>cave run: output</title>\n<style>\n"
           "body{font-family:sans-serif;background:#111;color:#ddd;margin:1em}\n"
           "h1,h2{font-weight:normal}figure{display:inline-block;margin:0 1em 1em 0;vertical-align:top}\n"
-          "img{max-width:100%%;border:1px solid #444;image-rendering:pixelated}figcaption{font-size:90%%}\n"
+          "img{max-width:100%%;border:1px solid #444;image-rendering:pixelated}"
+          ".m,.m img{width:420px}.p,.p img{width:560px}figcaption{font-size:90%%}\n"
           "a{color:#8cf}code{color:#fc8}\n</style></head><body>\n"
           "<h1>cave run: output folder</h1>\n"
           "<p>%ld files here; the metrics are in <a href=\"metrics.jsonl\"><code>metrics.jsonl</code></a> "
@@ -77,12 +78,12 @@ static void put_body(FILE *f, const char *dir, const long *best) {
     any = 1;
     char name[64];
     snprintf(name, sizeof name, "montage%05ld_L%s.png", best[v], variants[v].suffix);
-    fprintf(f, "<figure><a href=\"%s\"><img src=\"%s\" alt=\"%s\"></a><figcaption>%s, frame %ld: <code>%s</code>"
+    fprintf(f, "<figure class=\"m\"><a href=\"%s\"><img src=\"%s\" alt=\"%s\"></a><figcaption>%s, frame %ld: <code>%s</code>"
             "</figcaption></figure>\n", name, name, variants[v].title, variants[v].title, best[v], name);
   }
   if (!any) fprintf(f, "<p>No montage yet (written with <code>--present files</code>).</p>\n");
   if (exists(dir, "lcd.png"))
-    fprintf(f, "<h2>LCD panels</h2>\n<figure><a href=\"lcd.png\"><img src=\"lcd.png\" alt=\"LCD panels\"></a>"
+    fprintf(f, "<h2>LCD panels</h2>\n<figure class=\"m\"><a href=\"lcd.png\"><img src=\"lcd.png\" alt=\"LCD panels\"></a>"
             "<figcaption>what the driver sees on each LCD panel (<code>lcd.png</code>)</figcaption></figure>\n");
   fprintf(f, "<h2>Plots of the run</h2>\n");
   any = 0;
@@ -91,7 +92,7 @@ static void put_body(FILE *f, const char *dir, const long *best) {
     snprintf(rel, sizeof rel, "plots/%s", plots[k].file);
     if (!exists(dir, rel)) continue;
     any = 1;
-    fprintf(f, "<figure><a href=\"%s\"><img src=\"%s\" alt=\"%s\"></a><figcaption>%s</figcaption></figure>\n", rel,
+    fprintf(f, "<figure class=\"p\"><a href=\"%s\"><img src=\"%s\" alt=\"%s\"></a><figcaption>%s</figcaption></figure>\n", rel,
             rel, plots[k].title, plots[k].title);
   }
   if (!any)

@@ -82,18 +82,30 @@ int cv_label_width(const char *s, int scale) {
 
 int cv_label_height(int scale) { return 9 * scale; }
 
-static void put(uint8_t *px, int W, int H, int x, int y, const uint8_t c[3]) {
-  if (x < 0 || y < 0 || x >= W || y >= H) return;
-  memcpy(px + 3 * ((size_t)y * W + x), c, 3);
+/* The image drawn into: 8-bit RGB (px) or a float image (im, values 0..1). */
+typedef struct target {
+  uint8_t *px;
+  cv_image *im;
+  int W, H;
+} target;
+
+static void put(const target *t, int x, int y, const uint8_t c[3]) {
+  if (x < 0 || y < 0 || x >= t->W || y >= t->H) return;
+  if (t->px) {
+    memcpy(t->px + 3 * ((size_t)y * t->W + x), c, 3);
+    return;
+  }
+  float *p = t->im->px + ((size_t)y * t->W + x) * t->im->c;
+  for (int k = 0; k < 3; k++) p[k] = c[k] / 255.0f;
 }
 
-static void box(uint8_t *px, int W, int H, int x0, int y0, int w, int h) {
+static void box(const target *t, int x0, int y0, int w, int h) {
   static const uint8_t bg[3] = {0, 0, 0};
   for (int y = y0; y < y0 + h; y++)
-    for (int x = x0; x < x0 + w; x++) put(px, W, H, x, y, bg);
+    for (int x = x0; x < x0 + w; x++) put(t, x, y, bg);
 }
 
-static void glyph(uint8_t *px, int W, int H, int x, int y, int scale, char ch, const uint8_t fg[3]) {
+static void glyph(const target *t, int x, int y, int scale, char ch, const uint8_t fg[3]) {
   int c = (unsigned char)ch;
   if (c >= 'a' && c <= 'z') c -= 'a' - 'A';
   if (c < 32 || c > 95) c = '?';
@@ -102,22 +114,33 @@ static void glyph(uint8_t *px, int W, int H, int x, int y, int scale, char ch, c
     for (int k = 0; k < 5; k++)
       if (g[r] >> (4 - k) & 1)
         for (int dy = 0; dy < scale; dy++)
-          for (int dx = 0; dx < scale; dx++) put(px, W, H, x + k * scale + dx, y + r * scale + dy, fg);
+          for (int dx = 0; dx < scale; dx++) put(t, x + k * scale + dx, y + r * scale + dy, fg);
 }
 
-int cv_label_draw(uint8_t *px, int W, int H, int x, int y, int scale, const char *s, const uint8_t fg[3]) {
+static int draw(const target *t, int x, int y, int scale, const char *s, const uint8_t fg[3]) {
   if (scale < 1) scale = 1;
   const char *line = s;
   while (1) {
     const char *nl = strchr(line, '\n');
     const int n = nl ? (int)(nl - line) : (int)strlen(line);
     if (n > 0) {
-      box(px, W, H, x, y, (6 * n + 1) * scale, 9 * scale);
-      for (int i = 0; i < n; i++) glyph(px, W, H, x + (1 + 6 * i) * scale, y + scale, scale, line[i], fg);
+      box(t, x, y, (6 * n + 1) * scale, 9 * scale);
+      for (int i = 0; i < n; i++) glyph(t, x + (1 + 6 * i) * scale, y + scale, scale, line[i], fg);
     }
     y += 9 * scale;
     if (!nl) break;
     line = nl + 1;
   }
   return y;
+}
+
+int cv_label_draw(uint8_t *px, int W, int H, int x, int y, int scale, const char *s, const uint8_t fg[3]) {
+  const target t = {px, NULL, W, H};
+  return draw(&t, x, y, scale, s, fg);
+}
+
+int cv_label_draw_image(cv_image *im, int x, int y, int scale, const char *s, const uint8_t fg[3]) {
+  if (!im || im->c < 3) return y;
+  const target t = {NULL, im, im->w, im->h};
+  return draw(&t, x, y, scale, s, fg);
 }

@@ -8,6 +8,8 @@
 
 #include <stdint.h>
 
+#include "core/image.h"
+
 /* Pixels a line of text takes at a scale (each font pixel scale x scale). */
 int cv_label_width(const char *s, int scale);
 int cv_label_height(int scale);
@@ -15,5 +17,8 @@ int cv_label_height(int scale);
  * on a dark box one font pixel around it; '\n' starts a new line; clipped
  * at the image's edges.  Returns the y below the last line. */
 int cv_label_draw(uint8_t *px, int W, int H, int x, int y, int scale, const char *s, const uint8_t fg[3]);
+/* The same into a float image (c >= 3; fg / 255 into its first three
+ * channels). */
+int cv_label_draw_image(cv_image *im, int x, int y, int scale, const char *s, const uint8_t fg[3]);
 
 #endif
