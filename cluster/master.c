@@ -571,7 +571,7 @@ int cv_master_run(cv_service *s) {
     const int last = nframes > 0 && f + 1 == (uint32_t)nframes;
     if (holding) fs.flags |= CV_FS_HOLD;
     if (last || (s->o.write_every > 0 && f % (uint32_t)s->o.write_every == 0)) fs.flags |= CV_FS_WRITE;
-    if (master_desktop_mark(m, f)) fs.flags |= CV_FS_PREVIEW;
+    if (master_desktop_mark(m, f, fs.head, fs.gaze)) fs.flags |= CV_FS_PREVIEW;
     if (send_state(m, &fs)) {
       fprintf(stderr, "cave run: master: frame %u state not finite, frame skipped\n", f);
       continue;

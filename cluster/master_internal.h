@@ -220,6 +220,17 @@ typedef struct master {
   int desk_marked;        /* the current frame is a preview frame */
   uint64_t desk_marks, desk_shown; /* preview frames marked, shown */
   double desk_show_ms;    /* the last compose + XPutImage */
+  int desk_pic_w, desk_pic_h; /* the walls' picture (cross or one wall) at (0, 0) */
+  int desk_gaze_n;        /* the view along the gaze: n x n right of the picture */
+  int desk_band;          /* the readout band's height, below both */
+  int desk_label;         /* label scale (view/montage.h) */
+  int desk_win_k;         /* the window's pixels per composed pixel */
+  struct {
+    uint32_t frame;
+    double head[3], gaze[3];
+  } desk_pose[8];         /* the head and gaze of the last preview frames (ring by frame) */
+  double desk_fps, desk_fps_t0; /* frames per second over the last second or more */
+  size_t desk_fps_n0;
   /* the live console (master_http.c) */
   struct cv_console *con;
   struct cv_http *http;
@@ -351,7 +362,7 @@ void master_http_drive(master *m, cv_drive_state *d);
 int master_desktop_setup(master *m, cv_err *err);
 void master_desktop_free(master *m);
 /* 1 when frame f is a preview frame (--desktop-fps allows one now). */
-int master_desktop_mark(master *m, uint32_t f);
+int master_desktop_mark(master *m, uint32_t f, const double head[3], const double gaze[3]);
 /* Takes preview images; shows a frame once all its walls are in. */
 void master_desktop_drain(master *m);
 /* Takes the window's events: input steers the head (m->pose, a tracker

@@ -111,6 +111,20 @@ static int make_window(cv_desktop *d, const char *title, int w, int h, cv_err *e
   return CV_OK;
 }
 
+int cv_desktop_screen_size(const char *display, int *w, int *h, cv_err *err) {
+  const char *name = display && display[0] ? display : getenv("DISPLAY");
+  if (!name || !name[0]) return cv_err_set(err, CV_ERR_BACKEND, "no X display: DISPLAY is not set");
+  XSetIOErrorHandler(quiet_io_error);
+  Display *dpy = XOpenDisplay(name);
+  if (!dpy)
+    return cv_err_set(err, CV_ERR_BACKEND,
+                      "cannot open X display '%s' (is an X server running there, and XAUTHORITY set?)", name);
+  *w = DisplayWidth(dpy, DefaultScreen(dpy));
+  *h = DisplayHeight(dpy, DefaultScreen(dpy));
+  XCloseDisplay(dpy);
+  return CV_OK;
+}
+
 int cv_desktop_open(const char *display, const char *title, int w, int h, cv_desktop **out, cv_err *err) {
   *out = NULL;
   if (w < 1 || h < 1) return cv_err_set(err, CV_ERR_INVALID, "desktop window: size %dx%d", w, h);
