@@ -223,7 +223,8 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     if (!s->o.quiet) {
       printf("cave run: ready: %d ranks; rank 0 on %s: master", s->size, host);
       if (m->desk)
-        printf(", desktop preview %dx%d on X display '%s'%s", m->desk_w, m->desk_h,
+        printf(", desktop preview %dx%d (window %dx%d) on X display '%s'%s", m->desk_w, m->desk_h,
+               m->desk_win_k * m->desk_w, m->desk_win_k * m->desk_h,
                cv_desktop_display_name(m->desk), m->desk_source ? ", keyboard and mouse steer the head" : "");
       printf("\n");
       for (int r = 1; r < s->size; r++) printf("cave run: ready: %s\n", lines[r] ? lines[r] : "?");

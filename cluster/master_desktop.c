@@ -72,16 +72,6 @@ static int desktop_layout(master *m, cv_err *err) {
   return CV_OK;
 }
 
-/* The window's pixels per composed pixel: the largest whole number that
- * keeps the window within 80% of the screen's width and height (1 at
- * least), so the picture fills a desktop at any --size, pixels crisp. */
-static int window_scale(const master *m, cv_err *err) {
-  int sw = 0, sh = 0;
-  if (cv_desktop_screen_size(NULL, &sw, &sh, err)) return -1;
-  const double k = fmin(0.8 * sw / m->desk_w, 0.8 * sh / m->desk_h);
-  return k >= 2 ? (int)k : 1;
-}
-
 /* The box the keyboard head stays in: the walls' bounding box, a margin in. */
 static void head_box(const cv_cave *c, double lo[3], double hi[3]) {
   for (int a = 0; a < 3; a++) lo[a] = 1e300, hi[a] = -1e300;
@@ -129,9 +119,8 @@ int master_desktop_setup(master *m, cv_err *err) {
   char title[96];
   snprintf(title, sizeof title, "cave desktop preview (%s)",
            s->o.desktop_view < 0 ? "cross" : s->cave.walls[s->o.desktop_view].name);
-  m->desk_win_k = window_scale(m, err);
-  st = m->desk_win_k < 1 ? CV_ERR_BACKEND
-                         : cv_desktop_open(NULL, title, m->desk_win_k * m->desk_w, m->desk_win_k * m->desk_h, &m->desk, err);
+  /* the window: the largest whole scale within 80% of the screen, pixels crisp */
+  st = cv_desktop_open_scaled(NULL, title, m->desk_w, m->desk_h, 0.8, &m->desk_win_k, &m->desk, err);
   if (st) {
     cv_err_prefix(err, "--present desktop");
     return st;
@@ -221,7 +210,7 @@ static void desktop_compose(master *m) {
     cv_label_draw(m->desk_rgb, m->desk_w, m->desk_pic_h, m->desk_pic_w + m->desk_label, m->desk_label, m->desk_label,
                   "view along the gaze", yellow);
   }
-  for (int w = 0; w < s->n_walls; w++)
+  for (int w = 0; s->o.desktop_view < 0 && w < s->n_walls; w++) /* one wall: named in the title */
     if (m->desk_have[w])
       cv_label_draw(m->desk_rgb, m->desk_w, m->desk_pic_h, m->cell_x[w] + m->desk_label, m->cell_y[w] + m->desk_label,
                     m->desk_label, c->walls[w].name, yellow);

@@ -33,6 +33,7 @@ typedef struct plot_data {
   double cr_min;
   double last_frame;
   char first_file[1024];
+  int n_files;
 } plot_data;
 
 static void plot_help(FILE *f) {
@@ -133,6 +134,7 @@ static int read_file(plot_data *d, const char *file) {
   FILE *f = fopen(file, "r");
   if (!f) return cli_fail("plot", 1, "%s: cannot read: %s", file, strerror(errno));
   if (!d->first_file[0]) snprintf(d->first_file, sizeof d->first_file, "%s", file);
+  d->n_files++;
   char *line = NULL;
   size_t cap = 0;
   ssize_t len;
@@ -317,6 +319,7 @@ int cmd_plot(int argc, char **argv) {
   int rc = 0;
   for (int i = 0; i < nf && !rc; i++) rc = read_set(&d, files[i]);
   if (!rc && !d.n) rc = cli_fail("plot", 1, "%s: no frame lines (\"type\": \"frame\") to plot", files[0]);
+  if (!rc && !quiet) printf("read %zu frame lines from %d files\n", d.n, d.n_files);
   if (!rc) rc = ensure_dir(dir);
   if (!rc) rc = plot_all(&d, dir, quiet);
   if (!rc && index) {
