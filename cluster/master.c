@@ -265,6 +265,7 @@ static void frame_clock(master *m, uint32_t f, int holding, double *prev_t, cv_f
     fs->time = holding ? ((uint32_t)nframes - 1) * s->o.dt : master_http_drive_time(m, f * s->o.dt);
   }
   *prev_t = fs->time;
+  if (f < m->cap) m->frame_sim_t[f] = fs->time; /* the montages' captions */
 }
 
 static void frame_lighting(master *m, cv_frame_state *fs) {
@@ -550,7 +551,6 @@ int cv_master_run(cv_service *s) {
     memset(&fs, 0, sizeof fs);
     fs.frame = f;
     frame_clock(m, f, holding, &prev_t, &fs);
-    if (f < m->cap) m->frame_sim_t[f] = fs.time;
     frame_lighting(m, &fs);
     double t_sample, t_target;
     const double now = cv_service_now();

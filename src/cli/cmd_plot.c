@@ -133,7 +133,6 @@ static int take_line(plot_data *d, const char *file, long ln, const char *text, 
 static int read_file(plot_data *d, const char *file) {
   FILE *f = fopen(file, "r");
   if (!f) return cli_fail("plot", 1, "%s: cannot read: %s", file, strerror(errno));
-  if (!d->first_file[0]) snprintf(d->first_file, sizeof d->first_file, "%s", file);
   d->n_files++;
   char *line = NULL;
   size_t cap = 0;
@@ -155,6 +154,7 @@ static int read_file(plot_data *d, const char *file) {
 /* FILE and, for X.jsonl, its rotated X.N.jsonl .. X.1.jsonl first. */
 static int read_set(plot_data *d, const char *file) {
   const size_t n = strlen(file);
+  if (!d->first_file[0]) snprintf(d->first_file, sizeof d->first_file, "%s", file); /* the plots' titles name it */
   if (n > 6 && !strcmp(file + n - 6, ".jsonl")) {
     char r[4200];
     struct stat st;
@@ -225,8 +225,8 @@ static int plot_one(const plot_data *d, const char *dir, const char *name, const
   FILE *g = po.g;
   fprintf(g, "set terminal pngcairo size 1100,500 font ',11' noenhanced\nset output '%s'\n", po.of.tmp);
   put_data(g, d);
-  fprintf(g, "set title '%s (%zu frame lines, frames %.0f..%.0f of %s)'\n", title, d->n, d->rows[0].frame,
-          d->rows[d->n - 1].frame, src);
+  fprintf(g, "set title '%s (%zu frame lines, frames %.0f..%.0f of %s%s)'\n", title, d->n, d->rows[0].frame,
+          d->rows[d->n - 1].frame, src, d->n_files > 1 ? " and the files before it" : "");
   fprintf(g, "set xlabel 'frame'\nset ylabel '%s'\nset grid\nset key top right box opaque\n", ylabel);
   if (d->rows[d->n - 1].frame > d->rows[0].frame) fprintf(g, "set xrange [%.0f:%.0f]\n", d->rows[0].frame, d->rows[d->n - 1].frame);
   fprintf(g, "%s\n%s\n", extra ? extra : "", plot);
