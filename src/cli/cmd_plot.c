@@ -54,7 +54,7 @@ static void plot_help(FILE *f) {
           "  --index RUNDIR  afterwards (re)write RUNDIR/index.html: the newest montages\n"
           "                  of each variant, lcd.png and the plots in RUNDIR/plots\n"
           "  --quiet         no lines for the PNGs written\n\n"
-          "example:\n"
+          "examples:\n"
           "  cave plot out/run/metrics.jsonl -o out/run/plots --index out/run\n");
 }
 
