@@ -34,6 +34,7 @@
 #define DESK_DEG_PER_PX 0.25   /* gaze turn per pixel of drag */
 #define DESK_MARGIN_M 0.10     /* the head keeps this far from the screens */
 #define DESK_FOV_DEG 90.0      /* the view along the gaze, across */
+#define DESK_GAZE_MAX 240      /* its rays across, at most */
 
 /* the rendered size: --size already applied to res (cv_cave_fit_res) */
 static int wall_w(const master *m, int w) { return m->s->cave.walls[w].res[0]; }
@@ -198,14 +199,17 @@ static void desktop_compose(master *m) {
   const double *head = c->head, *gaze = c->gaze;
   if (m->desk_pose[m->desk_frame % 8].frame == m->desk_frame)
     head = m->desk_pose[m->desk_frame % 8].head, gaze = m->desk_pose[m->desk_frame % 8].gaze;
-  const int n = m->desk_gaze_n;
-  uint8_t *gv = malloc(3 * (size_t)n * n);
+  /* traced at most DESK_GAZE_MAX pixels across (a ray per pixel on the master's thread), then enlarged */
+  const int n = m->desk_gaze_n, g = n < DESK_GAZE_MAX ? n : DESK_GAZE_MAX;
+  uint8_t *gv = malloc(3 * (size_t)g * g);
   if (gv) {
     int ws[CV_CAVE_MAX_WALLS], hs[CV_CAVE_MAX_WALLS];
     for (int w = 0; w < s->n_walls; w++) ws[w] = wall_w(m, w), hs[w] = wall_h(m, w);
-    cv_gaze_view(c, m->desk_rgb, m->desk_w, m->cell_x, m->cell_y, ws, hs, m->desk_have, head, gaze, DESK_FOV_DEG, gv, n);
+    cv_gaze_view(c, m->desk_rgb, m->desk_w, m->cell_x, m->cell_y, ws, hs, m->desk_have, head, gaze, DESK_FOV_DEG, gv, g);
     for (int y = 0; y < n; y++)
-      memcpy(m->desk_rgb + 3 * ((size_t)y * m->desk_w + m->desk_pic_w), gv + 3 * (size_t)y * n, 3 * (size_t)n);
+      for (int x = 0; x < n; x++)
+        memcpy(m->desk_rgb + 3 * ((size_t)y * m->desk_w + m->desk_pic_w + x),
+               gv + 3 * ((size_t)(y * g / n) * g + (size_t)x * g / n), 3);
     free(gv);
     cv_label_draw(m->desk_rgb, m->desk_w, m->desk_pic_h, m->desk_pic_w + m->desk_label, m->desk_label, m->desk_label,
                   "view along the gaze", yellow);
