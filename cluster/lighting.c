@@ -23,6 +23,9 @@ void cv_run_opts_default(cv_run_opts *o) {
   o->frames = 30;
   o->dt = 1.0 / 30.0;
   o->write_every = 10;
+  o->metrics_every = 1;
+  o->metrics_max_mb = 512;
+  o->metrics_keep = 4;
   o->timeout_ms = 2000;
   o->gather_timeout_s = 10;
   o->startup_timeout_s = 300;

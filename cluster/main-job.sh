@@ -6,7 +6,8 @@
 # recorded head path (configs/heads/default.txt), a bounded number of frames
 # at a modest resolution.  Leaves montage PNGs, per wall-eye EXR/PNG frames,
 # the LCD panel image and the JSON-lines metrics (with the summary as the
-# last line) in OUT (default out/main-job).
+# last line), the plots of the run (OUT/plots) and OUT/index.html showing
+# them in OUT (default out/main-job).
 #   bash cluster/main-job.sh [OUT]
 # Environment: FRAMES (default 48), SIZE (pixels per wall-eye, default 240),
 # RANKS (default 12: 11 is the minimum, each rank above it is an LCD gather
@@ -72,3 +73,6 @@ if d:
             n, p["contrast_ratio_min"], p["contrast_ratio_min_frame"], p["contrast_ratio_min_t"], d["cr_min"],
             p["frames_below_cr_min"], 100 * p["time_share_below_cr_min"]))
 PY
+# plots of the whole run (docs/metrics.md "Plots") and the folder's index.html with them
+"$CAVE" plot "$OUT/metrics.jsonl" -o "$OUT/plots" --index "$OUT"
+echo "open $OUT/index.html: the newest montages, lcd.png and the plots"

@@ -15,7 +15,7 @@
  *                    requests are served;
  *   master_swap_stats swap skew and latency of the previous frame;
  *   compensate_frame the scattering compensation, each wall its correction;
- *   write_frame_metrics, pace.
+ *   master_metrics_frame (master_metrics.c), pace.
  *
  * Adaptation latency: the frame state carries the adaptation computed from
  * the previous frame's luminance images, so a frame needs one round trip to
@@ -85,6 +85,7 @@ static void master_free(master *m) {
   cv_metrics_line_destroy(m->ml);
   free(m->frame_ms);
   free(m->frame_t);
+  free(m->frame_sim_t);
   free(m->overhead_ms);
   free(m->overhead_cpu_ms);
 }
@@ -162,9 +163,10 @@ static int master_setup(master *m, cv_err *err) {
   m->cap = s->o.frames > 0 ? (size_t)s->o.frames + 64 : 1u << 16;
   m->frame_ms = calloc(m->cap, sizeof *m->frame_ms);
   m->frame_t = calloc(m->cap, sizeof *m->frame_t);
+  m->frame_sim_t = calloc(m->cap, sizeof *m->frame_sim_t);
   m->overhead_ms = calloc(m->cap, sizeof *m->overhead_ms);
   m->overhead_cpu_ms = calloc(m->cap, sizeof *m->overhead_cpu_ms);
-  if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
+  if (!m->frame_ms || !m->overhead_ms || !m->overhead_cpu_ms || !m->frame_t || !m->frame_sim_t) return cv_err_set(err, CV_ERR_NOMEM, "master: out of memory");
   if ((st = master_sync_setup(m, err))) return st;
   if ((st = master_http_setup(m, err))) return st; /* a port in use stops the start-up */
   /* Metrics. */
@@ -221,32 +223,14 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
     if (!s->o.quiet) {
       printf("cave run: ready: %d ranks; rank 0 on %s: master", s->size, host);
       if (m->desk)
-        printf(", desktop preview %dx%d on X display '%s'%s", m->desk_w, m->desk_h,
+        printf(", desktop preview %dx%d (window %dx%d) on X display '%s'%s", m->desk_w, m->desk_h,
+               m->desk_win_k * m->desk_w, m->desk_win_k * m->desk_h,
                cv_desktop_display_name(m->desk), m->desk_source ? ", keyboard and mouse steer the head" : "");
       printf("\n");
       for (int r = 1; r < s->size; r++) printf("cave run: ready: %s\n", lines[r] ? lines[r] : "?");
     }
     master_http_ready(m, lines);
-    cv_metrics_line *ml = m->ml;
-    cv_metrics_begin(ml);
-    cv_metrics_string(ml, "type", "ready");
-    cv_metrics_string(ml, "master_host", host);
-    cv_metrics_string(ml, "clock", m->wall_clock ? "wall" : "sim");
-    cv_metrics_bool(ml, "windows", (s->o.present & CV_PRESENT_WINDOW) != 0);
-    cv_metrics_bool(ml, "desktop", m->desk != NULL);
-    cv_metrics_bool(ml, "swap_lock", s->o.swap_lock);
-    cv_metrics_string(ml, "hardware_swap_sync", "none");
-    cv_metrics_string(ml, "share_lighting", cv_share_lighting_name(s->o.share_lighting));
-    master_http_metrics(m, ml);
-    lcd_ready_metrics(m, ml);
-    cv_metrics_object_begin(ml, "ranks");
-    for (int r = 1; r < s->size; r++) {
-      char k[16];
-      snprintf(k, sizeof k, "%d", r);
-      cv_metrics_string(ml, k, lines[r] ? lines[r] : "?");
-    }
-    cv_metrics_object_end(ml);
-    master_metrics_put(m);
+    master_metrics_ready(m, host, (const char *const *)lines);
     fflush(stdout);
   }
   for (int r = 0; lines && r < s->size; r++) free(lines[r]);
@@ -281,6 +265,7 @@ static void frame_clock(master *m, uint32_t f, int holding, double *prev_t, cv_f
     fs->time = holding ? ((uint32_t)nframes - 1) * s->o.dt : master_http_drive_time(m, f * s->o.dt);
   }
   *prev_t = fs->time;
+  if (f < m->cap) m->frame_sim_t[f] = fs->time; /* the montages' captions */
 }
 
 static void frame_lighting(master *m, cv_frame_state *fs) {
@@ -458,174 +443,7 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
   return ngot;
 }
 
-typedef struct frame_times {
-  double tf0, t_sent, t_wait, tc0, tc1, tf1;
-  double cf0, c_sent, c_wait, cc0, cc1, cf1; /* the master thread's CPU time there (ms) */
-} frame_times;
 
-/* This thread's CPU time (ms): with more ranks than cores the wall time of
- * the master's work also holds the time it waited for a core. */
-static double thread_cpu_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
-
-/* The render ranks' lighting steps (CV_TAG_LIGHT) that came so far. */
-static void light_drain(master *m) {
-  const uint8_t *data;
-  int from;
-  long len;
-  while ((len = cv_mailbox_take(m->light_mb, &data, &from)) >= 0) {
-    if (len != (long)sizeof(cv_light_msg) || from < 1 || from > m->s->n_render) continue;
-    memcpy(&m->light[from - 1], data, sizeof(cv_light_msg));
-    m->light_have[from - 1] = 1;
-  }
-}
-
-static const char *light_name(uint32_t what) {
-  static const char *names[] = {"computed", "led", "imported", "late_leader", "dead_leader", "torn"};
-  return what < 6 ? names[what] : "?";
-}
-
-/* A rank's lighting step of frame f, in its object of the frame line. */
-static void light_metrics(master *m, cv_metrics_line *ml, int rank, uint32_t f) {
-  const cv_light_msg *l = &m->light[rank - 1];
-  if (!m->light_have[rank - 1] || l->frame != f) return;
-  cv_metrics_string(ml, "light", light_name(l->what));
-  if (l->what == CV_LIGHT_LED) cv_metrics_bool(ml, "light_prefetched", l->prefetched != 0);
-  cv_metrics_double(ml, "light_ms", l->ms);
-  cv_metrics_double(ml, "light_cpu_ms", l->cpu_ms);
-  cv_metrics_double(ml, "light_wait_ms", l->wait_ms);
-  cv_metrics_double(ml, "cpu_s", l->cpu_s);
-}
-
-/* Summary: lighting changes per kind, summed over the render ranks. */
-static void light_summary(master *m, cv_metrics_line *ml) {
-  light_drain(m);
-  uint64_t c[6] = {0};
-  for (int i = 0; i < m->s->n_render; i++)
-    for (int k = 0; k < 6; k++) c[k] += m->light_have[i] ? m->light[i].count[k] : 0;
-  cv_metrics_object_begin(ml, "shared_lighting");
-  const int mode = m->s->o.share_lighting;
-  cv_metrics_string(ml, "mode", cv_share_lighting_name(mode));
-  for (int k = 0; k < 6; k++) cv_metrics_uint(ml, light_name((uint32_t)k), c[k]);
-  uint64_t p[2] = {0, 0};
-  for (int i = 0; i < m->s->n_render; i++)
-    for (int k = 0; k < 2; k++) p[k] += m->light_have[i] ? m->light[i].prefetch[k] : 0;
-  cv_metrics_uint(ml, "prefetched", p[0]);
-  cv_metrics_uint(ml, "prefetch_missed", p[1]);
-  cv_metrics_object_end(ml);
-}
-
-static void write_frame_metrics(master *m, uint32_t f, const cv_frame_state *fs, const cv_lumstats *acc,
-                                int late, const frame_times *t, double overhead, double overhead_cpu) {
-  cv_service *s = m->s;
-  cv_metrics_line *ml = m->ml;
-  light_drain(m);
-  cv_metrics_begin(ml);
-  cv_metrics_string(ml, "type", "frame");
-  cv_metrics_uint(ml, "frame", f);
-  cv_metrics_double(ml, "t", fs->time);
-  cv_metrics_double(ml, "dt", fs->dt);
-  cv_metrics_double(ml, "frame_ms", (t->tf1 - t->tf0) * 1e3);
-  cv_metrics_double(ml, "master_ms", overhead);
-  cv_metrics_double(ml, "master_cpu_ms", overhead_cpu);
-  cv_metrics_double(ml, "wait_ms", (t->t_wait - t->t_sent) * 1e3);
-  cv_metrics_int(ml, "late_walleyes", late);
-  master_health_metrics(m, ml);
-  if (s->o.swap_lock && s->o.swap_sync == CV_SWAP_SCHEDULED) {
-    cv_metrics_double(ml, "swap_release_wait_ms", m->release_ms);
-    cv_metrics_int(ml, "swap_release_late", m->release_late);
-  }
-  cv_metrics_int(ml, "state_mismatch", m->state_mismatch);
-  cv_metrics_object_begin(ml, "adaptation");
-  cv_metrics_double(ml, "lwa", fs->lwa);
-  cv_metrics_double(ml, "lwmax", fs->lwmax);
-  cv_metrics_double(ml, "foveal_lwa", acc->weight > 0 ? exp(acc->sum_log / acc->weight) : 0);
-  cv_metrics_double(ml, "foveal_sr", acc->weight);
-  cv_metrics_uint(ml, "invalid_pixels", acc->n_invalid);
-  cv_metrics_doubles(ml, "state", fs->adapt, 6);
-  cv_metrics_object_end(ml);
-  cv_metrics_object_begin(ml, "drive");
-  cv_metrics_double(ml, "yaw", fs->drive.yaw_deg);
-  cv_metrics_doubles(ml, "weights", fs->drive.weights, (size_t)fs->drive.n_maps);
-  cv_metrics_bool(ml, "new_light", (fs->flags & CV_FS_NEW_LIGHT) != 0);
-  cv_metrics_object_end(ml);
-  cv_metrics_object_begin(ml, "tracker");
-  cv_metrics_string(ml, "source", m->has_tcal ? "dtrack-calibrated" : m->dtr ? "dtrack" : m->path ? "path" : m->desk_source ? "desktop" : "fixed");
-  cv_metrics_doubles(ml, "head", fs->head, 3);
-  cv_metrics_doubles(ml, "gaze", fs->gaze, 3);
-  cv_metrics_double(ml, "age_s", fs->tracker_age);
-  if (m->dtr) {
-    cv_metrics_uint(ml, "packets", m->trk.packets);
-    cv_metrics_uint(ml, "malformed", m->trk.malformed);
-    cv_metrics_uint(ml, "no_body", m->trk.no_body);
-    cv_metrics_uint(ml, "held_outside", m->gate.outside); /* implausible poses held (master_sync.c) */
-    cv_metrics_uint(ml, "held_too_fast", m->gate.too_fast);
-  }
-  if (fs->has_eyes) cv_metrics_doubles(ml, "eyes", &fs->eyes[0][0], 6);
-  cv_metrics_object_end(ml);
-  master_sync_metrics(m, ml);
-  master_desktop_metrics(m, ml);
-  if (m->lcd_mb) {
-    cv_metrics_object_begin(ml, "lcd");
-    char kb[32];
-    snprintf(kb, sizeof kb, "%016llx", (unsigned long long)m->lcd_key);
-    cv_metrics_string(ml, "key", kb);
-    cv_metrics_uint(ml, "rounds", m->lcd_rounds);
-    cv_metrics_uint(ml, "spp", (uint64_t)m->lcd_rounds * (uint64_t)s->o.lcd_spp);
-    cv_metrics_uint(ml, "late_rounds", m->lcd_late);
-    cv_metrics_uint(ml, "rejected", m->lcd_rejected);
-    if (m->prog.acc) {
-      cv_lcd_error le;
-      if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "rel_rms", le.rel_rms);
-      cv_metrics_uint(ml, "clamped", (uint64_t)m->prog.acc->data[CV_LCD_ACC_CLAMPED]);
-    }
-    lcd_reduce_metrics(m, ml, "allreduce");
-    lcd_readability_update(m);
-    lcd_readability_metrics(m, ml, "readability");
-    lcd_drive_tally(m, f, fs->time, m->wall_clock ? fs->dt : s->o.dt, (fs->flags & CV_FS_HOLD) != 0);
-    cv_metrics_object_end(ml);
-  }
-  if (m->disp) master_comp_metrics(m, ml, (t->tc1 - t->tc0) * 1e3);
-  cv_metrics_object_begin(ml, "ranks");
-  for (int k = 0; k < s->n_walleyes; k++) {
-    const int rank = cv_cave_walleye_rank(&s->cave, k / 2, k % 2);
-    const int packed = s->cave.outputs[rank - 1].eyes == 3;
-    char key[24];
-    if (packed) snprintf(key, sizeof key, "%d%s", rank, k % 2 ? "R" : "L");
-    else snprintf(key, sizeof key, "%d", rank);
-    cv_metrics_object_begin(ml, key);
-    if (m->got[k]) {
-      const cv_walleye_report *r = &m->reps[k];
-      cv_metrics_double(ml, "lum_ms", r->ms_lum);
-      cv_metrics_double(ml, "depth_ms", r->ms_depth);
-      cv_metrics_double(ml, "shade_ms", r->ms_shade);
-      cv_metrics_double(ml, "read_ms", r->ms_read);
-      cv_metrics_double(ml, "total_ms", r->ms_total);
-      cv_metrics_double(ml, "present_ms", r->ms_present);
-      cv_metrics_double(ml, "barrier_ms", r->ms_barrier);
-      cv_metrics_double(ml, "lcd_ms", r->ms_lcd);
-      cv_metrics_uint(ml, "lcd_rounds", r->lcd_rounds_done);
-      cv_metrics_uint(ml, "read_bytes", r->bytes_read);
-      cv_metrics_uint(ml, "upload_bytes", r->bytes_up);
-      cv_metrics_double(ml, "cpu_ms", r->ms_cpu);
-      if (r->ms_gpu >= 0) cv_metrics_double(ml, "gpu_ms", r->ms_gpu);
-      cv_metrics_double(ml, "corr_wait_ms", r->ms_corr_wait);
-      cv_metrics_int(ml, "corr_frame", r->corr_frame == 0xffffffffu ? -1 : (int64_t)r->corr_frame);
-      cv_metrics_uint(ml, "late_corr", r->late_corr);
-      if (r->files_dropped) cv_metrics_uint(ml, "files_dropped", r->files_dropped);
-      if (r->files_failed) cv_metrics_uint(ml, "files_failed", r->files_failed);
-      light_metrics(m, ml, rank, f);
-    } else {
-      cv_metrics_bool(ml, "late", 1);
-    }
-    cv_metrics_object_end(ml);
-  }
-  cv_metrics_object_end(ml);
-  master_metrics_put(m);
-}
 
 /* Held frames at one a second (the LCD threads run only on cores the
  * renderers leave idle, SCHED_IDLE); others at --max-fps or, on the wall
@@ -650,73 +468,6 @@ static void pace(master *m, double tf0, int holding) {
   }
 }
 
-static void write_summary(master *m, uint32_t f, double run_t0) {
-  cv_service *s = m->s;
-  const int nframes = s->o.frames;
-  cv_metrics_line *ml = m->ml;
-  cv_metrics_begin(ml);
-  cv_metrics_string(ml, "type", "summary");
-  cv_metrics_uint(ml, "frames", m->nframes_done);
-  cv_metrics_uint(ml, "held_frames", nframes > 0 && f > (uint32_t)nframes ? f - (uint32_t)nframes : 0);
-  cv_metrics_bool(ml, "interrupted", *s->stop != 0 || m->stop_code != 0);
-  if (m->stop_code) cv_metrics_string(ml, "stop_reason", m->stop_reason);
-  cv_metrics_string(ml, "clock", m->wall_clock ? "wall" : "sim");
-  cv_metrics_double(ml, "seconds", cv_service_now() - run_t0);
-  /* Percentiles without frame 0 (warm-up: every rank's first lighting and
-   * the first round trip), when there are later frames. */
-  const size_t nall = m->nframes_done < m->cap ? m->nframes_done : m->cap;
-  const size_t skip = nall > 1 ? 1 : 0, nd = nall - skip;
-  const double ps[3] = {50, 99, 100};
-  double q[3];
-  cv_metrics_uint(ml, "warmup_frames_excluded", skip);
-  if (nd && cv_percentiles(m->frame_ms + skip, nd, ps, 3, q, NULL) == CV_OK) {
-    cv_metrics_double(ml, "frame_ms_p50", q[0]);
-    cv_metrics_double(ml, "frame_ms_p99", q[1]);
-    cv_metrics_double(ml, "fps", q[0] > 0 ? 1e3 / q[0] : 0);
-  }
-  if (nd && cv_percentiles(m->overhead_ms + skip, nd, ps, 3, q, NULL) == CV_OK) {
-    cv_metrics_double(ml, "master_ms_p50", q[0]);
-    cv_metrics_double(ml, "master_ms_p99", q[1]);
-    cv_metrics_double(ml, "master_ms_max", q[2]);
-  }
-  if (nd && cv_percentiles(m->overhead_cpu_ms + skip, nd, ps, 3, q, NULL) == CV_OK) {
-    cv_metrics_double(ml, "master_cpu_ms_p50", q[0]);
-    cv_metrics_double(ml, "master_cpu_ms_p99", q[1]);
-    cv_metrics_double(ml, "master_cpu_ms_max", q[2]);
-  }
-  cv_metrics_double(ml, "master_thread_cpu_s", (thread_cpu_ms() - m->run_cpu0_ms) * 1e-3);
-  master_sync_summary(m, ml);
-  cv_metrics_uint(ml, "late_reports", m->late_reports);
-  cv_metrics_uint(ml, "master_stalls", m->stalls);
-  cv_metrics_double(ml, "master_stalled_s", m->stalled_s);
-  master_path_summary(m, ml);
-  light_summary(m, ml);
-  master_health_metrics(m, ml);
-  cv_metrics_uint(ml, "state_mismatch", m->state_mismatch_total);
-  cv_metrics_uint(ml, "montages", m->montages);
-  master_desktop_summary(m, ml);
-  master_http_summary(m, ml);
-  pthread_mutex_lock(&m->img_mu); /* the image thread has ended its jobs (drained above) */
-  if (m->have_viewer) {
-    cv_metrics_double(ml, "viewer_rms", m->viewer_rms);
-    cv_metrics_double(ml, "viewer_rms_uncompensated", m->viewer_rms_unc);
-  }
-  pthread_mutex_unlock(&m->img_mu);
-  if (m->lcd_mb) {
-    cv_metrics_uint(ml, "lcd_rounds", m->lcd_rounds);
-    cv_metrics_uint(ml, "lcd_spp", (uint64_t)m->lcd_rounds * (uint64_t)s->o.lcd_spp);
-    if (m->prog.acc) {
-      cv_lcd_error le;
-      if (cv_lcd_accum_error(m->prog.acc, &le) == CV_OK) cv_metrics_double(ml, "lcd_rel_rms", le.rel_rms);
-    }
-    lcd_reduce_metrics(m, ml, "lcd_allreduce");
-    lcd_readability_update(m);
-    lcd_readability_metrics(m, ml, "lcd_readability");
-    lcd_drive_summary(m, ml, "lcd_drive");
-  }
-  cv_metrics_uint(ml, "nonfinite_metrics", cv_metrics_nonfinite(ml));
-  master_metrics_put(m);
-}
 
 /* Priming round before frame 0 (see the top of this file): the wall-eyes
  * render frame 0's state flagged CV_FS_MEASURE and report; the merged foveal
@@ -775,7 +526,7 @@ int cv_master_run(cv_service *s) {
            m->wall_clock ? "wall" : "sim", s->o.swap_lock ? ", swap lock" : "");
   const int nframes = s->o.frames;
   const double run_t0 = cv_service_now();
-  m->run_cpu0_ms = thread_cpu_ms();
+  m->run_cpu0_ms = master_thread_cpu_ms();
   double prev_t = 0;
   uint32_t f;
   for (f = 0;; f++) {
@@ -790,7 +541,7 @@ int cv_master_run(cv_service *s) {
     frame_times t;
     memset(&t, 0, sizeof t);
     t.tf0 = cv_service_now();
-    t.cf0 = thread_cpu_ms();
+    t.cf0 = master_thread_cpu_ms();
     if (f < m->cap) m->frame_t[f] = t.tf0;
     cv_frame_state fs;
     memset(&fs, 0, sizeof fs);
@@ -817,18 +568,18 @@ int cv_master_run(cv_service *s) {
     const int last = nframes > 0 && f + 1 == (uint32_t)nframes;
     if (holding) fs.flags |= CV_FS_HOLD;
     if (last || (s->o.write_every > 0 && f % (uint32_t)s->o.write_every == 0)) fs.flags |= CV_FS_WRITE;
-    if (master_desktop_mark(m, f)) fs.flags |= CV_FS_PREVIEW;
+    if (master_desktop_mark(m, f, fs.head, fs.gaze)) fs.flags |= CV_FS_PREVIEW;
     if (send_state(m, &fs)) {
       fprintf(stderr, "cave run: master: frame %u state not finite, frame skipped\n", f);
       continue;
     }
     t.t_sent = cv_service_now();
-    t.c_sent = thread_cpu_ms();
+    t.c_sent = master_thread_cpu_ms();
     cv_lumstats acc;
     double lwmax;
     const int ngot = collect_reports(m, f, t.t_sent, &acc, &lwmax);
     t.t_wait = cv_service_now();
-    t.c_wait = thread_cpu_ms();
+    t.c_wait = master_thread_cpu_ms();
     master_swap_stats(m, f);
     const int late = s->n_walleyes - ngot;
     if (acc.weight > 0) {
@@ -839,22 +590,22 @@ int cv_master_run(cv_service *s) {
       m->have_stats = 0; /* empty foveal region or all late: keep the adaptation */
     }
     t.tc0 = cv_service_now();
-    t.cc0 = thread_cpu_ms();
+    t.cc0 = master_thread_cpu_ms();
     if (m->disp) master_comp_frame(m, f);
     t.tc1 = cv_service_now();
-    t.cc1 = thread_cpu_ms();
+    t.cc1 = master_thread_cpu_ms();
     master_release_swaps(m, f);
     /* No LCD here: its sums are taken in the wait loops (collect_reports,
      * pace), where a round arriving costs the frame nothing while the
      * wall-eyes render; on this path an image-sized add (4.8 MB at
      * 400 x 300) was the master's p99 (docs/benchmarks.md, gather farm). */
     t.tf1 = cv_service_now();
-    t.cf1 = thread_cpu_ms();
+    t.cf1 = master_thread_cpu_ms();
     /* The master's own work (state, statistics), without waiting and
      * without the compensation solve (reported apart). */
     const double overhead = ((t.t_sent - t.tf0) + (t.tc0 - t.t_wait) + (t.tf1 - t.tc1)) * 1e3;
     const double overhead_cpu = (t.c_sent - t.cf0) + (t.cc0 - t.c_wait) + (t.cf1 - t.cc1);
-    write_frame_metrics(m, f, &fs, &acc, late, &t, overhead, overhead_cpu);
+    master_metrics_frame(m, f, &fs, &acc, late, &t, overhead, overhead_cpu);
     master_http_publish(m, &fs, t.tf1 - t.tf0, overhead * 1e-3);
     if (m->nframes_done < m->cap) {
       m->frame_ms[m->nframes_done] = (t.tf1 - t.tf0) * 1e3;
@@ -887,7 +638,7 @@ int cv_master_run(cv_service *s) {
     nanosleep(&ts, NULL);
   }
   montage_flush(m);
-  write_summary(m, f, run_t0);
+  master_metrics_summary(m, f, run_t0);
   master_out_final_line(m);
   if (m->stop_code)
     printf("cave run: stopped on request: %s\n", m->stop_reason);

@@ -19,36 +19,58 @@
  *     reported apart (desktop.input_age_s);
  *   - Escape, closing the window or a lost X connection stop the service
  *     as a wall-eye window's request does (stop_code, stop_reason). */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "comm.h"
 #include "master_internal.h"
+#include "view/gazeview.h"
+#include "view/label.h"
 #include "view/montage.h"
 
 #define DESK_STEP_M 0.05       /* head step per key press */
 #define DESK_DEG_PER_PX 0.25   /* gaze turn per pixel of drag */
 #define DESK_MARGIN_M 0.10     /* the head keeps this far from the screens */
+#define DESK_FOV_DEG 90.0      /* the view along the gaze, across */
+#define DESK_GAZE_MAX 240      /* its rays across, at most */
 
 /* the rendered size: --size already applied to res (cv_cave_fit_res) */
 static int wall_w(const master *m, int w) { return m->s->cave.walls[w].res[0]; }
 static int wall_h(const master *m, int w) { return m->s->cave.walls[w].res[1]; }
 
-/* The composed image's layout: the montage's cross, or the one wall. */
-static int desktop_layout(master *m, cv_err *err) {
+/* The walls' picture: the montage's cross, or the one wall. */
+static int picture_layout(master *m, cv_err *err) {
   const cv_service *s = m->s;
   const int view = s->o.desktop_view;
   if (view >= 0) {
     m->cell_x[view] = m->cell_y[view] = 0;
-    m->desk_w = wall_w(m, view), m->desk_h = wall_h(m, view);
+    m->desk_pic_w = wall_w(m, view), m->desk_pic_h = wall_h(m, view);
     m->desk_walls = 1;
+    m->desk_label = cv_montage_label_scale(wall_w(m, view));
     return CV_OK;
   }
-  int ws[CV_CAVE_MAX_WALLS], hs[CV_CAVE_MAX_WALLS];
-  for (int w = 0; w < s->n_walls; w++) ws[w] = wall_w(m, w), hs[w] = wall_h(m, w);
+  int ws[CV_CAVE_MAX_WALLS], hs[CV_CAVE_MAX_WALLS], mw = 0;
+  for (int w = 0; w < s->n_walls; w++) {
+    ws[w] = wall_w(m, w), hs[w] = wall_h(m, w);
+    if (ws[w] > mw) mw = ws[w];
+  }
   m->desk_walls = s->n_walls;
-  return cv_montage_layout(&s->cave, ws, hs, m->cell_x, m->cell_y, &m->desk_w, &m->desk_h, err);
+  m->desk_label = cv_montage_label_scale(mw); /* as the montages' (view/montage.h) */
+  return cv_montage_layout(&s->cave, ws, hs, m->cell_x, m->cell_y, &m->desk_pic_w, &m->desk_pic_h, err);
+}
+
+/* The composed image: the walls' picture, the view along the gaze right of
+ * it (as tall), three readout lines below both. */
+static int desktop_layout(master *m, cv_err *err) {
+  int st = picture_layout(m, err);
+  if (st) return st;
+  m->desk_gaze_n = m->desk_pic_h;
+  m->desk_band = 3 * cv_label_height(m->desk_label) + 2 * m->desk_label;
+  m->desk_w = m->desk_pic_w + m->desk_gaze_n;
+  m->desk_h = m->desk_pic_h + m->desk_band;
+  return CV_OK;
 }
 
 /* The box the keyboard head stays in: the walls' bounding box, a margin in. */
@@ -98,7 +120,8 @@ int master_desktop_setup(master *m, cv_err *err) {
   char title[96];
   snprintf(title, sizeof title, "cave desktop preview (%s)",
            s->o.desktop_view < 0 ? "cross" : s->cave.walls[s->o.desktop_view].name);
-  st = cv_desktop_open(NULL, title, m->desk_w, m->desk_h, &m->desk, err);
+  /* the window: the largest whole scale within 80% of the screen, pixels crisp */
+  st = cv_desktop_open_scaled(NULL, title, m->desk_w, m->desk_h, 0.8, &m->desk_win_k, &m->desk, err);
   if (st) {
     cv_err_prefix(err, "--present desktop");
     return st;
@@ -128,20 +151,83 @@ void master_desktop_free(master *m) {
   m->desk = NULL;
 }
 
-int master_desktop_mark(master *m, uint32_t f) {
-  (void)f;
+int master_desktop_mark(master *m, uint32_t f, const double head[3], const double gaze[3]) {
   m->desk_marked = 0;
   if (!m->desk) return 0;
   const double now = cv_service_now(), fps = m->s->o.desktop_fps;
   if (fps > 0 && m->desk_last_mark > 0 && now - m->desk_last_mark < 1.0 / fps) return 0;
   m->desk_last_mark = now;
   m->desk_marked = 1;
+  m->desk_pose[f % 8].frame = f; /* for the view along the gaze of this frame */
+  memcpy(m->desk_pose[f % 8].head, head, sizeof m->desk_pose[0].head);
+  memcpy(m->desk_pose[f % 8].gaze, gaze, sizeof m->desk_pose[0].gaze);
   m->desk_marks++;
   return 1;
 }
 
+/* The three readout lines: frame and rate, head and gaze, each LCD
+ * panel's contrast ratio. */
+static void readouts(master *m, const double *head, const double *gaze, char *txt, size_t cap) {
+  const cv_service *s = m->s;
+  const double yaw = atan2(gaze[0], -gaze[2]) * 180 / M_PI;
+  const double pitch = asin(fmax(-1, fmin(1, gaze[1] / sqrt(gaze[0] * gaze[0] + gaze[1] * gaze[1] + gaze[2] * gaze[2])))) * 180 / M_PI;
+  size_t l = (size_t)snprintf(txt, cap, "frame %u  %.1f fps\nhead %.2f %.2f %.2f m  gaze yaw %.0f pitch %.0f deg\n",
+                              m->desk_frame, m->desk_fps, head[0], head[1], head[2], yaw, pitch);
+  if (!m->lcd_mb) {
+    snprintf(txt + l, cap - l, "LCD off (--no-lcd)");
+  } else if (!m->lread.valid) {
+    snprintf(txt + l, cap - l, "LCD CR: no estimate yet");
+  } else {
+    l += (size_t)snprintf(txt + l, cap - l, "CR");
+    for (int i = 0; i < s->lcd_layout.n && l < cap; i++)
+      l += (size_t)snprintf(txt + l, cap - l, " %s %.1f", s->lcd.panels[i].name, m->lread.p[i].cr.value);
+    if (l < cap) snprintf(txt + l, cap - l, " (need %.0f:1)", m->lread.cr_min);
+  }
+}
+
+/* Labels, the view along the gaze and the readouts around the walls. */
+static void desktop_compose(master *m) {
+  const cv_service *s = m->s;
+  const cv_cave *c = &s->cave;
+  static const uint8_t white[3] = {255, 255, 255}, yellow[3] = {255, 255, 160};
+  const double now = cv_service_now();
+  if (m->desk_fps_t0 <= 0) m->desk_fps_t0 = now, m->desk_fps_n0 = m->nframes_done;
+  else if (now - m->desk_fps_t0 >= 1.0) {
+    m->desk_fps = (double)(m->nframes_done - m->desk_fps_n0) / (now - m->desk_fps_t0);
+    m->desk_fps_t0 = now, m->desk_fps_n0 = m->nframes_done;
+  }
+  const double *head = c->head, *gaze = c->gaze;
+  if (m->desk_pose[m->desk_frame % 8].frame == m->desk_frame)
+    head = m->desk_pose[m->desk_frame % 8].head, gaze = m->desk_pose[m->desk_frame % 8].gaze;
+  /* traced at most DESK_GAZE_MAX pixels across (a ray per pixel on the master's thread), then enlarged */
+  const int n = m->desk_gaze_n, g = n < DESK_GAZE_MAX ? n : DESK_GAZE_MAX;
+  uint8_t *gv = malloc(3 * (size_t)g * g);
+  if (gv) {
+    int ws[CV_CAVE_MAX_WALLS], hs[CV_CAVE_MAX_WALLS];
+    for (int w = 0; w < s->n_walls; w++) ws[w] = wall_w(m, w), hs[w] = wall_h(m, w);
+    cv_gaze_view(c, m->desk_rgb, m->desk_w, m->cell_x, m->cell_y, ws, hs, m->desk_have, head, gaze, DESK_FOV_DEG, gv, g);
+    for (int y = 0; y < n; y++)
+      for (int x = 0; x < n; x++)
+        memcpy(m->desk_rgb + 3 * ((size_t)y * m->desk_w + m->desk_pic_w + x),
+               gv + 3 * ((size_t)(y * g / n) * g + (size_t)x * g / n), 3);
+    free(gv);
+    cv_label_draw(m->desk_rgb, m->desk_w, m->desk_pic_h, m->desk_pic_w + m->desk_label, m->desk_label, m->desk_label,
+                  "view along the gaze", yellow);
+  }
+  for (int w = 0; s->o.desktop_view < 0 && w < s->n_walls; w++) /* one wall: named in the title */
+    if (m->desk_have[w])
+      cv_label_draw(m->desk_rgb, m->desk_w, m->desk_pic_h, m->cell_x[w] + m->desk_label, m->cell_y[w] + m->desk_label,
+                    m->desk_label, c->walls[w].name, yellow);
+  memset(m->desk_rgb + 3 * (size_t)m->desk_pic_h * m->desk_w, 0, 3 * (size_t)m->desk_band * m->desk_w);
+  char txt[600];
+  readouts(m, head, gaze, txt, sizeof txt);
+  cv_label_draw(m->desk_rgb, m->desk_w, m->desk_h, m->desk_label, m->desk_pic_h + m->desk_label, m->desk_label, txt,
+                white);
+}
+
 static void desktop_show(master *m) {
   const double t0 = cv_service_now();
+  desktop_compose(m);
   cv_err err;
   if (cv_desktop_show(m->desk, m->desk_rgb, m->desk_w, m->desk_h, &err) == CV_OK) m->desk_shown++;
   m->desk_show_ms = (cv_service_now() - t0) * 1e3;

@@ -346,6 +346,9 @@ void master_http_montage(master *m, int which, uint32_t frame, cv_image *const *
           px[3 * ((size_t)(y[w] + j) * W + x[w] + i) + c] =
               cv_rec709_code(&m->lut, im->px[((size_t)j * im->w + i) * im->c + c]);
   }
+  int mw = 0; /* the wall names, as on the montage files (the page captions frame and variant) */
+  for (int w = 0; w < s->n_walls; w++) mw = ws[w] > mw ? ws[w] : mw;
+  cv_montage_label_walls(px, W, H, &s->cave, x, y, cv_montage_label_scale(mw));
   cv_console_set_image(m->con, which, frame, W, H, px, 1); /* the image thread: may wait */
   free(px);
 }

@@ -27,6 +27,7 @@
 #include "compensate/resample.h"
 #include "master_internal.h"
 #include "service/console.h"
+#include "service/index_html.h"
 #include "view/montage.h"
 
 int master_images_setup(master *m, cv_err *err) {
@@ -71,6 +72,7 @@ void master_images_free(master *m) {
 typedef struct frame_images {
   master *m;
   uint32_t frame;
+  double time; /* the frame's drive time (s) */
   int n_walls, complete, files;
   cv_image *mont[CV_CAVE_MAX_WALLS], *unc[CV_CAVE_MAX_WALLS];
 } frame_images;
@@ -84,6 +86,13 @@ static void frame_images_free(void *p) {
 /* Display-linear images -> the transfer-applied values the montage writer
  * quantises (the PNGs' codes / 255), written whole (a temporary name, then
  * renamed).  CV_OK when written. */
+static const char *variant_name(const master *m, const char *suffix) {
+  if (!strcmp(suffix, "")) return m->disp ? "projector (compensated)" : "rendered (no compensation)";
+  if (!strcmp(suffix, "_uncompensated")) return "rendered (uncompensated)";
+  if (!strcmp(suffix, "_viewer")) return "viewer, compensated";
+  return "viewer, uncompensated";
+}
+
 static int write_montage(const frame_images *f, const char *suffix, cv_image **imgs, cv_err *err) {
   const master *m = f->m;
   const cv_service *s = m->s;
@@ -99,7 +108,9 @@ static int write_montage(const frame_images *f, const char *suffix, cv_image **i
   snprintf(path, sizeof path, "%s/montage%05u_L%s.png", s->o.out_dir, f->frame, suffix);
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
   if (st) st = cv_err_set(err, st, "montage %s: out of memory", path);
-  if (!st) st = cv_montage_write(tmp, &s->cave, tr, err);
+  char caption[160];
+  snprintf(caption, sizeof caption, "frame %u  t %.3f s\n%s\nleft eye", f->frame, f->time, variant_name(m, suffix));
+  if (!st) st = cv_montage_write_labelled(tmp, &s->cave, tr, caption, err);
   if (!st && rename(tmp, path)) st = cv_err_set(err, CV_ERR_IO, "%s: cannot rename %s into place", path, tmp);
   if (st) remove(tmp);
   for (int w = 0; w < f->n_walls; w++) cv_image_destroy(tr[w]);
@@ -211,6 +222,7 @@ static int frame_images_run(void *p, cv_err *err) {
     const int vs = viewer_simulation(f, &e2);
     if (!st && vs) st = vs, *err = e2;
   }
+  if (f->files && !st) st = cv_index_html_write(m->s->o.out_dir, err); /* the newest montages shown */
   return st;
 }
 
@@ -222,6 +234,7 @@ void montage_flush(master *m) {
   if (f) {
     f->m = m;
     f->frame = m->mont_frame;
+    f->time = master_frame_time(m, m->mont_frame);
     f->n_walls = m->s->n_walls;
     f->complete = m->mont_have >= m->s->n_walls;
     f->files = (m->s->o.present & CV_PRESENT_FILES) != 0;

@@ -1,6 +1,7 @@
 /* The master's state and the parts of its frame loop that live in their own
  * files (internal to cluster/):
- *   master.c         set-up, the frame loop as named phases, metrics
+ *   master.c         set-up, the frame loop as named phases
+ *   master_metrics.c the metrics lines (ready, frame, summary)
  *   master_sync.c    clock probes of the render ranks, swap skew, tracker
  *                    age and motion-to-photon latency, head prediction,
  *                    stop requests from windows
@@ -11,6 +12,7 @@
 #ifndef CV_CLUSTER_MASTER_INTERNAL_H
 #define CV_CLUSTER_MASTER_INTERNAL_H
 
+#include <math.h>
 #include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -216,6 +218,17 @@ typedef struct master {
   int desk_marked;        /* the current frame is a preview frame */
   uint64_t desk_marks, desk_shown; /* preview frames marked, shown */
   double desk_show_ms;    /* the last compose + XPutImage */
+  int desk_pic_w, desk_pic_h; /* the walls' picture (cross or one wall) at (0, 0) */
+  int desk_gaze_n;        /* the view along the gaze: n x n right of the picture */
+  int desk_band;          /* the readout band's height, below both */
+  int desk_label;         /* label scale (view/montage.h) */
+  int desk_win_k;         /* the window's pixels per composed pixel */
+  struct {
+    uint32_t frame;
+    double head[3], gaze[3];
+  } desk_pose[8];         /* the head and gaze of the last preview frames (ring by frame) */
+  double desk_fps, desk_fps_t0; /* frames per second over the last second or more */
+  size_t desk_fps_n0;
   /* the live console (master_http.c) */
   struct cv_console *con;
   struct cv_http *http;
@@ -235,6 +248,7 @@ typedef struct master {
   FILE *mf;
   char metrics_path[4200];  /* where mf writes */
   off_t metrics_good;       /* bytes of whole lines in it */
+  uint32_t metrics_rotations; /* files rotated (--metrics-max-mb) */
   char metrics_err[400];    /* why a line could not be written ("" none: master_out.c) */
   int files_stop_said;      /* the stop for failed frame files was made */
   uint64_t prt_hash;        /* content hash of the .prt the master loaded (cv_prt_meta.file_hash) */
@@ -253,6 +267,7 @@ typedef struct master {
   double *overhead_cpu_ms; /* the master thread's CPU time in overhead_ms's intervals */
   double run_cpu0_ms;      /* its CPU time when the frames started */
   double *frame_t;        /* cap: service time each frame started */
+  double *frame_sim_t;    /* cap: each frame's drive time (s; frame_clock) */
   size_t cap;             /* entries of the per-frame histories */
   size_t nframes_done;
 } master;
@@ -345,7 +360,7 @@ void master_http_drive(master *m, cv_drive_state *d);
 int master_desktop_setup(master *m, cv_err *err);
 void master_desktop_free(master *m);
 /* 1 when frame f is a preview frame (--desktop-fps allows one now). */
-int master_desktop_mark(master *m, uint32_t f);
+int master_desktop_mark(master *m, uint32_t f, const double head[3], const double gaze[3]);
 /* Takes preview images; shows a frame once all its walls are in. */
 void master_desktop_drain(master *m);
 /* Takes the window's events: input steers the head (m->pose, a tracker
@@ -368,6 +383,24 @@ void montage_flush(master *m);
  * says where the metrics are and whether they are complete. */
 int master_out_open(master *m, cv_err *err);
 void master_metrics_put(master *m);
+
+/* The master's metrics lines (master_metrics.c).  frame_times: the
+ * service times (s) and the master thread's CPU times (ms) of a frame's
+ * phases. */
+typedef struct frame_times {
+  double tf0, t_sent, t_wait, tc0, tc1, tf1;
+  double cf0, c_sent, c_wait, cc0, cc1, cf1; /* the master thread's CPU time there (ms) */
+} frame_times;
+/* This thread's CPU time (ms). */
+double master_thread_cpu_ms(void);
+/* Frame f's drive time (s), NAN past the history. */
+static inline double master_frame_time(const master *m, uint32_t f) {
+  return f < m->cap && m->frame_sim_t ? m->frame_sim_t[f] : (double)NAN;
+}
+void master_metrics_ready(master *m, const char *host, const char *const *lines);
+void master_metrics_frame(master *m, uint32_t f, const cv_frame_state *fs, const cv_lumstats *acc, int late,
+                          const frame_times *t, double overhead, double overhead_cpu);
+void master_metrics_summary(master *m, uint32_t f, double run_t0);
 void master_out_files_failed(master *m, int rank, uint64_t failed, const char *first);
 void master_out_final_line(master *m);
 /* A ready message (flag, 8-byte .prt hash, text) of rank `from`: its hash

@@ -19,6 +19,7 @@
 #include "lcd/light_level.h"
 #include "lcd/readability.h"
 #include "master_internal.h"
+#include "view/label.h"
 
 /* ---- LCD ---------------------------------------------------------------- */
 
@@ -398,6 +399,11 @@ void lcd_write(master *m, const char *stem) {
   if (cv_image_create(img->w, img->h, 3, &tm) == CV_OK) {
     uint64_t inv = 0;
     cv_drago_image(img, &dg, 1, tm, &inv);
+    /* each panel's name at its top-left (the PNG only: the EXR is data) */
+    static const uint8_t fg[3] = {255, 255, 160};
+    const cv_lcd_layout *L = &m->s->lcd_layout;
+    for (int i = 0; i < L->n && L->y0[i] + L->h[i] <= tm->h; i++)
+      cv_label_draw_image(tm, 1 + tm->w / 200, L->y0[i] + 1 + tm->w / 200, 1 + tm->w / 200, m->s->lcd.panels[i].name, fg);
     snprintf(path, sizeof path, "%s/%s.png", m->s->o.out_dir, stem);
     if (cv_service_write_png01(path, tm, &err)) fprintf(stderr, "cave run: %s\n", err.msg);
     cv_image_destroy(tm);

@@ -33,6 +33,53 @@ static void out_stop(master *m, const char *why) {
   fprintf(stderr, "cave run: stopping: %s\n", why);
 }
 
+/* The k-th rotated name of the metrics file: metrics.jsonl -> metrics.k.jsonl,
+ * any other name gets ".k" appended. */
+static void rotated_name(const char *path, int k, char *out, size_t cap) {
+  const size_t n = strlen(path);
+  if (n > 6 && !strcmp(path + n - 6, ".jsonl")) snprintf(out, cap, "%.*s.%d.jsonl", (int)(n - 6), path, k);
+  else snprintf(out, cap, "%s.%d", path, k);
+}
+
+/* Rotation (--metrics-max-mb, --metrics-keep): the file closed after its last
+ * whole line, the older ones shifted up (the oldest deleted), a new file
+ * opened.  0, or -1 with m->metrics_err set. */
+static int metrics_rotate(master *m) {
+  const int keep = m->s->o.metrics_keep;
+  char a[4300], b[4300];
+  if (fclose(m->mf) != 0) {
+    m->mf = NULL;
+    snprintf(m->metrics_err, sizeof m->metrics_err, "%.250s: close before rotation failed: %.60s", m->metrics_path,
+             strerror(errno));
+    return -1;
+  }
+  m->mf = NULL;
+  rotated_name(m->metrics_path, keep, a, sizeof a);
+  if (unlink(a) != 0 && errno != ENOENT) {
+    snprintf(m->metrics_err, sizeof m->metrics_err, "%.250s: cannot delete the oldest: %.60s", a, strerror(errno));
+    return -1;
+  }
+  for (int k = keep - 1; k >= 0; k--) {
+    if (k) rotated_name(m->metrics_path, k, a, sizeof a);
+    else snprintf(a, sizeof a, "%s", m->metrics_path);
+    rotated_name(m->metrics_path, k + 1, b, sizeof b);
+    if (rename(a, b) != 0 && (errno != ENOENT || k == 0)) {
+      snprintf(m->metrics_err, sizeof m->metrics_err, "rotation: cannot rename %.150s to %.150s: %.60s", a, b,
+               strerror(errno));
+      return -1;
+    }
+  }
+  m->mf = fopen(m->metrics_path, "w");
+  if (!m->mf) {
+    snprintf(m->metrics_err, sizeof m->metrics_err, "%.250s: cannot open after rotation: %.60s", m->metrics_path,
+             strerror(errno));
+    return -1;
+  }
+  m->metrics_good = 0;
+  m->metrics_rotations++;
+  return 0;
+}
+
 /* The line in m->ml, appended whole: a write that fails (a full disk) is cut
  * back to the last whole line (the file stays JSON lines) and stops the run;
  * so does a metrics file deleted under the run (its lines would go nowhere). */
@@ -42,7 +89,11 @@ void master_metrics_put(master *m) {
     return;
   }
   struct stat st;
-  if (fstat(fileno(m->mf), &st) == 0 && st.st_nlink == 0) {
+  const double max_b = m->s->o.metrics_max_mb * 1e6;
+  if (max_b > 0 && m->metrics_good > 0 && (double)m->metrics_good + (double)cv_metrics_length(m->ml) > max_b &&
+      metrics_rotate(m) != 0) {
+    cv_metrics_begin(m->ml);
+  } else if (fstat(fileno(m->mf), &st) == 0 && st.st_nlink == 0) {
     snprintf(m->metrics_err, sizeof m->metrics_err, "%.300s was deleted during the run (its folder removed?)",
              m->metrics_path);
     cv_metrics_begin(m->ml);
@@ -78,7 +129,8 @@ void master_out_final_line(master *m) {
   if (m->metrics_err[0])
     printf("cave run: %zu frames; metrics INCOMPLETE (no summary): %s\n", m->nframes_done, m->metrics_err);
   else
-    printf("cave run: %zu frames; metrics in %s\n", m->nframes_done, m->metrics_path);
+    printf("cave run: %zu frames; metrics in %s%s\n", m->nframes_done, m->metrics_path,
+           m->metrics_rotations ? " (and the rotated files before it)" : "");
 }
 
 void master_prt_check(master *m, int from, const uint8_t *data, long len) {

@@ -157,6 +157,14 @@ static void help(FILE *f) {
           "                       Authorization: Bearer T; else 401\n"
           "  --metrics FILE       JSON lines (default OUT/metrics.jsonl); its folder must exist\n"
           "                       (or be -o DIR)\n"
+          "  --metrics-every K    write every K-th frame's metrics line (frames 0, K, 2K..;\n"
+          "                       default 1: every frame); the ready and summary lines\n"
+          "                       always\n"
+          "  --metrics-max-mb M   rotate the metrics file before it would pass M MB (10^6\n"
+          "                       bytes; default 512; 0: never): metrics.jsonl becomes\n"
+          "                       metrics.1.jsonl, .1 becomes .2, ...; every file holds\n"
+          "                       whole lines (docs/metrics.md \"Rotation\")\n"
+          "  --metrics-keep N     rotated files kept (default 4; the oldest is deleted)\n"
           "  -o DIR               output folder, created when missing (default out/run)\n"
           "  --quiet              no per-frame lines\n"
           "  --check              check the configuration for --ranks N and print the\n"
@@ -221,6 +229,21 @@ static int parse_u32(const char *s, unsigned long long *out) {
   if (v > 4294967295ULL) return -1;
   *out = v;
   return 0;
+}
+
+/* --metrics-every K, --metrics-max-mb M, --metrics-keep N (docs/metrics.md,
+ * "Cadence and rotation"); a bad value is a problem. */
+static void parse_metrics_opt(const char *a, const char *v, cv_run_opts *o, problems *pb) {
+  double d;
+  if (!strcmp(a, "--metrics-every")) {
+    if (cv_parse_int(v, 1, 1000000, &o->metrics_every)) problem(pb, "--metrics-every: expected K in 1..1000000, got '%s'", v);
+  } else if (!strcmp(a, "--metrics-max-mb")) {
+    if (cv_parse_double(v, &d) || !(d == 0 || (d >= 0.01 && d <= 1e6)))
+      problem(pb, "--metrics-max-mb: expected 0 (never rotate) or 0.01..1000000 MB, got '%s'", v);
+    else o->metrics_max_mb = d;
+  } else if (!strcmp(a, "--metrics-keep")) {
+    if (cv_parse_int(v, 1, 1000, &o->metrics_keep)) problem(pb, "--metrics-keep: expected N in 1..1000, got '%s'", v);
+  }
 }
 
 static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, char *desktop_view,
@@ -359,6 +382,9 @@ static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, 
     } else if (!strcmp(a, "--size")) {
       NEED();
       if (cv_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
+    } else if (!strcmp(a, "--metrics-every") || !strcmp(a, "--metrics-max-mb") || !strcmp(a, "--metrics-keep")) {
+      NEED();
+      parse_metrics_opt(a, v, o, pb);
     } else if (!strcmp(a, "--write-every")) {
       NEED();
       if (cv_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);

@@ -51,6 +51,9 @@ typedef struct cv_run_opts {
   char out_dir[CV_PATHLEN];
   char display_path[CV_PATHLEN]; /* compensation display; "" = generated from the walls */
   char metrics_path[CV_PATHLEN]; /* "" = <out>/metrics.jsonl */
+  int metrics_every;             /* write every K-th frame's metrics line (default 1) */
+  double metrics_max_mb;         /* rotate the metrics file past this size, MB (default 512; 0 = never) */
+  int metrics_keep;              /* rotated files kept: metrics.1.jsonl .. metrics.N.jsonl (default 4) */
   char lcd_content[CV_PATHLEN];  /* "" = the scene config's (built-in test pattern) */
   char scene_config[CV_PATHLEN]; /* scene config whose "lcd" block sets the LCD model; "" = defaults */
   int dtrack_port;               /* > 0: live DTrack on this UDP port */

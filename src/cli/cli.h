@@ -5,10 +5,25 @@
 
 #include <stdio.h>
 
+#include "core/outfile.h"
 #include "io/scene_mesh.h"
 #include "io/scene_config.h"
 #include "mesh/mesh.h"
 #include "mesh/place.h"
+
+/* gnuplot's PNG under a temporary name (cli_plot_begin), checked and renamed
+ * by cli_plot_end: gnuplot writing a PNG straight to its name left a
+ * cut-short plot on a full disk that was reported as written (issue 35 (3)). */
+typedef struct cli_plot {
+  cv_outfile of;
+  FILE *g; /* gnuplot's stdin: the script, with output p->of.tmp */
+} cli_plot;
+/* 1: gnuplot started, its script goes to p->g with output p->of.tmp; 0: no
+ * gnuplot installed; -1: failed (err set). */
+int cli_plot_begin(cli_plot *p, const char *png, cv_err *err);
+/* Ends gnuplot; the plot gets its name only when gnuplot succeeded and the
+ * PNG decodes whole.  1 when written, -1 (err set, nothing left) if not. */
+int cli_plot_end(cli_plot *p, const char *png, cv_err *err);
 
 /* Subcommands: each returns the process exit status. */
 int cmd_cabin(int argc, char **argv);
@@ -22,6 +37,7 @@ int cmd_lcd(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 int cmd_tonemap(int argc, char **argv);
 int cmd_cluster(int argc, char **argv);
+int cmd_plot(int argc, char **argv);
 /* The MPI service; implemented in cluster/run.c (the only code with MPI). */
 int cmd_run(int argc, char **argv);
 

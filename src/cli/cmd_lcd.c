@@ -234,63 +234,14 @@ typedef struct drive_job {
   double dt;        /* seconds between steps */
 } drive_job;
 
-/* gnuplot's PNG under a temporary name (plot_begin), checked and renamed by
- * plot_end: gnuplot writing series.png straight to its name left a cut-short
- * plot on a full disk that was reported as written (issue 35 (3)). */
-typedef struct plot_out {
-  cv_outfile of;
-  FILE *g; /* gnuplot's stdin */
-} plot_out;
-
-/* 1: gnuplot started, its script goes to p->g with output p->of.tmp; 0: no
- * gnuplot installed; -1: failed (err set). */
-static int plot_begin(plot_out *p, const char *png, cv_err *err) {
-  memset(p, 0, sizeof *p);
-  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
-  if (cv_outfile_open(&p->of, png, 0, err) != CV_OK) return -1;
-  close(p->of.fd); /* gnuplot opens it by name */
-  p->of.fd = -1;
-  p->g = popen("gnuplot", "w");
-  if (!p->g) {
-    int e = errno;
-    cv_outfile_abort(&p->of);
-    cv_err_set(err, CV_ERR_IO, "%s: cannot start gnuplot: %s", png, strerror(e));
-    return -1;
-  }
-  return 1;
-}
-
-/* Ends gnuplot; the plot gets its name only when gnuplot succeeded and the
- * PNG decodes whole.  1 when written, -1 (err set, nothing left) if not. */
-static int plot_end(plot_out *p, const char *png, cv_err *err) {
-  const int st = pclose(p->g);
-  p->g = NULL;
-  cv_image *im = NULL;
-  cv_err e2;
-  cv_err_clear(&e2);
-  struct stat sb;
-  const long long bytes = stat(p->of.tmp, &sb) == 0 ? (long long)sb.st_size : -1;
-  const int whole = st == 0 && cv_png_read(p->of.tmp, &im, &e2) == CV_OK;
-  cv_image_destroy(im);
-  if (!whole) {
-    struct statvfs fs;
-    const double free_kb = statvfs(p->of.tmp, &fs) == 0 ? (double)fs.f_bavail * (double)fs.f_frsize / 1024.0 : -1;
-    cv_outfile_abort(&p->of);
-    cv_err_set(err, CV_ERR_IO, "%s: not written: gnuplot %s (%lld bytes; %.0f KB free on its disk)", png,
-               st != 0 ? "failed" : "wrote a cut-short or unreadable PNG", bytes, free_kb);
-    return -1;
-  }
-  return cv_outfile_commit(&p->of, err) == CV_OK ? 1 : -1;
-}
-
 /* Writes the plot PNG of a drive CSV with gnuplot (when it is installed):
  * CR with its error bars against time, the requirement as a line, the steps
  * below it marked.  Returns 1 when written, 0 without gnuplot, -1 on failure
  * (err set). */
 static int drive_plot(const char *csv, const char *png, double cr_min, const cv_lcd_config *lc,
                       int absolute, cv_err *err) {
-  plot_out po;
-  const int b = plot_begin(&po, png, err);
+  cli_plot po;
+  const int b = cli_plot_begin(&po, png, err);
   if (b <= 0) return b;
   FILE *g = po.g;
   fprintf(g,
@@ -315,7 +266,7 @@ static int drive_plot(const char *csv, const char *png, double cr_min, const cv_
             i == 0 ? "title 'UNREADABLE (CR, area or VL)'" : "notitle");
   }
   fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", cr_min, cr_min);
-  return plot_end(&po, png, err);
+  return cli_plot_end(&po, png, err);
 }
 
 /* Readability parameters of panel i: the block's, with the panel's white and
@@ -933,8 +884,8 @@ static int report_panels(const lcd_opts *o, const cv_lcd_config *lc, const cv_lc
 static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
                       const cv_lcd_read_params *rp, const double *cross, const float eye[3],
                       double lo, double hi, cv_err *err) {
-  plot_out po;
-  const int b = plot_begin(&po, png, err);
+  cli_plot po;
+  const int b = cli_plot_begin(&po, png, err);
   if (b <= 0) return b;
   FILE *g = po.g;
   const int np = lc->n_panels, cols = 11;
@@ -970,7 +921,7 @@ static int sweep_plot(const char *csv, const char *png, const cv_lcd_config *lc,
   }
   fprintf(g, "%g with lines dt 2 lw 2 lc rgb '#d62728' title 'required %g:1'\n", rp->cr_min,
           rp->cr_min);
-  return plot_end(&po, png, err);
+  return cli_plot_end(&po, png, err);
 }
 
 /* One panel's sweep summary from the grid's columns and the closed form. */

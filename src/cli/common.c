@@ -8,10 +8,12 @@
 #include <strings.h>
 #include <libgen.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "cli/cli.h"
 #include "core/parse.h"
+#include "io/png.h"
 #include "io/mesh_import.h"
 #include "mesh/cabin.h"
 #include "mesh/clean.h"
@@ -310,4 +312,45 @@ int cli_apply_weights(const char *cmd, cv_light_spec *spec, const char *weights)
   }
   if (!(sum > 0)) return cli_fail(cmd, 2, "--weights: the weights sum to 0");
   return 0;
+}
+
+/* 1: gnuplot started, its script goes to p->g with output p->of.tmp; 0: no
+ * gnuplot installed; -1: failed (err set). */
+int cli_plot_begin(cli_plot *p, const char *png, cv_err *err) {
+  memset(p, 0, sizeof *p);
+  if (system("command -v gnuplot >/dev/null 2>&1") != 0) return 0;
+  if (cv_outfile_open(&p->of, png, 0, err) != CV_OK) return -1;
+  close(p->of.fd); /* gnuplot opens it by name */
+  p->of.fd = -1;
+  p->g = popen("gnuplot", "w");
+  if (!p->g) {
+    int e = errno;
+    cv_outfile_abort(&p->of);
+    cv_err_set(err, CV_ERR_IO, "%s: cannot start gnuplot: %s", png, strerror(e));
+    return -1;
+  }
+  return 1;
+}
+
+/* Ends gnuplot; the plot gets its name only when gnuplot succeeded and the
+ * PNG decodes whole.  1 when written, -1 (err set, nothing left) if not. */
+int cli_plot_end(cli_plot *p, const char *png, cv_err *err) {
+  const int st = pclose(p->g);
+  p->g = NULL;
+  cv_image *im = NULL;
+  cv_err e2;
+  cv_err_clear(&e2);
+  struct stat sb;
+  const long long bytes = stat(p->of.tmp, &sb) == 0 ? (long long)sb.st_size : -1;
+  const int whole = st == 0 && cv_png_read(p->of.tmp, &im, &e2) == CV_OK;
+  cv_image_destroy(im);
+  if (!whole) {
+    struct statvfs fs;
+    const double free_kb = statvfs(p->of.tmp, &fs) == 0 ? (double)fs.f_bavail * (double)fs.f_frsize / 1024.0 : -1;
+    cv_outfile_abort(&p->of);
+    cv_err_set(err, CV_ERR_IO, "%s: not written: gnuplot %s (%lld bytes; %.0f KB free on its disk)", png,
+               st != 0 ? "failed" : "wrote a cut-short or unreadable PNG", bytes, free_kb);
+    return -1;
+  }
+  return cv_outfile_commit(&p->of, err) == CV_OK ? 1 : -1;
 }

@@ -25,6 +25,7 @@ static const struct {
     {"render", cmd_render, "render every wall-eye of a CAVE on the GPU with shared adaptation"},
     {"tonemap", cmd_tonemap, "Drago tone mapping of an HDR image (EXR or PNG out)"},
     {"tracker", cmd_tracker, "print DTrack head poses in CAVE coordinates (check a calibration)"},
+    {"plot", cmd_plot, "PNG plots of a run from its metrics.jsonl: frame time, skew, latency, readability"},
     {"cluster", cmd_cluster, "write the Open MPI rankfile/hostfile of a multi-host CAVE"},
 #ifdef CAVE_HAVE_CLUSTER
     {"run", cmd_run, "the CAVE render service under mpirun (master, wall-eyes, LCD gather)"},

@@ -2,6 +2,8 @@
  * scaled into an XImage of the window's size and put with XPutImage. */
 #include "render/desktop.h"
 
+#include <math.h>
+
 #include <X11/Xlib.h>
 #include <X11/Xutil.h>
 #include <X11/keysym.h>
@@ -112,6 +114,11 @@ static int make_window(cv_desktop *d, const char *title, int w, int h, cv_err *e
 }
 
 int cv_desktop_open(const char *display, const char *title, int w, int h, cv_desktop **out, cv_err *err) {
+  return cv_desktop_open_scaled(display, title, w, h, 0, NULL, out, err);
+}
+
+int cv_desktop_open_scaled(const char *display, const char *title, int w, int h, double frac, int *k_out,
+                           cv_desktop **out, cv_err *err) {
   *out = NULL;
   if (w < 1 || h < 1) return cv_err_set(err, CV_ERR_INVALID, "desktop window: size %dx%d", w, h);
   const char *name = display && display[0] ? display : getenv("DISPLAY");
@@ -127,7 +134,14 @@ int cv_desktop_open(const char *display, const char *title, int w, int h, cv_des
   }
   XSetIOErrorExitHandler(d->dpy, io_exit, d);
   snprintf(d->name, sizeof d->name, "%s", DisplayString(d->dpy));
-  int st = make_window(d, title, w, h, err);
+  int k = 1;
+  if (frac > 0) { /* on this connection: a server without -noreset resets when its last client leaves */
+    const int scr = DefaultScreen(d->dpy);
+    const double kk = fmin(frac * DisplayWidth(d->dpy, scr) / w, frac * DisplayHeight(d->dpy, scr) / h);
+    k = kk >= 2 ? (int)kk : 1;
+  }
+  if (k_out) *k_out = k;
+  int st = make_window(d, title, k * w, k * h, err);
   if (st) {
     cv_desktop_destroy(d);
     return st;

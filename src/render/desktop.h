@@ -39,6 +39,11 @@ typedef struct cv_desktop_input {
  * CV_ERR_INVALID (w or h < 1), CV_ERR_NOMEM.  *out owned by the caller
  * (cv_desktop_destroy). */
 int cv_desktop_open(const char *display, const char *title, int w, int h, cv_desktop **out, cv_err *err);
+/* As cv_desktop_open, at k times w x h: k the largest whole number that
+ * keeps the window within frac of the screen's width and height (1 at
+ * least; frac <= 0: 1), into *k_out (may be NULL). */
+int cv_desktop_open_scaled(const char *display, const char *title, int w, int h, double frac, int *k_out,
+                           cv_desktop **out, cv_err *err);
 /* The display's name as Xlib reports it (":99"). */
 const char *cv_desktop_display_name(const cv_desktop *d);
 /* The window's current size in pixels. */

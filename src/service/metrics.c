@@ -194,6 +194,10 @@ const char *cv_metrics_text(cv_metrics_line *m) {
   return m->text;
 }
 
+size_t cv_metrics_length(const cv_metrics_line *m) {
+  return m && !m->failed ? m->len + (size_t)m->depth + 1 : 0;
+}
+
 int cv_metrics_write(cv_metrics_line *m, FILE *f) {
   if (!m || !f) return CV_ERR_INVALID;
   if (m->failed) {

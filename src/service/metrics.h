@@ -54,6 +54,9 @@ const char *cv_metrics_text(cv_metrics_line *m);
  * failed; nothing written), CV_ERR_IO (write or flush failed),
  * CV_ERR_INVALID (NULL). */
 int cv_metrics_write(cv_metrics_line *m, FILE *f);
+/* Bytes cv_metrics_write would write for the object so far (its closing
+ * braces and the newline included). */
+size_t cv_metrics_length(const cv_metrics_line *m);
 /* Non-finite doubles written as null since create (running total). */
 uint64_t cv_metrics_nonfinite(const cv_metrics_line *m);
 

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "io/png.h"
+#include "view/label.h"
 
 static int cube_cell(const char *name, int *col, int *row) {
   static const struct {
@@ -55,7 +56,25 @@ int cv_montage_layout(const cv_cave *cave, const int *ws, const int *hs, int *x,
   return CV_OK;
 }
 
+int cv_montage_label_scale(int cell_w) { return cell_w >= 192 ? cell_w / 96 : 1; }
+
+void cv_montage_label_walls(uint8_t *px, int W, int H, const cv_cave *cave, const int *x, const int *y, int scale) {
+  static const uint8_t fg[3] = {255, 255, 160};
+  for (int i = 0; i < cave->n_walls; i++) cv_label_draw(px, W, H, x[i] + scale, y[i] + scale, scale, cave->walls[i].name, fg);
+}
+
+int cv_montage_caption_lines(const char *caption) {
+  int n = 1;
+  for (const char *c = caption; *c; c++) n += *c == '\n';
+  return n;
+}
+
 int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *disp, cv_err *err) {
+  return cv_montage_write_labelled(path, cave, disp, NULL, err);
+}
+
+int cv_montage_write_labelled(const char *path, const cv_cave *cave, cv_image *const *disp, const char *caption,
+                              cv_err *err) {
   if (!path || !cave || !disp || cave->n_walls < 1 || cave->n_walls > CV_CAVE_MAX_WALLS)
     return cv_err_set(err, CV_ERR_INVALID, "montage: no walls");
   /* a missing wall (NULL) takes the largest wall's size: a black cell */
@@ -72,7 +91,9 @@ int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *dis
   int W, H;
   int st = cv_montage_layout(cave, ws, hs, xs, ys, &W, &H, err);
   if (st) return st;
-  uint8_t *px = calloc((size_t)W * H * 3, 1);
+  const int scale = cv_montage_label_scale(mw);
+  const int band = caption ? cv_montage_caption_lines(caption) * cv_label_height(scale) + 2 * scale : 0;
+  uint8_t *px = calloc((size_t)W * (H + band) * 3, 1);
   if (!px) return cv_err_set(err, CV_ERR_NOMEM, "montage: out of memory");
   for (int i = 0; i < cave->n_walls; i++) {
     const cv_image *im = disp[i];
@@ -85,7 +106,12 @@ int cv_montage_write(const char *path, const cv_cave *cave, cv_image *const *dis
           px[((size_t)(ys[i] + y) * W + xs[i] + x) * 3 + k] = (uint8_t)lrintf(v * 255.0f);
         }
   }
-  st = cv_png_write(path, W, H, 3, px, err);
+  if (caption) {
+    static const uint8_t white[3] = {255, 255, 255};
+    cv_montage_label_walls(px, W, H, cave, xs, ys, scale);
+    cv_label_draw(px, W, H + band, scale, H + scale, scale, caption, white);
+  }
+  st = cv_png_write(path, W, H + band, 3, px, err);
   free(px);
   return st;
 }

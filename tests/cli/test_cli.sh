@@ -312,13 +312,13 @@ if $CAVE --help | grep -q "^  run "; then
   grep -q "^--transfer: expected auto, float or half, got 'double'" err.txt && ok "run --transfer double refused" || { bad "run --transfer double"; cat err.txt; }
   expect_ok "run --check --transfer half" $CAVE run --check --ranks 11 "$ROOT/configs/caves/cave5.json" --scene a.prt --transfer half
 fi
-for c in cabin bake shade materials render lcd compensate tonemap tracker run; do
+for c in cabin bake shade materials render lcd compensate tonemap tracker run plot; do
   $CAVE --help | grep -q "^  $c " || continue
   $CAVE $c --help >out.txt 2>&1
   grep -q "^examples:" out.txt && tail -1 out.txt | grep -Eq "^  (mpirun .*)?cave $c " \
     && ok "$c --help ends with examples" || { bad "$c --help has no examples at the end"; tail -3 out.txt; }
 done
-for c in bake shade materials tracker lcd compensate tonemap; do
+for c in bake shade materials tracker lcd compensate tonemap plot; do
   $CAVE $c >out.txt 2>err.txt; rc=$?
   n=$(wc -l <err.txt) nh=$($CAVE $c --help | wc -l)
   # the usage synopsis (up to 9 lines) and one error line, not the whole help

@@ -4,13 +4,18 @@
 #   - option checks: desktop with window, a bad --desktop-view: status 2;
 #   - no X display (DISPLAY=:987, no server there): one line naming it,
 #     non-zero exit, quickly;
-#   - the preview window exists with its title at the cross's size and shows
-#     exactly the codes of the uncompensated montage the master wrote
-#     (the scene is static, so any frame after the first few is that
-#     frame); the screenshot's 3 x 3 cells: the five walls lit, the four
-#     corners black;
+#   - the preview window exists with its title at the composed picture's
+#     size (the cross, the view along the gaze beside it, three readout
+#     lines below) times the largest whole scale within 80% of the screen,
+#     and its cross shows exactly the codes of the (labelled) uncompensated
+#     montage the master wrote, wall names included (the scene is static, so
+#     any frame after the first few is that frame); the cross's 3 x 3 cells:
+#     the five walls lit, the four corners black;
 #   - Right x4 moves the metrics' tracker head 4 x 5 cm along +x; a left
 #     drag of 40 pixels turns the gaze 10 degrees right; R resets both;
+#   - a drag of 200 pixels (50 degrees) changes the view along the gaze
+#     (mean code difference before/after) more than 3 times as much as the
+#     cross changes (whose walls do not depend on the gaze);
 #   - closing the window stops every rank with exit 0, whole files and a
 #     message naming the desktop window;
 #   - --desktop-view front: the one wall, the same codes as its
@@ -83,18 +88,23 @@ pid=$!
 for i in $(seq 1 240); do [ -s d/montage00020_L_uncompensated.png ] && break; sleep 0.5; done
 [ -s d/montage00020_L_uncompensated.png ] && ok "frames 0-20 previewed and written" || bad "no frame 20 after 120 s: $(tail -3 d.err)"
 read -r wid x y ww hh < <("$XCHECK" find "$TITLE" 2>/dev/null) || true
-[ "${ww:-}" = $((3 * S)) ] && [ "${hh:-}" = $((3 * S)) ] && ok "window '$TITLE' ${ww}x$hh (3 x 3 cells of ${S}x$S)" \
-  || bad "window '$TITLE': ${wid:-none} ${ww:-?}x${hh:-?}"
+# composed: cross 3S x 3S, the gaze view 3S x 3S beside it, a band of 3 lines of 9 px + 2 below
+# (label scale 1 below 192-px walls); the window K times that, K the largest whole number
+# within 80% of the 1280 x 800 screen
+CW=$((6 * S)); CH=$((3 * S + 29))
+K=$(python3 -c "import math; print(max(1, math.floor(min(0.8 * 1280 / $CW, 0.8 * 800 / $CH))))")
+[ "${ww:-}" = $((K * CW)) ] && [ "${hh:-}" = $((K * CH)) ] && ok "window '$TITLE' ${ww}x$hh ($K x ${CW}x$CH: cross, gaze view, readouts)" \
+  || bad "window '$TITLE': ${wid:-none} ${ww:-?}x${hh:-?}, expected $((K * CW))x$((K * CH))"
 same=0
 for try in 1 2 3; do
   mont=$(ls d/montage*_L_uncompensated.png | tail -1)
-  r=$("$XCHECK" compare "$TITLE" "$mont" 2>&1)
+  r=$("$XCHECK" compare "$TITLE" "$mont" "$K" $((3 * S)) 2>&1)
   echo "$r" | grep -q "^max 0 " && { same=1; break; }
   sleep 1
 done
 [ $same -eq 1 ] && ok "the window shows exactly the codes of $mont (max difference 0)" || bad "window vs $mont: $r"
 "$XCHECK" grab "$TITLE" desktop.png >/dev/null 2>&1 && ok "screenshot desktop.png" || bad "screenshot"
-"$XCHECK" cells "$TITLE" 3 3 > cells.txt
+"$XCHECK" cells "$TITLE" 3 3 $((K * 3 * S)) $((K * 3 * S)) > cells.txt
 python3 - cells.txt <<'PY' && ok "cross layout: ceiling / left front right / floor lit, the four corners black" || bad "cells: $(tr '\n' ';' < cells.txt)"
 import sys
 cells = {(int(c), int(r)): (float(m), int(x)) for c, r, m, x in (l.split() for l in open(sys.argv[1]))}
@@ -120,6 +130,19 @@ xdotool mousemove --window "$wid" 60 96 mousedown 1 mousemove --window "$wid" 80
   mousemove --window "$wid" 100 96 mouseup 1 2>/dev/null
 t=$(wait_tracker d "abs(g[0] - 0.173648) < 1e-3 and abs(g[2] + 0.984808) < 1e-3 and abs(g[1]) < 1e-9" 30) \
   && ok "left drag 40 px: gaze -> $(echo $t | cut -d' ' -f4-6) (10 degrees right)" || bad "drag: gaze $t"
+# a drag of 200 pixels: 50 degrees; the view along the gaze turns, the cross barely changes
+sleep 1
+"$XCHECK" grab "$TITLE" before_drag.png >/dev/null 2>&1
+xdotool mousemove --window "$wid" 60 96 mousedown 1 mousemove --window "$wid" 160 96 \
+  mousemove --window "$wid" 260 96 mouseup 1 2>/dev/null
+t=$(wait_tracker d "abs(g[0] - 0.866025) < 1e-3 and abs(g[2] + 0.5) < 1e-3" 30) || bad "drag 200 px: gaze $t"
+sleep 2
+"$XCHECK" grab "$TITLE" after_drag.png >/dev/null 2>&1
+P=$((K * 3 * S))
+dg=$("$XCHECK" diff before_drag.png after_drag.png $P 0 $P $P 2>&1); dc=$("$XCHECK" diff before_drag.png after_drag.png 0 0 $P $P 2>&1)
+python3 -c "import sys; g, c = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if g > 5 and g > 3 * c else 1)" "$dg" "$dc" 2>/dev/null \
+  && ok "drag 200 px (gaze 10 -> 60 degrees right): the view along the gaze changed by $dg codes (mean), the cross by $dc" \
+  || bad "drag 200 px: view along the gaze changed by $dg, the cross by $dc (before_drag.png, after_drag.png)"
 xdotool key --window "$wid" r 2>/dev/null
 t=$(wait_tracker d "abs(h[0]) < 1e-9 and abs(h[1] - 1.2) < 1e-9 and abs(h[2]) < 1e-9 and abs(g[2] + 1) < 1e-9" 30) \
   && ok "R: back to the config's head and gaze: $t" || bad "R: $t"
@@ -152,15 +175,17 @@ done
 pid=$!
 for i in $(seq 1 240); do [ -s f/montage00010_L.png ] && break; sleep 0.5; done
 FT="cave desktop preview (front)"
+FW=$((2 * S)); FH=$((S + 29)) # the wall, the gaze view as tall, the readouts
+KF=$(python3 -c "import math; print(max(1, math.floor(min(0.8 * 1280 / $FW, 0.8 * 800 / $FH))))")
 read -r wid x y ww hh < <("$XCHECK" find "$FT" 2>/dev/null) || true
 same=0
 for try in 1 2 3; do
   png=$(ls f/frame*_front_L_uncompensated.png | tail -1)
-  r=$("$XCHECK" compare "$FT" "$png" 2>&1)
+  r=$("$XCHECK" compare "$FT" "$png" "$KF" "$S" 2>&1)
   echo "$r" | grep -q "^max 0 " && { same=1; break; }
   sleep 1
 done
-[ "${ww:-}" = $S ] && [ $same -eq 1 ] && ok "--desktop-view front: ${ww}x$hh, the codes of $png" || bad "front view: ${ww:-?}x${hh:-?} $r"
+[ "${ww:-}" = $((KF * FW)) ] && [ "${hh:-}" = $((KF * FH)) ] && [ $same -eq 1 ] && ok "--desktop-view front: ${ww}x$hh ($KF x ${FW}x$FH), the codes of $png" || bad "front view: ${ww:-?}x${hh:-?} $r"
 xdotool key --window "$wid" Escape 2>/dev/null
 for i in $(seq 1 120); do kill -0 $pid 2>/dev/null || break; sleep 0.5; done
 if kill -0 $pid 2>/dev/null; then bad "Escape did not stop the service"; kill -TERM $pid; sleep 5; kill -KILL $pid 2>/dev/null; fi

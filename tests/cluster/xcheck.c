@@ -2,18 +2,27 @@
  * test_desktop.sh):
  *   xcheck find TITLE              prints "id x y w h" of the window whose
  *                                  title starts with TITLE (root coordinates)
- *   xcheck compare TITLE FILE.png  compares the window's pixels with a PNG of
+ *   xcheck compare TITLE FILE.png [K [ROWS]]
+ *                                  compares the window's pixels with a PNG of
  *                                  the same size: prints "max N differing M of T"
- *                                  (channel codes), exit 0 when compared
+ *                                  (channel codes), exit 0 when compared; with K,
+ *                                  the window shows the PNG's first ROWS rows
+ *                                  (default all) K times enlarged at its top-left:
+ *                                  window pixel (x, y) against PNG pixel (x/K, y/K)
  *   xcheck close TITLE             asks the window to close as a window
  *                                  manager does (WM_DELETE_WINDOW)
  *   xcheck grab TITLE|root OUT.png screenshot
- *   xcheck cells TITLE NX NY       splits the window into NX x NY cells and
- *                                  prints "col row mean max" per cell (mean
- *                                  and max of the channel codes)
+ *   xcheck cells TITLE NX NY [W H] splits the window (or its top-left W x H)
+ *                                  into NX x NY cells and prints "col row mean
+ *                                  max" per cell (mean and max of the channel
+ *                                  codes)
+ *   xcheck diff A.png B.png X Y W H  prints the mean absolute difference of
+ *                                  the channel codes of two PNGs in a rectangle
+ *                                  (no X display needed)
  * Exit 1 with a message when the window is missing or the PNG unreadable. */
 #include <X11/Xlib.h>
 #include <X11/Xutil.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,13 +65,15 @@ static int grab(Display *d, Window w, int *W, int *H, unsigned char **rgb) {
 }
 
 /* Mean and max code per cell of an nx x ny grid over the window. */
-static int cells(Display *d, Window w, int nx, int ny) {
-  int W, H;
+static int cells(Display *d, Window w, int nx, int ny, int rw, int rh) {
+  int W, H, GW, GH;
   unsigned char *rgb;
-  if (nx < 1 || ny < 1 || grab(d, w, &W, &H, &rgb)) {
+  if (nx < 1 || ny < 1 || grab(d, w, &GW, &GH, &rgb)) {
     fprintf(stderr, "xcheck: cannot read the window's pixels (or a bad grid)\n");
     return 1;
   }
+  W = rw > 0 && rw < GW ? rw : GW;
+  H = rh > 0 && rh < GH ? rh : GH;
   for (int cy = 0; cy < ny; cy++)
     for (int cx = 0; cx < nx; cx++) {
       const int x0 = cx * W / nx, x1 = (cx + 1) * W / nx, y0 = cy * H / ny, y1 = (cy + 1) * H / ny;
@@ -72,7 +83,7 @@ static int cells(Display *d, Window w, int nx, int ny) {
       for (int y = y0; y < y1; y++)
         for (int x = x0; x < x1; x++)
           for (int c = 0; c < 3; c++, n++) {
-            const int v = rgb[3 * ((size_t)y * W + x) + c];
+            const int v = rgb[3 * ((size_t)y * GW + x) + c];
             sum += v;
             if (v > mx) mx = v;
           }
@@ -82,7 +93,33 @@ static int cells(Display *d, Window w, int nx, int ny) {
   return 0;
 }
 
+/* Mean absolute difference of two PNGs' codes in a rectangle. */
+static int diff(char **argv) {
+  cv_image *a = NULL, *b = NULL;
+  cv_err err;
+  const int x0 = atoi(argv[4]), y0 = atoi(argv[5]), w = atoi(argv[6]), h = atoi(argv[7]);
+  int rc = 1;
+  if (cv_png_read(argv[2], &a, &err) || cv_png_read(argv[3], &b, &err)) {
+    fprintf(stderr, "xcheck: %s\n", err.msg);
+  } else if (a->w != b->w || a->h != b->h || a->c < 3 || b->c < 3 || x0 < 0 || y0 < 0 || w < 1 || h < 1 ||
+             x0 + w > a->w || y0 + h > a->h) {
+    fprintf(stderr, "xcheck: %dx%d and %dx%d, rectangle %d %d %d %d\n", a->w, a->h, b->w, b->h, x0, y0, w, h);
+  } else {
+    double s = 0;
+    for (int y = y0; y < y0 + h; y++)
+      for (int x = x0; x < x0 + w; x++)
+        for (int c = 0; c < 3; c++)
+          s += 255.0 * fabs((double)a->px[((size_t)y * a->w + x) * a->c + c] - b->px[((size_t)y * b->w + x) * b->c + c]);
+    printf("%.3f\n", s / (3.0 * w * h));
+    rc = 0;
+  }
+  cv_image_destroy(a);
+  cv_image_destroy(b);
+  return rc;
+}
+
 int main(int argc, char **argv) {
+  if (argc == 8 && !strcmp(argv[1], "diff")) return diff(argv);
   if (argc < 3) {
     fprintf(stderr, "usage: xcheck find|compare|close|grab|cells TITLE [FILE | NX NY]\n");
     return 2;
@@ -134,26 +171,34 @@ int main(int argc, char **argv) {
       if (cv_png_read(argv[3], &ref, &err)) {
         fprintf(stderr, "xcheck: %s\n", err.msg);
         rc = 1;
-      } else if (ref->w != W || ref->h != H || ref->c < 3) {
-        fprintf(stderr, "xcheck: window %dx%d, PNG %dx%d\n", W, H, ref->w, ref->h);
-        rc = 1;
       } else {
-        int mx = 0;
-        long differing = 0;
-        for (long i = 0; i < (long)W * H; i++)
-          for (int c = 0; c < 3; c++) {
-            int a = rgb[3 * i + c], b = (int)(ref->px[i * ref->c + c] * 255.0f + 0.5f);
-            int df = a > b ? a - b : b - a;
-            if (df > mx) mx = df;
-            differing += df != 0;
-          }
-        printf("max %d differing %ld of %ld\n", mx, differing, 3L * W * H);
+        const int k = argc > 4 ? atoi(argv[4]) : 1;
+        const int rows = argc > 5 ? atoi(argv[5]) : ref->h;
+        const int cw = k * ref->w, ch = k * rows;
+        if (k < 1 || rows < 1 || rows > ref->h || ref->c < 3 || (k == 1 && argc <= 4 && (ref->w != W || ref->h != H)) ||
+            cw > W || ch > H) {
+          fprintf(stderr, "xcheck: window %dx%d, PNG %dx%d (x%d, %d rows)\n", W, H, ref->w, ref->h, k, rows);
+          rc = 1;
+        } else {
+          int mx = 0;
+          long differing = 0;
+          for (int y = 0; y < ch; y++)
+            for (int x = 0; x < cw; x++)
+              for (int c = 0; c < 3; c++) {
+                const long i = (long)y * W + x, j = (long)(y / k) * ref->w + x / k;
+                int a = rgb[3 * i + c], b = (int)(ref->px[j * ref->c + c] * 255.0f + 0.5f);
+                int df = a > b ? a - b : b - a;
+                if (df > mx) mx = df;
+                differing += df != 0;
+              }
+          printf("max %d differing %ld of %ld\n", mx, differing, 3L * cw * ch);
+        }
       }
       cv_image_destroy(ref);
     }
     free(rgb);
   } else if (!strcmp(cmd, "cells") && argc > 4) {
-    rc = cells(d, w, atoi(argv[3]), atoi(argv[4]));
+    rc = cells(d, w, atoi(argv[3]), atoi(argv[4]), argc > 6 ? atoi(argv[5]) : 0, argc > 6 ? atoi(argv[6]) : 0);
   } else {
     fprintf(stderr, "usage: xcheck find|compare|close|grab|cells TITLE [FILE | NX NY]\n");
     rc = 2;
