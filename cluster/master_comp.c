@@ -230,13 +230,13 @@ void master_path_sample(master *m, int from, const cv_walleye_report *r) {
 void master_path_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_object_begin(ml, "frame_path");
   cv_metrics_uint(ml, "samples", m->path_n);
-  master_metrics_pct(ml, "read_bytes", m->path_read, m->path_n);
-  master_metrics_pct(ml, "cpu_ms", m->path_cpu, m->path_n);
+  cv_metrics_percentiles(ml, "read_bytes", m->path_read, m->path_n);
+  cv_metrics_percentiles(ml, "cpu_ms", m->path_cpu, m->path_n);
   size_t ng = 0; /* GPU times where a timer query ran */
   for (size_t i = 0; i < m->path_n; i++)
     if (m->path_gpu[i] >= 0) m->path_gpu[ng++] = m->path_gpu[i];
-  master_metrics_pct(ml, "gpu_ms", m->path_gpu, ng);
-  master_metrics_pct(ml, "corr_wait_ms", m->path_wait, m->path_n);
+  cv_metrics_percentiles(ml, "gpu_ms", m->path_gpu, ng);
+  cv_metrics_percentiles(ml, "corr_wait_ms", m->path_wait, m->path_n);
   uint64_t late = 0;
   for (int i = 0; m->late_corr && i < m->s->n_render; i++) late += m->late_corr[i];
   cv_metrics_uint(ml, "late_corrections", late);

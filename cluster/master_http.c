@@ -266,7 +266,7 @@ static void view_state(master *m, const cv_frame_state *fs) {
   cs->lcd_rounds = m->lcd_rounds;
   for (int i = 0; i < cs->n_panels; i++) cs->cr[i] = m->lread.valid ? m->lread.p[i].cr.value : NAN;
   cs->cr_min = m->lread.valid ? m->lread.cr_min : NAN;
-  snprintf(cs->verdict, sizeof cs->verdict, "%s", m->lcd_mb ? lcd_verdict_text(m) : "");
+  snprintf(cs->verdict, sizeof cs->verdict, "%s", m->lcd_mb && m->lcd_verdict ? m->lcd_verdict : "");
   cs->skew_us = m->skew_us;
   cs->mtp_ms = m->mtp_ms;
 }
@@ -388,6 +388,6 @@ void master_http_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_uint(ml, "refused", refused);
   cv_metrics_uint(ml, "controls_applied", m->con_st->controls_applied);
   cv_metrics_uint(ml, "controls_rejected", m->con_st->controls_rejected);
-  master_metrics_pct(ml, "master_thread_ms", m->con_ms, m->con_n);
+  cv_metrics_percentiles(ml, "master_thread_ms", m->con_ms, m->con_n);
   cv_metrics_object_end(ml);
 }

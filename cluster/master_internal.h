@@ -139,6 +139,7 @@ typedef struct master {
     int have_light;       /* the rounds carried the light level (lcdwork.c) */
     double light[3];      /* outdoor horizontal, eye horizontal, eye vertical illuminance */
   } lread;
+  const char *lcd_verdict; /* the first panel's verdict of lread (master_lcd.c; NULL before) */
   /* the readability over the drive's frames, as their metrics lines had it
    * (master_lcd.c: lcd_drive_tally, the summary's lcd_drive) */
   struct {
@@ -297,7 +298,6 @@ void master_head(master *m, double now, double frame_time, double head[3], doubl
 void master_sync_metrics(master *m, cv_metrics_line *ml);
 void master_sync_summary(master *m, cv_metrics_line *ml);
 /* "<stem>_p50", "_p99", "_max" of v[0..n) into the line (nothing when n = 0). */
-void master_metrics_pct(cv_metrics_line *ml, const char *stem, const double *v, size_t n);
 
 /* master_lcd.c */
 void lcd_drain(master *m);
@@ -329,7 +329,6 @@ void lcd_drive_tally(master *m, uint32_t frame, double t, double dt_s, int held)
 void lcd_drive_summary(master *m, cv_metrics_line *ml, const char *name);
 
 /* Panel 0's verdict text of the last estimate ("" before the first). */
-const char *lcd_verdict_text(master *m);
 
 /* The live console (master_http.c, docs/service.md "Live console"): the
  * server started in the set-up (a port in use fails it), the ranks' rows

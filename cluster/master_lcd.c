@@ -28,6 +28,8 @@
  * estimate of an earlier key when they are of its key or of a newer
  * snapshot (each round completes with the head and lighting it started
  * with).  Rounds summed before are rejected, older snapshots counted late. */
+static const char *lcd_verdict_text(master *m);
+
 static void lcd_take(master *m, const cv_lcd_key *key, uint32_t frame, const uint32_t *round,
                      uint32_t n, const cv_lcd_accum *acc) {
   const int budget = m->s->o.lcd_budget;
@@ -286,6 +288,7 @@ void lcd_readability_update(master *m) {
   m->lread.key = key;
   m->lread.rounds = rounds;
   m->lread.frame = frame;
+  m->lcd_verdict = lcd_verdict_text(m); /* for the console */
   /* its age: since the frame whose head and lighting it is of started */
   m->lread.t = frame < m->cap && m->frame_t[frame] > 0 ? m->frame_t[frame] : cv_service_now();
 }
@@ -329,7 +332,7 @@ static const char *panel_verdict(const master *m, int i, int absolute) {
   return cv_lcd_verdict_name(cv_lcd_verdict(&rd, &rp, absolute, NULL, 0));
 }
 
-const char *lcd_verdict_text(master *m) {
+static const char *lcd_verdict_text(master *m) {
   if (!m->lread.valid) return "";
   cv_lcd_calib cal;
   lcd_calibration(m, &cal);

@@ -324,30 +324,17 @@ void master_sync_metrics(master *m, cv_metrics_line *ml) {
   cv_metrics_object_end(ml);
 }
 
-void master_metrics_pct(cv_metrics_line *ml, const char *stem, const double *v, size_t n) {
-  const double ps[3] = {50, 99, 100};
-  double q[3];
-  if (!n || cv_percentiles(v, n, ps, 3, q, NULL) != CV_OK) return;
-  char k[64];
-  snprintf(k, sizeof k, "%s_p50", stem);
-  cv_metrics_double(ml, k, q[0]);
-  snprintf(k, sizeof k, "%s_p99", stem);
-  cv_metrics_double(ml, k, q[1]);
-  snprintf(k, sizeof k, "%s_max", stem);
-  cv_metrics_double(ml, k, q[2]);
-}
-
 void master_sync_summary(master *m, cv_metrics_line *ml) {
   cv_metrics_uint(ml, "swap_skew_frames", m->n_skew);
-  master_metrics_pct(ml, "swap_skew_us", m->skew_hist, m->n_skew);
+  cv_metrics_percentiles(ml, "swap_skew_us", m->skew_hist, m->n_skew);
   double unc = 0, now = cv_service_now();
   for (int i = 0; i < m->s->n_render; i++) {
     double o, u;
     if (cv_clock_est_get(&m->clk[i], now, &o, &u)) unc = fmax(unc, u);
   }
   cv_metrics_double(ml, "offset_uncertainty_us", unc * 1e6);
-  master_metrics_pct(ml, "tracker_age_at_swap_ms", m->age_hist, m->n_lat);
-  master_metrics_pct(ml, "motion_to_photon_ms", m->mtp_hist, m->n_lat);
-  master_metrics_pct(ml, "prediction_error_mm", m->pred_hist, m->n_pred);
-  master_metrics_pct(ml, "held_pose_error_mm", m->held_hist, m->n_pred);
+  cv_metrics_percentiles(ml, "tracker_age_at_swap_ms", m->age_hist, m->n_lat);
+  cv_metrics_percentiles(ml, "motion_to_photon_ms", m->mtp_hist, m->n_lat);
+  cv_metrics_percentiles(ml, "prediction_error_mm", m->pred_hist, m->n_pred);
+  cv_metrics_percentiles(ml, "held_pose_error_mm", m->held_hist, m->n_pred);
 }

@@ -246,211 +246,264 @@ static void parse_metrics_opt(const char *a, const char *v, cv_run_opts *o, prob
   }
 }
 
-static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, char *desktop_view,
-                 problems *pb) {
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    double d;
 #define NEED()                                                     \
   do {                                                             \
     if (!v) {                                                      \
       problem(pb, "%s: expected a value", a);                      \
       return -1;                                                   \
     }                                                              \
-    i++;                                                           \
+    ++*i;                                                          \
   } while (0)
 #define PATH(field) snprintf(o->field, sizeof o->field, "%s", v)
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      return 1;
-    } else if (!strcmp(a, "--check")) {
-      *check = 1;
-    } else if (!strcmp(a, "--barrier")) {
-      o->barrier = 1;
-    } else if (!strcmp(a, "--no-predict")) {
-      o->predict = 0;
-    } else if (!strcmp(a, "--present")) {
-      NEED();
-      if (parse_present(v, &o->present))
-        problem(pb, "--present: expected files, window, desktop, none or a comma list such as window,files, got '%s'", v);
-    } else if (!strcmp(a, "--desktop-view")) {
-      NEED();
-      snprintf(desktop_view, CV_PATHLEN, "%s", v);
-    } else if (!strcmp(a, "--desktop-fps")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--desktop-fps: expected 0..1000 (0: every frame), got '%s'", v);
-      else o->desktop_fps = d;
-    } else if (!strcmp(a, "--gpu")) {
-      NEED();
-      if (cv_gpu_parse(v, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
-    } else if (!strcmp(a, "--transfer")) {
-      NEED();
-      if (cv_render_transfer_parse(v, &o->half_transfer)) problem(pb, "--transfer: expected auto, float or half, got '%s'", v);
-    } else if (!strcmp(a, "--clock")) {
-      NEED();
-      if (!strcmp(v, "wall")) o->clock = 1;
-      else if (!strcmp(v, "sim")) o->clock = 0;
-      else problem(pb, "--clock: expected wall or sim, got '%s'", v);
-    } else if (!strcmp(a, "--share-lighting")) {
-      NEED();
-      if (!strcmp(v, "host")) o->share_lighting = CV_SHARE_HOST;
-      else if (!strcmp(v, "host-now")) o->share_lighting = CV_SHARE_HOST_NOW;
-      else if (!strcmp(v, "off")) o->share_lighting = CV_SHARE_OFF;
-      else if (!strcmp(v, "background")) o->share_lighting = CV_SHARE_BACKGROUND;
-      else if (!strcmp(v, "auto")) o->share_lighting = CV_SHARE_AUTO;
-      else problem(pb, "--share-lighting: expected auto, host, host-now, background or off, got '%s'", v);
-    } else if (!strcmp(a, "--swap-sync")) {
-      NEED();
-      if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;
-      else if (!strcmp(v, "barrier")) o->swap_sync = CV_SWAP_BARRIER;
-      else problem(pb, "--swap-sync: expected scheduled or barrier, got '%s'", v);
-    } else if (!strcmp(a, "--swap-margin-ms")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--swap-margin-ms: expected 0..1000, got '%s'", v);
-      else o->swap_margin_ms = d;
-    } else if (!strcmp(a, "--predict-horizon")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--predict-horizon: expected 0..1 s, got '%s'", v);
-      else o->predict_horizon = d;
-    } else if (!strcmp(a, "--quiet")) {
-      o->quiet = 1;
-    } else if (!strcmp(a, "--no-compensation")) {
-      o->compensate = 0;
-    } else if (!strcmp(a, "--no-lcd")) {
-      o->lcd = 0;
-    } else if (!strcmp(a, "--no-idle-lcd")) {
-      o->lcd_idle = 0;
-    } else if (!strcmp(a, "--lcd-wait")) {
-      o->lcd_wait = 1;
-    } else if (!strcmp(a, "--scene")) {
-      NEED();
-      PATH(scene_path);
-    } else if (!strcmp(a, "--drive")) {
-      NEED();
-      PATH(drive_path);
-    } else if (!strcmp(a, "--head-path")) {
-      NEED();
-      PATH(head_path);
-    } else if (!strcmp(a, "--display")) {
-      NEED();
-      PATH(display_path);
-    } else if (!strcmp(a, "--metrics")) {
-      NEED();
-      PATH(metrics_path);
-    } else if (!strcmp(a, "--lcd-content")) {
-      NEED();
-      PATH(lcd_content);
-    } else if (!strcmp(a, "--scene-config")) {
-      NEED();
-      PATH(scene_config);
-    } else if (!strcmp(a, "-o")) {
-      NEED();
-      PATH(out_dir);
-    } else if (!strcmp(a, "--tracker")) {
-      NEED();
-      PATH(tracker_path);
-    } else if (!strcmp(a, "--http")) {
-      NEED();
-      cv_err e;
-      if (cv_http_parse_listen(v, o->http_addr, sizeof o->http_addr, &o->http_port, &o->http_off, &e))
-        problem(pb, "%s", e.msg);
-    } else if (!strcmp(a, "--http-token")) {
-      NEED();
-      PATH(http_token_path);
-    } else if (!strcmp(a, "--dtrack-host")) {
-      NEED();
-      snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
-    } else if (!strcmp(a, "--dtrack")) {
-      NEED();
-      if (cv_parse_int(v, 1, 65535, &o->dtrack_port)) problem(pb, "--dtrack: expected a UDP port 1..65535, got '%s'", v);
-    } else if (!strcmp(a, "--dtrack-body")) {
-      NEED();
-      if (cv_parse_int(v, 0, 1000000, &o->dtrack_body)) problem(pb, "--dtrack-body: expected an id >= 0, got '%s'", v);
-    } else if (!strcmp(a, "--frames")) {
-      NEED();
-      if (cv_parse_int(v, 0, 100000000, &o->frames)) problem(pb, "--frames: expected N >= 0, got '%s'", v);
-    } else if (!strcmp(a, "--ranks")) {
-      NEED();
-      if (cv_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
-    } else if (!strcmp(a, "--dt")) {
-      NEED();
-      if (cv_parse_seconds(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '%s'", v);
-      else o->dt = d;
-    } else if (!strcmp(a, "--max-fps")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d > 0 && d <= 1000)) problem(pb, "--max-fps: expected 0 < F <= 1000, got '%s'", v);
-      else o->max_fps = d;
-    } else if (!strcmp(a, "--size")) {
-      NEED();
-      if (cv_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
-    } else if (!strcmp(a, "--metrics-every") || !strcmp(a, "--metrics-max-mb") || !strcmp(a, "--metrics-keep")) {
-      NEED();
-      parse_metrics_opt(a, v, o, pb);
-    } else if (!strcmp(a, "--write-every")) {
-      NEED();
-      if (cv_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);
-    } else if (!strcmp(a, "--timeout-ms")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
-      else o->timeout_ms = d;
-    } else if (!strcmp(a, "--gather-timeout")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0.5 && d <= 3600)) problem(pb, "--gather-timeout: expected 0.5..3600 s, got '%s'", v);
-      else o->gather_timeout_s = d;
-    } else if (!strcmp(a, "--patches")) {
-      NEED();
-      if (cv_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
-    } else if (!strcmp(a, "--reflectance")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d < 1)) problem(pb, "--reflectance: expected 0 <= R < 1 (as screens.reflectance), got '%s'", v);
-      else o->reflectance = d;
-    } else if (!strcmp(a, "--compensation-lag")) {
-      NEED();
-      if (cv_parse_int(v, 0, 1, &o->compensation_lag)) problem(pb, "--compensation-lag: expected 0 or 1 (frames), got '%s'", v);
-    } else if (!strcmp(a, "--post")) {
-      NEED();
-      if (!strcmp(v, "auto")) o->post = CV_POST_AUTO;
-      else if (!strcmp(v, "gpu")) o->post = CV_POST_GPU;
-      else if (!strcmp(v, "cpu")) o->post = CV_POST_CPU;
-      else problem(pb, "--post: expected auto, gpu or cpu, got '%s'", v);
-    } else if (!strcmp(a, "--compensation-ms")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);
-      else o->compensation_ms = d;
-    } else if (!strcmp(a, "--lcd-size")) {
-      NEED();
-      int w = 0, h = 0;
-      char extra;
-      if (sscanf(v, "%dx%d%c", &w, &h, &extra) != 2 || w < 1 || h < 1 || w > 4096 || h > 4096)
-        problem(pb, "--lcd-size: expected WxH (1..4096), got '%s'", v);
-      else o->lcd_w = w, o->lcd_h = h;
-    } else if (!strcmp(a, "--lcd-spp")) {
-      NEED();
-      if (cv_parse_int(v, 1, 65536, &o->lcd_spp)) problem(pb, "--lcd-spp: expected 1..65536, got '%s'", v);
-    } else if (!strcmp(a, "--lcd-budget")) {
-      NEED();
-      if (cv_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
-    } else if (!strcmp(a, "--lcd-tolerance")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= CV_LCD_TOLERANCE_MIN && d <= CV_LCD_TOLERANCE_MAX)) problem(pb, "--lcd-tolerance: expected 1e-5..1 m (as lcd.eye_tolerance), got '%s'", v);
-      else o->lcd_tolerance = d;
-    } else if (!strcmp(a, "--lcd-luminance")) {
-      NEED();
-      if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1e6)) problem(pb, "--lcd-luminance: expected 0..1e6 cd/m2, got '%s'", v);
-      else o->lcd_luminance = d;
-    } else if (!strcmp(a, "--seed")) {
-      NEED();
-      unsigned long long u;
-      if (parse_u32(v, &u)) problem(pb, "--seed: expected 0..4294967295 (as lcd.seed), got '%s'", v);
-      else o->seed = (uint32_t)u, o->seed_set = 1;
-    } else if (a[0] == '-') {
+
+/* One option of the service's modes and switches (argv[*i], its value v): 1 when taken (problems
+ * recorded), 0 when not one of these, -1 when its value is missing. */
+static int parse_mode_opt(const char *a, const char *v, int *i, cv_run_opts *o, int *check,
+                          int *ranks, char *desktop_view, problems *pb) {
+  double d;
+  (void)check, (void)ranks, (void)desktop_view, (void)d;
+  if (!strcmp(a, "--check")) {
+    *check = 1;
+  } else if (!strcmp(a, "--barrier")) {
+    o->barrier = 1;
+  } else if (!strcmp(a, "--no-predict")) {
+    o->predict = 0;
+  } else if (!strcmp(a, "--present")) {
+    NEED();
+    if (parse_present(v, &o->present))
+      problem(pb, "--present: expected files, window, desktop, none or a comma list such as window,files, got '%s'", v);
+  } else if (!strcmp(a, "--desktop-view")) {
+    NEED();
+    snprintf(desktop_view, CV_PATHLEN, "%s", v);
+  } else if (!strcmp(a, "--desktop-fps")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--desktop-fps: expected 0..1000 (0: every frame), got '%s'", v);
+    else o->desktop_fps = d;
+  } else if (!strcmp(a, "--gpu")) {
+    NEED();
+    if (cv_gpu_parse(v, &o->gpu)) problem(pb, "--gpu: expected auto, software or a hardware device index 0..63, got '%s'", v);
+  } else if (!strcmp(a, "--transfer")) {
+    NEED();
+    if (cv_render_transfer_parse(v, &o->half_transfer)) problem(pb, "--transfer: expected auto, float or half, got '%s'", v);
+  } else if (!strcmp(a, "--clock")) {
+    NEED();
+    if (!strcmp(v, "wall")) o->clock = 1;
+    else if (!strcmp(v, "sim")) o->clock = 0;
+    else problem(pb, "--clock: expected wall or sim, got '%s'", v);
+  } else if (!strcmp(a, "--share-lighting")) {
+    NEED();
+    if (!strcmp(v, "host")) o->share_lighting = CV_SHARE_HOST;
+    else if (!strcmp(v, "host-now")) o->share_lighting = CV_SHARE_HOST_NOW;
+    else if (!strcmp(v, "off")) o->share_lighting = CV_SHARE_OFF;
+    else if (!strcmp(v, "background")) o->share_lighting = CV_SHARE_BACKGROUND;
+    else if (!strcmp(v, "auto")) o->share_lighting = CV_SHARE_AUTO;
+    else problem(pb, "--share-lighting: expected auto, host, host-now, background or off, got '%s'", v);
+  } else if (!strcmp(a, "--swap-sync")) {
+    NEED();
+    if (!strcmp(v, "scheduled")) o->swap_sync = CV_SWAP_SCHEDULED;
+    else if (!strcmp(v, "barrier")) o->swap_sync = CV_SWAP_BARRIER;
+    else problem(pb, "--swap-sync: expected scheduled or barrier, got '%s'", v);
+  } else if (!strcmp(a, "--swap-margin-ms")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1000)) problem(pb, "--swap-margin-ms: expected 0..1000, got '%s'", v);
+    else o->swap_margin_ms = d;
+  } else if (!strcmp(a, "--predict-horizon")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1)) problem(pb, "--predict-horizon: expected 0..1 s, got '%s'", v);
+    else o->predict_horizon = d;
+  } else if (!strcmp(a, "--quiet")) {
+    o->quiet = 1;
+  } else if (!strcmp(a, "--no-compensation")) {
+    o->compensate = 0;
+  } else if (!strcmp(a, "--no-lcd")) {
+    o->lcd = 0;
+  } else if (!strcmp(a, "--no-idle-lcd")) {
+    o->lcd_idle = 0;
+  } else if (!strcmp(a, "--lcd-wait")) {
+    o->lcd_wait = 1;  } else {
+    return 0;
+  }
+  return 1;
+}
+
+/* One option of inputs, outputs and the tracker (argv[*i], its value v): 1 when taken (problems
+ * recorded), 0 when not one of these, -1 when its value is missing. */
+static int parse_input_opt(const char *a, const char *v, int *i, cv_run_opts *o, int *check,
+                           int *ranks, char *desktop_view, problems *pb) {
+  double d;
+  (void)check, (void)ranks, (void)desktop_view, (void)d;
+  if (!strcmp(a, "--scene")) {
+    NEED();
+    PATH(scene_path);
+  } else if (!strcmp(a, "--drive")) {
+    NEED();
+    PATH(drive_path);
+  } else if (!strcmp(a, "--head-path")) {
+    NEED();
+    PATH(head_path);
+  } else if (!strcmp(a, "--display")) {
+    NEED();
+    PATH(display_path);
+  } else if (!strcmp(a, "--metrics")) {
+    NEED();
+    PATH(metrics_path);
+  } else if (!strcmp(a, "--lcd-content")) {
+    NEED();
+    PATH(lcd_content);
+  } else if (!strcmp(a, "--scene-config")) {
+    NEED();
+    PATH(scene_config);
+  } else if (!strcmp(a, "-o")) {
+    NEED();
+    PATH(out_dir);
+  } else if (!strcmp(a, "--tracker")) {
+    NEED();
+    PATH(tracker_path);
+  } else if (!strcmp(a, "--http")) {
+    NEED();
+    cv_err e;
+    if (cv_http_parse_listen(v, o->http_addr, sizeof o->http_addr, &o->http_port, &o->http_off, &e))
+      problem(pb, "%s", e.msg);
+  } else if (!strcmp(a, "--http-token")) {
+    NEED();
+    PATH(http_token_path);
+  } else if (!strcmp(a, "--dtrack-host")) {
+    NEED();
+    snprintf(o->dtrack_host, sizeof o->dtrack_host, "%s", v);
+  } else if (!strcmp(a, "--dtrack")) {
+    NEED();
+    if (cv_parse_int(v, 1, 65535, &o->dtrack_port)) problem(pb, "--dtrack: expected a UDP port 1..65535, got '%s'", v);
+  } else if (!strcmp(a, "--dtrack-body")) {
+    NEED();
+    if (cv_parse_int(v, 0, 1000000, &o->dtrack_body)) problem(pb, "--dtrack-body: expected an id >= 0, got '%s'", v);  } else {
+    return 0;
+  }
+  return 1;
+}
+
+/* One option of frames, timing and the compensation (argv[*i], its value v): 1 when taken (problems
+ * recorded), 0 when not one of these, -1 when its value is missing. */
+static int parse_frame_opt(const char *a, const char *v, int *i, cv_run_opts *o, int *check,
+                           int *ranks, char *desktop_view, problems *pb) {
+  double d;
+  (void)check, (void)ranks, (void)desktop_view, (void)d;
+  if (!strcmp(a, "--frames")) {
+    NEED();
+    if (cv_parse_int(v, 0, 100000000, &o->frames)) problem(pb, "--frames: expected N >= 0, got '%s'", v);
+  } else if (!strcmp(a, "--ranks")) {
+    NEED();
+    if (cv_parse_int(v, 1, 100000, ranks)) problem(pb, "--ranks: expected N >= 1, got '%s'", v);
+  } else if (!strcmp(a, "--dt")) {
+    NEED();
+    if (cv_parse_seconds(v, &d) || !(d > 0 && d <= 10)) problem(pb, "--dt: expected 0 < S <= 10 (0.0333 or 1/30), got '%s'", v);
+    else o->dt = d;
+  } else if (!strcmp(a, "--max-fps")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d > 0 && d <= 1000)) problem(pb, "--max-fps: expected 0 < F <= 1000, got '%s'", v);
+    else o->max_fps = d;
+  } else if (!strcmp(a, "--size")) {
+    NEED();
+    if (cv_parse_int(v, 8, 16384, &o->size)) problem(pb, "--size: expected 8..16384, got '%s'", v);
+  } else if (!strcmp(a, "--metrics-every") || !strcmp(a, "--metrics-max-mb") || !strcmp(a, "--metrics-keep")) {
+    NEED();
+    parse_metrics_opt(a, v, o, pb);
+  } else if (!strcmp(a, "--write-every")) {
+    NEED();
+    if (cv_parse_int(v, 0, 1000000, &o->write_every)) problem(pb, "--write-every: expected K >= 0, got '%s'", v);
+  } else if (!strcmp(a, "--timeout-ms")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 1 && d <= 3.6e6)) problem(pb, "--timeout-ms: expected 1..3600000, got '%s'", v);
+    else o->timeout_ms = d;
+  } else if (!strcmp(a, "--gather-timeout")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0.5 && d <= 3600)) problem(pb, "--gather-timeout: expected 0.5..3600 s, got '%s'", v);
+    else o->gather_timeout_s = d;
+  } else if (!strcmp(a, "--patches")) {
+    NEED();
+    if (cv_parse_int(v, 1, 256, &o->patches)) problem(pb, "--patches: expected 1..256, got '%s'", v);
+  } else if (!strcmp(a, "--reflectance")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0 && d < 1)) problem(pb, "--reflectance: expected 0 <= R < 1 (as screens.reflectance), got '%s'", v);
+    else o->reflectance = d;
+  } else if (!strcmp(a, "--compensation-lag")) {
+    NEED();
+    if (cv_parse_int(v, 0, 1, &o->compensation_lag)) problem(pb, "--compensation-lag: expected 0 or 1 (frames), got '%s'", v);
+  } else if (!strcmp(a, "--post")) {
+    NEED();
+    if (!strcmp(v, "auto")) o->post = CV_POST_AUTO;
+    else if (!strcmp(v, "gpu")) o->post = CV_POST_GPU;
+    else if (!strcmp(v, "cpu")) o->post = CV_POST_CPU;
+    else problem(pb, "--post: expected auto, gpu or cpu, got '%s'", v);
+  } else if (!strcmp(a, "--compensation-ms")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d > 0 && d <= 60000)) problem(pb, "--compensation-ms: expected 0 < T <= 60000, got '%s'", v);
+    else o->compensation_ms = d;  } else {
+    return 0;
+  }
+  return 1;
+}
+
+/* One option of the LCD readability figures (argv[*i], its value v): 1 when taken (problems
+ * recorded), 0 when not one of these, -1 when its value is missing. */
+static int parse_lcd_opt(const char *a, const char *v, int *i, cv_run_opts *o, int *check,
+                         int *ranks, char *desktop_view, problems *pb) {
+  double d;
+  (void)check, (void)ranks, (void)desktop_view, (void)d;
+  if (!strcmp(a, "--lcd-size")) {
+    NEED();
+    int w = 0, h = 0;
+    char extra;
+    if (sscanf(v, "%dx%d%c", &w, &h, &extra) != 2 || w < 1 || h < 1 || w > 4096 || h > 4096)
+      problem(pb, "--lcd-size: expected WxH (1..4096), got '%s'", v);
+    else o->lcd_w = w, o->lcd_h = h;
+  } else if (!strcmp(a, "--lcd-spp")) {
+    NEED();
+    if (cv_parse_int(v, 1, 65536, &o->lcd_spp)) problem(pb, "--lcd-spp: expected 1..65536, got '%s'", v);
+  } else if (!strcmp(a, "--lcd-budget")) {
+    NEED();
+    if (cv_parse_int(v, 1, 100000, &o->lcd_budget)) problem(pb, "--lcd-budget: expected 1..100000, got '%s'", v);
+  } else if (!strcmp(a, "--lcd-tolerance")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= CV_LCD_TOLERANCE_MIN && d <= CV_LCD_TOLERANCE_MAX)) problem(pb, "--lcd-tolerance: expected 1e-5..1 m (as lcd.eye_tolerance), got '%s'", v);
+    else o->lcd_tolerance = d;
+  } else if (!strcmp(a, "--lcd-luminance")) {
+    NEED();
+    if (cv_parse_double(v, &d) || !(d >= 0 && d <= 1e6)) problem(pb, "--lcd-luminance: expected 0..1e6 cd/m2, got '%s'", v);
+    else o->lcd_luminance = d;
+  } else if (!strcmp(a, "--seed")) {
+    NEED();
+    unsigned long long u;
+    if (parse_u32(v, &u)) problem(pb, "--seed: expected 0..4294967295 (as lcd.seed), got '%s'", v);
+    else o->seed = (uint32_t)u, o->seed_set = 1;
+  } else {
+    return 0;
+  }
+  return 1;
+}
+#undef NEED
+#undef PATH
+
+static int parse(int argc, char **argv, cv_run_opts *o, int *check, int *ranks, char *desktop_view,
+                 problems *pb) {
+  static int (*const families[])(const char *, const char *, int *, cv_run_opts *, int *, int *,
+                                 char *, problems *) = {parse_mode_opt, parse_input_opt,
+                                                        parse_frame_opt, parse_lcd_opt};
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
+    int taken = 0;
+    for (size_t k = 0; !taken && k < sizeof families / sizeof families[0]; k++) {
+      taken = families[k](a, v, &i, o, check, ranks, desktop_view, pb);
+      if (taken < 0) return -1;
+    }
+    if (taken) continue;
+    if (a[0] == '-') {
       problem(pb, "unknown option '%s' (cave run --help lists them)", a);
     } else if (!o->cave_path[0]) {
       snprintf(o->cave_path, sizeof o->cave_path, "%s", a);
     } else {
       problem(pb, "unexpected argument '%s'", a);
     }
-#undef NEED
-#undef PATH
   }
   return 0;
 }

@@ -8,7 +8,6 @@
 #include "compensate/display.h"
 
 #include "io/textfile.h"
-#include "view/cave.h"
 
 #include "core/vec3d.h"
 #include "io/json_keys.h"
@@ -836,33 +835,20 @@ int cv_display_parse(const char *json, const char *name, cv_display **out, cv_er
   return finish(&x, d, out, err);
 }
 
-/* A CAVE config rather than a display description: a top-level "walls"
- * and no "surfaces". */
-static int is_cave_tree(const cJSON *root) {
-  return cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
-         !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
-}
-
-int cv_display_load_any(const char *path, int patches, double reflectance, cv_display **out,
-                        int *is_cave, cv_err *err) {
-  *out = NULL;
-  if (is_cave) *is_cave = 0;
+int cv_display_read_json(const char *path, cJSON **root, cv_err *err) {
+  *root = NULL;
   ctx x = {.file = path};
   char *text;
-  if (read_file(path, &text, &x)) return finish(&x, NULL, out, err);
-  cJSON *root = parse_json(&x, text);
+  if (read_file(path, &text, &x)) return cv_problems_finish(&x, err);
+  *root = parse_json(&x, text);
   free(text);
-  if (root && is_cave_tree(root)) {
-    if (is_cave) *is_cave = 1;
-    cv_cave cave;
-    int st = cv_cave_from_json(root, path, &cave, err);
-    cJSON_Delete(root);
-    if (st) return st;
-    st = cv_display_from_cave(&cave, patches, reflectance, out, err);
-    return st ? cv_err_prefix(err, "%s", path) : CV_OK;
-  }
-  cv_display *d = root ? parse_tree(&x, root) : NULL;
-  cJSON_Delete(root);
+  return cv_problems_finish(&x, err);
+}
+
+int cv_display_from_json(const cJSON *root, const char *name, cv_display **out, cv_err *err) {
+  *out = NULL;
+  ctx x = {.file = name ? name : "(display)"};
+  cv_display *d = parse_tree(&x, root);
   return finish(&x, d, out, err);
 }
 

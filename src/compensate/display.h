@@ -159,6 +159,13 @@ typedef struct cv_display {
  * as "file: field.path: what", followed by " [+N more problems]" when there
  * are others), CV_ERR_NOMEM; *out is NULL then. */
 int cv_display_load(const char *path, cv_display **out, cv_err *err);
+/* The JSON tree of a display description or CAVE config file (*root owned by
+ * the caller, cJSON_Delete), with the display loader's errors (unreadable,
+ * "path: line L, column C: what"). */
+struct cJSON;
+int cv_display_read_json(const char *path, struct cJSON **root, cv_err *err);
+/* The display of a parsed display description (errors as cv_display_load). */
+int cv_display_from_json(const struct cJSON *root, const char *name, cv_display **out, cv_err *err);
 /* Loads a display description or a CAVE config (a top-level "walls" and no
  * "surfaces": its walls and "screens", as cv_display_from_cave with patches
  * and reflectance), reading and parsing the file once; *is_cave (may be

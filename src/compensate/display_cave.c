@@ -7,6 +7,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include <cjson/cJSON.h>
+
 #include "compensate/display.h"
 #include "view/cave.h"
 
@@ -33,4 +35,32 @@ int cv_display_from_cave(const cv_cave *c, int patches, double reflectance, cv_d
   int st = cv_display_parse(json, "display generated from the CAVE walls", out, err);
   free(json);
   return st;
+}
+
+/* A CAVE config rather than a display description: a top-level "walls"
+ * and no "surfaces". */
+static int is_cave_tree(const cJSON *root) {
+  return cJSON_IsObject(root) && cJSON_GetObjectItemCaseSensitive(root, "walls") &&
+         !cJSON_GetObjectItemCaseSensitive(root, "surfaces");
+}
+
+int cv_display_load_any(const char *path, int patches, double reflectance, cv_display **out,
+                        int *is_cave, cv_err *err) {
+  *out = NULL;
+  if (is_cave) *is_cave = 0;
+  cJSON *root = NULL;
+  int st = cv_display_read_json(path, &root, err);
+  if (st) return st;
+  if (!is_cave_tree(root)) {
+    st = cv_display_from_json(root, path, out, err);
+    cJSON_Delete(root);
+    return st;
+  }
+  if (is_cave) *is_cave = 1;
+  cv_cave cave;
+  st = cv_cave_from_json(root, path, &cave, err);
+  cJSON_Delete(root);
+  if (st) return st;
+  st = cv_display_from_cave(&cave, patches, reflectance, out, err);
+  return st ? cv_err_prefix(err, "%s", path) : CV_OK;
 }

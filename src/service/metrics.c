@@ -259,3 +259,16 @@ int cv_percentiles(const double *v, size_t n, const double *ps, int np, double *
 int cv_percentile(const double *v, size_t n, double p, double *out, size_t *n_skipped) {
   return cv_percentiles(v, n, &p, 1, out, n_skipped);
 }
+
+void cv_metrics_percentiles(cv_metrics_line *ml, const char *stem, const double *v, size_t n) {
+  const double ps[3] = {50, 99, 100};
+  double q[3];
+  if (!n || cv_percentiles(v, n, ps, 3, q, NULL) != CV_OK) return;
+  char k[64];
+  snprintf(k, sizeof k, "%s_p50", stem);
+  cv_metrics_double(ml, k, q[0]);
+  snprintf(k, sizeof k, "%s_p99", stem);
+  cv_metrics_double(ml, k, q[1]);
+  snprintf(k, sizeof k, "%s_max", stem);
+  cv_metrics_double(ml, k, q[2]);
+}

@@ -73,4 +73,8 @@ int cv_percentile(const double *v, size_t n, double p, double *out, size_t *n_sk
 int cv_percentiles(const double *v, size_t n, const double *ps, int np, double *out,
                    size_t *n_skipped);
 
+/* Writes "<stem>_p50", "<stem>_p99" and "<stem>_max" of v[0..n) into the
+ * line (nothing when n is 0). */
+void cv_metrics_percentiles(cv_metrics_line *ml, const char *stem, const double *v, size_t n);
+
 #endif
