@@ -33,6 +33,10 @@ Variables read (all optional):
                     on a host); 0: do not
   CAVE_MPI_ARGS     further mpirun options, split on blanks (e.g. "--mca
                     btl_tcp_if_include eth1")
+  CAVE_RSH          the remote shell mpirun starts its daemons with (--mca
+                    plm_rsh_agent; default: Open MPI's, ssh); the pre-flight
+                    reaches the hosts with it too (tests/hosts/rsh-netns for
+                    simulated hosts)
   CAVE_EXPORT       further environment variable names to forward with -x
   DISPLAY XAUTHORITY OMP_NUM_THREADS LP_NUM_THREADS ASAN_OPTIONS UBSAN_OPTIONS
   LSAN_OPTIONS      forwarded to every rank with -x when set (an output's
@@ -96,6 +100,7 @@ for v in DISPLAY XAUTHORITY OMP_NUM_THREADS LP_NUM_THREADS ASAN_OPTIONS UBSAN_OP
 done
 # shellcheck disable=SC2206  # split on purpose
 [ -n "${CAVE_MPI_ARGS:-}" ] && mpi+=(${CAVE_MPI_ARGS})
+[ -n "${CAVE_RSH:-}" ] && mpi+=(--mca plm_rsh_agent "$CAVE_RSH")
 mpi+=("$CAVE" run "$CONFIG" "${args[@]}")
 echo "launch: ${mpi[*]}"
 echo "launch: per-rank logs in $OUT/logs/1/rank.K/"
