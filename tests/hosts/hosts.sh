@@ -24,6 +24,10 @@ usage: tests/hosts/hosts.sh COMMAND DIR [...]
   exec DIR HOST CMD...  runs CMD on HOST (what ssh HOST CMD does on a cluster)
   link DIR HOST up|down HOST's link on the switch (a pulled cable: no error,
                         packets lost)
+  bind DIR HOST [SRC DST]
+                        from now on HOST sees SRC at DST (another cave build or
+                        scene at the same path; an empty folder hides a folder);
+                        without SRC DST: HOST's binds cleared
   env DIR               prints the exports that make cluster/launch.sh use the
                         hosts: CAVE_HOSTS_DIR, CAVE_RSH, CAVE_MPI_ARGS (TCP
                         between hosts on the bridge's subnet)
@@ -70,6 +74,7 @@ case "$cmd" in
   exec) [ $# -ge 2 ] || { usage >&2; exit 2; }; hosts_exec "$dir" "$@" ;;
   link) [ $# -eq 2 ] && [[ "$2" =~ ^(up|down)$ ]] || { usage >&2; exit 2; }; hosts_link "$dir" "$1" "$2" ;;
   env) hosts_env "$dir" ;;
+  bind) [ $# -eq 1 ] || [ $# -eq 3 ] || { usage >&2; exit 2; }; hosts_bind "$dir" "$@" ;;
   launch)
     first=$(head -1 "$dir/hosts" | cut -d' ' -f1)
     eval "$(hosts_env "$dir")"

@@ -45,7 +45,11 @@ on() { hosts_exec "$H" "$@"; }
 # processes seen in the hosts (Xvfb, orted, ranks) nor mpirun is left
 hosts_clean() {
   local left=() p
-  for p in $SEEN_PIDS $*; do kill -0 "$p" 2>/dev/null && left+=("$p($(cat /proc/$p/comm 2>/dev/null))"); done
+  # (a zombie, ended but not yet reaped by its parent here, does not run)
+  for p in $SEEN_PIDS $*; do
+    kill -0 "$p" 2>/dev/null && [ "$(awk '{print $3}' "/proc/$p/stat" 2>/dev/null)" != Z ] \
+      && left+=("$p($(cat /proc/$p/comm 2>/dev/null))")
+  done
   local ns; ns=$(ip netns list | awk '{print $1}' | grep "^$TAG-" | tr '\n' ' ')
   [ -z "$ns" ] && [ ${#left[@]} -eq 0 ] \
     && ok "teardown: no namespace $TAG-* left, none of the $(echo $SEEN_PIDS $* | wc -w) processes seen in the hosts running" \

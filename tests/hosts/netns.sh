@@ -11,6 +11,9 @@
 #   DIR/<host>/tmp       bind-mounted on /tmp in that host (X sockets, Open MPI
 #                        session folders)
 #   DIR/<host>/xvfb.pid  its Xvfb (display :0) when started
+#   DIR/<host>/binds     optional "SRC DST" lines: SRC bind-mounted on DST for
+#                        what starts on that host from then on (another build
+#                        or scene at the same path, a folder hidden: hosts_bind)
 # Addresses: 10.251.0.<i>/24 (host i), on the bridge of the switch namespace.
 # No default route anywhere: nothing leaves the test's namespaces.
 
@@ -69,7 +72,9 @@ hosts_exec() {
   local dir="$1" h="$2"; shift 2
   [ -d "$dir/$h/tmp" ] || { hosts_die "no host $h in $dir"; return 1; }
   ip netns exec "$(hosts_ns "$dir" "$h")" unshare -u -- sh -c \
-    'hostname "$1" && mount --bind "$2/etc-hosts" /etc/hosts && mount --bind "$2/$1/tmp" /tmp || exit 1; shift 2; exec "$@"' \
+    'hostname "$1" && mount --bind "$2/etc-hosts" /etc/hosts || exit 1
+     if [ -s "$2/$1/binds" ]; then while read -r s d; do mount --bind "$s" "$d" || exit 1; done < "$2/$1/binds"; fi
+     mount --bind "$2/$1/tmp" /tmp || exit 1; shift 2; exec "$@"' \
     sh "$h" "$dir" "$@"
 }
 
@@ -103,9 +108,10 @@ hosts_xvfb() {
   local dir="$1" h="$2" s=() i=0 g n; shift 2
   for g in "$@"; do s+=(-screen "$i" "${g}x24"); i=$((i + 1)); done
   command -v Xvfb >/dev/null || { hosts_die "no Xvfb (Debian package xvfb)"; return 1; }
-  hosts_exec "$dir" "$h" Xvfb :0 "${s[@]}" -nolisten tcp -noreset >"$dir/$h/xvfb.log" 2>&1 &
-  echo $! > "$dir/$h/xvfb.pid"
-  for n in $(seq 100); do [ -S "$dir/$h/tmp/.X11-unix/X0" ] && return 0; sleep 0.1; done
+  rm -f "$dir/$h/xvfb.pid"
+  hosts_exec "$dir" "$h" sh -c 'echo $$ > "$0"; exec "$@"' "$dir/$h/xvfb.pid" \
+    Xvfb :0 "${s[@]}" -nolisten tcp -noreset >"$dir/$h/xvfb.log" 2>&1 &
+  for n in $(seq 100); do [ -S "$dir/$h/tmp/.X11-unix/X0" ] && [ -s "$dir/$h/xvfb.pid" ] && return 0; sleep 0.1; done
   hosts_die "$h: Xvfb :0 did not start: $(tail -2 "$dir/$h/xvfb.log")"
 }
 
@@ -123,4 +129,13 @@ hosts_guard() {
   setsid bash -c 'source "$1"; t=0; while kill -0 "$3" 2>/dev/null && [ $t -lt "$4" ]; do sleep 1; t=$((t + 1)); done
     [ -e "$2/tag" ] && hosts_down "$2"' guard "$lib" "$dir" "$pid" "$lim" </dev/null >/dev/null 2>&1 &
   echo $! > "$dir/guard.pid"
+}
+
+# hosts_bind DIR HOST SRC DST: from now on HOST sees SRC at DST (a file or a
+# folder; SRC an empty folder hides DST's folder); hosts_bind DIR HOST alone
+# clears HOST's binds.
+hosts_bind() {
+  if [ $# -eq 2 ]; then rm -f "$1/$2/binds"; return 0; fi
+  [ -e "$3" ] && [ -e "$4" ] || { hosts_die "bind: $3 and $4 must exist"; return 1; }
+  echo "$(readlink -f "$3") $(readlink -f "$4")" >> "$1/$2/binds"
 }

@@ -87,6 +87,46 @@ n2=$(ls two/*.png two/*.exr 2>/dev/null | wc -l)
   && ok "$n images (every wall-eye's PNG and EXR, the montages) the same bytes on 2 hosts and on 1" \
   || bad "2 hosts vs 1: $differ of $n images differ ($n2 on 2 hosts)"
 
+grep -q "cave cluster check: 2 hosts ready" two.out && ok "the pre-flight passed before the 2-host run: $(grep -c '^cave cluster check: cave[12]: build' two.out) host lines" \
+  || bad "no pre-flight before the 2-host run: $(grep 'cluster check' two.out two.err | head -3)"
+
+# --- the pre-flight: one problem on cave2 at a time, one line naming it ----------
+mkdir -p sc empty && cp scene.prt sc/scene.prt
+cp "$CAVE" cave.other && printf 'x' >> cave.other   # another build: other bytes, still runs
+python3 - two.json > nogpu.json <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+for o in c["outputs"]:
+    if o["host"] == "cave2": o["gpu"] = 0
+print(json.dumps(c))
+PY
+PF=(--scene "$WORK/sc/scene.prt" --size $S --no-lcd --present window,files --frames 2)
+# preflight NAME CONFIG WHAT [--check]: the launch refuses, one line names cave2 and what
+preflight() {
+  local name=$1 cfg=$2 what=$3; shift 3
+  rm -rf "pf_$name"
+  timeout 120 "$HOSTS_SH" launch "$H" "$cfg" "$@" "${PF[@]}" -o "$WORK/pf_$name" >"pf_$name.out" 2>"pf_$name.err"; local rc=$?
+  local lines; lines=$(grep -c "^cave cluster check: cave" "pf_$name.err")
+  [ $rc -eq 1 ] && [ "$lines" = 1 ] && grep -q "^cave cluster check: cave2.*$what" "pf_$name.err" \
+    && grep -q "nothing started" "pf_$name.err" && [ ! -e "pf_$name/logs" ] && [ ! -e "pf_$name/metrics.jsonl" ] \
+    && ok "pre-flight, $name on cave2: rc 1, nothing started: '$(grep '^cave cluster check: cave' "pf_$name.err" | cut -c1-230)'" \
+    || bad "pre-flight $name: rc $rc, $lines problem lines: $(grep -v '^ ' "pf_$name.err" | head -4)"
+}
+hosts_bind "$H" cave2 cave.other "$CAVE"
+preflight build two.json "another cave build"
+hosts_bind "$H" cave2
+hosts_bind "$H" cave2 empty sc
+preflight scene two.json "scene .*sc/scene.prt: cannot read: No such file" --check
+hosts_bind "$H" cave2
+kill "$(cat "$H/cave2/xvfb.pid")"
+for _ in $(seq 50); do [ -S "$H/cave2/tmp/.X11-unix/X0" ] || break; sleep 0.1; done
+preflight display two.json "X display ':0.0' (rank 7 floor L, rank 8 floor R, rank 9 ceiling L, rank 10 ceiling R): cannot open X display" --check
+hosts_xvfb "$H" cave2 "$((10 * S))x$S" || bad "Xvfb on cave2 again"
+preflight gpu nogpu.json "GPU 0 (rank 7 floor L, rank 8 floor R, rank 9 ceiling L, rank 10 ceiling R): .*no hardware EGL device 0" --check
+timeout 60 "$HOSTS_SH" launch "$H" two.json --check "${PF[@]}" -o "$WORK/pf_ok" >pf_ok.out 2>pf_ok.err \
+  && grep -q "launch: --check: ready to start" pf_ok.out && ok "pre-flight passes again with the problems gone" \
+  || bad "pre-flight after the problems: $(grep -v '^ ' pf_ok.err | head -3)"
+
 hosts_stop
 hosts_clean
 echo "$pass passed, $fail failed"
