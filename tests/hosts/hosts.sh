@@ -48,7 +48,7 @@ EOF2
 hosts_env() {
   echo "export CAVE_HOSTS_DIR='$1'"
   echo "export CAVE_RSH='$HERE/rsh-netns'"
-  echo "export CAVE_MPI_ARGS='--mca btl tcp,self,vader --mca oob_tcp_if_include 10.251.0.0/24 --mca btl_tcp_if_include 10.251.0.0/24 --mca plm_rsh_no_tree_spawn 1'"
+  echo "export CAVE_MPI_ARGS='--mca btl tcp,self,vader --mca oob_tcp_if_include 10.251.0.0/24 --mca btl_tcp_if_include 10.251.0.0/24 --mca plm_rsh_no_tree_spawn 1 --mca oob_tcp_keepalive_time 5 --mca oob_tcp_keepalive_intvl 1 --mca oob_tcp_keepalive_probes 5'"
 }
 
 [ $# -ge 1 ] || { usage >&2; exit 2; }
