@@ -39,6 +39,13 @@ static int g_size, g_rank;
 static int g_self_dead;
 static volatile sig_atomic_t *g_stop_flag;
 static double g_notice_probe_t;
+/* The master's silence (a non-master rank): the last message from rank 0,
+ * the frame states seen (armed from the second: frame 0 has the start-up
+ * time), the bound (2 x --gather-timeout; 0: off). */
+static double g_master_seen, g_master_timeout;
+static int g_master_states;
+/* The master's end with a dead rank: the live ranks expected to say bye. */
+static int g_end_dead, g_end_expect;
 
 static void release(pending_send *ps);
 
@@ -73,6 +80,7 @@ static int receive_notice(const MPI_Status *st) {
   if (count > (int)sizeof b ||
       MPI_Recv(b, (int)sizeof b, MPI_BYTE, 0, CV_TAG_ALIVE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS)
     return -1;
+  g_master_seen = MPI_Wtime();
   cv_comm_dead_notice(b, count);
   return 0;
 }
@@ -113,6 +121,43 @@ static int host_group_present(double limit_s) {
   return done;
 }
 
+/* Tells the master this rank leaves (a dead rank is known, so no
+ * MPI_Finalize): waited for 1 s at most. */
+static void say_bye(void) {
+  static const uint8_t bye = 'B'; /* MPI may still hold it after a time out */
+  MPI_Request rq;
+  if (MPI_Isend(&bye, 1, MPI_BYTE, 0, CV_TAG_BYE, MPI_COMM_WORLD, &rq) != MPI_SUCCESS) return;
+  int done = 0;
+  const double t0 = MPI_Wtime();
+  while (!done && MPI_Test(&rq, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && MPI_Wtime() - t0 < 1.0) {
+  }
+}
+
+void cv_comm_end_job(int code) {
+  if (g_rank != 0 || !g_end_dead) return;
+  /* the live ranks' byes, 10 s at most */
+  int byes = 0;
+  const double t0 = MPI_Wtime();
+  while (byes < g_end_expect && MPI_Wtime() - t0 < 10.0) {
+    int flag = 0;
+    MPI_Status st;
+    uint8_t b;
+    if (MPI_Iprobe(MPI_ANY_SOURCE, CV_TAG_BYE, MPI_COMM_WORLD, &flag, &st) != MPI_SUCCESS) break;
+    if (!flag) {
+      struct timespec ms = {0, 1000000};
+      nanosleep(&ms, NULL);
+      continue;
+    }
+    if (MPI_Recv(&b, 1, MPI_BYTE, st.MPI_SOURCE, CV_TAG_BYE, MPI_COMM_WORLD, MPI_STATUS_IGNORE) != MPI_SUCCESS) break;
+    byes++;
+  }
+  fprintf(stderr, "cave run: master: ending the job (MPI_Abort, status %d) with a dead rank: mpirun would "
+          "wait for it (a host it cannot reach); %d of %d live ranks had left\n", code, byes, g_end_expect);
+  fflush(stderr);
+  fflush(stdout);
+  MPI_Abort(MPI_COMM_WORLD, code);
+}
+
 void cv_comm_finalize(void) {
   cv_comm_flush(2.0);
   take_notices();
@@ -142,12 +187,19 @@ void cv_comm_finalize(void) {
   g_sends = NULL;
   g_nsends = g_capsends = 0;
   const int dead = cv_comm_dead_count() > 0 || host_gone;
+  g_end_dead = dead || g_lcd_abandoned;
+  g_end_expect = 0;
+  for (int r = 1; r < g_size; r++) g_end_expect += !g_dead[r];
+  const int master_live = !g_dead[0];
   free(g_dead);
   g_dead = NULL;
   /* With a dead rank MPI_Finalize (a collective of the runtime) may never
-   * return: leave without it (mpirun --enable-recovery then ends the job
-   * once every live rank has exited). */
-  if (dead || g_lcd_abandoned) return;
+   * return: leave without it.  The master ends the job (cv_comm_end_job)
+   * once the live ranks said they leave. */
+  if (dead || g_lcd_abandoned) {
+    if (g_rank != 0 && master_live) say_bye();
+    return;
+  }
   MPI_Finalize();
 }
 
@@ -302,8 +354,36 @@ static void release(pending_send *ps) {
   }
 }
 
+void cv_comm_set_master_timeout(double s) { g_master_timeout = s; }
+
+/* A non-master rank that has heard nothing from the master for
+ * g_master_timeout (from frame 1 on) takes the job as over: the master's host
+ * is unreachable (its link down) or the master stopped.  It leaves as a rank
+ * declared dead does (docs/dead-rank.md, "Several hosts"). */
+static void master_watch(void) {
+  if (g_rank == 0 || g_master_timeout <= 0 || g_master_states < 2 || g_self_dead) return;
+  const double silent = MPI_Wtime() - g_master_seen;
+  if (silent <= g_master_timeout) return;
+  /* this rank may only have been stopped itself: what the master sent
+   * meanwhile is queued (a receive already posted sees its message at its
+   * next take; the others wait unexpected) */
+  int queued = 0;
+  if (MPI_Iprobe(0, MPI_ANY_TAG, MPI_COMM_WORLD, &queued, MPI_STATUS_IGNORE) == MPI_SUCCESS && queued) {
+    g_master_seen = MPI_Wtime();
+    return;
+  }
+  char host[256];
+  cv_comm_host(host, sizeof host);
+  fprintf(stderr, "cave run: rank %d on %s: nothing from the master for %.1f s (2 x --gather-timeout): its "
+          "host unreachable or the master stopped; leaving\n", g_rank, host, silent);
+  g_self_dead = 1;
+  cv_comm_mark_dead(0);
+  if (g_stop_flag) *g_stop_flag = 1;
+}
+
 int cv_comm_progress(void) {
   probe_notices();
+  master_watch();
   size_t k = 0;
   for (size_t i = 0; i < g_nsends; i++) {
     int done = 0;
@@ -362,6 +442,10 @@ long cv_mailbox_take(cv_mailbox *m, const uint8_t **data, int *from) {
   MPI_Get_count(&st, MPI_BYTE, &count);
   if (data) *data = m->buf;
   if (from) *from = st.MPI_SOURCE;
+  if (st.MPI_SOURCE == 0 && g_rank != 0) {
+    g_master_seen = MPI_Wtime();
+    g_master_states += m->tag == CV_TAG_STATE;
+  }
   return count;
 }
 

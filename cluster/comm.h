@@ -41,13 +41,22 @@ enum {
   CV_TAG_PREVIEW = 14,  /* left-eye render rank -> master: 8-bit image of a desktop preview frame */
   CV_TAG_ALIVE = 15,    /* gather rank -> master: heartbeat (u32 count), every 0.25 s;
                            master -> all: 'D' + int32 rank: that rank is dead */
-  CV_TAG_LIGHT = 16     /* render rank -> master: its lighting step (cv_light_msg, lightshare.h) */
+  CV_TAG_LIGHT = 16,    /* render rank -> master: its lighting step (cv_light_msg, lightshare.h) */
+  CV_TAG_BYE = 17       /* rank -> master at its end when a rank is dead (no MPI_Finalize) */
 };
 
 /* MPI_Init_thread, and MPI_ERRORS_RETURN on MPI_COMM_WORLD: an error with a
  * dead peer returns (-1 from these calls) instead of ending the job. */
 int cv_comm_init(int *argc, char ***argv, int *rank, int *size);
 void cv_comm_finalize(void);
+/* The master, after cv_comm_finalize, when a rank was dead: waits (10 s at
+ * most) for every live rank's bye, then ends the job with MPI_Abort(code), so
+ * that mpirun does not wait for ranks on a host it cannot reach (a link
+ * down).  Returns when no rank was dead, or on other ranks. */
+void cv_comm_end_job(int code);
+/* A non-master rank leaves when it heard nothing from the master for s
+ * seconds from frame 1 on (0: never); run.c sets 2 x --gather-timeout. */
+void cv_comm_set_master_timeout(double s);
 double cv_comm_time(void);
 /* Ends the whole job now (MPI_Abort) after printing msg on stderr. */
 void cv_comm_abort(int code, const char *msg);

@@ -200,6 +200,7 @@ static int wait_ready(master *m, int setup_rc, const cv_err *setup_err, char *wh
       if (from > 0 && from < s->size && !lines[from]) {
         lines[from] = malloc((size_t)tl + 1);
         if (lines[from]) snprintf(lines[from], (size_t)tl + 1, "%.*s", tl, (const char *)data + 9);
+        master_health_host(m, from, lines[from]);
       }
       if (data[0] != 'O' && !fail) {
         fail = 1;

@@ -31,7 +31,8 @@ int master_health_setup(master *m) {
   m->alive_t = calloc((size_t)m->s->size, sizeof *m->alive_t);
   m->owed_t = calloc((size_t)m->s->size, sizeof *m->owed_t);
   m->dead = calloc((size_t)m->s->size, 1);
-  if (!m->alive_t || !m->owed_t || !m->dead) return -1;
+  m->rank_host = calloc((size_t)m->s->size, sizeof *m->rank_host);
+  if (!m->alive_t || !m->owed_t || !m->dead || !m->rank_host) return -1;
   if (m->s->n_gather > 0 && !(m->alive_mb = cv_mailbox_open(-1, CV_TAG_ALIVE, 16))) return -1;
   return 0;
 }
@@ -41,6 +42,18 @@ void master_health_free(master *m) {
   free(m->alive_t);
   free(m->owed_t);
   free(m->dead);
+  free(m->rank_host);
+}
+
+void master_health_host(master *m, int rank, const char *line) {
+  if (!m->rank_host || rank <= 0 || rank >= m->s->size || !line) return;
+  const char *on = strstr(line, " on "), *end = on ? strchr(on + 4, ':') : NULL;
+  if (!on || !end || end - on - 4 >= (long)sizeof m->rank_host[0]) return;
+  snprintf(m->rank_host[rank], sizeof m->rank_host[0], "%.*s", (int)(end - on - 4), on + 4);
+}
+
+static const char *host_of(const master *m, int rank) {
+  return m->rank_host && m->rank_host[rank][0] ? m->rank_host[rank] : "unknown";
 }
 
 void master_health_arm(master *m) {
@@ -71,9 +84,9 @@ void master_health_sent(master *m) {
  * point-to-point. */
 static void gather_dead(master *m, int r, double silent) {
   fprintf(stderr,
-          "cave run: master: rank %d (gather-only) silent for %.1f s: declared dead; "
+          "cave run: master: rank %d (gather-only) silent for %.1f s (host %s): declared dead; "
           "its LCD rounds go to the others\n",
-          r, silent);
+          r, silent, host_of(m, r));
   if (m->lcd_red && !m->lcd_red_abandoned) { /* the others learn it from the notice */
     cv_lcd_reduce_abandon(m->lcd_red);
     m->lcd_red_abandoned = 1;
@@ -115,7 +128,9 @@ static void walleye_dead(master *m, int r, double silent) {
   const cv_output *o = &m->s->cave.outputs[r - 1];
   m->stop_code = MASTER_STOP_DEAD;
   snprintf(m->stop_reason, sizeof m->stop_reason,
-           "rank %d (wall-eye of wall %d) silent for %.1f s: declared dead", r, o->wall, silent);
+           "rank %d (wall-eye of wall %d) silent for %.1f s (host %s, output %d: %s, %s): declared dead", r,
+           o->wall, silent, host_of(m, r), r - 1, m->s->cave.walls[o->wall].name,
+           o->eyes == 3 ? "both eyes" : o->eyes == 1 ? "left eye" : "right eye");
   fprintf(stderr, "cave run: stopping: %s\n", m->stop_reason);
 }
 

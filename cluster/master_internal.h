@@ -184,6 +184,7 @@ typedef struct master {
   double *alive_t;        /* per rank: when last heard of */
   double *owed_t;         /* per render rank: first state sent since its last report; 0 none */
   uint8_t *dead;          /* per rank: declared dead */
+  char (*rank_host)[64];  /* per rank: its host, from its ready line ("" unknown) */
   int ndead, health_armed, lcd_red_abandoned;
   uint64_t lcd_gather_p2p; /* gather ranks' rounds summed point-to-point */
   uint64_t lcd_shared, lcd_dup; /* a dead gather rank's rounds summed from others; rounds come again */
@@ -443,6 +444,9 @@ void master_health_free(master *m);
 /* Starts the watch (every rank counts as heard of now). */
 void master_health_arm(master *m);
 void master_health_seen(master *m, int rank);
+/* Keeps rank's host from its ready line ("rank K on HOST: ..."), for the
+ * messages naming a dead rank. */
+void master_health_host(master *m, int rank, const char *ready_line);
 /* A frame state went out: the wall-eyes owe a report. */
 void master_health_sent(master *m);
 /* Takes heartbeats; declares ranks silent for --gather-timeout dead. */

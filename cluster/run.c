@@ -876,6 +876,7 @@ int cmd_run(int argc, char **argv) {
     return 1;
   }
   cv_comm_set_stop_flag(&g_stop); /* a rank declared dead leaves (docs/dead-rank.md) */
+  cv_comm_set_master_timeout(2 * s.o.gather_timeout_s); /* the master's host gone */
   check_all(&s, s.size, desktop_view, &pb);
   if (!pb.n && mkdirs(s.o.out_dir)) problem(&pb, "-o: %s: cannot create: %s", s.o.out_dir, strerror(errno));
   if (pb.n) {
@@ -947,5 +948,6 @@ int cmd_run(int argc, char **argv) {
     remove(pf);
     rmdir(pd); /* the last rank out removes the folder (others' files: ENOTEMPTY) */
   }
+  if (s.rank == 0) cv_comm_end_job(rc);
   return rc;
 }

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli/cli.h"
+#include "cli/cluster_check.h"
 #include "core/outfile.h"
 #include "view/cave.h"
 #include "view/deploy.h"
@@ -14,7 +15,10 @@
 static void help(FILE *f) {
   fprintf(f,
           "usage: cave cluster rankfile|hostfile <cave.json> [--gather N | --farm HOSTFILE]\n"
-          "                    [--master-host H] [--cores C] [-o FILE]\n\n"
+          "                    [--master-host H] [--cores C] [-o FILE]\n"
+          "       cave cluster check <cave.json> [options]   the pre-flight on every host\n"
+          "                    (cave cluster check --help)\n"
+          "       cave cluster probe [options]   what this host offers (run by check)\n\n"
           "Maps the render service's ranks onto hosts for mpirun: rank 0 (the master) on\n"
           "--master-host (default: the first output's host, or localhost), rank 1 + i on the\n"
           "host of the CAVE config's outputs[i] (localhost when it names none), then the\n"
@@ -55,6 +59,8 @@ static int config_problems(const char *path, char *buf, int n, const cv_err *err
 }
 
 int cmd_cluster(int argc, char **argv) {
+  if (argc > 1 && !strcmp(argv[1], "check")) return cmd_cluster_check(argc, argv);
+  if (argc > 1 && !strcmp(argv[1], "probe")) return cmd_cluster_probe(argc, argv);
   const char *what = NULL, *cfg = NULL, *farm_path = NULL, *master = NULL, *out = NULL;
   int n_gather = 0, gather_given = 0, cores = 0;
   for (int i = 1; i < argc; i++) {
