@@ -15,13 +15,14 @@ DIR=${1:-$(cd "$(dirname "$0")/../../src/render" && pwd)}
 LAYERS=(
   "renderer.h shaders window"                          # 0 platform: public API types, GLSL, X11
   "egl_context desktop"                                # 1 platform: EGL context, preview window
-  "render_gl"                                          # 2 GL helpers and cvr_ctx (no feature)
-  "render_edges"                                       # 3 edge sets, normals (no GL, no feature)
-  "render_scene render_texture render_split render_post render_present" # 4 features on GL only
-  "render_casters render_relight"                      # 5 features on the scene (+ split lights)
-  "render_light"                                       # 6 lighting change, shadow map, background, panel
-  "render_passes render_share"                         # 7 frame passes; shared lighting
-  "renderer_internal.h renderer.c renderer_api"        # 8 top: create/destroy/upload, public entry points
+  "probe"                                              # 2 the pre-flight's GPU and display probe (on 1)
+  "render_gl"                                          # 3 GL helpers and cvr_ctx (no feature)
+  "render_edges"                                       # 4 edge sets, normals (no GL, no feature)
+  "render_scene render_texture render_split render_post render_present" # 5 features on GL only
+  "render_casters render_relight"                      # 6 features on the scene (+ split lights)
+  "render_light"                                       # 7 lighting change, shadow map, background, panel
+  "render_passes render_share"                         # 8 frame passes; shared lighting
+  "renderer_internal.h renderer.c renderer_api"        # 9 top: create/destroy/upload, public entry points
 )
 # A .c file's own header (default: the same name).
 declare -A OWN=([renderer.c]=renderer_internal.h [renderer_api.c]=renderer_internal.h)
