@@ -435,6 +435,8 @@ static int collect_reports(master *m, uint32_t f, double t_sent, cv_lumstats *ac
     master_health_poll(m);
     cv_comm_progress();
     if (ngot == s->n_walleyes || *s->stop || m->stop_code) break;
+    /* a stop that landed in the polls above moves the deadline too, before it is judged */
+    deadline += master_stall_check(m);
     if (cv_service_now() > deadline) break;
     if (!progressed) {
       struct timespec ts = {0, 200000};

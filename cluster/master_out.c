@@ -2,6 +2,7 @@
  * or not at all, failures said and stopping the run, the last line true. */
 #include <errno.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
@@ -138,9 +139,21 @@ void master_prt_check(master *m, int from, const uint8_t *data, long len) {
   if (len < 9 || data[0] != 'O') return; /* a failed set-up says why itself */
   memcpy(&h, data + 1, 8);
   if (!h || h == m->prt_hash) return;
-  size_t l = strlen(m->prt_bad);
   if (!m->prt_nbad++) m->prt_bad_hash = h;
-  snprintf(m->prt_bad + l, sizeof m->prt_bad - l, "%s%d", l ? ", " : "", from);
+  /* the list kept in rank order, whatever order the ready lines came in */
+  int ranks[256], n = 0;
+  for (const char *p = m->prt_bad; *p && n < 255;) {
+    char *end;
+    ranks[n++] = (int)strtol(p, &end, 10);
+    p = *end ? end + 2 : end;
+  }
+  int k = n++;
+  while (k > 0 && ranks[k - 1] > from) ranks[k] = ranks[k - 1], k--;
+  ranks[k] = from;
+  size_t l = 0;
+  m->prt_bad[0] = 0;
+  for (int i = 0; i < n && l < sizeof m->prt_bad; i++)
+    l += (size_t)snprintf(m->prt_bad + l, sizeof m->prt_bad - l, "%s%d", i ? ", " : "", ranks[i]);
 }
 
 int master_prt_mismatch(master *m, char *why, size_t cap) {
