@@ -97,7 +97,10 @@ if [ "$(id -u)" -eq 0 ]; then
   timeout 120 "${MPI[@]}" -np 11 "$CAVE" run "$CFG" "${COMMON[@]}" --size 64 -o full/run --frames 10 \
     --write-every 1 >full.out 2>full.err; rc=$?
   n=$(jsonl_ok full/run/metrics.jsonl 2>&1); tmp=$(find full -name '*.tmp*' | wc -l)
-  if [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q "stopping: .*No space left on device" full.err \
+  # the stop names the disk: in the master's line, or (when a wall-eye's failure stops the run
+  # first) as "N KB free on its disk" after the rank's own "No space left on device" line
+  if [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q "No space left on device" full.err \
+     && grep -Eq "stopping: (.*No space left on device|.*KB free on its disk)" full.err \
      && [[ "$n" =~ ^[01]$ ]] && [ "$tmp" -eq 0 ] \
      && { [ "$n" = 1 ] && [ "$(summary full/run/metrics.jsonl interrupted)" = True ] || grep -q "metrics INCOMPLETE" full.out; }; then
     ok "full disk: the run stops, '$(grep -m1 'stopping:' full.err)', metrics JSON lines ($n summary)"
